@@ -1,0 +1,54 @@
+"""`servoface bench [bus|face|gate|pipeline] [--json] [--quick]`: measured figures next to their limits."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+HELP = "run benchmarks and print figures (one JSON object per line with --json)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from controller.benchmarks import SUITES
+
+    parser.add_argument("suites", nargs="*", metavar="SUITE",
+                        help=f"which suites to run ({', '.join(SUITES)}); default all")
+    parser.add_argument("--json", action="store_true", help="one JSON object per figure per line")
+    parser.add_argument("--quick", action="store_true", help="fewer repetitions (smoke run)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from controller.benchmarks import SUITES
+    from controller.benchmarks.figure import machine_description
+
+    names = args.suites or list(SUITES)
+    unknown = [n for n in names if n not in SUITES]
+    if unknown:
+        print(f"servoface bench: unknown suite(s) {unknown}; expected some of {list(SUITES)}", file=sys.stderr)
+        return 2
+    if not args.json:
+        print(f"# machine: {machine_description()}")
+    status = 0
+    for name in names:
+        try:
+            module = importlib.import_module(SUITES[name])
+        except ModuleNotFoundError as err:
+            if err.name != SUITES[name]:
+                raise
+            print(f"servoface bench: suite '{name}' is not built yet", file=sys.stderr)
+            status = 1
+            continue
+        for figure in module.run(quick=args.quick):
+            if args.json:
+                print(figure.to_json(), flush=True)
+            else:
+                d = figure.as_dict()
+                extra = ""
+                if "limit" in d:
+                    extra = f"  (limit {d['limit']:g}, ratio {d.get('ratio', float('nan')):.3f}"
+                    extra += f", goal {d['goal']:g})" if "goal" in d else ")"
+                elif "goal" in d:
+                    extra = f"  (goal {d['goal']:g})"
+                print(f"{name:9s} {figure.name:48s} {figure.value:12.4g} {figure.unit:10s}{extra}", flush=True)
+    return status

@@ -1,0 +1,13 @@
+"""Errors of the controller package."""
+
+
+class ControllerError(Exception):
+    """Base of every error raised by servoface's controller package."""
+
+
+class FrameError(ControllerError):
+    """An AU frame is invalid: non-finite or out-of-range intensity, unknown AU name, bad time."""
+
+
+class ScriptError(ControllerError):
+    """A timeline script is malformed; the message names the file, key path and what was expected."""

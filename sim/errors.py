@@ -1,0 +1,21 @@
+"""Errors of the sim package."""
+
+
+class SimError(Exception):
+    """Base of every error raised by servoface's sim package."""
+
+
+class HeadProfileError(SimError):
+    """A head profile (TOML, meshes) is invalid; the message carries the file and key path."""
+
+
+class UnknownActionUnitError(SimError):
+    """An AU name is not in the head's AU table."""
+
+
+class ExpressionError(SimError):
+    """An expression file or name is invalid or unknown."""
+
+
+class RenderError(SimError):
+    """Headless rendering is unavailable or failed (EGL missing, context creation failed)."""

@@ -1,0 +1,81 @@
+"""The import rules of STYLE.md, enforced on the source tree (AST, no imports executed)."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+OURS = {"controller", "sim", "hardware", "calibration"}
+ALLOWED: dict[str, set[str]] = {
+    "hardware": set(),
+    "calibration": set(),
+    "sim": {"calibration"},
+    "controller": {"sim", "hardware", "calibration"},
+}
+
+
+def _imports(path: Path) -> list[tuple[int, str]]:
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    found: list[tuple[int, str]] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found += [(node.lineno, alias.name) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            found.append((node.lineno, node.module))
+    return found
+
+
+def _sources(package: str) -> list[Path]:
+    return sorted((ROOT / package).rglob("*.py"))
+
+
+@pytest.mark.parametrize("package", sorted(ALLOWED))
+def test_packages_import_only_what_they_may(package: str) -> None:
+    bad = []
+    for path in _sources(package):
+        for lineno, name in _imports(path):
+            top = name.split(".")[0]
+            if top in OURS and top != package and top not in ALLOWED[package]:
+                bad.append(f"{path.relative_to(ROOT)}:{lineno} imports {name}")
+    assert not bad, "forbidden imports:\n" + "\n".join(bad)
+
+
+def test_only_the_dynamixel_bus_imports_the_sdk() -> None:
+    users = [
+        str(path.relative_to(ROOT))
+        for package in OURS
+        for path in _sources(package)
+        if any(name.split(".")[0] == "dynamixel_sdk" for _, name in _imports(path))
+    ]
+    assert len(users) <= 1, f"only one module may import dynamixel_sdk, found {users}"
+    assert all(u.startswith("hardware/") and "emulator" not in u for u in users), users
+
+
+def test_emulator_is_independent_of_the_driver() -> None:
+    bad = []
+    for path in _sources("hardware/emulator"):
+        for lineno, name in _imports(path):
+            if name.startswith("hardware") and not name.startswith("hardware.emulator"):
+                bad.append(f"{path.relative_to(ROOT)}:{lineno} imports {name}")
+            if name.split(".")[0] in {"dynamixel_sdk", "serial"} and "pty" not in path.name:
+                bad.append(f"{path.relative_to(ROOT)}:{lineno} imports {name}")
+    assert not bad, "the emulator must not import the driver side:\n" + "\n".join(bad)
+
+
+def test_print_only_in_the_cli() -> None:
+    bad = []
+    for package in OURS:
+        for path in _sources(package):
+            if path.is_relative_to(ROOT / "controller" / "cli"):
+                continue
+            tree = ast.parse(path.read_text(encoding="utf-8"))
+            for node in ast.walk(tree):
+                if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in {
+                    "print",
+                    "input",
+                }:
+                    bad.append(f"{path.relative_to(ROOT)}:{node.lineno} calls {node.func.id}")
+    assert not bad, "print/input belong in controller/cli only:\n" + "\n".join(bad)
