@@ -1,0 +1,366 @@
+"""``ServoChain``: the servos on one bus, the chain clock, wire timing, the packet log and fault injection.
+
+Wire time: an instruction of L bytes written at baud B reaches the servos L·10/B after the line is free;
+each status packet starts after that servo's Return Delay Time (and after the previous reply on the line)
+and its bytes become readable one by one at the servo's byte time. ``wire_time=False`` makes replies
+readable at once (fast unit tests).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import deque
+from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING, NamedTuple
+
+from hardware.emulator.clock import ManualClock, RealClock
+from hardware.emulator.errors import EmulatorConfigError
+from hardware.emulator.faults import FaultSchedule
+from hardware.emulator.instructions import dispatch
+from hardware.emulator.models import ModelSpec, baud_code_for, get_model
+from hardware.emulator.packet import MAX_ID, Instruction, Packet, PacketReceiver
+from hardware.emulator.servo import EmulatedServo
+
+if TYPE_CHECKING:
+    from hardware.emulator.serial_port import EmulatedSerial
+
+REBOOT_SILENCE_S = 0.1  # a rebooting servo hears nothing for this long
+GOAL_ADDRESS = 116
+_WRITES = (Instruction.WRITE, Instruction.REG_WRITE)
+
+
+class LogEntry(NamedTuple):
+    """One decoded instruction packet the chain received (CRC valid), at its arrival time."""
+
+    t_s: float
+    id: int
+    instruction: int
+    params: bytes
+
+
+class ServoChain:
+    """A chain of emulated servos on one bus. Create with :meth:`create`; see the package docstring."""
+
+    def __init__(
+        self,
+        specs: Iterable[tuple[int, ModelSpec]],
+        *,
+        baud: int = 1_000_000,
+        wire_time: bool = True,
+        clock: Callable[[], float] | str | None = None,
+        log_limit: int | None = 1_000_000,
+    ) -> None:
+        if clock is None or clock == "real":
+            self._clock: Callable[[], float] = RealClock()
+        elif clock == "manual":
+            self._clock = ManualClock()
+        elif callable(clock):
+            self._clock = clock
+        else:
+            raise EmulatorConfigError(f"clock {clock!r}: expected None/'real', 'manual' or a callable returning seconds")
+        self.lock = threading.RLock()
+        self.wire_time = bool(wire_time)
+        self.baud = int(baud)
+        self.reboot_silence_s = REBOOT_SILENCE_S
+        self.log: deque[LogEntry] = deque(maxlen=log_limit)
+        self.faults = FaultSchedule(self._clock, lambda: {s.uid for s in self.servos})
+        self.servos: list[EmulatedServo] = []
+        seen: set[int] = set()
+        for sid, spec in specs:
+            if not 0 <= sid <= MAX_ID:
+                raise EmulatorConfigError(f"servo id {sid}: expected 0..{MAX_ID}")
+            if sid in seen:
+                raise EmulatorConfigError(f"servo id {sid} appears twice in the chain description")
+            seen.add(sid)
+            code = baud_code_for(self.baud, spec)
+            self.servos.append(EmulatedServo(sid, spec, baud_code=code, clock=self._clock, faults=self.faults))
+        self._by_id: dict[int, list[EmulatedServo]] = {}
+        self._reindex()
+        self._receiver = PacketReceiver()
+        self._tx_free_s = 0.0  # host -> servos line busy until
+        self._rx_free_s = 0.0  # servos -> host line busy until
+        # pending reply bytes: [data, start_s, byte_s, bytes already read]
+        self._rx: deque[list] = deque()  # type: ignore[type-arg]
+        self._pty: object | None = None
+        self._closed = False
+
+    @classmethod
+    def create(
+        cls,
+        ids: Iterable[int] | Iterable[tuple[int, str | ModelSpec]] = range(1, 25),
+        model: str | ModelSpec = "XL330-M288",
+        baud: int = 1_000_000,
+        wire_time: bool = True,
+        clock: Callable[[], float] | str | None = None,
+        **options: int | None,
+    ) -> ServoChain:
+        """A chain of servos: ``ids`` are ints (all of ``model``) or ``(id, model)`` pairs."""
+        specs: list[tuple[int, ModelSpec]] = []
+        for item in ids:
+            if isinstance(item, tuple):
+                sid, m = item
+                specs.append((int(sid), get_model(m)))
+            else:
+                specs.append((int(item), get_model(model)))
+        return cls(specs, baud=baud, wire_time=wire_time, clock=clock, **options)  # type: ignore[arg-type]
+
+    # ----------------------------------------------------------------- clock and servos
+    @property
+    def time_s(self) -> float:
+        return self._clock()
+
+    @property
+    def clock(self) -> Callable[[], float]:
+        return self._clock
+
+    def advance(self, dt_s: float) -> None:
+        """Move a manual clock forward by ``dt_s`` and bring every servo's physics up to it."""
+        advance = getattr(self._clock, "advance", None)
+        if advance is None:
+            raise EmulatorConfigError("chain.advance() needs a manual clock: create the chain with clock='manual'")
+        with self.lock:
+            advance(dt_s)
+            for servo in self.servos:
+                servo.advance()
+
+    def servo(self, servo_id: int) -> EmulatedServo:
+        """The servo created with id ``servo_id`` (its id register may have changed since)."""
+        for s in self.servos:
+            if s.uid == servo_id:
+                return s
+        raise EmulatorConfigError(f"no servo {servo_id} in the chain: have {[s.uid for s in self.servos]}")
+
+    @property
+    def ids(self) -> list[int]:
+        return [s.uid for s in self.servos]
+
+    def set_obstacle(self, servo_id: int, at_tick: float | None) -> None:
+        """A rigid stop at Present Position ``at_tick`` for ``servo_id`` (None removes it)."""
+        with self.lock:
+            self.servo(servo_id).set_obstacle(at_tick)
+
+    def set_input_voltage(self, servo_id: int | None, volts: float) -> None:
+        """Supply voltage of one servo (or of all with ``servo_id=None``)."""
+        with self.lock:
+            for s in self.servos if servo_id is None else [self.servo(servo_id)]:
+                s.set_input_voltage(volts)
+
+    def _reindex(self) -> None:
+        by_id: dict[int, list[EmulatedServo]] = {}
+        for s in self.servos:
+            by_id.setdefault(s.id, []).append(s)
+        self._by_id = by_id
+
+    # ----------------------------------------------------------------- the wire
+    def host_write(self, data: bytes | bytearray, host_baud: int) -> int:
+        """Bytes from the host onto the bus at ``host_baud``; processes complete packets. Returns len(data)."""
+        with self.lock:
+            now = self._clock()
+            n = len(data)
+            byte_s = 10.0 / host_baud if self.wire_time and host_baud > 0 else 0.0
+            t_rx = max(now, self._tx_free_s) + n * byte_s
+            self._tx_free_s = t_rx
+            for packet in self._receiver.feed(data):
+                self._handle(packet, t_rx, host_baud)
+            return n
+
+    def _listeners(self, t_s: float, host_baud: int) -> list[EmulatedServo]:
+        out = []
+        faults = self.faults
+        for s in self.servos:
+            if s.baud_bps != host_baud or t_s < s.silent_until_s:
+                continue
+            if faults.has_any(s.uid):
+                s.advance(t_s)
+                if not s.powered or faults.active(s.uid, "disconnect", t_s):
+                    continue
+            out.append(s)
+        return out
+
+    def _handle(self, packet: Packet, t_rx: float, host_baud: int) -> None:
+        if packet.crc_ok:
+            self.log.append(LogEntry(t_rx, packet.id, packet.instruction, packet.params))
+        listeners = self._listeners(t_rx, host_baud)
+        if not listeners:
+            return
+        by_id = self._by_id if len(listeners) == len(self.servos) else _index(listeners)
+        outcome = dispatch(packet, listeners, by_id, t_rx)
+        if outcome.replies:
+            self._schedule(outcome.replies, t_rx, host_baud)
+        for servo in outcome.reboot:
+            servo.reboot(self.reboot_silence_s)
+            servo.silent_until_s = t_rx + self.reboot_silence_s
+        for servo, option in outcome.reset:
+            servo.factory_reset(option)
+        if outcome.ids_changed or outcome.reset:
+            self._reindex()
+
+    def _schedule(self, replies: list, t_rx: float, host_baud: int) -> None:  # type: ignore[type-arg]
+        wire = self.wire_time
+        byte_s = 10.0 / host_baud if wire and host_baud > 0 else 0.0
+        line = max(self._rx_free_s, t_rx)
+        faults = self.faults
+        for reply in replies:
+            servo = reply.servo
+            data = reply.data
+            delay = servo.return_delay_s if wire and not reply.continues else 0.0
+            if faults.has_any(servo.uid):
+                rf = faults.reply_faults(servo.uid, t_rx)
+                if rf.silent:
+                    continue
+                data = rf.apply(data)
+                delay += rf.extra_delay_s
+            start = line + delay
+            self._rx.append([data, start, byte_s, 0])
+            line = start + len(data) * byte_s
+        self._rx_free_s = line
+
+    def host_in_waiting(self) -> int:
+        """How many reply bytes have arrived and not been read."""
+        with self.lock:
+            now = self._clock()
+            total = 0
+            for data, start, byte_s, done in self._rx:
+                arrived = _arrived(len(data), start, byte_s, now)
+                total += arrived - done
+                if arrived < len(data):
+                    break
+            return total
+
+    def host_read(self, size: int) -> bytes:
+        """Up to ``size`` reply bytes that have arrived (never blocks)."""
+        with self.lock:
+            rx = self._rx
+            if not rx or size <= 0:
+                return b""
+            now = self._clock()
+            out = b""
+            while rx and size > 0:
+                seg = rx[0]
+                data, start, byte_s, done = seg
+                arrived = _arrived(len(data), start, byte_s, now)
+                take = min(arrived - done, size)
+                if take <= 0:
+                    break
+                out += data[done : done + take]
+                size -= take
+                done += take
+                if done == len(data):
+                    rx.popleft()
+                else:
+                    seg[3] = done
+                    break
+            return out
+
+    def host_reset_input(self) -> None:
+        """Drop reply bytes that have arrived (bytes still on the wire arrive later, as on a real UART)."""
+        with self.lock:
+            now = self._clock()
+            rx = self._rx
+            while rx:
+                seg = rx[0]
+                arrived = _arrived(len(seg[0]), seg[1], seg[2], now)
+                if arrived == len(seg[0]):
+                    rx.popleft()
+                else:
+                    seg[3] = max(seg[3], arrived)
+                    break
+
+    def next_reply_time_s(self) -> float | None:
+        """When the next unread reply byte arrives (None if nothing is pending)."""
+        with self.lock:
+            if not self._rx:
+                return None
+            data, start, byte_s, done = self._rx[0]
+            return start + (done + 1) * byte_s
+
+    # ----------------------------------------------------------------- transports
+    def open_serial(self, port: str = "emulated://servo-chain") -> EmulatedSerial:
+        """An in-process endpoint with the pyserial subset dynamixel_sdk's PortHandler uses."""
+        from hardware.emulator.serial_port import EmulatedSerial
+
+        return EmulatedSerial(self, port=port)
+
+    def serve_pty(self) -> str:
+        """Serve the chain on a pseudo-terminal from a background thread; returns the slave device path."""
+        from hardware.emulator.pty_transport import PtyServer
+
+        with self.lock:
+            if self._pty is None:
+                server = PtyServer(self)
+                server.start()
+                self._pty = server
+            return self._pty.path  # type: ignore[attr-defined,no-any-return]
+
+    def close(self) -> None:
+        """Stop the pty thread (if any). The in-process endpoints stop working."""
+        server = self._pty
+        self._pty = None
+        if server is not None:
+            server.stop()  # type: ignore[attr-defined]
+        self._closed = True
+
+    def __enter__(self) -> ServoChain:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ----------------------------------------------------------------- log helpers
+    def instructions(self, instruction: int | None = None) -> list[LogEntry]:
+        """Logged packets, optionally only those of one instruction code."""
+        return [e for e in list(self.log) if instruction is None or e.instruction == instruction]
+
+    def register_writes(self, address: int, size: int, *, signed: bool = True) -> list[tuple[float, int, int]]:
+        """(t_s, servo_id, value) for every write of the whole register at ``address`` (Write, Reg Write,
+        Sync Write, Bulk Write), decoded from the log. Broadcast Write is reported with id 254."""
+        out: list[tuple[float, int, int]] = []
+        end = address + size
+
+        def value(chunk: bytes) -> int:
+            return int.from_bytes(chunk, "little", signed=signed)
+
+        for t, pid, inst, p in list(self.log):
+            if inst in _WRITES and len(p) > 2:
+                start = p[0] | p[1] << 8
+                if start <= address and start + len(p) - 2 >= end:
+                    out.append((t, pid, value(p[2 + address - start : 2 + end - start])))
+            elif inst == Instruction.SYNC_WRITE and len(p) >= 4:
+                start = p[0] | p[1] << 8
+                length = p[2] | p[3] << 8
+                if start <= address and start + length >= end and length:
+                    off = 4
+                    while off + 1 + length <= len(p):
+                        out.append((t, p[off], value(p[off + 1 + address - start : off + 1 + end - start])))
+                        off += 1 + length
+            elif inst == Instruction.BULK_WRITE:
+                off = 0
+                while off + 5 <= len(p):
+                    sid = p[off]
+                    start = p[off + 1] | p[off + 2] << 8
+                    length = p[off + 3] | p[off + 4] << 8
+                    data = p[off + 5 : off + 5 + length]
+                    if start <= address and start + length >= end and len(data) == length:
+                        out.append((t, sid, value(data[address - start : end - start])))
+                    off += 5 + length
+        return out
+
+    def goal_writes(self) -> list[tuple[float, int, int]]:
+        """(t_s, servo_id, goal_tick) for every Goal Position (116, 4 bytes) sent on the wire."""
+        return self.register_writes(GOAL_ADDRESS, 4)
+
+
+def _arrived(n: int, start: float, byte_s: float, now: float) -> int:
+    if byte_s <= 0.0:
+        return n if now >= start else 0
+    if now < start:
+        return 0
+    k = int((now - start) / byte_s + 1e-9)
+    return n if k > n else k
+
+
+def _index(servos: list[EmulatedServo]) -> dict[int, list[EmulatedServo]]:
+    by_id: dict[int, list[EmulatedServo]] = {}
+    for s in servos:
+        by_id.setdefault(s.id, []).append(s)
+    return by_id

@@ -1,0 +1,354 @@
+"""What the servos on the bus do with one received instruction packet, and who answers (in what order).
+
+Answer rules: Ping is always answered; reads need Status Return Level >= 1, everything else level 2;
+broadcast Read/Write/Reg Write/Action/Reboot are never answered; absent ids are silent; Sync/Bulk Read
+replies come in parameter order. The error byte carries the Alert bit (0x80) while Hardware Error Status
+is non-zero.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from hardware.emulator.crc import crc16
+from hardware.emulator.packet import (
+    ALERT_BIT,
+    BROADCAST_ID,
+    HEADER,
+    ErrorNumber,
+    Instruction,
+    Packet,
+    build_status,
+    stuff,
+)
+from hardware.emulator.servo import EmulatedServo
+
+CLEAR_MULTI_TURN = b"\x01\x44\x58\x4c\x22"
+LEVEL_PING_ONLY, LEVEL_READ = 0, 1
+READS = (Instruction.READ, Instruction.SYNC_READ, Instruction.BULK_READ,
+         Instruction.FAST_SYNC_READ, Instruction.FAST_BULK_READ)
+
+
+@dataclass(slots=True)
+class Reply:
+    """Bytes one servo puts on the wire. ``continues`` marks a block of a fast-read packet that follows the
+    previous block without its own Return Delay Time."""
+
+    servo: EmulatedServo
+    data: bytes
+    continues: bool = False
+
+
+@dataclass(slots=True)
+class Outcome:
+    """Replies in wire order plus deferred actions (applied after the replies are built)."""
+
+    replies: list[Reply]
+    reboot: list[EmulatedServo]
+    reset: list[tuple[EmulatedServo, int]]
+    ids_changed: bool = False
+
+
+def _err(servo: EmulatedServo, number: int) -> int:
+    return number | (ALERT_BIT if servo.hardware_error else 0)
+
+
+def _answers(servo: EmulatedServo, instruction: int) -> bool:
+    level = servo.status_return_level
+    if instruction == Instruction.PING:
+        return True
+    if instruction in READS:
+        return level >= LEVEL_READ
+    return level >= 2
+
+
+def dispatch(packet: Packet, listeners: Sequence[EmulatedServo], by_id: dict[int, list[EmulatedServo]],
+             t_s: float) -> Outcome:
+    """Run ``packet`` on the servos that heard it (``listeners``; ``by_id`` indexes them by id)."""
+    out = Outcome([], [], [])
+    for servo in listeners:
+        servo.advance(t_s)
+        servo.heard(t_s)
+    inst = packet.instruction
+    pid = packet.id
+    params = packet.params
+    targets = by_id.get(pid, []) if pid != BROADCAST_ID else []
+    if not packet.crc_ok:
+        for servo in targets:
+            if _answers(servo, inst):
+                out.replies.append(Reply(servo, build_status(servo.id, _err(servo, ErrorNumber.CRC))))
+        return out
+    handler = _HANDLERS.get(inst)
+    if handler is None:
+        for servo in targets:
+            if _answers(servo, inst):
+                out.replies.append(Reply(servo, build_status(servo.id, _err(servo, ErrorNumber.INSTRUCTION))))
+        return out
+    handler(out, pid, params, listeners, by_id, targets)
+    return out
+
+
+def _status(out: Outcome, servo: EmulatedServo, inst: int, number: int, data: bytes = b"", sid: int | None = None) -> None:
+    if _answers(servo, inst):
+        out.replies.append(Reply(servo, build_status(servo.id if sid is None else sid, _err(servo, number), data)))
+
+
+def _ping(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
+          by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+    servos = sorted(listeners, key=lambda s: s.id) if pid == BROADCAST_ID else targets
+    for servo in servos:
+        info = servo.mem[0:2] + servo.mem[6:7]
+        _status(out, servo, Instruction.PING, 0, bytes(info))
+
+
+def _read(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
+          by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+    for servo in targets:
+        if len(params) != 4:
+            _status(out, servo, Instruction.READ, ErrorNumber.DATA_LENGTH)
+            continue
+        addr = params[0] | params[1] << 8
+        length = params[2] | params[3] << 8
+        err, data = servo.read_bytes(addr, length)
+        _status(out, servo, Instruction.READ, err, data)
+
+
+def _write(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
+           by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+    servos = listeners if pid == BROADCAST_ID else targets
+    for servo in servos:
+        old_id = servo.id
+        if len(params) < 3:
+            err = int(ErrorNumber.DATA_LENGTH)
+        else:
+            addr = params[0] | params[1] << 8
+            err = servo.wire_write(addr, params[2:])
+            if addr <= 8 < addr + len(params) - 2 or addr <= 7 < addr + len(params) - 2:
+                out.ids_changed = True
+        if pid != BROADCAST_ID:
+            _status(out, servo, Instruction.WRITE, err, sid=old_id)
+
+
+def _reg_write(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
+               by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+    servos = listeners if pid == BROADCAST_ID else targets
+    for servo in servos:
+        if len(params) < 3:
+            err = int(ErrorNumber.DATA_LENGTH)
+        else:
+            addr = params[0] | params[1] << 8
+            err = servo.check_write(addr, params[2:])
+            if not err:
+                servo.registered = (addr, bytes(params[2:]))
+                servo.mem[69] = 1
+        if pid != BROADCAST_ID:
+            _status(out, servo, Instruction.REG_WRITE, err)
+
+
+def _action(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
+            by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+    servos = listeners if pid == BROADCAST_ID else targets
+    for servo in servos:
+        pending = servo.registered
+        if pending is None:
+            err = int(ErrorNumber.INSTRUCTION)
+        else:
+            servo.registered = None
+            servo.mem[69] = 0
+            err = servo.wire_write(*pending)
+            if pending[0] <= 8 and pending[0] + len(pending[1]) > 7:
+                out.ids_changed = True
+        if pid != BROADCAST_ID:
+            _status(out, servo, Instruction.ACTION, err)
+
+
+def _factory_reset(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
+                   by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+    option = params[0] if len(params) == 1 else -1
+    if pid == BROADCAST_ID:
+        if option in (0x01, 0x02):  # broadcast 0xFF is ignored (X / MX(2.0) firmware >= 42)
+            out.reset.extend((s, option) for s in listeners)
+            out.ids_changed = True
+        return
+    for servo in targets:
+        if option not in (0xFF, 0x01, 0x02):
+            _status(out, servo, Instruction.FACTORY_RESET, ErrorNumber.DATA_RANGE)
+            continue
+        _status(out, servo, Instruction.FACTORY_RESET, 0)
+        out.reset.append((servo, option))
+        out.ids_changed = True
+
+
+def _reboot(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
+            by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+    servos = listeners if pid == BROADCAST_ID else targets
+    for servo in servos:
+        if pid != BROADCAST_ID:
+            _status(out, servo, Instruction.REBOOT, 0)
+        out.reboot.append(servo)
+
+
+def _clear(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
+           by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+    servos = listeners if pid == BROADCAST_ID else targets
+    for servo in servos:
+        if bytes(params) != CLEAR_MULTI_TURN:
+            err = int(ErrorNumber.DATA_RANGE)
+        elif servo.motor.vel != 0.0:
+            err = int(ErrorNumber.RESULT_FAIL)
+        else:
+            err = 0
+            servo.clear_multi_turn()
+        if pid != BROADCAST_ID:
+            _status(out, servo, Instruction.CLEAR, err)
+
+
+def _backup(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
+            by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+    for servo in targets:
+        _status(out, servo, Instruction.CONTROL_TABLE_BACKUP, 0)
+
+
+def _first(by_id: dict[int, list[EmulatedServo]], sid: int) -> list[EmulatedServo]:
+    return by_id.get(sid, [])
+
+
+def _sync_read(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
+               by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+    if pid != BROADCAST_ID or len(params) < 5:
+        return
+    addr = params[0] | params[1] << 8
+    length = params[2] | params[3] << 8
+    for sid in params[4:]:
+        for servo in _first(by_id, sid):
+            err, data = servo.read_bytes(addr, length)
+            _status(out, servo, Instruction.SYNC_READ, err, data)
+
+
+def _bulk_read(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
+               by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+    if pid != BROADCAST_ID or len(params) % 5:
+        return
+    for i in range(0, len(params), 5):
+        sid = params[i]
+        addr = params[i + 1] | params[i + 2] << 8
+        length = params[i + 3] | params[i + 4] << 8
+        for servo in _first(by_id, sid):
+            err, data = servo.read_bytes(addr, length)
+            _status(out, servo, Instruction.BULK_READ, err, data)
+
+
+def _fast_read(out: Outcome, requests: list[tuple[int, int, int]], by_id: dict[int, list[EmulatedServo]],
+               inst: int) -> None:
+    """One combined packet: ``FF FF FD 00 FE LEN 55`` then per device ``ERR ID data CRC``; each block's CRC is
+    the running CRC of the packet so far, so the last one is the packet CRC (reference sheet §5)."""
+    blocks: list[tuple[EmulatedServo, bytes]] = []
+    for sid, addr, length in requests:
+        servos = _first(by_id, sid)
+        if not servos:
+            blocks.append((None, bytes(length + 2)))  # type: ignore[arg-type]
+            continue
+        servo = servos[0]
+        err, data = servo.read_bytes(addr, length)
+        if len(data) < length:
+            data = data + bytes(length - len(data))
+        blocks.append((servo, bytes((_err(servo, err), servo.id)) + data))
+    if not blocks or blocks[0][0] is None or not _answers(blocks[0][0], inst):
+        return
+    length_field = 1 + sum(len(b) + 2 for _, b in blocks)
+    head = HEADER + bytes((BROADCAST_ID, length_field & 0xFF, length_field >> 8, 0x55))
+    parts: list[tuple[EmulatedServo | None, bytes]] = []
+    crc = crc16(head)
+    for servo, block in blocks:
+        crc = crc16(block, crc)
+        part = block + bytes((crc & 0xFF, crc >> 8))
+        crc = crc16(part[-2:], crc)
+        parts.append((servo, part))
+    logical = b"".join(p for _, p in parts)
+    if b"\xff\xff\xfd" in bytes((0x55,)) + logical[:-2]:
+        # rare: the body needs byte stuffing; send it as one stuffed packet (the SDK does not unstuff it)
+        body = stuff(bytes((0x55,)) + logical[:-2])
+        packet = HEADER + bytes((BROADCAST_ID, (len(body) + 2) & 0xFF, (len(body) + 2) >> 8)) + body
+        crc = crc16(packet)
+        out.replies.append(Reply(blocks[0][0], packet + bytes((crc & 0xFF, crc >> 8))))
+        return
+    first = True
+    for servo, part in parts:
+        if servo is None:
+            continue  # absent: its bytes never appear, the host sees a short, corrupt packet
+        out.replies.append(Reply(servo, (head + part) if first else part, continues=not first))
+        first = False
+
+
+def _fast_sync_read(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
+                    by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+    if pid != BROADCAST_ID or len(params) < 5:
+        return
+    addr = params[0] | params[1] << 8
+    length = params[2] | params[3] << 8
+    _fast_read(out, [(sid, addr, length) for sid in params[4:]], by_id, Instruction.FAST_SYNC_READ)
+
+
+def _fast_bulk_read(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
+                    by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+    if pid != BROADCAST_ID or len(params) % 5 or not params:
+        return
+    req = [(params[i], params[i + 1] | params[i + 2] << 8, params[i + 3] | params[i + 4] << 8)
+           for i in range(0, len(params), 5)]
+    _fast_read(out, req, by_id, Instruction.FAST_BULK_READ)
+
+
+def _sync_write(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
+                by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+    if pid != BROADCAST_ID or len(params) < 4:
+        return
+    addr = params[0] | params[1] << 8
+    length = params[2] | params[3] << 8
+    stride = length + 1
+    if length == 0 or (len(params) - 4) % stride:
+        return
+    for i in range(4, len(params), stride):
+        for servo in _first(by_id, params[i]):
+            servo.wire_write(addr, params[i + 1 : i + stride])
+            if addr <= 8 and addr + length > 7:
+                out.ids_changed = True
+
+
+def _bulk_write(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
+                by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+    if pid != BROADCAST_ID:
+        return
+    i = 0
+    n = len(params)
+    while i + 5 <= n:
+        sid = params[i]
+        addr = params[i + 1] | params[i + 2] << 8
+        length = params[i + 3] | params[i + 4] << 8
+        data = params[i + 5 : i + 5 + length]
+        i += 5 + length
+        if len(data) != length:
+            return
+        for servo in _first(by_id, sid):
+            servo.wire_write(addr, data)
+            if addr <= 8 and addr + length > 7:
+                out.ids_changed = True
+
+
+_HANDLERS = {
+    Instruction.PING: _ping,
+    Instruction.READ: _read,
+    Instruction.WRITE: _write,
+    Instruction.REG_WRITE: _reg_write,
+    Instruction.ACTION: _action,
+    Instruction.FACTORY_RESET: _factory_reset,
+    Instruction.REBOOT: _reboot,
+    Instruction.CLEAR: _clear,
+    Instruction.CONTROL_TABLE_BACKUP: _backup,
+    Instruction.SYNC_READ: _sync_read,
+    Instruction.SYNC_WRITE: _sync_write,
+    Instruction.FAST_SYNC_READ: _fast_sync_read,
+    Instruction.BULK_READ: _bulk_read,
+    Instruction.BULK_WRITE: _bulk_write,
+    Instruction.FAST_BULK_READ: _fast_bulk_read,
+}
