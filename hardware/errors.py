@@ -6,7 +6,11 @@ class HardwareError(Exception):
 
 
 class BusError(HardwareError):
-    """Communication on the bus failed (port, packet, reply)."""
+    """Communication on the bus failed (port, packet, reply). ``servo_ids``: the ids the transaction addressed."""
+
+    def __init__(self, what: str = "", servo_ids: tuple[int, ...] = ()) -> None:
+        self.servo_ids = tuple(servo_ids)
+        super().__init__(what)
 
 
 class BusTimeoutError(BusError):
@@ -23,3 +27,55 @@ class ServoFault(HardwareError):
 
 class HardwareConfigError(HardwareError):
     """A servo description or register value is invalid (names the field and what was expected)."""
+
+
+class BusClosedError(BusError):
+    """The bus was used before `open()` or after `close()`."""
+
+
+class BusDisconnectedError(BusError):
+    """The port itself failed (USB adapter unplugged, pty closed): nothing can be sent until it reopens."""
+
+
+class ServoStatusError(BusError):
+    """A servo answered with a non-zero error number in its status packet (names the servo and the error)."""
+
+    def __init__(self, servo_id: int, error_byte: int, what: str) -> None:
+        self.servo_id = servo_id
+        self.error_byte = error_byte
+        self.error_number = error_byte & 0x7F
+        self.alert = bool(error_byte & 0x80)
+        super().__init__(what, (servo_id,))
+
+
+class ServoDescriptionError(HardwareConfigError):
+    """A servo description is invalid: names the servo id (and role) and the field."""
+
+    def __init__(self, servo_id: int | None, field: str, what: str) -> None:
+        self.servo_id = servo_id
+        self.field = field
+        super().__init__(what)
+
+
+class ServoConfigMismatch(HardwareConfigError):
+    """A register read back after configuration differs from what was written."""
+
+    def __init__(self, servo_id: int, field: str, expected: int, actual: int) -> None:
+        self.servo_id = servo_id
+        self.field = field
+        self.expected = expected
+        self.actual = actual
+        super().__init__(f"servo {servo_id}: {field} reads back {actual}, expected {expected} after writing it")
+
+
+class GoalRejectedError(HardwareConfigError):
+    """A goal was refused before anything was sent (unknown id, non-integer, non-finite or outside limits)."""
+
+    def __init__(self, servo_id: object, goal: object, what: str) -> None:
+        self.servo_id = servo_id
+        self.goal = goal
+        super().__init__(what)
+
+
+class DriverThreadError(HardwareError):
+    """The driver was used from a thread that does not own the bus."""

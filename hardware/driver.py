@@ -1,0 +1,417 @@
+"""`Driver`: owns one bus from one thread; one `cycle()` per control frame.
+
+A cycle: validate goals (refuse the whole frame on any bad goal: nothing sent) -> one Sync Write of Goal
+Position to the servos in service -> one (Fast) Sync Read of Present Position -> at most one due slow
+telemetry group (round-robin: status 10 Hz, motion 10 Hz, thermal 2 Hz) -> fault policy -> re-probe of
+one missing servo -> a frozen `ChainSnapshot`.
+"""
+
+from __future__ import annotations
+
+import math
+import operator
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+
+from hardware.bus import ServoBus
+from hardware.errors import (
+    BusCorruptError,
+    BusDisconnectedError,
+    BusError,
+    BusTimeoutError,
+    DriverThreadError,
+    GoalRejectedError,
+    HardwareConfigError,
+    ServoStatusError,
+)
+from hardware.fault_policy import FaultPolicy, ThermalTrend, eased_goal
+from hardware.fault_reactions import FaultReactions
+from hardware.registers import Register
+from hardware.servo_config import ConfigReport, ServoSpec, check_specs, configure_servo
+from hardware.servo_record import ServoRecord
+from hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind
+
+POSITION = (Register.PRESENT_POSITION,)
+MOTION = (Register.MOVING, Register.PRESENT_CURRENT, Register.PRESENT_VELOCITY)  # 122..131, one block
+THERMAL = (Register.PRESENT_INPUT_VOLTAGE, Register.PRESENT_TEMPERATURE)  # 144..146
+STATUS = (Register.TORQUE_ENABLE, Register.HARDWARE_ERROR_STATUS)  # 64..70
+_READ_FAILURES = (BusTimeoutError, BusCorruptError, ServoStatusError)
+
+
+@dataclass
+class _Group:
+    name: str
+    registers: tuple[Register, ...]
+    period_s: float
+    due_s: float = float("-inf")
+
+
+class Driver:
+    """Drives a configured chain. Not thread-safe by design: the thread that first uses it owns it.
+
+    ``clock``: seconds, monotonic (tests may pass the emulator's clock). ``fast_sync_read``: read positions
+    with Fast Sync Read (one combined reply; firmware support needed).
+    """
+
+    def __init__(
+        self,
+        bus: ServoBus,
+        specs: Sequence[ServoSpec],
+        *,
+        policy: FaultPolicy | None = None,
+        clock: Callable[[], float] = time.monotonic,
+        fast_sync_read: bool = False,
+    ) -> None:
+        self.bus = bus
+        self.policy = policy or FaultPolicy()
+        self.fast_sync_read = fast_sync_read
+        self._clock = clock
+        self._records: dict[int, ServoRecord] = {
+            s.servo_id: ServoRecord(s, s.model_info, ThermalTrend(self.policy.thermal_window_s),
+                                    s.temperature_limit_c or s.model_info.default_temperature_limit_c)
+            for s in check_specs(specs)
+        }
+        if not self._records:
+            raise HardwareConfigError("Driver needs at least one ServoSpec")
+        self.servo_ids: tuple[int, ...] = tuple(self._records)
+        self._groups = [
+            _Group("status", STATUS, 1.0 / self.policy.status_hz),
+            _Group("motion", MOTION, 1.0 / self.policy.motion_hz),
+            _Group("thermal", THERMAL, 1.0 / self.policy.thermal_hz),
+        ]
+        self._owner: int | None = threading.get_ident()
+        self._connected = True
+        self._last_reopen_s = float("-inf")
+        self._cycle = 0
+        self._cycle_events: list[FaultEvent] = []
+        self.events: deque[FaultEvent] = deque(maxlen=1000)
+        self._reactions = FaultReactions(bus, self.policy, self._emit, self._recover)
+        self._probe_index = 0
+        self._last: ChainSnapshot | None = None
+
+    # -- ownership ----------------------------------------------------------------------------------
+    def _check_owner(self) -> None:
+        me = threading.get_ident()
+        if self._owner is None:
+            self._owner = me
+        elif self._owner != me:
+            raise DriverThreadError(
+                f"Driver on {getattr(self.bus, 'port_name', self.bus)!r} is owned by thread {self._owner}; "
+                f"called from {me}. Use DriverThread.submit_goals() from other threads."
+            )
+
+    def hand_over(self) -> None:
+        """Release ownership (call from the owner); the next thread to use the driver becomes its owner."""
+        self._check_owner()
+        self._owner = None
+
+    # -- events -------------------------------------------------------------------------------------
+    def _emit(self, servo_id: int | None, kind: FaultKind, reaction: str) -> None:
+        ev = FaultEvent(self._clock(), servo_id, kind, reaction)
+        self._cycle_events.append(ev)
+        self.events.append(ev)
+
+    # -- set-up -------------------------------------------------------------------------------------
+    def limits_tick(self, servo_id: int) -> tuple[int, int]:
+        return self._records[servo_id].limits_tick
+
+    def configure(self) -> dict[int, ConfigReport]:
+        """Write every spec (EEPROM with torque off, verified by read-back). Torque is left off."""
+        self._check_owner()
+        reports = {}
+        for rec in self._records.values():
+            reports[rec.servo_id] = self._configure_one(rec)
+        return reports
+
+    def _configure_one(self, rec: ServoRecord) -> ConfigReport:
+        report = configure_servo(self.bus, rec.spec)
+        rec.torque_on = False
+        rec.temperature_limit_c = report.limits[Register.TEMPERATURE_LIMIT]
+        rec.current_limit = report.limits[Register.CURRENT_LIMIT] if rec.info.reports_current else None
+        if rec.derated:  # configuration wrote the spec's profile; keep the derated one
+            self.bus.write(rec.servo_id, Register.PROFILE_VELOCITY, self._reactions.derated_profile_velocity(rec))
+        return report
+
+    def _pin_and_enable(self, rec: ServoRecord) -> None:
+        """Goal Position := Present Position (clamped into the limits), then Torque Enable = 1."""
+        present = self.bus.read(rec.servo_id, Register.PRESENT_POSITION)
+        goal = rec.clamp(present)
+        self._write_goal_single(rec, goal)
+        self.bus.write(rec.servo_id, Register.TORQUE_ENABLE, 1)
+        rec.position_tick, rec.position_t_s = present, self._clock()
+        rec.torque_on = True
+
+    def torque_on(self, servo_ids: Iterable[int] | None = None) -> None:
+        """Torque on, each servo's goal first pinned to where it is (no jump)."""
+        self._check_owner()
+        for rec in self._select(servo_ids):
+            rec.torque_wanted = True
+            if not rec.missing and not rec.latched and rec.reboot_at_s is None:
+                self._pin_and_enable(rec)
+
+    def torque_off(self, servo_ids: Iterable[int] | None = None) -> None:
+        self._check_owner()
+        for rec in self._select(servo_ids):
+            rec.torque_wanted = False
+            if not rec.missing:
+                self.bus.write(rec.servo_id, Register.TORQUE_ENABLE, 0)
+            rec.torque_on = False
+
+    def clear_fault(self, servo_id: int) -> None:
+        """Acknowledge a latched fault: reboot the servo and bring it back (re-configured, goal re-pinned)."""
+        self._check_owner()
+        rec = self._records[servo_id]
+        rec.latched = False
+        rec.faults.discard(FaultKind.LATCHED)
+        rec.faults.discard(FaultKind.HARDWARE_ERROR)
+        rec.reboots.clear()
+        rec.reboot_at_s, rec.reboot_reason = self._clock(), FaultKind.HARDWARE_ERROR
+
+    def _select(self, servo_ids: Iterable[int] | None) -> list[ServoRecord]:
+        if servo_ids is None:
+            return list(self._records.values())
+        ids = list(servo_ids)
+        unknown = [i for i in ids if i not in self._records]
+        if unknown:
+            raise HardwareConfigError(f"unknown servo id(s) {unknown}; configured: {list(self._records)}")
+        return [self._records[i] for i in ids]
+
+    # -- goals --------------------------------------------------------------------------------------
+    def validate_goals(self, goals_tick: Mapping[int, int]) -> dict[int, int]:
+        """Every goal an integer tick inside its servo's configured limits, or `GoalRejectedError`."""
+        if not isinstance(goals_tick, Mapping):
+            raise GoalRejectedError(None, goals_tick, f"goals must be a mapping servo id -> tick, got {type(goals_tick)}")
+        out: dict[int, int] = {}
+        for sid, goal in goals_tick.items():
+            rec = self._records.get(sid) if isinstance(sid, int) and not isinstance(sid, bool) else None
+            if rec is None:
+                raise GoalRejectedError(sid, goal, f"goal for unknown servo id {sid!r}; configured: {list(self._records)}")
+            if isinstance(goal, float) and not math.isfinite(goal):
+                raise GoalRejectedError(sid, goal, f"{rec.spec.label}: goal {goal!r} is not finite; nothing sent")
+            if isinstance(goal, bool):
+                raise GoalRejectedError(sid, goal, f"{rec.spec.label}: goal {goal!r} is a bool, expected int ticks")
+            try:
+                tick = operator.index(goal)
+            except TypeError:
+                raise GoalRejectedError(
+                    sid, goal, f"{rec.spec.label}: goal {goal!r} is not an integer tick (round it first); nothing sent"
+                ) from None
+            lo, hi = rec.limits_tick
+            if not lo <= tick <= hi:
+                raise GoalRejectedError(
+                    sid, goal, f"{rec.spec.label}: goal {tick} outside its limits {lo}..{hi} ticks; nothing sent"
+                )
+            out[sid] = tick
+        return out
+
+    def _guard(self, rec: ServoRecord, tick: int) -> int:
+        lo, hi = rec.limits_tick
+        if not lo <= tick <= hi:  # the last line of defence before the wire; unreachable by design
+            raise GoalRejectedError(rec.servo_id, tick, f"{rec.spec.label}: refusing to send {tick} outside {lo}..{hi}")
+        return tick
+
+    def _write_goal_single(self, rec: ServoRecord, tick: int) -> None:
+        self.bus.write(rec.servo_id, Register.GOAL_POSITION, self._guard(rec, tick))
+        rec.goal_tick = tick
+
+    def _write_goals(self, goals: Mapping[int, int]) -> None:
+        frame: dict[int, int] = {}
+        for sid, goal in goals.items():
+            rec = self._records[sid]
+            if not rec.in_service:
+                continue
+            if FaultKind.LOAD_BACKOFF in rec.faults and rec.position_tick is not None:
+                goal = eased_goal(goal, rec.position_tick, self.policy.backoff_gain, *rec.limits_tick)
+            frame[sid] = self._guard(rec, goal)
+        if frame:
+            self.bus.sync_write(Register.GOAL_POSITION, frame)
+            for sid, tick in frame.items():
+                self._records[sid].goal_tick = tick
+
+    # -- reads with fallback ------------------------------------------------------------------------
+    def _read_group(self, ids: list[int], registers: tuple[Register, ...], fast: bool = False) -> dict[int, dict[Register, int]]:
+        """Group read with retries; on failure, read servo by servo to find the silent one."""
+        if not ids:
+            return {}
+        for _ in range(1 + self.policy.retries):
+            try:
+                return self.bus.sync_read(ids, registers, fast=fast)
+            except BusTimeoutError:
+                pass
+            except BusCorruptError:
+                pass
+        out: dict[int, dict[Register, int]] = {}
+        for sid in ids:
+            for _ in range(1 + self.policy.retries):
+                try:
+                    out[sid] = self.bus.read_many(sid, registers)
+                    break
+                except _READ_FAILURES:
+                    continue
+        return out
+
+    def _mark_results(self, ids: list[int], got: Mapping[int, object], now: float) -> None:
+        for sid in ids:
+            rec = self._records[sid]
+            if sid in got:
+                rec.failures = 0
+                rec.stale = False
+                continue
+            rec.failures += 1
+            rec.stale = True
+            if rec.failures >= self.policy.missing_after_failures and not rec.missing:
+                rec.missing = True
+                rec.last_probe_s = now
+                self._emit(sid, FaultKind.MISSING,
+                           f"no reply in {rec.failures} cycles: excluded from group reads, re-probed every "
+                           f"{self.policy.reprobe_interval_s:g} s; other servos continue")
+
+    def _read_positions(self, now: float) -> None:
+        ids = [sid for sid, rec in self._records.items() if not rec.missing]
+        got = self._read_group(ids, POSITION, fast=self.fast_sync_read)
+        for sid, values in got.items():
+            rec = self._records[sid]
+            rec.position_tick = values[Register.PRESENT_POSITION]
+            rec.position_t_s = now
+        self._mark_results(ids, got, now)
+
+    def _read_slow_group(self, now: float) -> None:
+        if self.bus.alerts:  # an Alert bit seen on a single transaction: read Hardware Error Status now
+            self._groups[0].due_s = float("-inf")
+            self.bus.alerts.clear()
+        due = [g for g in self._groups if g.due_s <= now]
+        if not due:
+            return
+        group = min(due, key=lambda g: g.due_s)
+        group.due_s = now + group.period_s
+        ids = [sid for sid, rec in self._records.items() if not rec.missing]
+        got = self._read_group(ids, group.registers)
+        for sid, values in got.items():
+            rec = self._records[sid]
+            if group.name == "status":
+                self._reactions.on_status(rec, values[Register.TORQUE_ENABLE], values[Register.HARDWARE_ERROR_STATUS], now)
+            elif group.name == "motion":
+                rec.apply_motion(values, now)
+                self._reactions.on_motion(rec)
+            else:
+                self._reactions.on_thermal(rec, values[Register.PRESENT_INPUT_VOLTAGE],
+                                           values[Register.PRESENT_TEMPERATURE], now)
+        self._mark_results(ids, got, now)
+
+    # -- missing servos, reconnects -----------------------------------------------------------------
+    def _recover(self, rec: ServoRecord, kind: FaultKind) -> bool:
+        """Re-configure a servo that is back (reconnected / rebooted / cooled) and re-pin its goal."""
+        try:
+            self._configure_one(rec)
+            if rec.torque_wanted:
+                self._pin_and_enable(rec)
+        except (BusError, HardwareConfigError) as err:
+            if isinstance(err, BusDisconnectedError):
+                raise
+            return False
+        rec.missing = False
+        rec.failures = 0
+        rec.stale = False
+        rec.hardware_error = type(rec.hardware_error).NONE
+        for k in (FaultKind.OVERLOAD, FaultKind.OVERHEATING, FaultKind.VOLTAGE_LOW, FaultKind.VOLTAGE_HIGH):
+            if k != FaultKind.VOLTAGE_LOW or rec.voltage_count == 0:
+                rec.faults.discard(k)
+        state = "torque on, goal re-pinned to present" if rec.torque_wanted else "torque left off"
+        self._emit(rec.servo_id, kind, f"re-configured (verified), {state}")
+        return True
+
+    def _probe_missing(self, now: float) -> None:
+        missing = [r for r in self._records.values() if r.missing]
+        if not missing:
+            return
+        self._probe_index = (self._probe_index + 1) % len(missing)
+        rec = missing[self._probe_index]
+        if now - rec.last_probe_s < self.policy.reprobe_interval_s:
+            return
+        rec.last_probe_s = now
+        try:
+            self.bus.ping(rec.servo_id)
+        except _READ_FAILURES:
+            return
+        rec.recover_at_s = None
+        self._recover(rec, FaultKind.RECONNECTED)
+
+    def _on_disconnect(self, err: BusDisconnectedError) -> None:
+        if self._connected:
+            self._connected = False
+            for rec in self._records.values():
+                rec.missing, rec.stale, rec.torque_on = True, True, False
+            self._emit(None, FaultKind.DISCONNECTED,
+                       f"{err}; all servos missing, port re-opened every {self.policy.reconnect_interval_s:g} s")
+
+    def _try_reopen(self, now: float) -> None:
+        if now - self._last_reopen_s < self.policy.reconnect_interval_s:
+            return
+        self._last_reopen_s = now
+        try:
+            self.bus.reopen()
+        except BusError:
+            return
+        self._connected = True
+        for rec in self._records.values():
+            rec.last_probe_s = float("-inf")
+            try:
+                self.bus.ping(rec.servo_id)
+            except _READ_FAILURES:
+                continue
+            self._recover(rec, FaultKind.RECONNECTED)
+
+    # -- the cycle ----------------------------------------------------------------------------------
+    def cycle(self, goals_tick: Mapping[int, int]) -> ChainSnapshot:
+        """One control frame: one Sync Write of goals, position read, due telemetry, fault policy."""
+        self._check_owner()
+        goals = self.validate_goals(goals_tick)
+        now = self._clock()
+        self._cycle_events = []
+        try:
+            if not self._connected:
+                self._try_reopen(now)
+            if self._connected:
+                self._write_goals(goals)
+                self._read_positions(now)
+                self._read_slow_group(now)
+                for rec in self._records.values():
+                    self._reactions.service(rec, now)
+                self._probe_missing(now)
+        except BusDisconnectedError as err:
+            self._on_disconnect(err)
+        self._cycle += 1
+        return self._freeze(now)
+
+    def read_state(self) -> ChainSnapshot:
+        """A cycle without goals (positions, due telemetry, policy)."""
+        return self.cycle({})
+
+    def snapshot(self) -> ChainSnapshot | None:
+        """The snapshot of the last cycle (None before the first)."""
+        return self._last
+
+    def _freeze(self, now: float) -> ChainSnapshot:
+        snap = ChainSnapshot(
+            t_s=now,
+            cycle=self._cycle,
+            servos={sid: rec.freeze() for sid, rec in self._records.items()},
+            events=tuple(self._cycle_events),
+            stats=self.bus.stats.copy(),
+            bus_connected=self._connected,
+        )
+        self._last = snap
+        return snap
+
+    def close(self, *, torque_off: bool = False) -> None:
+        """Optionally torque everything off, then close the bus."""
+        self._check_owner()
+        if torque_off and self._connected:
+            try:
+                self.torque_off()
+            except BusError:
+                pass
+        self.bus.close()

@@ -1,0 +1,325 @@
+"""`DynamixelBus`: the one module that imports dynamixel-sdk. Every byte on the wire is the SDK's.
+
+Ports: a device path (``/dev/ttyUSB0``), a pty path (``servoface emulate``), or an emulated chain object
+(anything with ``open_serial()``), reached in-process through a `PortHandler` subclass whose ``ser`` is the
+chain's pyserial-like object — so the SDK's packet, CRC and timeout code runs in every test.
+
+The SDK's reply window is ``tx_time * bytes + 2 * LATENCY_TIMER + 2 ms`` with a module-global
+``LATENCY_TIMER = 16``; our port handlers carry their own ``latency_timer_ms`` instead (set from the OS
+latency timer, see `hardware.latency`), so two buses in one process do not fight over a global.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from types import TracebackType
+from typing import Any, Protocol
+
+import dynamixel_sdk as sdk
+
+from hardware.bus import BusStats, PingReply, check_ids
+from hardware.errors import (
+    BusClosedError,
+    BusCorruptError,
+    BusDisconnectedError,
+    BusError,
+    BusTimeoutError,
+    HardwareConfigError,
+    ServoStatusError,
+)
+from hardware.latency import read_latency_timer, sdk_latency_ms, warn_if_high
+from hardware.registers import STATUS_ALERT_BIT, STATUS_ERROR_NAMES, Register, slice_value, span
+
+SDK_BAUDS = (9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 576000, 921600, 1000000, 1152000,
+             2000000, 2500000, 3000000, 3500000, 4000000)
+IN_PROCESS_LATENCY_MS = 2.0
+
+
+class ChainLike(Protocol):
+    """An emulated chain: gives a pyserial-like object (write, read, in_waiting, reset_input_buffer...)."""
+
+    def open_serial(self) -> Any: ...
+
+
+class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
+    """PortHandler whose reply window uses its own latency constant instead of the SDK's global."""
+
+    latency_timer_ms: float = float(sdk.port_handler.LATENCY_TIMER)
+
+    def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 (SDK name)
+        self.packet_start_time = self.getCurrentTime()
+        self.packet_timeout = self.tx_time_per_byte * packet_length + self.latency_timer_ms * 2.0 + 2.0
+
+
+class _ChainPort(_WindowedPort):
+    """In-process port: ``openPort``/``setBaudRate``/``setupPort`` take the chain's serial object."""
+
+    def __init__(self, chain: ChainLike) -> None:
+        super().__init__(f"emulator:{type(chain).__name__}@{id(chain):x}")
+        self.chain = chain
+
+    def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 (SDK name)
+        if self.is_open:
+            self.closePort()
+        self.ser = self.chain.open_serial()
+        if hasattr(self.ser, "baudrate"):
+            self.ser.baudrate = self.baudrate
+        self.is_open = True
+        self.ser.reset_input_buffer()
+        self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0
+        return True
+
+
+def _is_pty(path: str) -> bool:
+    import os
+
+    real = os.path.realpath(path)
+    return real.startswith("/dev/pts/") or os.path.basename(real).startswith("pty")
+
+
+class DynamixelBus:
+    """A Protocol 2.0 chain over dynamixel-sdk. Implements `hardware.bus.ServoBus`.
+
+    ``latency_timer_ms``: the SDK latency constant for this port (default: from the OS timer for a real
+    USB adapter, 8 ms for a pty, 2 ms in-process). ``warn_latency``: warn (`UsbLatencyWarning`) when an FTDI
+    adapter still has its 16 ms default.
+    """
+
+    def __init__(
+        self,
+        port: str | ChainLike,
+        baud: int = 1_000_000,
+        *,
+        latency_timer_ms: float | None = None,
+        warn_latency: bool = True,
+    ) -> None:
+        if baud not in SDK_BAUDS:
+            raise HardwareConfigError(f"baud {baud} cannot be opened by dynamixel-sdk; expected one of {SDK_BAUDS}")
+        self.baud = baud
+        self.stats = BusStats()
+        self.alerts: set[int] = set()
+        self._packet = sdk.PacketHandler(2.0)
+        self._sync_reads: dict[tuple[int, int, tuple[int, ...]], Any] = {}
+        if isinstance(port, str):
+            self.port_name = port
+            self._port: _WindowedPort = _WindowedPort(port)
+            timer = read_latency_timer(port)
+            if warn_latency:
+                warn_if_high(timer)
+            self.latency_timer_ms = (
+                float(latency_timer_ms) if latency_timer_ms is not None else float(sdk_latency_ms(timer, _is_pty(port)))
+            )
+        else:
+            if not hasattr(port, "open_serial"):
+                raise HardwareConfigError(f"port must be a path or an emulated chain with open_serial(), got {port!r}")
+            self._port = _ChainPort(port)
+            self.port_name = self._port.port_name
+            self.latency_timer_ms = IN_PROCESS_LATENCY_MS if latency_timer_ms is None else float(latency_timer_ms)
+        self._port.latency_timer_ms = self.latency_timer_ms
+
+    # -- life cycle ---------------------------------------------------------------------------------
+    @property
+    def is_open(self) -> bool:
+        return bool(self._port.is_open)
+
+    def open(self) -> None:
+        if self.is_open:
+            return
+        self._port.baudrate = self.baud
+        try:
+            ok = self._port.openPort()
+        except (OSError, ValueError) as err:
+            raise BusDisconnectedError(f"cannot open port {self.port_name} at {self.baud} bps: {err}") from err
+        if not ok:
+            raise BusError(f"cannot open port {self.port_name} at {self.baud} bps")
+
+    def close(self) -> None:
+        if self._port.is_open:
+            try:
+                self._port.closePort()
+            except OSError:
+                self._port.is_open = False
+        self._port.is_using = False
+
+    def reopen(self) -> None:
+        """Close and open the port again (after a USB re-plug or a dropped pty)."""
+        self.close()
+        self._sync_reads.clear()
+        self.open()
+
+    def __enter__(self) -> DynamixelBus:
+        self.open()
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"DynamixelBus({self.port_name!r}, baud={self.baud}, latency_timer_ms={self.latency_timer_ms:g})"
+
+    # -- plumbing -----------------------------------------------------------------------------------
+    def _call(self, fn: Any, *args: Any) -> Any:
+        if not self._port.is_open:
+            raise BusClosedError(f"bus on {self.port_name} is not open")
+        try:
+            return fn(*args)
+        except OSError as err:  # pyserial's SerialException is an OSError
+            self._port.is_using = False
+            raise BusDisconnectedError(f"port {self.port_name} failed: {err}") from err
+        except (IndexError, TypeError) as err:  # the SDK indexing a short/odd reply
+            self._port.is_using = False
+            self.stats.corrupt += 1
+            raise BusCorruptError(f"malformed reply on {self.port_name}: {err!r}") from err
+
+    def _check(self, comm: int, err: int, what: str, servo_ids: Sequence[int]) -> None:
+        self.stats.transactions += 1
+        ids = tuple(servo_ids)
+        if comm == sdk.COMM_RX_TIMEOUT:
+            self.stats.timeouts += 1
+            raise BusTimeoutError(f"{what}: no reply from servo(s) {list(ids)} on {self.port_name}", ids)
+        if comm == sdk.COMM_RX_CORRUPT:
+            self.stats.corrupt += 1
+            raise BusCorruptError(f"{what}: corrupt reply (bad CRC or truncated) from {list(ids)}", ids)
+        if comm == sdk.COMM_PORT_BUSY:
+            raise BusError(f"{what}: port {self.port_name} is in use by another caller (one thread owns a bus)", ids)
+        if comm != sdk.COMM_SUCCESS:
+            raise BusError(f"{what}: {self._packet.getTxRxResult(comm)} (code {comm})", ids)
+        if err & 0x7F:
+            self.stats.status_errors += 1
+            name = STATUS_ERROR_NAMES.get(err & 0x7F, f"error {err & 0x7F}")
+            raise ServoStatusError(ids[0], err, f"{what}: servo {ids[0]} answered {name}")
+        if err & STATUS_ALERT_BIT:
+            self.stats.alerts += 1
+            self.alerts.update(ids[:1])
+
+    # -- single-servo instructions ------------------------------------------------------------------
+    def ping(self, servo_id: int) -> PingReply:
+        """Ping one servo: model number and firmware version (one Ping plus one 1-byte Read)."""
+        check_ids([servo_id])
+        model, comm, err = self._call(self._packet.ping, self._port, servo_id)
+        self._check(comm, err, f"ping {servo_id}", (servo_id,))
+        firmware = self.read(servo_id, Register.FIRMWARE_VERSION)
+        return PingReply(servo_id, int(model), firmware)
+
+    def broadcast_ping(self) -> dict[int, PingReply]:
+        """Every servo on the chain. Waits the SDK's full fixed window (~0.8 s at 1 Mbps): start-up only."""
+        found, comm = self._call(self._packet.broadcastPing, self._port)
+        self.stats.transactions += 1
+        if comm == sdk.COMM_RX_TIMEOUT:
+            return {}
+        if comm not in (sdk.COMM_SUCCESS, sdk.COMM_RX_CORRUPT) or (comm == sdk.COMM_RX_CORRUPT and not found):
+            self._check(comm, 0, "broadcast ping", ())
+        return {int(sid): PingReply(int(sid), int(v[0]), int(v[1])) for sid, v in sorted(found.items())}
+
+    def read(self, servo_id: int, register: Register) -> int:
+        return self.read_many(servo_id, (register,))[register]
+
+    def read_many(self, servo_id: int, registers: Sequence[Register]) -> dict[Register, int]:
+        """Read a contiguous block covering ``registers`` from one servo; values signed per register."""
+        check_ids([servo_id])
+        start, length = span(tuple(registers))
+        data, comm, err = self._call(self._packet.readTxRx, self._port, servo_id, start, length)
+        self._check(comm, err, f"read {[r.name for r in registers]} from servo {servo_id}", (servo_id,))
+        if len(data) < length:
+            self.stats.corrupt += 1
+            raise BusCorruptError(f"servo {servo_id}: {len(data)} bytes read, expected {length}", (servo_id,))
+        return {r: slice_value(r, start, data) for r in registers}
+
+    def write(self, servo_id: int, register: Register, value: int) -> None:
+        check_ids([servo_id])
+        data = list(register.encode(value))
+        comm, err = self._call(self._packet.writeTxRx, self._port, servo_id, register.address, register.size, data)
+        self.stats.bytes_written += 12 + register.size
+        self._check(comm, err, f"write {register.name}={value} to servo {servo_id}", (servo_id,))
+
+    def reboot(self, servo_id: int) -> None:
+        check_ids([servo_id])
+        comm, err = self._call(self._packet.reboot, self._port, servo_id)
+        self._check(comm, err & 0x7F, f"reboot servo {servo_id}", (servo_id,))
+
+    # -- group instructions -------------------------------------------------------------------------
+    def sync_write(self, register: Register, values: Mapping[int, int]) -> None:
+        """One Sync Write packet setting ``register`` on every servo in ``values`` (no replies)."""
+        ids = check_ids(values)
+        if not ids:
+            return
+        payload = {sid: list(register.encode(values[sid])) for sid in ids}  # encode all before sending any
+        group = sdk.GroupSyncWrite(self._port, self._packet, register.address, register.size)
+        for sid in ids:
+            group.addParam(sid, payload[sid])
+        comm = self._call(group.txPacket)
+        self.stats.bytes_written += 14 + len(ids) * (register.size + 1)
+        self._check(comm, 0, f"sync write {register.name}", ids)
+
+    def sync_read(
+        self, servo_ids: Sequence[int], registers: Sequence[Register], *, fast: bool = False
+    ) -> dict[int, dict[Register, int]]:
+        """One Sync Read (or Fast Sync Read) of the block covering ``registers`` from ``servo_ids``.
+
+        All-or-nothing (the SDK's contract): any silent servo fails the call for every id.
+        """
+        ids = check_ids(servo_ids)
+        if not ids:
+            return {}
+        start, length = span(tuple(registers))
+        key = (start, length, tuple(ids))
+        group = self._sync_reads.get(key)
+        if group is None:
+            if len(self._sync_reads) > 64:
+                self._sync_reads.clear()
+            group = sdk.GroupSyncRead(self._port, self._packet, start, length)
+            for sid in ids:
+                group.addParam(sid)
+            self._sync_reads[key] = group
+        comm = self._call(group.fastSyncRead if fast else group.txRxPacket)
+        what = f"{'fast ' if fast else ''}sync read {[r.name for r in registers]}"
+        self._check(comm, 0, what, ids)
+        out: dict[int, dict[Register, int]] = {}
+        for sid in ids:
+            block = group.data_dict.get(sid)
+            if block is None or len(block) < length:
+                self.stats.corrupt += 1
+                raise BusCorruptError(f"{what}: servo {sid} returned {0 if block is None else len(block)} bytes", ids)
+            out[sid] = {r: slice_value(r, start, block) for r in registers}
+        return out
+
+    def bulk_read(
+        self, requests: Mapping[int, Sequence[Register]], *, fast: bool = False
+    ) -> dict[int, dict[Register, int]]:
+        """One Bulk Read (or Fast Bulk Read): a different block per servo. All-or-nothing."""
+        ids = check_ids(requests)
+        if not ids:
+            return {}
+        spans = {sid: span(tuple(requests[sid])) for sid in ids}
+        group = sdk.GroupBulkRead(self._port, self._packet)
+        for sid in ids:
+            group.addParam(sid, *spans[sid])
+        comm = self._call(group.fastBulkRead if fast else group.txRxPacket)
+        self._check(comm, 0, f"{'fast ' if fast else ''}bulk read", ids)
+        out: dict[int, dict[Register, int]] = {}
+        for sid in ids:
+            start, length = spans[sid]
+            block = group.data_dict[sid][0]
+            if len(block) < length:
+                self.stats.corrupt += 1
+                raise BusCorruptError(f"bulk read: servo {sid} returned {len(block)} of {length} bytes", ids)
+            out[sid] = {r: slice_value(r, start, block) for r in requests[sid]}
+        return out
+
+    def bulk_write(self, writes: Mapping[int, Mapping[Register, int]]) -> None:
+        """One Bulk Write: per servo, a contiguous run of registers (gaps are refused)."""
+        ids = check_ids(writes)
+        group = sdk.GroupBulkWrite(self._port, self._packet)
+        for sid in ids:
+            regs = sorted(writes[sid], key=lambda r: r.address)
+            start, length = span(tuple(regs))
+            if sum(r.size for r in regs) != length:
+                raise HardwareConfigError(f"bulk write to servo {sid}: registers {[r.name for r in regs]} leave gaps")
+            data = b"".join(r.encode(writes[sid][r]) for r in regs)
+            group.addParam(sid, start, length, list(data))
+        if not ids:
+            return
+        comm = self._call(group.txPacket)
+        self._check(comm, 0, "bulk write", ids)

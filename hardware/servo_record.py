@@ -1,0 +1,109 @@
+"""The driver's mutable record of one servo (private to the bus thread); frozen into `ServoState`."""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+from hardware.fault_policy import ThermalTrend
+from hardware.registers import VELOCITY_RPM_PER_LSB, HardwareErrorBits, ModelInfo, Register
+from hardware.servo_config import ServoSpec
+from hardware.snapshot import FaultKind, ServoState
+
+
+@dataclass
+class ServoRecord:
+    spec: ServoSpec
+    info: ModelInfo
+    thermal: ThermalTrend
+    temperature_limit_c: int
+    current_limit: int | None = None
+    position_tick: int | None = None
+    position_t_s: float | None = None
+    goal_tick: int | None = None
+    velocity_raw: int | None = None
+    current_raw: int | None = None
+    moving: bool | None = None
+    temperature_c: int | None = None
+    voltage_v: float | None = None
+    telemetry_t_s: float | None = None
+    hardware_error: HardwareErrorBits = HardwareErrorBits.NONE
+    torque_wanted: bool = False  # what the user asked for
+    torque_on: bool = False  # what the driver believes the servo has
+    missing: bool = False
+    stale: bool = False
+    failures: int = 0
+    last_probe_s: float = float("-inf")
+    faults: set[FaultKind] = field(default_factory=set)
+    derated: bool = False
+    seconds_to_limit: float | None = None
+    voltage_count: int = 0  # consecutive out-of-range readings (signed: -n low, +n high)
+    reboot_at_s: float | None = None  # reboot scheduled (after cool-down)
+    reboot_reason: FaultKind | None = None
+    recover_at_s: float | None = None  # re-configure + re-pin after a reboot settles
+    reboots: deque[float] = field(default_factory=lambda: deque(maxlen=16))
+    latched: bool = False
+
+    @property
+    def servo_id(self) -> int:
+        return self.spec.servo_id
+
+    @property
+    def limits_tick(self) -> tuple[int, int]:
+        return self.spec.min_position_tick, self.spec.max_position_tick
+
+    @property
+    def in_service(self) -> bool:
+        """Goals are written only to servos that are present, powered, and not held off by the policy."""
+        return (
+            not self.missing
+            and self.torque_on
+            and not self.latched
+            and self.reboot_at_s is None
+            and self.recover_at_s is None
+        )
+
+    @property
+    def load_fraction(self) -> float | None:
+        if self.current_raw is None:
+            return None
+        if self.info.reports_current:
+            limit = self.current_limit or 0
+            return self.current_raw / limit if limit > 0 else None
+        return self.current_raw / 1000.0
+
+    def clamp(self, tick: int) -> int:
+        lo, hi = self.limits_tick
+        return max(lo, min(hi, tick))
+
+    def apply_motion(self, values: dict[Register, int], t_s: float) -> None:
+        self.moving = bool(values[Register.MOVING])
+        self.current_raw = values[Register.PRESENT_CURRENT]
+        self.velocity_raw = values[Register.PRESENT_VELOCITY]
+
+    def freeze(self) -> ServoState:
+        current_ma = (
+            self.current_raw * self.info.current_ma_per_lsb
+            if self.current_raw is not None and self.info.reports_current
+            else None
+        )
+        return ServoState(
+            servo_id=self.servo_id,
+            position_tick=self.position_tick,
+            goal_tick=self.goal_tick,
+            velocity_rpm=None if self.velocity_raw is None else self.velocity_raw * VELOCITY_RPM_PER_LSB,
+            current_ma=current_ma,
+            load_fraction=self.load_fraction,
+            temperature_c=self.temperature_c,
+            voltage_v=self.voltage_v,
+            hardware_error=self.hardware_error,
+            moving=self.moving,
+            torque_on=self.torque_on,
+            missing=self.missing,
+            stale=self.stale,
+            derated=self.derated,
+            faults=frozenset(self.faults),
+            position_t_s=self.position_t_s,
+            telemetry_t_s=self.telemetry_t_s,
+            seconds_to_temperature_limit=self.seconds_to_limit,
+        )

@@ -1,0 +1,103 @@
+"""What the driver knows about the chain after a cycle: typed, frozen, safe to hand to other threads."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from enum import Enum
+from types import MappingProxyType
+
+from hardware.bus import BusStats
+from hardware.registers import HardwareErrorBits
+
+
+class FaultKind(Enum):
+    """Every condition the fault policy reacts to (see README "Faults")."""
+
+    TIMEOUT = "timeout"  # a transaction got no reply (retried)
+    CORRUPT = "corrupt"  # a reply failed its CRC / was truncated (retried, counted)
+    MISSING = "missing"  # a servo stopped answering: excluded from group reads, re-probed
+    RECONNECTED = "reconnected"  # a missing servo answers again: re-configured, goal re-pinned
+    DISCONNECTED = "disconnected"  # the port failed: every servo missing, port re-opened periodically
+    OVERLOAD = "overload"  # Hardware Error Status overload bit (servo shut its torque off)
+    LOAD_BACKOFF = "load_backoff"  # load above the threshold: goals eased toward present position
+    OVERHEATING = "overheating"  # overheating bit, or temperature at the limit
+    THERMAL_DERATE = "thermal_derate"  # temperature rising toward the limit: profile velocity lowered
+    THERMAL_TORQUE_OFF = "thermal_torque_off"  # predicted to reach the limit soon: torque off until cool
+    VOLTAGE_LOW = "voltage_low"
+    VOLTAGE_HIGH = "voltage_high"
+    HARDWARE_ERROR = "hardware_error"  # encoder / electrical shock: latched, needs `clear_fault`
+    REBOOTED = "rebooted"  # the driver rebooted a servo to clear its error
+    RECOVERED = "recovered"  # a servo returned to service (torque back on, goal re-pinned)
+    LATCHED = "latched"  # too many reboots, or a fault that needs a human: stays torque-off
+
+
+@dataclass(frozen=True)
+class FaultEvent:
+    """One reaction of the fault policy. ``servo_id`` is None for chain-wide events."""
+
+    t_s: float
+    servo_id: int | None
+    kind: FaultKind
+    reaction: str
+
+    def __str__(self) -> str:
+        who = "chain" if self.servo_id is None else f"servo {self.servo_id}"
+        return f"{self.t_s:.3f}s {who}: {self.kind.value} -> {self.reaction}"
+
+
+@dataclass(frozen=True)
+class ServoState:
+    """One servo. Values are None until first read; ``*_t_s`` say when they were read (driver clock)."""
+
+    servo_id: int
+    position_tick: int | None
+    goal_tick: int | None  # last goal actually written
+    velocity_rpm: float | None
+    current_ma: float | None  # None on models that report load instead
+    load_fraction: float | None  # signed: current / current limit, or load / 100 %
+    temperature_c: int | None
+    voltage_v: float | None
+    hardware_error: HardwareErrorBits
+    moving: bool | None
+    torque_on: bool
+    missing: bool
+    stale: bool  # the last position read of this servo failed
+    derated: bool
+    faults: frozenset[FaultKind]  # active conditions
+    position_t_s: float | None
+    telemetry_t_s: float | None  # last slow telemetry (temperature / voltage) read
+    seconds_to_temperature_limit: float | None  # predicted from the rate of rise; None if not rising
+
+    @property
+    def ok(self) -> bool:
+        return not self.missing and not self.faults and self.hardware_error == HardwareErrorBits.NONE
+
+
+@dataclass(frozen=True)
+class ChainSnapshot:
+    """The whole chain after one `Driver.cycle`. ``events``: the fault reactions of that cycle only."""
+
+    t_s: float
+    cycle: int
+    servos: Mapping[int, ServoState]
+    events: tuple[FaultEvent, ...]
+    stats: BusStats
+    bus_connected: bool
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "servos", MappingProxyType(dict(self.servos)))
+
+    def __getitem__(self, servo_id: int) -> ServoState:
+        return self.servos[servo_id]
+
+    def __iter__(self) -> Iterator[ServoState]:
+        return iter(self.servos.values())
+
+    def positions_tick(self) -> dict[int, int]:
+        """Last known position of every servo that has one."""
+        return {s.servo_id: s.position_tick for s in self if s.position_tick is not None}
+
+    @property
+    def missing(self) -> tuple[int, ...]:
+        return tuple(s.servo_id for s in self if s.missing)
