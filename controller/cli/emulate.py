@@ -1,0 +1,87 @@
+"""`servoface emulate --ids 1-24 --model XL330-M288 --baud 1000000 [--no-wire-time]`: serve an emulated chain.
+
+Prints the pseudo-terminal path as the first line of output, then serves until Ctrl-C or SIGTERM (exit 0).
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from types import FrameType
+
+HELP = "serve an emulated Dynamixel chain on a pseudo-terminal (prints its path first)"
+
+
+def parse_ids(text: str) -> list[int]:
+    """``"1-4,7,10-12"`` -> [1, 2, 3, 4, 7, 10, 11, 12]; raises ValueError naming the bad part."""
+    ids: list[int] = []
+    for part in text.split(","):
+        part = part.strip()
+        if not part:
+            raise ValueError(f"empty element in id list {text!r}")
+        if "-" in part:
+            lo_text, _, hi_text = part.partition("-")
+            try:
+                lo, hi = int(lo_text), int(hi_text)
+            except ValueError:
+                raise ValueError(f"id range {part!r}: expected two integers like 1-24") from None
+            if lo > hi:
+                raise ValueError(f"id range {part!r}: start must not exceed end")
+            ids.extend(range(lo, hi + 1))
+        else:
+            try:
+                ids.append(int(part))
+            except ValueError:
+                raise ValueError(f"id {part!r}: expected an integer or a range like 1-24") from None
+    bad = [i for i in ids if not 0 <= i <= 252]
+    if bad:
+        raise ValueError(f"ids {bad}: expected 0..252")
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"id list {text!r} names some id twice")
+    return ids
+
+
+def _ids_type(text: str) -> list[int]:
+    try:
+        return parse_ids(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--ids", type=_ids_type, default=parse_ids("1-24"),
+                        help="servo ids: ranges and lists, e.g. 1-4,7,10-12 (default 1-24)")
+    parser.add_argument("--model", default="XL330-M288",
+                        help="servo model: XL330-M288, XL430-W250, XM430-W350 or MX-28(2.0) (default XL330-M288)")
+    parser.add_argument("--baud", type=int, default=1_000_000, help="bus baud rate in bps (default 1000000)")
+    parser.add_argument("--no-wire-time", action="store_true", help="answer at once instead of at wire speed")
+
+
+def run(args: argparse.Namespace) -> int:
+    from hardware.emulator import EmulatorError, ServoChain
+
+    try:
+        chain = ServoChain.create(ids=args.ids, model=args.model, baud=args.baud, wire_time=not args.no_wire_time)
+    except EmulatorError as err:
+        print(f"servoface emulate: {err}", file=sys.stderr)
+        return 2
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with chain:
+            path = chain.serve_pty()
+            print(path, flush=True)
+            print(f"# serving {len(args.ids)} x {args.model} at {args.baud} bps"
+                  f"{' (no wire time)' if args.no_wire_time else ''}; Ctrl-C to stop", file=sys.stderr, flush=True)
+            while not stop.wait(0.2):
+                pass
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    return 0
