@@ -77,6 +77,9 @@ class Register(Enum):
         self.signed = signed
         self.area = area
 
+    def __repr__(self) -> str:
+        return f"<Register.{self.name} @{self.address}/{self.size}{'s' if self.signed else ''}>"
+
     @property
     def end(self) -> int:
         """First address after this field."""
