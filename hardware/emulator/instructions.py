@@ -89,8 +89,9 @@ def dispatch(packet: Packet, listeners: Sequence[EmulatedServo], by_id: dict[int
     return out
 
 
-def _status(out: Outcome, servo: EmulatedServo, inst: int, number: int, data: bytes = b"", sid: int | None = None) -> None:
-    if _answers(servo, inst):
+def _status(out: Outcome, servo: EmulatedServo, inst: int, number: int, data: bytes = b"", sid: int | None = None,
+            answer: bool | None = None) -> None:
+    if answer if answer is not None else _answers(servo, inst):
         out.replies.append(Reply(servo, build_status(servo.id if sid is None else sid, _err(servo, number), data)))
 
 
@@ -119,6 +120,7 @@ def _write(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedSe
     servos = listeners if pid == BROADCAST_ID else targets
     for servo in servos:
         old_id = servo.id
+        answer = _answers(servo, Instruction.WRITE)  # the reply follows the level before this write
         if len(params) < 3:
             err = int(ErrorNumber.DATA_LENGTH)
         else:
@@ -127,7 +129,7 @@ def _write(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedSe
             if addr <= 8 < addr + len(params) - 2 or addr <= 7 < addr + len(params) - 2:
                 out.ids_changed = True
         if pid != BROADCAST_ID:
-            _status(out, servo, Instruction.WRITE, err, sid=old_id)
+            _status(out, servo, Instruction.WRITE, err, sid=old_id, answer=answer)
 
 
 def _reg_write(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
