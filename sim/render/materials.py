@@ -62,6 +62,18 @@ def srgb_to_linear(rgba: RGBA | tuple[float, ...]) -> NDArray[np.float64]:
     return out
 
 
+def srgb_to_linear_array(rgba: NDArray[np.floating]) -> NDArray[np.float32]:
+    """(n, 3|4) sRGB colours in 0..1 to (n, 4) linear float32 (alpha 1 if not given)."""
+    c = np.asarray(rgba, dtype=np.float64)
+    if c.ndim != 2 or c.shape[1] not in (3, 4):
+        raise ValueError(f"colours must be (n, 3) or (n, 4), got {c.shape}")
+    out = np.ones((len(c), 4), dtype=np.float64)
+    out[:, : c.shape[1]] = c
+    rgb = np.clip(out[:, :3], 0.0, 1.0)
+    out[:, :3] = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
+    return out.astype(np.float32)
+
+
 def eye_vertex_colors(
     vertices_mm: NDArray[np.floating],
     face_type: str = "human",

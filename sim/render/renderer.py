@@ -61,6 +61,11 @@ def _box_of(items: Iterable[MeshItem]) -> tuple[NDArray[np.float64], NDArray[np.
     return lo, hi
 
 
+def _skin_colors(skin: Any) -> NDArray[np.float64] | None:
+    colors = getattr(skin, "vertex_colors_rgba", None)
+    return None if colors is None else np.asarray(colors)
+
+
 def _corners(bounds: NDArray[np.float64]) -> NDArray[np.float64]:
     idx = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
     return bounds[idx, [0, 1, 2]]
@@ -140,13 +145,14 @@ class HeadRenderer:
     def render_posed(
         self,
         items: Sequence[MeshItem | tuple[Any, ...]],
-        skin: tuple[NDArray[np.floating], NDArray[np.integer], Sequence[float]] | None = None,
+        skin: tuple[Any, ...] | None = None,
         view: str | None = None,
         box_mm: tuple[Sequence[float], Sequence[float]] | None = None,
         depth: bool = False,
         face_type: str = "human",
     ) -> tuple[Image, NDArray[np.float32] | None]:
-        """Draw rigid ``items`` plus an optional deformable ``skin`` = (vertices (n, 3), faces (m, 3), rgba).
+        """Draw rigid ``items`` plus an optional deformable ``skin`` = (vertices (n, 3), faces (m, 3), rgba
+        [, vertex colours (n, 4) sRGB 0..1 or None]).
 
         The skin's buffers are kept between calls while its faces stay the same: only its vertices are
         re-uploaded. Returns the colour image and, if ``depth``, the depth image (mm, 0 = background).
@@ -172,7 +178,8 @@ class HeadRenderer:
         if skin is None or skin_v is None:
             self._scene.drop_deformable(keep=set())
         else:
-            self._scene.set_deformable(SKIN_NAME, skin_v, skin[1], tuple(skin[2]))
+            colors = skin[3] if len(skin) > 3 else None
+            self._scene.set_deformable(SKIN_NAME, skin_v, skin[1], tuple(skin[2]), vertex_rgba=colors)
         return self._draw(depth=depth)
 
     def render_meshes_with_depth(
@@ -191,20 +198,20 @@ class HeadRenderer:
     def _draw_head(
         self, head: Any, pose: Any, view: str | None, depth: bool
     ) -> tuple[Image, NDArray[np.float32] | None]:
-        from sim.kinematics import posed_parts, posed_skin_vertices
+        from sim.kinematics import part_transforms, posed_skin_vertices
 
         self._check_thread()
         if self._head_id != id(head):  # another head: drop the previous head's buffers
             self._scene.set_rigid([])
             self._scene.drop_deformable(keep=set())
             self._head_id = id(head)
-        items = [
-            MeshItem(p.mesh, tuple(p.color_rgba), np.asarray(p.transform, dtype=np.float64), p.name)
-            for p in posed_parts(head, pose)
-        ]
-        skin = (posed_skin_vertices(head, pose), head.skin.faces, head.skin.color_rgba)
+        # rest meshes + joint transforms: the GPU keeps each part's mesh, a frame only moves its node
+        transforms = part_transforms(head, pose.joint_deg)
+        items = [MeshItem(p.mesh, tuple(p.color_rgba), transforms[p.name], p.name) for p in head.parts]
+        skin = head.skin
+        posed = (posed_skin_vertices(head, pose), skin.faces, skin.color_rgba, _skin_colors(skin))
         return self.render_posed(
-            items, skin, view, self.head_box(head), depth=depth, face_type=str(head.face_type)
+            items, posed, view, self.head_box(head), depth=depth, face_type=str(head.face_type)
         )
 
     def render(self, head: Any, pose: Any, view: str | None = None) -> Image:
@@ -221,26 +228,24 @@ class HeadRenderer:
         return color, depth
 
     def head_box(self, head: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The box the camera frames for ``head``: its face (skin and parts other than the neck) at rest."""
+        """The box the camera frames for ``head``: its skin and parts (not the neck) at the neutral pose."""
         key = id(head)
         if key not in self._head_box:
-            from sim.kinematics import neutral_pose, posed_parts, posed_skin_vertices
+            from sim.kinematics import neutral_pose, part_transforms, posed_skin_vertices
 
             pose = neutral_pose(head)
+            transforms = part_transforms(head, pose.joint_deg)
             items = [
-                MeshItem(p.mesh, tuple(p.color_rgba), np.asarray(p.transform, dtype=np.float64), p.name)
-                for p in posed_parts(head, pose)
+                MeshItem(p.mesh, tuple(p.color_rgba), transforms[p.name], p.name)
+                for p in head.parts
                 if not p.name.startswith("neck")
             ]
-            boxes = [_box_of(items)] if items else []
-            if head.skin is not None:
-                v = np.asarray(posed_skin_vertices(head, pose))
-                boxes.append((v.min(axis=0), v.max(axis=0)))
+            v = np.asarray(posed_skin_vertices(head, pose))
+            lo, hi = v.min(axis=0), v.max(axis=0)
+            if items:
+                plo, phi = _box_of(items)
+                lo, hi = np.minimum(lo, plo), np.maximum(hi, phi)
             # keep the head referenced so its id cannot be reused by another object
-            self._head_box[key] = (
-                head,
-                np.min([b[0] for b in boxes], axis=0),
-                np.max([b[1] for b in boxes], axis=0),
-            )
+            self._head_box[key] = (head, lo, hi)
         _, lo, hi = self._head_box[key]
         return lo, hi

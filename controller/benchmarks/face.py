@@ -1,0 +1,81 @@
+"""`servoface bench face`: the muscle model's time per frame and the renderer's frames per second.
+
+Muscle model: median of ``sim.face_model.benchmark_solve`` (AU frame -> posed head), per built-in head;
+goal <= 1 ms for the human head. Rendering: frames per second at 640x480 of each head posed through a
+cycle of expression poses (solved beforehand, so only posing the meshes and drawing are timed); one
+renderer, reused, as the twin preview uses it. Goal >= 30 fps on 2 CPU cores (Mesa llvmpipe, no GPU).
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import time
+from collections.abc import Iterator
+
+from controller.benchmarks.figure import Figure
+
+HEADS = ("human", "dog")
+RENDER_SIZE = (640, 480)
+
+
+def _solve_figures(quick: bool) -> Iterator[Figure]:
+    from sim.face_model import benchmark_solve
+
+    for name in HEADS:
+        times_s = benchmark_solve(name, 50 if quick else 500)
+        yield Figure(
+            f"muscle_model_solve_median_{name}",
+            statistics.median(times_s) * 1000.0,
+            "ms",
+            limit=1.0,
+            better="lower",
+            note=f"FaceModel.solve, AU frame -> HeadPose, median of {len(times_s)} varied frames",
+        )
+
+
+def _render_figures(quick: bool) -> Iterator[Figure]:
+    from sim.expressions import load_library
+    from sim.heads import load_head
+    from sim.render.clips import apex_aus
+    from sim.render.renderer import HeadRenderer
+    from sim.render.twin import face_model
+
+    width, height = RENDER_SIZE
+    n_frames = 20 if quick else 120
+    t0 = time.perf_counter()
+    renderer = HeadRenderer(width, height)
+    context_s = time.perf_counter() - t0
+    try:
+        for name in HEADS:
+            head = load_head(name)
+            model = face_model(head)
+            apexes = [apex_aus(e) for e in load_library(head.face_type).values()] or [{}]
+            poses = []
+            for i in range(n_frames):
+                scale = 0.5 + 0.5 * math.sin(i * 0.3)
+                poses.append(model.solve({k: v * scale for k, v in apexes[i % len(apexes)].items()}))
+            for pose in poses[:3]:  # first frames upload meshes and compile shaders
+                renderer.render(head, pose)
+            start = time.perf_counter()
+            for pose in poses:
+                renderer.render(head, pose)
+            elapsed_s = time.perf_counter() - start
+            yield Figure(
+                f"render_fps_{name}_{width}x{height}",
+                n_frames / elapsed_s,
+                "fps",
+                limit=30.0,
+                better="higher",
+                note=f"{n_frames} posed frames incl. skinning + normals + readback; EGL llvmpipe, no MSAA",
+            )
+    finally:
+        renderer.close()
+    yield Figure(
+        "render_context_creation", context_s * 1000.0, "ms", note="EGL context + pyrender renderer, once"
+    )
+
+
+def run(quick: bool = False) -> Iterator[Figure]:
+    yield from _solve_figures(quick)
+    yield from _render_figures(quick)

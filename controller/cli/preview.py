@@ -1,0 +1,113 @@
+"""`servoface preview`: render an expression (still at its apex, or a GIF/MP4 clip) or the whole library."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+HELP = (
+    "render an expression of a head to PNG (apex), GIF/MP4 (neutral -> apex -> neutral), or --all as a sheet"
+)
+STILL = (".png", ".jpg", ".jpeg")
+CLIP = (".gif", ".mp4")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "expression", nargs="?", metavar="EXPR", help="expression name from the head's library"
+    )
+    parser.add_argument("--all", action="store_true", help="every expression of the library on one sheet")
+    parser.add_argument("--head", default="human", help="built-in head (human, dog) or a profile folder")
+    parser.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        type=Path,
+        help="output file: .png/.jpg (still or sheet), .gif/.mp4 (clip)",
+    )
+    parser.add_argument(
+        "--size",
+        default=None,
+        help="WIDTHxHEIGHT in pixels (default 640x480; per cell with --all, default 320x240)",
+    )
+    parser.add_argument("--view", default="front", choices=["front", "three-quarter", "side"])
+    parser.add_argument("--duration", type=float, default=2.0, help="clip length in seconds (default 2.0)")
+    parser.add_argument("--fps", type=float, default=20.0, help="clip frame rate (default 20)")
+    parser.add_argument(
+        "--columns", type=int, default=None, help="sheet columns with --all (default: about square)"
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _fail(message: str, code: int = 2) -> int:
+    print(f"servoface preview: {message}", file=sys.stderr)
+    return code
+
+
+def run(args: argparse.Namespace) -> int:
+    # cheap checks first: nothing heavy is imported and nothing is written on bad input
+    if args.all == (args.expression is not None):
+        return _fail("give one expression name, or --all for the whole library")
+    suffix = args.output.suffix.lower()
+    allowed = STILL if args.all else STILL + CLIP
+    if suffix not in allowed:
+        what = "a sheet" if args.all else "a preview"
+        return _fail(
+            f"output {args.output}: {what} must end in {', '.join(allowed)}, got {suffix or 'no extension'!r}"
+        )
+    if not args.output.parent.exists():
+        return _fail(f"output {args.output}: folder {args.output.parent} does not exist")
+    if args.columns is not None and args.columns < 1:
+        return _fail(f"--columns must be >= 1, got {args.columns}")
+
+    from sim.errors import ExpressionError, HeadProfileError, RenderError
+    from sim.render.renderer import parse_size
+
+    try:
+        width, height = parse_size(args.size or ("320x240" if args.all else "640x480"))
+    except ValueError as err:
+        return _fail(f"--size: {err}")
+    if suffix in CLIP:
+        from sim.render.video import there_and_back
+
+        try:
+            there_and_back(args.duration, args.fps)
+        except ValueError as err:
+            return _fail(str(err))
+
+    from sim.expressions import load_library
+
+    from sim.heads import load_head
+    from sim.render.clips import clip_frames, library_sheet, pick_expression, render_aus
+    from sim.render.images import save_image
+    from sim.render.renderer import HeadRenderer
+    from sim.render.video import WRITERS
+
+    try:
+        head = load_head(args.head)
+    except (HeadProfileError, FileNotFoundError, KeyError, ValueError) as err:
+        return _fail(f"--head {args.head!r}: {err}")
+    try:
+        library = load_library(head.face_type)
+        aus = None if args.all else pick_expression(library, args.expression)
+    except ExpressionError as err:
+        return _fail(str(err))
+
+    show = False if args.quiet else None
+    try:
+        with HeadRenderer(width, height, view=args.view) as renderer:
+            if args.all:
+                sheet, names = library_sheet(renderer, head, library, args.columns, show_progress=show)
+                save_image(sheet, args.output)
+                print(f"wrote {args.output}: {len(names)} expressions of {head.name!r}: {', '.join(names)}")
+            elif suffix in CLIP:
+                frames = clip_frames(renderer, head, aus or {}, args.duration, args.fps, show_progress=show)
+                count = WRITERS[suffix](frames, args.output, args.fps)
+                print(f"wrote {args.output}: {count} frames at {args.fps:g} fps ({args.expression})")
+            else:
+                save_image(render_aus(renderer, head, aus or {}), args.output)
+                print(f"wrote {args.output}: {args.expression} at apex on {head.name} ({width}x{height})")
+    except RenderError as err:
+        return _fail(str(err), code=1)
+    return 0
