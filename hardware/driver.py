@@ -224,7 +224,7 @@ class Driver:
             if not rec.in_service:
                 continue
             if FaultKind.LOAD_BACKOFF in rec.faults and rec.position_tick is not None:
-                goal = eased_goal(goal, rec.position_tick, self.policy.backoff_gain, *rec.limits_tick)
+                goal = eased_goal(goal, rec.position_tick, rec.backoff_scale, *rec.limits_tick)
             frame[sid] = self._guard(rec, goal)
         if frame:
             self.bus.sync_write(Register.GOAL_POSITION, frame)

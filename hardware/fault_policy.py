@@ -21,7 +21,7 @@ class FaultPolicy:
     reconnect_interval_s: float = 0.5  # re-open a failed port this often
     # overload
     load_backoff_fraction: float = 0.8  # |load| above this fraction of the limit: ease goals toward present
-    backoff_gain: float = 0.5  # eased goal = present + gain * (goal - present)
+    backoff_gain: float = 0.5  # each high-load reading: reach of (goal - present) x gain
     overload_cooldown_s: float = 2.0  # after an overload shutdown: wait, then reboot
     reboot_settle_s: float = 0.1  # a rebooted servo is silent this long
     max_reboots: int = 3  # per servo within reboot_window_s; one more -> latched (torque stays off)
@@ -55,9 +55,9 @@ class FaultPolicy:
             raise ValueError(f"FaultPolicy.backoff_gain = {self.backoff_gain}: expected 0..1")
 
 
-def eased_goal(goal_tick: int, present_tick: int, gain: float, min_tick: int, max_tick: int) -> int:
+def eased_goal(goal_tick: int, present_tick: int, scale: float, min_tick: int, max_tick: int) -> int:
     """A goal moved toward the present position (load back-off), always inside [min_tick, max_tick]."""
-    target = present_tick + gain * (goal_tick - present_tick)
+    target = present_tick + scale * (goal_tick - present_tick)
     return max(min_tick, min(max_tick, int(round(target))))
 
 

@@ -162,16 +162,23 @@ class FaultReactions:
                       f"{rec.voltage_v:.1f} V > {high:g} V: torque off until back in range")
 
     def on_motion(self, rec: ServoRecord) -> None:
+        """Load back-off: each high reading shrinks the goal's reach from present by ``backoff_gain``;
+        each low one (below half the threshold) grows it back, until goals pass through unchanged."""
         fraction = rec.load_fraction
         if fraction is None:
             return
-        if abs(fraction) > self.policy.load_backoff_fraction:
+        policy = self.policy
+        if abs(fraction) > policy.load_backoff_fraction:
+            rec.backoff_scale *= policy.backoff_gain
             if FaultKind.LOAD_BACKOFF not in rec.faults:
                 rec.faults.add(FaultKind.LOAD_BACKOFF)
                 self.emit(rec.servo_id, FaultKind.LOAD_BACKOFF,
-                          f"load {fraction:+.0%} of limit: goals eased {self.policy.backoff_gain:.0%} toward present")
-        elif abs(fraction) < 0.8 * self.policy.load_backoff_fraction:
-            rec.faults.discard(FaultKind.LOAD_BACKOFF)
+                          f"load {fraction:+.0%} of limit: goals eased toward present (reach x{policy.backoff_gain:g} "
+                          "per high reading) until the load drops")
+        elif abs(fraction) < 0.5 * policy.load_backoff_fraction and FaultKind.LOAD_BACKOFF in rec.faults:
+            rec.backoff_scale = min(1.0, rec.backoff_scale / max(policy.backoff_gain, 1e-3))
+            if rec.backoff_scale >= 1.0:
+                rec.faults.discard(FaultKind.LOAD_BACKOFF)
 
     # -- scheduled reboots and recoveries -------------------------------------------------------------
     def _reboot_allowed(self, rec: ServoRecord, now: float) -> bool:

@@ -36,6 +36,7 @@ class ServoRecord:
     last_probe_s: float = float("-inf")
     faults: set[FaultKind] = field(default_factory=set)
     derated: bool = False
+    backoff_scale: float = 1.0  # load back-off: share of (goal - present) still allowed
     seconds_to_limit: float | None = None
     voltage_count: int = 0  # consecutive out-of-range readings (signed: -n low, +n high)
     reboot_at_s: float | None = None  # reboot scheduled (after cool-down)

@@ -1,0 +1,170 @@
+"""The driver on an emulated chain: configuration, torque-on pinning, one sync write per frame, telemetry."""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+
+import numpy as np
+import pytest
+
+from hardware.driver import Driver
+from hardware.driver_thread import DriverThread
+from hardware.errors import DriverThreadError, GoalRejectedError, ServoConfigMismatch
+from hardware.registers import Register
+from hardware.servo_config import ServoSpec, configure_servo
+from tests.hardware.driver_helpers import assert_goals_within_limits, make_driver, run
+
+SYNC_WRITE, SYNC_READ, WRITE = 0x83, 0x82, 0x03
+
+
+def test_configure_writes_eeprom_with_torque_off_and_verifies() -> None:
+    chain, driver = make_driver(torque=False, return_delay_us=0, profile_velocity=120)
+    servo = chain.servo(2)
+    assert servo.read_register("MIN_POSITION_LIMIT") == 1500 and servo.read_register("MAX_POSITION_LIMIT") == 2600
+    assert servo.read_register("RETURN_DELAY_TIME") == 0 and servo.read_register("PROFILE_VELOCITY") == 120
+    # a servo left with torque on is switched off before EEPROM is touched; unchanged EEPROM is not rewritten
+    servo.write_register("TORQUE_ENABLE", 1)
+    report = configure_servo(driver.bus, ServoSpec(2, "XL330-M288", min_position_tick=1500, max_position_tick=2600,
+                                                   profile_velocity=120))
+    assert servo.read_register("TORQUE_ENABLE") == 0
+    assert not [w for w in report.written if w in ("MIN_POSITION_LIMIT", "MAX_POSITION_LIMIT", "RETURN_DELAY_TIME")]
+
+
+def test_wrong_model_is_a_typed_error_naming_the_servo() -> None:
+    chain, driver = make_driver(torque=False)
+    with pytest.raises(ServoConfigMismatch) as err:
+        configure_servo(driver.bus, ServoSpec(3, "XM430-W350"))
+    assert err.value.servo_id == 3 and err.value.field == "model_number"
+    assert "servo 3" in str(err.value)
+
+
+def test_torque_on_pins_goal_to_present_first() -> None:
+    chain, driver = make_driver(torque=False)
+    chain.servo(1).move_by_hand(1700)
+    chain.servo(3).move_by_hand(500)  # outside its limits: pinned to the nearest limit
+    driver.torque_on()
+    goals = {sid: goal for _, sid, goal in chain.goal_writes()}
+    assert goals[1] == 1700 and goals[3] == 1024
+    assert chain.servo(1).torque_on and chain.servo(1).position_tick == 1700
+    # the goal write came before the torque-enable write
+    log = [(e.id, e.params[:2]) for e in chain.instructions(WRITE) if e.id == 1]
+    assert log.index((1, bytes([116, 0]))) < log.index((1, bytes([64, 0])))
+
+
+def test_one_sync_write_per_frame_and_servos_follow() -> None:
+    chain, driver = make_driver()
+    before = len(chain.instructions(SYNC_WRITE))
+    snaps = run(chain, driver, {1: 2500, 2: 1600, 3: 1100, 4: 2050}, seconds=1.0)
+    assert len(chain.instructions(SYNC_WRITE)) - before == len(snaps)
+    last = snaps[-1]
+    assert last.positions_tick() == {1: 2500, 2: 1600, 3: 1100, 4: 2050}
+    assert last[1].goal_tick == 2500 and last[1].torque_on and last[1].ok
+    assert assert_goals_within_limits(chain, driver) >= 4 * len(snaps)
+
+
+@pytest.mark.parametrize(
+    ("goals", "match"),
+    [
+        ({1: 2000, 2: 2700}, "outside its limits 1500..2600"),
+        ({1: 2000.5}, "not an integer"),
+        ({1: float("nan")}, "not finite"),
+        ({1: float("inf")}, "not finite"),
+        ({1: True}, "bool"),
+        ({9: 2000}, "unknown servo id 9"),
+        ({"jaw": 2000}, "unknown servo id 'jaw'"),
+    ],
+)
+def test_bad_goals_refuse_the_whole_frame(goals: dict, match: str) -> None:  # type: ignore[type-arg]
+    chain, driver = make_driver()
+    sent = len(chain.goal_writes())
+    n_sync = len(chain.instructions(SYNC_WRITE))
+    with pytest.raises(GoalRejectedError, match=match):
+        driver.cycle(goals)
+    assert len(chain.goal_writes()) == sent and len(chain.instructions(SYNC_WRITE)) == n_sync
+
+
+def test_numpy_integer_goals_are_accepted() -> None:
+    chain, driver = make_driver()
+    driver.cycle({1: np.int64(2222)})
+    assert chain.goal_writes()[-1][1:] == (1, 2222)
+
+
+def test_only_the_owner_thread_may_cycle() -> None:
+    chain, driver = make_driver()
+    errors: list[BaseException] = []
+
+    def other() -> None:
+        try:
+            driver.cycle({})
+        except BaseException as err:  # noqa: BLE001
+            errors.append(err)
+
+    t = threading.Thread(target=other)
+    t.start()
+    t.join()
+    assert len(errors) == 1 and isinstance(errors[0], DriverThreadError)
+    driver.cycle({})  # the owner still can
+
+
+def test_snapshot_is_frozen() -> None:
+    chain, driver = make_driver()
+    snap = driver.cycle({})
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        snap[1].position_tick = 5  # type: ignore[misc]
+    with pytest.raises(TypeError):
+        snap.servos[1] = snap[1]  # type: ignore[index]
+    assert driver.snapshot() is snap
+
+
+def test_slow_telemetry_is_round_robin_and_keeps_cycles_short() -> None:
+    chain, driver = make_driver()
+    n_before = len(chain.instructions(SYNC_READ))
+    snaps = run(chain, driver, {}, seconds=2.0)
+    reads = chain.instructions(SYNC_READ)[n_before:]
+    by_cycle: dict[float, list[int]] = {}
+    for e in reads:
+        by_cycle.setdefault(round(e.t_s, 6), []).append(e.params[0] | e.params[1] << 8)
+    assert max(len(v) for v in by_cycle.values()) <= 2  # positions + at most one slow group
+    starts = [a for v in by_cycle.values() for a in v]
+    assert starts.count(132) == len(snaps)  # positions every cycle
+    assert 2 * 2 - 1 <= starts.count(144) <= 2 * 2 + 1  # thermal at 2 Hz
+    assert 10 * 2 - 2 <= starts.count(64) <= 10 * 2 + 1  # status at 10 Hz
+    last = snaps[-1][1]
+    assert last.temperature_c == 25 and last.voltage_v == pytest.approx(5.0) and last.current_ma is not None
+
+
+def test_fast_sync_read_option() -> None:
+    chain, driver = make_driver()
+    driver.fast_sync_read = True
+    snaps = run(chain, driver, {1: 2600}, seconds=0.5)
+    assert chain.instructions(0x8A) and snaps[-1][1].position_tick == 2600
+
+
+def test_driver_thread_runs_cycles_in_the_background() -> None:
+    chain = None
+    from hardware.bus import open_bus
+    from hardware.emulator import ServoChain
+
+    chain = ServoChain.create(ids=[1, 2], model="XL330-M288", baud=1_000_000, wire_time=False)
+    bus = open_bus("emulator", chain=chain)
+    driver = Driver(bus, [ServoSpec(1, "XL330-M288", min_position_tick=1000, max_position_tick=3000),
+                          ServoSpec(2, "XL330-M288")])
+    driver.configure()
+    with DriverThread(driver, rate_hz=200) as runner:
+        runner.torque_on()
+        with pytest.raises(GoalRejectedError):
+            runner.submit_goals({1: 3500})
+        first = runner.wait_snapshot()
+        for _ in range(200):
+            runner.submit_goals({1: 2900, 2: 100})
+            snap = runner.wait_snapshot(after_cycle=first.cycle)
+            first = snap
+            if snap[1].position_tick == 2900 and snap[2].position_tick == 100:
+                break
+        assert snap[1].position_tick == 2900 and snap[2].position_tick == 100
+        with pytest.raises(DriverThreadError):
+            driver.cycle({})  # the test thread does not own the bus while the runner does
+    assert not runner.running
+    assert all(1000 <= g <= 3000 for _, sid, g in chain.goal_writes() if sid == 1)
+    chain.close()
