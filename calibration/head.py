@@ -1,0 +1,245 @@
+"""A head's calibration: every servo by role, with role -> id translation and batch conversions.
+
+Above ``hardware/`` servos are named by role; below it by id. ``targets_to_goals`` is where a role-keyed
+set of actuator targets becomes an id-keyed set of goal ticks. It is all-or-nothing: one refused target
+raises before anything is returned.
+
+Coupled servos (a skin anchor whose pull also depends on neighbours, see :class:`RbfCoupling`) are solved
+after their neighbours, in dependency order; a dependency cycle is refused at construction.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from calibration.errors import CalibrationError, CurveError, TargetOutOfRangeError, UnknownServoError
+from calibration.servo import ServoCalibration, round_ticks
+
+
+@dataclass(frozen=True)
+class CalibrationMetadata:
+    """When and how a calibration was made. ``method``: "procedure", "csv" or "builtin"."""
+
+    created_utc: str = ""
+    method: str = "builtin"
+    source: str = ""
+    notes: str = ""
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+
+class HeadCalibration:
+    """Role -> :class:`ServoCalibration` for one head, with unique roles and ids."""
+
+    def __init__(
+        self,
+        head: str,
+        servos: Sequence[ServoCalibration],
+        metadata: CalibrationMetadata | None = None,
+    ) -> None:
+        self.head = head
+        self.metadata = metadata or CalibrationMetadata()
+        self._by_role: dict[str, ServoCalibration] = {}
+        self._by_id: dict[int, ServoCalibration] = {}
+        for s in servos:
+            if s.role in self._by_role:
+                raise CalibrationError(f"head '{head}': role '{s.role}' appears twice")
+            if s.servo_id in self._by_id:
+                raise CalibrationError(
+                    f"head '{head}': servo id {s.servo_id} is used by both "
+                    f"'{self._by_id[s.servo_id].role}' and '{s.role}'"
+                )
+            self._by_role[s.role] = s
+            self._by_id[s.servo_id] = s
+        self._order = self._solve_order()
+        self._roles = tuple(s.role for s in servos)
+        self._index = {r: i for i, r in enumerate(self._roles)}
+
+    def _solve_order(self) -> list[str]:
+        """Roles in an order where every coupled servo comes after its neighbours."""
+        order: list[str] = []
+        state: dict[str, int] = {}
+
+        def visit(role: str, chain: tuple[str, ...]) -> None:
+            if state.get(role) == 2:
+                return
+            if state.get(role) == 1:
+                raise CalibrationError(f"head '{self.head}': coupling cycle {' -> '.join(chain + (role,))}")
+            state[role] = 1
+            coupling = self._by_role[role].coupling
+            for n in coupling.neighbours if coupling else ():
+                if n not in self._by_role:
+                    raise CalibrationError(
+                        f"head '{self.head}': servo '{role}' is coupled to unknown role '{n}'"
+                    )
+                visit(n, chain + (role,))
+            state[role] = 2
+            order.append(role)
+
+        for role in self._by_role:
+            visit(role, ())
+        return order
+
+    # ---- lookup --------------------------------------------------------------------------------------
+    @property
+    def roles(self) -> tuple[str, ...]:
+        """Roles in file order (the column order of the batch arrays)."""
+        return self._roles
+
+    @property
+    def ids(self) -> tuple[int, ...]:
+        """Servo ids in the same order as :attr:`roles`."""
+        return tuple(self._by_role[r].servo_id for r in self._roles)
+
+    @property
+    def servos(self) -> tuple[ServoCalibration, ...]:
+        return tuple(self._by_role[r] for r in self._roles)
+
+    def __getitem__(self, role: str) -> ServoCalibration:
+        try:
+            return self._by_role[role]
+        except KeyError:
+            raise UnknownServoError(
+                f"head '{self.head}': no servo with role '{role}'; known roles: {list(self._roles)}"
+            ) from None
+
+    def __contains__(self, role: object) -> bool:
+        return role in self._by_role
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._roles)
+
+    def __len__(self) -> int:
+        return len(self._roles)
+
+    def by_id(self, servo_id: int) -> ServoCalibration:
+        try:
+            return self._by_id[servo_id]
+        except KeyError:
+            raise UnknownServoError(
+                f"head '{self.head}': no servo with id {servo_id}; known ids: {sorted(self._by_id)}"
+            ) from None
+
+    def role_of(self, servo_id: int) -> str:
+        return self.by_id(servo_id).role
+
+    def id_of(self, role: str) -> int:
+        return self[role].servo_id
+
+    def neutral_goals(self) -> dict[int, int]:
+        """id -> neutral tick for every servo."""
+        return {s.servo_id: s.neutral_tick for s in self.servos}
+
+    def neutral_targets(self) -> dict[str, float]:
+        """role -> target at the neutral tick."""
+        return {s.role: s.neutral_target for s in self.servos}
+
+    def position_limits_tick(self, margin_tick: int = 0) -> dict[int, tuple[int, int]]:
+        """id -> (Min Position Limit, Max Position Limit) to write to EEPROM as the servo-side backstop."""
+        return {s.servo_id: s.position_limits_tick(margin_tick) for s in self.servos}
+
+    # ---- mapping form -------------------------------------------------------------------------------
+    def targets_to_goals(self, targets: Mapping[str, float]) -> dict[int, int]:
+        """Role -> target (deg/mm) into id -> goal tick, for the roles given.
+
+        Coupled servos need their neighbours' ticks: a neighbour not in ``targets`` is taken at its
+        neutral tick. All-or-nothing: raises on the first unknown role or refused target.
+        """
+        for role in targets:
+            self[role]  # raises UnknownServoError
+        ticks: dict[str, int] = {}
+        for role in self._order:
+            if role not in targets:
+                continue
+            s = self._by_role[role]
+            if s.coupling is None:
+                ticks[role] = s.to_tick(float(targets[role]))
+            else:
+                others = np.array(
+                    [[self._tick_of(n, ticks) for n in s.coupling.neighbours]], dtype=np.float64
+                )
+                ticks[role] = int(self._coupled_ticks(s, np.array([float(targets[role])]), others)[0])
+        return {self._by_role[r].servo_id: ticks[r] for r in targets}
+
+    def goals_to_targets(self, goals: Mapping[int, int], *, clip: bool = False) -> dict[str, float]:
+        """Id -> goal tick into role -> target; coupled servos use their neighbours' goals (or neutral)."""
+        by_role = {self.by_id(i).role: float(t) for i, t in goals.items()}
+        out: dict[str, float] = {}
+        for role, tick in by_role.items():
+            s = self._by_role[role]
+            out[role] = s.to_target(tick, clip=clip)
+            if s.coupling is not None:
+                own = float(np.clip(tick, s.min_tick, s.max_tick))
+                x = [own] + [by_role.get(n, self._by_role[n].neutral_tick) for n in s.coupling.neighbours]
+                out[role] = float(s.coupling.map.evaluate(np.array(x, dtype=np.float64)))
+        return out
+
+    def _tick_of(self, role: str, solved: Mapping[str, int]) -> int:
+        return solved[role] if role in solved else self._by_role[role].neutral_tick
+
+    @staticmethod
+    def _coupled_ticks(
+        s: ServoCalibration, targets: NDArray[np.float64], others: NDArray[np.float64]
+    ) -> NDArray[np.int64]:
+        if s.coupling is None:  # pragma: no cover - callers check
+            return s.to_ticks(targets)
+        if not np.all(np.isfinite(targets)):
+            value = float(targets[np.argmax(~np.isfinite(targets))])
+            raise TargetOutOfRangeError(s.role, value, s.min_target, s.max_target, s.unit)
+        points = np.hstack([np.zeros((targets.shape[0], 1)), others])
+        ends = []
+        for end_tick in (s.min_tick, s.max_tick):
+            points[:, 0] = end_tick
+            ends.append(s.coupling.map.evaluate(points))
+        lo, hi = np.minimum(ends[0], ends[1]), np.maximum(ends[0], ends[1])
+        bad = (targets < lo) | (targets > hi)
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            raise TargetOutOfRangeError(s.role, float(targets[i]), float(lo[i]), float(hi[i]), s.unit)
+        try:
+            solved = s.coupling.map.solve_axis(targets, points, 0, float(s.min_tick), float(s.max_tick))
+        except CurveError as err:
+            raise CurveError(f"servo '{s.role}': {err}") from err
+        return np.clip(round_ticks(solved), s.min_tick, s.max_tick)
+
+    # ---- batch (array) form ------------------------------------------------------------------------
+    def targets_to_goals_array(self, targets: ArrayLike) -> NDArray[np.int64]:
+        """(n, S) targets in :attr:`roles` order -> (n, S) int64 goal ticks in the same column order."""
+        t = np.asarray(targets, dtype=np.float64)
+        if t.ndim != 2 or t.shape[1] != len(self._roles):
+            raise CalibrationError(
+                f"head '{self.head}': expected targets of shape (n, {len(self._roles)}) in role order, "
+                f"got {t.shape}"
+            )
+        out = np.empty(t.shape, dtype=np.int64)
+        for role in self._order:
+            j = self._index[role]
+            s = self._by_role[role]
+            if s.coupling is None:
+                out[:, j] = s.to_ticks(t[:, j])
+            else:
+                others = np.stack([out[:, self._index[n]] for n in s.coupling.neighbours], axis=1)
+                out[:, j] = self._coupled_ticks(s, t[:, j], others.astype(np.float64))
+        return out
+
+    def goals_to_targets_array(self, goals: ArrayLike, *, clip: bool = False) -> NDArray[np.float64]:
+        """(n, S) goal ticks in :attr:`roles` order -> (n, S) targets (deg/mm)."""
+        k = np.asarray(goals, dtype=np.float64)
+        if k.ndim != 2 or k.shape[1] != len(self._roles):
+            raise CalibrationError(
+                f"head '{self.head}': expected goals of shape (n, {len(self._roles)}) in role order, "
+                f"got {k.shape}"
+            )
+        out = np.empty(k.shape, dtype=np.float64)
+        for j, s in enumerate(self.servos):
+            out[:, j] = s.to_targets(k[:, j], clip=clip)
+            if s.coupling is not None:
+                cols = [np.clip(k[:, j], s.min_tick, s.max_tick)] + [
+                    k[:, self._index[n]] for n in s.coupling.neighbours
+                ]
+                out[:, j] = s.coupling.map.evaluate(np.stack(cols, axis=1))
+        return out

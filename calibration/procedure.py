@@ -1,0 +1,316 @@
+"""The calibration procedure: capture points on the real (or emulated) head, fit, check, plot, save.
+
+The procedure never imports the driver. Its caller hands it two small things:
+
+- a :class:`ServoAccess` (read present tick, torque on/off, write goal tick for one servo), which the
+  controller adapts from the hardware bus;
+- an :class:`Operator`, the person at the head: the CLI asks through ``input()``, a test scripts it.
+
+Per servo: torque off; the operator moves the servo by hand (or jogs it: the first jog pins the goal
+to the present position, then switches torque on) to its neutral, lower and upper targets and to any
+intermediate targets, and confirms each; the present tick is captured. Then the points are fitted,
+checked (monotone, coverage, residuals, tick range), plotted and, at the end, saved atomically.
+A capture that fails the checks is reported to the operator and the servo is measured again.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal, Protocol
+
+import numpy as np
+
+from calibration.errors import CalibrationError, ProcedureAborted, ProcedureError
+from calibration.fileformat import metadata_now, save_calibration
+from calibration.fitting import FitReport, fit_servo
+from calibration.head import HeadCalibration
+from calibration.measurements import Measurement, read_measurements_csv
+from calibration.plot import plot_servo
+from calibration.servo import MAX_POSITION_TICK, MIN_POSITION_TICK
+from calibration.spec import ServoSpec
+
+Step = Literal["neutral", "lower", "upper", "point", "extra"]
+
+
+class ServoAccess(Protocol):
+    """What the procedure needs from the bus, one servo at a time (ids, not roles)."""
+
+    def read_present_tick(self, servo_id: int) -> int: ...
+
+    def set_torque(self, servo_id: int, enabled: bool) -> None: ...
+
+    def write_goal_tick(self, servo_id: int, tick: int) -> None: ...
+
+
+@dataclass(frozen=True)
+class Prompt:
+    """One question to the operator. ``target`` is the value to move to, or None: "enter what you set"."""
+
+    role: str
+    servo_id: int
+    unit: str
+    step: Step
+    target: float | None
+    present_tick: int
+    text: str
+
+
+@dataclass(frozen=True)
+class Capture:
+    """Take the present position as this step's point; ``target`` overrides the asked-for value."""
+
+    target: float | None = None
+
+
+@dataclass(frozen=True)
+class Jog:
+    """Move the servo by ``delta_tick`` under torque (pins the goal to the present tick first)."""
+
+    delta_tick: int
+
+
+@dataclass(frozen=True)
+class Finish:
+    """No (more) points for this step: ends the free-point loop, or skips an intermediate point."""
+
+
+@dataclass(frozen=True)
+class Abort:
+    """Stop the whole procedure; nothing is saved."""
+
+
+Reply = Capture | Jog | Finish | Abort
+
+
+class Operator(Protocol):
+    """The person at the head (or a script standing in for one)."""
+
+    def ask(self, prompt: Prompt) -> Reply: ...
+
+    def tell(self, message: str) -> None: ...
+
+
+@dataclass
+class ProcedureResult:
+    """What a calibration run produced."""
+
+    calibration: HeadCalibration
+    reports: dict[str, FitReport] = field(default_factory=dict)
+    plots: dict[str, Path] = field(default_factory=dict)
+    saved_to: Path | None = None
+
+    @property
+    def warnings(self) -> list[str]:
+        return [w for r in self.reports.values() for w in r.warnings]
+
+
+@dataclass(frozen=True)
+class ProcedureOptions:
+    """``intermediate``: known targets asked for between the ends; ``free_points``: then let the operator
+    add points whose target they enter; ``curve_kind``: one kind for all, a per-role mapping, or None
+    (linear for joints, pchip for anchors); ``attempts``: re-measures allowed per servo; ``max_jogs``
+    bounds one step's conversation (a safety net against a stuck script)."""
+
+    intermediate: int = 3
+    free_points: bool = False
+    curve_kind: str | Mapping[str, str] | None = None
+    attempts: int = 3
+    max_jogs: int = 500
+
+
+def _kind_for(options: ProcedureOptions, role: str) -> str | None:
+    if isinstance(options.curve_kind, Mapping):
+        return options.curve_kind.get(role)
+    return options.curve_kind
+
+
+def _plan(spec: ServoSpec, intermediate: int) -> list[tuple[Step, float]]:
+    steps: list[tuple[Step, float]] = [("neutral", spec.neutral)]
+    for step, value in (("lower", spec.lower), ("upper", spec.upper)):
+        if value != spec.neutral:
+            steps.append((step, value))  # type: ignore[arg-type]
+    used = {v for _, v in steps}
+    for v in np.linspace(spec.lower, spec.upper, intermediate + 2)[1:-1]:
+        if float(v) not in used:
+            steps.append(("point", float(v)))
+    return steps
+
+
+class _Session:
+    def __init__(self, access: ServoAccess, operator: Operator, options: ProcedureOptions) -> None:
+        self.access = access
+        self.operator = operator
+        self.options = options
+        self.torque_on = False
+
+    def present(self, spec: ServoSpec) -> int:
+        tick = int(self.access.read_present_tick(spec.servo_id))
+        if not MIN_POSITION_TICK <= tick <= MAX_POSITION_TICK:
+            raise ProcedureError(
+                f"servo '{spec.role}' (id {spec.servo_id}) reports position {tick}, outside "
+                f"{MIN_POSITION_TICK}..{MAX_POSITION_TICK}; is it in position control mode?"
+            )
+        return tick
+
+    def torque_off(self, spec: ServoSpec) -> None:
+        self.access.set_torque(spec.servo_id, False)
+        self.torque_on = False
+
+    def jog(self, spec: ServoSpec, delta: int) -> None:
+        present = self.present(spec)
+        if not self.torque_on:
+            self.access.write_goal_tick(spec.servo_id, present)  # pin first: no jump on torque-on
+            self.access.set_torque(spec.servo_id, True)
+            self.torque_on = True
+        goal = min(max(present + int(delta), MIN_POSITION_TICK), MAX_POSITION_TICK)
+        self.access.write_goal_tick(spec.servo_id, goal)
+
+    def step(self, spec: ServoSpec, step: Step, target: float | None) -> Measurement | None:
+        for _ in range(self.options.max_jogs):
+            where = f"{target:g} {spec.unit}" if target is not None else "a pose of your choice"
+            text = {
+                "neutral": f"move '{spec.role}' to its NEUTRAL ({where})",
+                "lower": f"move '{spec.role}' to its LOWER limit ({where})",
+                "upper": f"move '{spec.role}' to its UPPER limit ({where})",
+                "point": f"move '{spec.role}' to {where}",
+                "extra": f"move '{spec.role}' to {where} and enter its target in {spec.unit}",
+            }[step]
+            present = self.present(spec)
+            reply = self.operator.ask(
+                Prompt(spec.role, spec.servo_id, spec.unit, step, target, present, text)
+            )
+            if isinstance(reply, Abort):
+                raise ProcedureAborted(f"calibration aborted by the operator at servo '{spec.role}' ({step})")
+            if isinstance(reply, Jog):
+                self.jog(spec, reply.delta_tick)
+                continue
+            if isinstance(reply, Finish):
+                if step in ("neutral", "lower", "upper"):
+                    self.operator.tell(f"'{spec.role}': the {step} point is required")
+                    continue
+                return None
+            value = reply.target if reply.target is not None else target
+            if value is None or not np.isfinite(value):
+                self.operator.tell(f"'{spec.role}': enter the target in {spec.unit} for this point")
+                continue
+            return Measurement(spec.role, float(value), self.present(spec))
+        raise ProcedureError(
+            f"servo '{spec.role}': no capture after {self.options.max_jogs} replies ({step})"
+        )
+
+    def measure(self, spec: ServoSpec) -> list[Measurement]:
+        self.torque_off(spec)
+        points: list[Measurement] = []
+        try:
+            for step, target in _plan(spec, self.options.intermediate):
+                m = self.step(spec, step, target)
+                if m is not None:
+                    points.append(m)
+            while self.options.free_points:
+                m = self.step(spec, "extra", None)
+                if m is None:
+                    break
+                points.append(m)
+        finally:
+            self.torque_off(spec)
+        return points
+
+
+def run_procedure(
+    access: ServoAccess,
+    operator: Operator,
+    specs: Sequence[ServoSpec],
+    head: str,
+    *,
+    options: ProcedureOptions | None = None,
+    plot_dir: str | os.PathLike[str] | None = None,
+    out: str | os.PathLike[str] | None = None,
+    keep: HeadCalibration | None = None,
+) -> ProcedureResult:
+    """Calibrate ``specs`` interactively. ``keep``: servos of an existing calibration that are not in
+    ``specs`` are carried over unchanged. Saves to ``out`` (atomically) when given."""
+    opts = options or ProcedureOptions()
+    session = _Session(access, operator, opts)
+    reports: dict[str, FitReport] = {}
+    for spec in specs:
+        for attempt in range(1, opts.attempts + 1):
+            points = session.measure(spec)
+            try:
+                reports[spec.role] = fit_servo(
+                    spec, [(m.target, m.tick) for m in points], _kind_for(opts, spec.role)
+                )
+                break
+            except CalibrationError as err:
+                operator.tell(f"{err} (attempt {attempt} of {opts.attempts})")
+                if attempt == opts.attempts:
+                    raise ProcedureError(
+                        f"servo '{spec.role}': no usable calibration after {attempt} attempts: {err}"
+                    ) from err
+        for w in reports[spec.role].warnings:
+            operator.tell(w)
+    return _finish(reports, specs, head, "procedure", "", plot_dir, out, keep)
+
+
+def calibrate_from_csv(
+    csv_path: str | os.PathLike[str],
+    specs: Sequence[ServoSpec],
+    head: str,
+    *,
+    curve_kind: str | Mapping[str, str] | None = None,
+    plot_dir: str | os.PathLike[str] | None = None,
+    out: str | os.PathLike[str] | None = None,
+    keep: HeadCalibration | None = None,
+) -> ProcedureResult:
+    """Non-interactive mode: fit every servo in ``specs`` from a ``role,target,tick`` CSV.
+
+    A role in ``specs`` with no rows is an error unless ``keep`` has it (then it is carried over).
+    """
+    rows = read_measurements_csv(csv_path, roles={s.role for s in specs})
+    opts = ProcedureOptions(curve_kind=curve_kind)
+    reports: dict[str, FitReport] = {}
+    missing = [s.role for s in specs if s.role not in rows and (keep is None or s.role not in keep)]
+    if missing:
+        raise ProcedureError(f"{csv_path}: no measurements for role(s) {missing}")
+    for spec in specs:
+        if spec.role not in rows:
+            continue
+        try:
+            reports[spec.role] = fit_servo(
+                spec, [(m.target, m.tick) for m in rows[spec.role]], _kind_for(opts, spec.role)
+            )
+        except CalibrationError as err:
+            lines = ", ".join(str(m.line) for m in rows[spec.role])
+            raise type(err)(f"{csv_path} (lines {lines}): {err}") from err
+    return _finish(reports, specs, head, "csv", str(csv_path), plot_dir, out, keep)
+
+
+def _finish(
+    reports: dict[str, FitReport],
+    specs: Sequence[ServoSpec],
+    head: str,
+    method: str,
+    source: str,
+    plot_dir: str | os.PathLike[str] | None,
+    out: str | os.PathLike[str] | None,
+    keep: HeadCalibration | None,
+) -> ProcedureResult:
+    fitted = {role: r.servo for role, r in reports.items()}
+    if keep is not None:
+        servos = [fitted.get(s.role, s) for s in keep.servos]
+        known = {s.role for s in keep.servos}
+        servos += [fitted[s.role] for s in specs if s.role in fitted and s.role not in known]
+    else:
+        servos = [fitted[s.role] for s in specs if s.role in fitted]
+    calibration = HeadCalibration(head, servos, metadata_now(method, source, roles_fitted=sorted(fitted)))
+    result = ProcedureResult(calibration, dict(reports))
+    if plot_dir is not None:
+        for role, report in reports.items():
+            result.plots[role] = plot_servo(
+                report.servo, Path(plot_dir) / f"{role}.png", warnings=report.warnings
+            )
+    if out is not None:
+        result.saved_to = save_calibration(calibration, out)
+    return result
