@@ -63,9 +63,10 @@ def step_motion(state: MotorState, profile: MotionProfile, dt: float, obstacle: 
     if math.isfinite(a):
         dv = a * dt
         v_new = min(v_des, v + dv) if v_des > v else max(v_des, v - dv)
+        new_pos = state.pos + 0.5 * (v + v_new) * dt
     else:
         v_new = v_des
-    new_pos = state.pos + 0.5 * (v + v_new) * dt
+        new_pos = state.pos + v_new * dt
     # arrive exactly (no overshoot oscillation)
     if (state.target - new_pos) * d <= 0.0 or abs(state.target - new_pos) < 1e-6:
         new_pos = state.target
