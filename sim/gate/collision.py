@@ -1,0 +1,150 @@
+"""Part-pair collisions for the gate: which pairs, their TSS tables (cached), broad phase, exact test."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sim.gate.errors import GateConfigError
+from sim.gate.exact import ExactCollider, eroded
+from sim.gate.fk import JointTree
+from sim.gate.tss_build import BuiltPair, TssParams, build_or_load, relative_joints
+from sim.gate.tss_runtime import TssBroadPhase
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class PairSpec:
+    """Two parts the gate keeps apart. ``tolerance_mm``: contact up to this depth is allowed (both meshes
+    are eroded by half of it, for the TSS and the exact test alike) — e.g. lids riding on an eyeball."""
+
+    a: str
+    b: str
+    tolerance_mm: float = 0.0
+
+
+def auto_pairs(head: Any, tree: JointTree) -> list[PairSpec]:
+    """Pairs to check when the profile names none: every two colliding parts that move relative to each
+    other (a head may list them as ``head.collision_pairs``: (a, b) or (a, b, tolerance_mm))."""
+    declared = getattr(head, "collision_pairs", None)
+    if declared:
+        out = []
+        for item in declared:
+            if isinstance(item, PairSpec):
+                out.append(item)
+            else:
+                t = tuple(item)
+                out.append(PairSpec(str(t[0]), str(t[1]), float(t[2]) if len(t) > 2 else 0.0))
+        return out
+    parts = [p for p in head.parts if getattr(p, "collides", True)]
+    return [
+        PairSpec(a.name, b.name)
+        for a, b in itertools.combinations(parts, 2)
+        if relative_joints(tree, a.joint, b.joint)
+    ]
+
+
+class PartCollisions:
+    """TSS broad phase + fcl exact test over a head's checked part pairs (rest meshes, head frame)."""
+
+    def __init__(
+        self,
+        head: Any,
+        tree: JointTree,
+        pairs: Sequence[PairSpec],
+        params: TssParams,
+        cache_dir: Path | None,
+        drop_touching_at_rest: bool = True,
+    ) -> None:
+        parts = {p.name: p for p in head.parts}
+        for spec in pairs:
+            for name in (spec.a, spec.b):
+                if name not in parts:
+                    raise GateConfigError(
+                        f"collision pair ({spec.a}, {spec.b}): head '{head.name}' has no part "
+                        f"'{name}'; parts {sorted(parts)}"
+                    )
+        self.tree = tree
+        self.part_joint = {name: p.joint for name, p in parts.items()}
+        meshes: dict[str, Any] = {}
+        built: list[BuiltPair] = []
+        self.specs: list[PairSpec] = []
+        self.skipped: list[tuple[PairSpec, str]] = []
+        rest = np.broadcast_to(np.eye(4), (len(tree.names), 4, 4))
+        for spec in pairs:
+            ma = meshes.setdefault(
+                f"{spec.a}@{spec.tolerance_mm}", eroded(parts[spec.a].mesh, spec.tolerance_mm)
+            )
+            mb = meshes.setdefault(
+                f"{spec.b}@{spec.tolerance_mm}", eroded(parts[spec.b].mesh, spec.tolerance_mm)
+            )
+            self.specs.append(spec)
+            built.append(
+                build_or_load(
+                    tree,
+                    head.name,
+                    parts[spec.a],
+                    parts[spec.b],
+                    ma,
+                    mb,
+                    spec.tolerance_mm,
+                    params,
+                    cache_dir,
+                )
+            )
+        self.exact = ExactCollider(meshes)
+        keep = []
+        for spec, b in zip(self.specs, built, strict=True):
+            if b.table.n_tests == 0:
+                keep.append(True)  # never close anywhere in its joint space: costs nothing
+                continue
+            touching = self._collide(spec, self._neutral_world(rest))
+            if touching and drop_touching_at_rest:
+                self.skipped.append((spec, "in contact at the neutral pose (give it a tolerance_mm)"))
+                keep.append(False)
+            else:
+                keep.append(True)
+        self.specs = [s for s, k in zip(self.specs, keep, strict=True) if k]
+        self.built = [b for b, k in zip(built, keep, strict=True) if k]
+        self.broad = TssBroadPhase(tree, self.part_joint, self.built)
+        self.pairs_active = [s for s, b in zip(self.specs, self.built, strict=True) if b.table.n_tests > 0]
+
+    def _neutral_world(self, rest: FloatArray) -> FloatArray:
+        return self.tree.world(self.tree.neutral_deg[None, :])[0]
+
+    def part_transform(self, name: str, world: FloatArray) -> FloatArray:
+        j = self.part_joint[name]
+        return np.eye(4) if j is None else world[self.tree.index[j]]
+
+    def _collide(self, spec: PairSpec, world: FloatArray) -> bool:
+        return self.exact.collide(
+            f"{spec.a}@{spec.tolerance_mm}",
+            f"{spec.b}@{spec.tolerance_mm}",
+            self.part_transform(spec.a, world),
+            self.part_transform(spec.b, world),
+        )
+
+    def colliding(self, world: FloatArray, angles_deg: FloatArray) -> tuple[list[PairSpec], int]:
+        """(pairs in collision by the exact test, number of pairs the broad phase flagged) for one pose."""
+        flags = self.broad.flag(world, angles_deg)
+        hit = [self.specs[p] for p in np.nonzero(flags)[0] if self._collide(self.specs[p], world)]
+        return hit, int(flags.sum())
+
+    def colliding_exhaustive(self, world: FloatArray) -> list[PairSpec]:
+        """Exact test on every checked pair, no broad phase (for tests and audits)."""
+        return [s for s in self.specs if self._collide(s, world)]
+
+    @property
+    def n_tests(self) -> int:
+        return self.broad.n_tests
+
+    @property
+    def n_all_sphere_pairs(self) -> int:
+        return sum(b.table.n_all_pairs for b in self.built)

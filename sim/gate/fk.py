@@ -1,0 +1,93 @@
+"""Batched forward kinematics of a head's joint tree (numpy, no per-command Python loop over commands).
+
+A joint with pivot p and unit axis a (head frame, every joint at 0 deg) rotated by theta has the world
+transform  T_parent @ Trans(p) @ Rot(a, theta) @ Trans(-p)  — the convention of `sim.rig`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sim.gate.errors import GateConfigError
+
+FloatArray = NDArray[np.float64]
+
+
+class JointTree:
+    """The joints of a head in parent-first order, ready for batched transforms."""
+
+    def __init__(self, joints: Sequence[Any]) -> None:
+        by_name = {j.name: j for j in joints}
+        order: list[str] = []
+        seen: set[str] = set()
+
+        def visit(name: str, stack: tuple[str, ...]) -> None:
+            if name in seen:
+                return
+            if name in stack:
+                raise GateConfigError(f"joint tree has a cycle through {list(stack)}")
+            parent = by_name[name].parent
+            if parent is not None:
+                if parent not in by_name:
+                    raise GateConfigError(f"joint '{name}': unknown parent '{parent}'")
+                visit(parent, (*stack, name))
+            seen.add(name)
+            order.append(name)
+
+        for j in joints:
+            visit(j.name, ())
+        self.names: tuple[str, ...] = tuple(order)
+        self.index = {n: i for i, n in enumerate(self.names)}
+        self.parent_index = np.array(
+            [-1 if by_name[n].parent is None else self.index[by_name[n].parent] for n in self.names],
+            dtype=np.int64,
+        )
+        self.pivot_mm = np.array([by_name[n].pivot_mm for n in self.names], dtype=np.float64).reshape(-1, 3)
+        axes = np.array([by_name[n].axis for n in self.names], dtype=np.float64).reshape(-1, 3)
+        norms = np.linalg.norm(axes, axis=1)
+        if np.any(norms < 1e-9):
+            zero = [n for n, v in zip(self.names, norms, strict=True) if v < 1e-9]
+            raise GateConfigError(f"joint axes must be non-zero: {zero}")
+        self.axis = axes / norms[:, None]
+        self.lower_deg = np.array([by_name[n].lower_deg for n in self.names], dtype=np.float64)
+        self.upper_deg = np.array([by_name[n].upper_deg for n in self.names], dtype=np.float64)
+        self.neutral_deg = np.array(
+            [getattr(by_name[n], "neutral_deg", 0.0) for n in self.names], dtype=np.float64
+        )
+
+    def chain(self, name: str | None) -> list[int]:
+        """Indices of ``name`` and its ancestors (root last); [] for the head base."""
+        out: list[int] = []
+        i = -1 if name is None else self.index[name]
+        while i >= 0:
+            out.append(i)
+            i = int(self.parent_index[i])
+        return out
+
+    def local(self, angles_deg: FloatArray) -> FloatArray:
+        """Local transforms (..., J, 4, 4) for angles (..., J) in deg (Rodrigues)."""
+        th = np.deg2rad(angles_deg)[..., None, None]
+        a = self.axis
+        k = np.zeros((len(self.names), 3, 3))
+        k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -a[:, 2], a[:, 1], -a[:, 0]
+        k[:, 1, 0], k[:, 2, 0], k[:, 2, 1] = a[:, 2], -a[:, 1], a[:, 0]
+        r = np.eye(3) + np.sin(th) * k + (1.0 - np.cos(th)) * (k @ k)
+        out = np.zeros((*angles_deg.shape, 4, 4))
+        out[..., :3, :3] = r
+        out[..., :3, 3] = self.pivot_mm - np.einsum(
+            "...ij,...j->...i", r, np.broadcast_to(self.pivot_mm, r.shape[:-1])
+        )
+        out[..., 3, 3] = 1.0
+        return out
+
+    def world(self, angles_deg: FloatArray) -> FloatArray:
+        """World transforms (..., J, 4, 4) of every joint for angles (..., J) deg."""
+        loc = self.local(angles_deg)
+        out = np.empty_like(loc)
+        for i, p in enumerate(self.parent_index):
+            out[..., i, :, :] = loc[..., i, :, :] if p < 0 else out[..., p, :, :] @ loc[..., i, :, :]
+        return out

@@ -1,0 +1,328 @@
+"""`TwinGate`: the last check before the bus. Every command gets a `Verdict` (accept / clip / reject).
+
+Per frame: validate the request -> narrow limits by servo health -> limits and rate caps (vectorised) ->
+twin pose (calibration inverse, joint transforms, skin = rest + B @ pulls, skinning) -> coupling rules,
+skin strain and flips, TSS broad phase, exact fcl test on flagged pairs. A failing request is clamped per
+servo (limits, rates); if that still fails, the step from the last safe command is scaled back (batched
+bisection on the step fraction, every candidate fully re-checked). Nothing safe but the last command ->
+reject (hold it).
+
+Contract: ``goals_tick`` may name a subset of servos (the rest keep their last goal); unknown ids,
+non-integers (floats, bools, strings) and non-finite values give a ``reject`` verdict with an ``input``
+finding. ``last_goals_tick`` is the gate's own previous output: if it misses a servo or holds a bad value
+that is a `GateInputError` (the caller broke the contract), as is health for an unknown servo.
+"""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sim.gate import limits as lim
+from sim.gate.collision import PairSpec, PartCollisions, auto_pairs
+from sim.gate.coupling import CouplingCheck, CouplingLimit, limits_from_head, travel_share
+from sim.gate.errors import GateInputError
+from sim.gate.fk import JointTree
+from sim.gate.health import HealthPolicy, ServoHealth, derate
+from sim.gate.strain import SkinTwin, StrainLimits, falloff_offsets, pull_basis, strain_findings
+from sim.gate.tss_build import TssParams, default_cache_dir
+from sim.gate.twin import TwinPoser
+from sim.gate.verdict import Finding, Verdict
+
+IntArray = NDArray[np.int64]
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class GateConfig:
+    """Gate settings; explicit arguments win over the head profile."""
+
+    speed_share: float = 0.8  # of the servo model's no-load speed
+    accel_time_s: float = 0.05  # time to reach the allowed speed from rest
+    max_step_tick: Mapping[str, int] = field(default_factory=dict)  # per-role overrides (tick/frame)
+    max_speedup_tick: Mapping[str, int] = field(default_factory=dict)  # per-role overrides (tick/frame^2)
+    strain: StrainLimits = StrainLimits()
+    health: HealthPolicy = HealthPolicy()
+    coupling: tuple[CouplingLimit, ...] | None = None  # None = the head's rules
+    collision_pairs: tuple[PairSpec, ...] | None = None  # None = head.collision_pairs or automatic
+    tss: TssParams = TssParams()
+    cache_dir: Path | None = None  # None = ~/.cache/servoface/tss (SERVOFACE_TSS_CACHE overrides)
+    use_cache: bool = True
+    bisection_rounds: int = 2  # 8 fractions per round: resolution 1/8**rounds of the step
+
+
+@dataclass(frozen=True)
+class BatchReport:
+    """Per-command results of `TwinGate.check_batch` ((k,) bool each; ``ok`` = all of them)."""
+
+    limit_ok: BoolArray
+    speed_ok: BoolArray
+    accel_ok: BoolArray
+    coupling_ok: BoolArray
+    broad_clear: BoolArray  # no TSS sphere pair overlaps (the exact test is not run in batches)
+
+    @property
+    def ok(self) -> BoolArray:
+        return self.limit_ok & self.speed_ok & self.accel_ok & self.coupling_ok & self.broad_clear
+
+
+class TwinGate:
+    """The digital-twin gate of one head. Build once (TSS tables load from cache), call per frame."""
+
+    def __init__(
+        self,
+        head: Any,
+        calibration: Any,
+        frame_period_s: float,
+        config: GateConfig | None = None,
+        face_model: Any | None = None,
+    ) -> None:
+        self.head = head
+        self.config = cfg = config or GateConfig()
+        self.frame_period_s = float(frame_period_s)
+        self.tree = JointTree(head.joints)
+        self.poser = TwinPoser(head, calibration, self.tree)
+        step, speedup = lim.rate_caps_tick(
+            self.poser.models, self.frame_period_s, cfg.speed_share, cfg.accel_time_s
+        )
+        for i, role in enumerate(self.poser.roles):
+            step[i] = int(cfg.max_step_tick.get(role, step[i]))
+            speedup[i] = int(cfg.max_speedup_tick.get(role, speedup[i]))
+        self.table = lim.ServoTable(
+            self.poser.ids,
+            self.poser.roles,
+            self.poser.min_tick,
+            self.poser.max_tick,
+            self.poser.neutral_tick,
+            step,
+            speedup,
+        )
+        self._index = self.table.index()
+        rules = cfg.coupling if cfg.coupling is not None else tuple(limits_from_head(head))
+        self.coupling = CouplingCheck(rules, self.poser.roles)
+        self.skin = self._build_skin(face_model)
+        cache = (cfg.cache_dir or default_cache_dir()) if cfg.use_cache else None
+        pairs = list(cfg.collision_pairs) if cfg.collision_pairs is not None else auto_pairs(head, self.tree)
+        self.collisions = PartCollisions(head, self.tree, pairs, cfg.tss, cache)
+        self._last_sent: IntArray | None = None
+        self._last_step: IntArray = np.zeros(self.table.n, dtype=np.int64)
+
+    # ---- set-up ---------------------------------------------------------------------------------------
+    def _build_skin(self, face_model: Any | None) -> SkinTwin:
+        anchors = [self.poser.actuators[c] for c in self.poser.anchor_cols]
+        roles = [a.role for a in anchors]
+        neutral = [a.neutral_mm for a in anchors]
+        units = [max(1e-3, min(1.0, (a.upper_mm - a.lower_mm) / 4.0)) for a in anchors]
+        if face_model is None:
+            neutral_of = dict(zip(roles, neutral, strict=True))
+
+            def offsets(p: Mapping[str, float]) -> FloatArray:
+                return falloff_offsets(self.head.skin, anchors, {r: p[r] - neutral_of[r] for r in roles})
+        else:
+            joint_neutral = {a.role: a.neutral_deg for a in self.head.actuators if a.kind == "joint"}
+
+            def offsets(p: Mapping[str, float]) -> FloatArray:
+                return np.asarray(
+                    face_model.pose_from_targets({**joint_neutral, **p}).skin_offset_mm, dtype=np.float64
+                )
+
+        base, basis, err = pull_basis(offsets, roles, neutral, units)
+        self.skin_nonlinearity_mm = err
+        return SkinTwin(self.head.skin, self.tree, base, basis)
+
+    # ---- input ----------------------------------------------------------------------------------------
+    def neutral_goals(self) -> dict[int, int]:
+        return {sid: int(t) for sid, t in zip(self.table.ids, self.table.neutral_tick, strict=True)}
+
+    def _vector(
+        self, goals: Mapping[Any, Any], base: IntArray | None, what: str
+    ) -> tuple[IntArray, list[Finding]]:
+        out = np.zeros(self.table.n, dtype=np.int64) if base is None else base.copy()
+        bad: list[Finding] = []
+        seen = set()
+        for sid, tick in goals.items():
+            ok_id = (
+                isinstance(sid, numbers.Integral) and not isinstance(sid, bool) and int(sid) in self._index
+            )
+            if not ok_id:
+                bad.append(
+                    Finding("input", f"{what}: unknown servo id {sid!r}; head servos {list(self.table.ids)}")
+                )
+                continue
+            i = self._index[int(sid)]
+            if isinstance(tick, bool) or not isinstance(tick, numbers.Integral):
+                desc = "non-finite" if isinstance(tick, float) and not np.isfinite(tick) else "not an integer"
+                bad.append(
+                    Finding(
+                        "input",
+                        f"{what}: {self.table.label(i)} goal {tick!r} is {desc} (ticks are ints)",
+                        self.table.roles[i],
+                        int(sid),
+                    )
+                )
+                continue
+            out[i] = int(tick)
+            seen.add(i)
+        if base is None and len(seen) < self.table.n:
+            missing = [self.table.ids[i] for i in range(self.table.n) if i not in seen]
+            bad.append(Finding("input", f"{what}: missing servo id(s) {missing}"))
+        return out, bad
+
+    # ---- the twin -------------------------------------------------------------------------------------
+    def _pose_arrays(self, goals: IntArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """(targets (k, n), angles (k, J), world (k, J, 4, 4), pulls (k, a)) for (k, n) goals."""
+        targets = self.poser.targets(goals)
+        angles = self.poser.joint_angles(targets)
+        return targets, angles, self.tree.world(angles), self.poser.pulls(targets)
+
+    def _shares(self, targets: FloatArray) -> FloatArray:
+        p = self.poser
+        return travel_share(targets, p.target_lower, p.target_upper, p.target_neutral)
+
+    def _hard_findings(self, goal: IntArray, stop_early: bool = False) -> list[Finding]:
+        """Coupling, strain, flips and collisions (exact on flagged pairs) for one command."""
+        targets, angles, world, pulls = self._pose_arrays(goal[None, :])
+        out = self.coupling.findings(self._shares(targets)[0])
+        if out and stop_early:
+            return out
+        stretch, comp, flips = self.skin.measure(world[0], pulls[0])
+        out += strain_findings(float(stretch), float(comp), int(flips), self.config.strain)
+        if out and stop_early:
+            return out
+        hits, _ = self.collisions.colliding(world[0], angles[0])
+        out += [
+            Finding("collision", f"parts '{s.a}' and '{s.b}' intersect (exact mesh test)", parts=(s.a, s.b))
+            for s in hits
+        ]
+        return out
+
+    def _hard_ok_batch(self, goals: IntArray) -> BoolArray:
+        """Coupling, strain and broad phase for (k, n) goals, exact test for the broad-phase survivors."""
+        targets, angles, world, pulls = self._pose_arrays(goals)
+        ok = self.coupling.ok(self._shares(targets))
+        stretch, comp, flips = self.skin.measure(world, pulls)
+        s = self.config.strain
+        ok &= (stretch <= s.max_stretch) & (comp >= s.min_compression) & (flips <= s.max_flipped)
+        flags = self.collisions.broad.flag(world, angles)
+        for k in np.nonzero(ok & flags.any(axis=1))[0]:
+            ok[k] = not any(
+                self.collisions._collide(self.collisions.specs[p], world[k]) for p in np.nonzero(flags[k])[0]
+            )
+        return ok
+
+    # ---- public ---------------------------------------------------------------------------------------
+    def check(
+        self,
+        goals_tick: Mapping[int, int],
+        last_goals_tick: Mapping[int, int],
+        health: Mapping[int, ServoHealth] | None = None,
+    ) -> Verdict:
+        """The verdict for sending ``goals_tick`` after ``last_goals_tick`` (see the module docstring)."""
+        last, bad_last = self._vector(last_goals_tick, None, "last_goals_tick")
+        if bad_last:
+            raise GateInputError("; ".join(f.message for f in bad_last))
+        hold = {sid: int(t) for sid, t in zip(self.table.ids, last, strict=True)}
+        last_step = (
+            self._last_step
+            if self._last_sent is not None and np.array_equal(self._last_sent, last)
+            else np.zeros(self.table.n, dtype=np.int64)
+        )
+        table, health_findings = derate(self.table, health, self.config.health)
+        req, bad = self._vector(goals_tick, last, "goals_tick")
+        requested = {sid: int(t) for sid, t in zip(self.table.ids, req, strict=True)}
+        if bad:
+            return self._remember(Verdict("reject", hold, tuple(health_findings + bad), 0.0, requested), last)
+        findings = health_findings + lim.findings(req, last, last_step, table)
+        hard = self._hard_findings(req)
+        findings += hard
+        if len(findings) == len(health_findings):
+            return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last)
+        clamped = lim.clamp(req, last, last_step, table)
+        if not hard and np.array_equal(clamped, req):  # only health notes fired
+            return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last)
+        best, frac = self._scale_back(req, last, last_step, table)
+        if best is None or np.array_equal(best, last):
+            findings.append(
+                Finding("input", "no safe command found between the last one and the request: holding")
+            )
+            return self._remember(Verdict("reject", hold, tuple(findings), 0.0, requested), last)
+        goals = {sid: int(t) for sid, t in zip(self.table.ids, best, strict=True)}
+        return self._remember(Verdict("clip", goals, tuple(findings), frac, requested), last)
+
+    def _scale_back(
+        self, req: IntArray, last: IntArray, last_step: IntArray, table: lim.ServoTable
+    ) -> tuple[IntArray | None, float]:
+        """The largest step fraction whose clamped command passes every check (batched bisection)."""
+        step = req - last
+        lo, hi = 0.0, 1.0
+        best: IntArray | None = None
+        best_frac = 0.0
+        cand_1 = lim.clamp(req, last, last_step, table)
+        if self._hard_ok_batch(cand_1[None, :])[0]:
+            return cand_1, 1.0
+        for _ in range(max(1, self.config.bisection_rounds)):
+            fracs = lo + (hi - lo) * np.arange(1, 9) / 8.0
+            raw = last + np.trunc(fracs[:, None] * step[None, :]).astype(np.int64)
+            cands = lim.clamp(raw, last, last_step, table)
+            ok = self._hard_ok_batch(cands)
+            good = np.nonzero(ok)[0]
+            if len(good) == 0:
+                hi = fracs[0]
+                continue
+            g = int(good[-1])
+            best, best_frac = cands[g], float(fracs[g])
+            lo = float(fracs[g])
+            hi = float(fracs[g + 1]) if g + 1 < len(fracs) else hi
+            if g + 1 >= len(fracs):
+                break
+        return best, best_frac
+
+    def _remember(self, verdict: Verdict, last: IntArray) -> Verdict:
+        sent = np.array([verdict.goals_tick[sid] for sid in self.table.ids], dtype=np.int64)
+        self._last_step = sent - last
+        self._last_sent = sent
+        return verdict
+
+    def check_batch(
+        self,
+        goals: IntArray,
+        last: IntArray,
+        last_step: IntArray | None = None,
+        health: Mapping[int, ServoHealth] | None = None,
+    ) -> BatchReport:
+        """Cheap checks for (k, n) goal arrays (columns in ``self.table.ids`` order) after ``last`` ((n,) or
+        (k, n)): limits, rates, coupling and the TSS broad phase. No exact test, no skin strain."""
+        g = np.asarray(goals)
+        if g.ndim != 2 or g.shape[1] != self.table.n or not np.issubdtype(g.dtype, np.integer):
+            raise GateInputError(
+                f"check_batch: goals must be an integer array (k, {self.table.n}), got {g.dtype} {g.shape}"
+            )
+        table, _ = derate(self.table, health, self.config.health)
+        ls = np.zeros(self.table.n, dtype=np.int64) if last_step is None else last_step
+        limit_ok, speed_ok, accel_ok = lim.rate_ok(g, np.asarray(last), ls, table)
+        targets, angles, world, _ = self._pose_arrays(g)
+        coupling_ok = self.coupling.ok(self._shares(targets))
+        broad = ~self.collisions.broad.flag(world, angles).any(axis=-1)
+        return BatchReport(
+            limit_ok.all(axis=1), speed_ok.all(axis=1), accel_ok.all(axis=1), coupling_ok, broad
+        )
+
+    # ---- for callers that need the twin's pose ----------------------------------------------------------
+    def twin_pose(
+        self, goals_tick: Mapping[int, int]
+    ) -> tuple[dict[str, float], FloatArray, dict[str, float]]:
+        """(joint_deg, skin_offset_mm (n, 3), actuator targets) the twin sees for a full command."""
+        vec, bad = self._vector(goals_tick, None, "goals_tick")
+        if bad:
+            raise GateInputError("; ".join(f.message for f in bad))
+        targets, angles, _, pulls = self._pose_arrays(vec[None, :])
+        offsets = (self.skin.base - self.skin.rest) + (pulls[0] @ self.skin.basis.T).reshape(-1, 3)
+        joint_deg = {n: float(a) for n, a in zip(self.tree.names, angles[0], strict=True)}
+        return joint_deg, offsets, {r: float(t) for r, t in zip(self.poser.roles, targets[0], strict=True)}

@@ -1,0 +1,184 @@
+"""Per-servo position limits and rate caps, as arrays over the head's servos (vectorised).
+
+Rates are per control frame. ``max_step_tick`` caps |goal - last| (speed). ``max_speedup_tick`` caps how
+much |step| may grow from one frame to the next in the same direction (acceleration); a step against the
+previous direction may be at most ``max_speedup_tick`` (as if from rest). Slowing down is never limited:
+the servo's own controller stops at its goal, and refusing to slow down would overshoot the request.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sim.gate.errors import GateConfigError
+from sim.gate.verdict import Finding
+
+IntArray = NDArray[np.int64]
+FloatArray = NDArray[np.float64]
+
+# No-load speed in rpm at the nominal voltage (ROBOTIS e-manual); the gate uses a share of it.
+NO_LOAD_SPEED_RPM: dict[str, float] = {
+    "XL330-M288": 103.0,
+    "XL330-M077": 383.0,
+    "XC330-M288": 81.0,
+    "XC330-T288": 114.0,
+    "XL430-W250": 57.0,
+    "XC430-W150": 106.0,
+    "XM430-W350": 46.0,
+    "XM430-W210": 77.0,
+}
+TICKS_PER_REV = 4096
+
+
+@dataclass(frozen=True)
+class ServoTable:
+    """Limits of every servo of a head, index-aligned arrays of shape (n,)."""
+
+    ids: tuple[int, ...]
+    roles: tuple[str, ...]
+    min_tick: IntArray
+    max_tick: IntArray
+    neutral_tick: IntArray
+    max_step_tick: IntArray
+    max_speedup_tick: IntArray
+
+    def __post_init__(self) -> None:
+        n = len(self.ids)
+        for name in ("min_tick", "max_tick", "neutral_tick", "max_step_tick", "max_speedup_tick"):
+            arr = getattr(self, name)
+            if arr.shape != (n,):
+                raise GateConfigError(f"ServoTable.{name}: expected shape ({n},), got {arr.shape}")
+        bad = [
+            self.label(i)
+            for i in range(n)
+            if not self.min_tick[i] <= self.neutral_tick[i] <= self.max_tick[i]
+        ]
+        if bad:
+            raise GateConfigError(f"servo limits need min_tick <= neutral_tick <= max_tick; broken for {bad}")
+        if np.any(self.max_step_tick < 1) or np.any(self.max_speedup_tick < 1):
+            raise GateConfigError("max_step_tick and max_speedup_tick must be >= 1 tick per frame")
+
+    @property
+    def n(self) -> int:
+        return len(self.ids)
+
+    def label(self, i: int) -> str:
+        return f"servo {self.ids[i]} '{self.roles[i]}'"
+
+    def index(self) -> dict[int, int]:
+        return {sid: i for i, sid in enumerate(self.ids)}
+
+    def with_rates(self, max_step_tick: IntArray, max_speedup_tick: IntArray) -> ServoTable:
+        return replace(self, max_step_tick=max_step_tick, max_speedup_tick=max_speedup_tick)
+
+
+def rate_caps_tick(
+    models: list[str], frame_period_s: float, speed_share: float, accel_time_s: float
+) -> tuple[IntArray, IntArray]:
+    """(max_step_tick, max_speedup_tick) per servo from its model's no-load speed.
+
+    ``speed_share`` of the no-load speed is allowed; full allowed speed may be reached in ``accel_time_s``.
+    """
+    if frame_period_s <= 0 or not np.isfinite(frame_period_s):
+        raise GateConfigError(f"frame_period_s must be a positive number, got {frame_period_s}")
+    unknown = sorted({m for m in models if m not in NO_LOAD_SPEED_RPM})
+    if unknown:
+        raise GateConfigError(
+            f"no speed known for servo model(s) {unknown}; known: {sorted(NO_LOAD_SPEED_RPM)}"
+        )
+    rpm = np.array([NO_LOAD_SPEED_RPM[m] for m in models])
+    tick_per_s = rpm / 60.0 * TICKS_PER_REV * speed_share
+    step = np.maximum(1, np.floor(tick_per_s * frame_period_s)).astype(np.int64)
+    frames_to_full = max(1.0, accel_time_s / frame_period_s)
+    speedup = np.maximum(1, np.floor(step / frames_to_full)).astype(np.int64)
+    return step, speedup
+
+
+def step_bounds(last_step: IntArray, table: ServoTable) -> tuple[IntArray, IntArray]:
+    """Allowed step interval [lo, hi] per servo (arrays broadcast like ``last_step``); always contains 0."""
+    up = np.where(last_step > 0, last_step + table.max_speedup_tick, table.max_speedup_tick)
+    down = np.where(last_step < 0, last_step - table.max_speedup_tick, -table.max_speedup_tick)
+    hi = np.minimum(up, table.max_step_tick)
+    lo = np.maximum(down, -table.max_step_tick)
+    return lo.astype(np.int64), hi.astype(np.int64)
+
+
+def rate_ok(
+    goals: IntArray, last: IntArray, last_step: IntArray, table: ServoTable
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_]]:
+    """(limit_ok, speed_ok, accel_ok), each shaped like ``goals`` ((n,) or (k, n))."""
+    step = goals - last
+    limit_ok = (goals >= table.min_tick) & (goals <= table.max_tick)
+    speed_ok = np.abs(step) <= table.max_step_tick
+    lo, hi = step_bounds(last_step, table)
+    accel_ok = (step >= lo) & (step <= hi)
+    return limit_ok, speed_ok, accel_ok
+
+
+def clamp(goals: IntArray, last: IntArray, last_step: IntArray, table: ServoTable) -> IntArray:
+    """The nearest command per servo inside the limits and rate caps.
+
+    When ``last`` lies outside the limits (a derated servo), the servo moves towards them at the
+    allowed rate: rate caps win over position limits.
+    """
+    lo, hi = step_bounds(last_step, table)
+    step = np.clip(goals - last, lo, hi)
+    step = np.clip(step, table.min_tick - last, table.max_tick - last)
+    step = np.clip(step, lo, hi)
+    return (last + step).astype(np.int64)
+
+
+def findings(goals: IntArray, last: IntArray, last_step: IntArray, table: ServoTable) -> list[Finding]:
+    """One finding per servo and violated limit, with numbers."""
+    out: list[Finding] = []
+    step = goals - last
+    lo, hi = step_bounds(last_step, table)
+    for i in range(table.n):
+        sid, role, g = table.ids[i], table.roles[i], int(goals[i])
+        if g < table.min_tick[i] or g > table.max_tick[i]:
+            side, lim = (
+                ("below min", table.min_tick[i])
+                if g < table.min_tick[i]
+                else ("above max", table.max_tick[i])
+            )
+            out.append(
+                Finding(
+                    "limit",
+                    f"{table.label(i)}: goal {g} tick {side} {int(lim)} tick",
+                    role,
+                    sid,
+                    float(g),
+                    float(lim),
+                    "tick",
+                )
+            )
+        s = int(step[i])
+        if abs(s) > table.max_step_tick[i]:
+            out.append(
+                Finding(
+                    "speed",
+                    f"{table.label(i)}: step {s} tick/frame exceeds {int(table.max_step_tick[i])} tick/frame",
+                    role,
+                    sid,
+                    float(abs(s)),
+                    float(table.max_step_tick[i]),
+                    "tick/frame",
+                )
+            )
+        elif s < lo[i] or s > hi[i]:
+            out.append(
+                Finding(
+                    "accel",
+                    f"{table.label(i)}: step {s} tick/frame after {int(last_step[i])} "
+                    f"speeds up by more than {int(table.max_speedup_tick[i])} tick/frame^2",
+                    role,
+                    sid,
+                    float(s - last_step[i]),
+                    float(table.max_speedup_tick[i]),
+                    "tick/frame^2",
+                )
+            )
+    return out

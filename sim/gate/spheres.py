@@ -1,0 +1,61 @@
+"""Covering spheres for a part's surface (TSS step 1, conservative variant).
+
+Londra grows *inscribed* spheres from triangle midpoints; inscribed spheres can miss a shallow contact
+between them. The gate needs "no collision the exact test finds is missed", and the exact test (fcl on
+triangle BVHs) fires when surfaces intersect, so here every triangle is covered: the surface is cut into
+small patches (triangle centroids binned on a voxel grid after subdividing long edges) and each patch
+gets its bounding sphere (centre = middle of the patch's vertex box, radius = farthest vertex). A ball is
+convex, so it holds the patch's triangles; any two intersecting triangles lie in two overlapping spheres.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sim.gate.errors import GateConfigError
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class SphereSet:
+    """Spheres of one part in its rest pose (head frame): centres (n, 3) mm, radii (n,) mm."""
+
+    centres_mm: FloatArray
+    radii_mm: FloatArray
+
+    @property
+    def n(self) -> int:
+        return int(self.radii_mm.shape[0])
+
+
+def cover_spheres(mesh: Any, target_count: int = 160, min_cell_mm: float = 1.0) -> SphereSet:
+    """Bounding spheres of about ``target_count`` surface patches of ``mesh`` (a trimesh.Trimesh)."""
+    import trimesh  # heavy import at use
+
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    if len(faces) == 0:
+        raise GateConfigError("cannot cover an empty mesh with spheres")
+    area = float(mesh.area)
+    cell = max(min_cell_mm, float(np.sqrt(max(area, 1e-9) / max(target_count, 1))))
+    vertices, faces = trimesh.remesh.subdivide_to_size(vertices, faces, max_edge=cell / 2.0, max_iter=12)
+    tri = vertices[faces]  # (m, 3, 3)
+    keys = np.floor(tri.mean(axis=1) / cell).astype(np.int64)
+    _, label = np.unique(keys, axis=0, return_inverse=True)
+    label = label.reshape(-1)
+    n = int(label.max()) + 1
+    pts = tri.reshape(-1, 3)
+    plabel = np.repeat(label, 3)
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    np.minimum.at(lo, plabel, pts)
+    np.maximum.at(hi, plabel, pts)
+    centres = (lo + hi) / 2.0
+    radii = np.zeros(n)
+    np.maximum.at(radii, plabel, np.linalg.norm(pts - centres[plabel], axis=1))
+    return SphereSet(centres, radii * (1.0 + 1e-9) + 1e-9)

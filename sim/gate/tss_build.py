@@ -1,0 +1,341 @@
+"""Tabulated Sphere Subsets, built offline (Navarro Newball 2010 ch. 8; muscle-models.md §9).
+
+For each pair of rigid parts that can collide: cover both with spheres (`spheres.cover_spheres`), sweep a
+grid over the joints that move one part relative to the other, and tabulate every sphere pair that ever
+comes within ``r_a + r_b + margin`` at a grid node. ``margin`` bounds how far any sphere centre moves
+between a grid node and any configuration in its cell (distance to the joint axis times half a step,
+summed over joints; distances are bounded along the joint tree so the bound holds in every pose), so at
+run time, anywhere inside the swept box, a sphere pair that is not in the table cannot touch. With the
+spheres covering the surfaces, the table therefore misses no collision the exact triangle test finds.
+Tables are cached per pair as ``.npz``, keyed by a hash of the meshes, the joint chain and the parameters.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sim.gate.errors import TssCacheError
+from sim.gate.fk import JointTree
+from sim.gate.spheres import SphereSet, cover_spheres
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+TSS_VERSION = "tss-1"
+
+
+@dataclass(frozen=True)
+class TssParams:
+    """Build parameters: spheres per part, the margin budget (mm) that fixes the sweep step, caps."""
+
+    spheres_per_part: int = 160
+    margin_mm: float = 0.6
+    max_step_deg: float = 4.0
+    max_grid_points: int = 12000
+    chunk_elements: int = 4_000_000
+
+
+@dataclass(frozen=True)
+class PairTable:
+    """The TSS of one part pair: sphere index pairs (ia into part a's spheres, ib into b's)."""
+
+    a: str
+    b: str
+    joints: tuple[str, ...]
+    lower_deg: FloatArray
+    upper_deg: FloatArray
+    ia: IntArray
+    ib: IntArray
+    n_all_pairs: int
+    margin_mm: float
+    step_deg: FloatArray
+    grid_points: int
+    tolerance_mm: float
+    key: str
+
+    @property
+    def n_tests(self) -> int:
+        return int(self.ia.shape[0])
+
+    @property
+    def reduction(self) -> float:
+        """Share of sphere pairs that are never tested (1 - tests / all)."""
+        return 1.0 - self.n_tests / max(self.n_all_pairs, 1)
+
+
+def default_cache_dir() -> Path:
+    env = os.environ.get("SERVOFACE_TSS_CACHE")
+    return Path(env) if env else Path.home() / ".cache" / "servoface" / "tss"
+
+
+def _mesh_bytes(mesh: Any) -> bytes:
+    v = np.ascontiguousarray(np.asarray(mesh.vertices, dtype=np.float64))
+    f = np.ascontiguousarray(np.asarray(mesh.faces, dtype=np.int64))
+    return v.tobytes() + f.tobytes()
+
+
+def pair_key(
+    tree: JointTree,
+    part_a: Any,
+    part_b: Any,
+    mesh_a: Any,
+    mesh_b: Any,
+    tolerance_mm: float,
+    params: TssParams,
+) -> str:
+    """Hash of everything a pair's table depends on."""
+    h = hashlib.sha256(TSS_VERSION.encode())
+    for part, mesh in ((part_a, mesh_a), (part_b, mesh_b)):
+        h.update(part.name.encode())
+        h.update(_mesh_bytes(mesh))
+        for i in tree.chain(part.joint):
+            h.update(tree.names[i].encode())
+            h.update(
+                np.array([*tree.pivot_mm[i], *tree.axis[i], tree.lower_deg[i], tree.upper_deg[i]]).tobytes()
+            )
+    h.update(repr((tolerance_mm, params)).encode())
+    return h.hexdigest()[:20]
+
+
+def relative_joints(tree: JointTree, joint_a: str | None, joint_b: str | None) -> list[int]:
+    """Joints that move part a relative to part b (the symmetric difference of their chains)."""
+    ca, cb = tree.chain(joint_a), tree.chain(joint_b)
+    return sorted(set(ca) ^ set(cb))
+
+
+def _tree_distance_bound(tree: JointTree, from_joint: str | None, to_index: int) -> tuple[int, float]:
+    """(start pivot index, summed pivot-to-pivot length) along the tree path from a part's joint to joint
+    ``to_index``. For a part on the head base the path starts at the root of ``to_index``'s chain."""
+    chain_to = tree.chain(tree.names[to_index])
+    chain_from = tree.chain(from_joint) if from_joint is not None else [chain_to[-1]]
+    common = next((i for i in chain_from if i in set(chain_to)), None)
+    path_up = chain_from if common is None else chain_from[: chain_from.index(common) + 1]
+    path_down = chain_to if common is None else chain_to[: chain_to.index(common) + 1]
+    nodes = (
+        path_up + list(reversed(path_down))[1:] if common is not None else path_up + list(reversed(path_down))
+    )
+    length = sum(
+        float(np.linalg.norm(tree.pivot_mm[u] - tree.pivot_mm[v])) for u, v in itertools.pairwise(nodes)
+    )
+    return chain_from[0], length
+
+
+def lever_arm_mm(tree: JointTree, joint_name: str | None, spheres: SphereSet, j: int) -> float:
+    """Upper bound (any pose) of the distance from a sphere surface point of a part to joint j's pivot."""
+    start, length = _tree_distance_bound(tree, joint_name, j)
+    reach = np.linalg.norm(spheres.centres_mm - tree.pivot_mm[start], axis=1) + spheres.radii_mm
+    return float(reach.max()) + length
+
+
+def build_pair(
+    tree: JointTree,
+    part_a: Any,
+    part_b: Any,
+    spheres_a: SphereSet,
+    spheres_b: SphereSet,
+    tolerance_mm: float,
+    params: TssParams,
+    key: str,
+) -> PairTable:
+    """Sweep the pair's relative joint space and tabulate the sphere pairs that can come close."""
+    rel = relative_joints(tree, part_a.joint, part_b.joint)
+    chain_a = set(tree.chain(part_a.joint))
+    arms = np.array(
+        [
+            lever_arm_mm(tree, part_a.joint, spheres_a, j)
+            if j in chain_a
+            else lever_arm_mm(tree, part_b.joint, spheres_b, j)
+            for j in rel
+        ]
+    )
+    lo = tree.lower_deg[rel]
+    hi = tree.upper_deg[rel]
+    budget = params.margin_mm / max(len(rel), 1)
+    step = np.minimum(np.rad2deg(2.0 * budget / np.maximum(arms, 1e-9)), params.max_step_deg)
+    counts = np.maximum(1, np.ceil((hi - lo) / np.maximum(step, 1e-9))).astype(np.int64) + 1
+    while int(np.prod(counts)) > params.max_grid_points:
+        counts = np.maximum(2, np.ceil(counts * 0.85)).astype(np.int64)
+    step = np.where(counts > 1, (hi - lo) / np.maximum(counts - 1, 1), 0.0)
+    margin = float(np.sum(arms * np.deg2rad(step) / 2.0))
+    axes = [np.linspace(lo[i], hi[i], int(counts[i])) for i in range(len(rel))]
+    grid = (
+        np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(rel))
+        if rel
+        else np.zeros((1, 0))
+    )
+    angles = np.zeros((grid.shape[0], len(tree.names)))
+    angles[:, rel] = grid
+    ja = -1 if part_a.joint is None else tree.index[part_a.joint]
+    jb = -1 if part_b.joint is None else tree.index[part_b.joint]
+    hit = _sweep(tree, angles, ja, jb, spheres_a, spheres_b, margin + tolerance_mm, params.chunk_elements)
+    ia, ib = np.nonzero(hit)
+    return PairTable(
+        part_a.name,
+        part_b.name,
+        tuple(tree.names[j] for j in rel),
+        lo.copy(),
+        hi.copy(),
+        ia.astype(np.int64),
+        ib.astype(np.int64),
+        spheres_a.n * spheres_b.n,
+        margin,
+        step,
+        int(grid.shape[0]),
+        tolerance_mm,
+        key,
+    )
+
+
+def _sweep(
+    tree: JointTree,
+    angles: FloatArray,
+    ja: int,
+    jb: int,
+    sa: SphereSet,
+    sb: SphereSet,
+    pad_mm: float,
+    chunk: int,
+) -> NDArray[np.bool_]:
+    """(n_a, n_b) True where spheres i of a and j of b come within r_i + r_j + pad at some grid node.
+
+    Works in b's rest frame (a's centres moved by inv(T_b) T_a), so b's k-d tree is built once; grid
+    nodes where the two parts' bounding balls stay apart are skipped.
+    """
+    from scipy.spatial import cKDTree
+
+    hit = np.zeros((sa.n, sb.n), dtype=bool)
+    cb_ball = (sb.centres_mm.min(axis=0) + sb.centres_mm.max(axis=0)) / 2.0
+    rb_ball = float(np.max(np.linalg.norm(sb.centres_mm - cb_ball, axis=1) + sb.radii_mm))
+    ca_ball = (sa.centres_mm.min(axis=0) + sa.centres_mm.max(axis=0)) / 2.0
+    ra_ball = float(np.max(np.linalg.norm(sa.centres_mm - ca_ball, axis=1) + sa.radii_mm))
+    kd = cKDTree(sb.centres_mm)
+    ha = np.c_[sa.centres_mm, np.ones(sa.n)]
+    rmax_b = float(sb.radii_mm.max())
+    per_chunk = max(1, chunk // max(sa.n, 1))
+    for start in range(0, angles.shape[0], per_chunk):
+        world = tree.world(angles[start : start + per_chunk])
+        g = world.shape[0]
+        ta = world[:, ja] if ja >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))
+        tb = world[:, jb] if jb >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))
+        rel = np.linalg.inv(tb) @ ta  # a's rest frame -> b's rest frame
+        ball = np.einsum("gij,j->gi", rel, np.r_[ca_ball, 1.0])[:, :3]
+        near = np.linalg.norm(ball - cb_ball, axis=1) <= ra_ball + rb_ball + pad_mm
+        if not near.any():
+            continue
+        pts = np.einsum("gij,nj->gni", rel[near], ha)[..., :3].reshape(-1, 3)
+        idx_a = np.tile(np.arange(sa.n), int(near.sum()))
+        cand = kd.query_ball_point(pts, r=sa.radii_mm[idx_a] + rmax_b + pad_mm, return_sorted=False)
+        lens = np.fromiter((len(c) for c in cand), dtype=np.int64, count=len(cand))
+        if lens.sum() == 0:
+            continue
+        rows = np.repeat(np.arange(len(cand)), lens)
+        cols = np.fromiter((j for c in cand for j in c), dtype=np.int64, count=int(lens.sum()))
+        d = np.linalg.norm(pts[rows] - sb.centres_mm[cols], axis=1)
+        ok = d <= sa.radii_mm[idx_a[rows]] + sb.radii_mm[cols] + pad_mm
+        hit[idx_a[rows[ok]], cols[ok]] = True
+    return hit
+
+
+def _save(path: Path, table: PairTable, sa: SphereSet, sb: SphereSet) -> None:
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
+        np.savez_compressed(
+            tmp,
+            a=table.a,
+            b=table.b,
+            joints=np.array(table.joints, dtype=str),
+            lower=table.lower_deg,
+            upper=table.upper_deg,
+            ia=table.ia,
+            ib=table.ib,
+            n_all=table.n_all_pairs,
+            margin=table.margin_mm,
+            step=table.step_deg,
+            grid=table.grid_points,
+            tol=table.tolerance_mm,
+            key=table.key,
+            ca=sa.centres_mm,
+            ra=sa.radii_mm,
+            cb=sb.centres_mm,
+            rb=sb.radii_mm,
+        )
+        os.replace(tmp, path)
+    except OSError as err:
+        raise TssCacheError(f"cannot write TSS cache file {path}: {err}") from err
+
+
+def _load(path: Path, key: str) -> tuple[PairTable, SphereSet, SphereSet] | None:
+    if not path.exists():
+        return None
+    try:
+        with np.load(path) as z:
+            if str(z["key"]) != key:
+                return None
+            table = PairTable(
+                str(z["a"]),
+                str(z["b"]),
+                tuple(str(s) for s in z["joints"]),
+                z["lower"],
+                z["upper"],
+                z["ia"].astype(np.int64),
+                z["ib"].astype(np.int64),
+                int(z["n_all"]),
+                float(z["margin"]),
+                z["step"],
+                int(z["grid"]),
+                float(z["tol"]),
+                key,
+            )
+            return table, SphereSet(z["ca"], z["ra"]), SphereSet(z["cb"], z["rb"])
+    except (OSError, KeyError, ValueError) as err:
+        raise TssCacheError(f"TSS cache file {path} is unreadable ({err}); delete it to rebuild") from err
+
+
+@dataclass(frozen=True)
+class BuiltPair:
+    table: PairTable
+    spheres_a: SphereSet
+    spheres_b: SphereSet
+    from_cache: bool
+
+
+def build_or_load(
+    tree: JointTree,
+    head_name: str,
+    part_a: Any,
+    part_b: Any,
+    mesh_a: Any,
+    mesh_b: Any,
+    tolerance_mm: float,
+    params: TssParams,
+    cache_dir: Path | None,
+) -> BuiltPair:
+    """The pair's table from the cache when its key matches, else built (and cached when a dir is given)."""
+    key = pair_key(tree, part_a, part_b, mesh_a, mesh_b, tolerance_mm, params)
+    path = None if cache_dir is None else cache_dir / f"{head_name}-{part_a.name}-{part_b.name}-{key}.npz"
+    if path is not None:
+        got = _load(path, key)
+        if got is not None:
+            return BuiltPair(got[0], got[1], got[2], True)
+    sa = cover_spheres(mesh_a, params.spheres_per_part)
+    sb = cover_spheres(mesh_b, params.spheres_per_part)
+    table = build_pair(tree, part_a, part_b, sa, sb, tolerance_mm, params, key)
+    if path is not None:
+        _save(path, table, sa, sb)
+    return BuiltPair(table, sa, sb, False)
+
+
+def summed_reduction(tables: Sequence[PairTable]) -> float:
+    """1 - (tested sphere pairs) / (all sphere pairs), over every pair."""
+    tests = sum(t.n_tests for t in tables)
+    total = sum(t.n_all_pairs for t in tables)
+    return 1.0 - tests / max(total, 1)

@@ -1,0 +1,98 @@
+"""The twin's pose from servo goals: calibration inverse -> actuator targets -> joint angles and pulls.
+
+Works on (k, n_servos) tick arrays in the calibration's column order, so one frame and a batch of
+candidate commands share the same code.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sim.gate.errors import GateConfigError
+from sim.gate.fk import JointTree
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+class TwinPoser:
+    """Maps goal ticks to joint angles (deg, JointTree order) and anchor pulls (mm from neutral)."""
+
+    def __init__(self, head: Any, calibration: Any, tree: JointTree) -> None:
+        self.calibration = calibration
+        self.tree = tree
+        self.roles: tuple[str, ...] = tuple(calibration.roles)
+        self.ids: tuple[int, ...] = tuple(int(i) for i in calibration.ids)
+        actuators = {a.role: a for a in head.actuators}
+        missing = [r for r in self.roles if r not in actuators]
+        extra = [r for r in actuators if r not in self.roles]
+        if missing or extra:
+            raise GateConfigError(
+                f"calibration '{getattr(calibration, 'head', '?')}' and head '{head.name}' disagree on "
+                f"roles: "
+                f"not in head {missing}, not calibrated {extra}"
+            )
+        head_ids = {a.role: a.servo.id for a in head.actuators}
+        wrong = [(r, i, head_ids[r]) for r, i in zip(self.roles, self.ids, strict=True) if head_ids[r] != i]
+        if wrong:
+            raise GateConfigError(
+                f"calibration ids differ from the head profile (role, cal id, head id): {wrong}"
+            )
+        self.actuators = tuple(actuators[r] for r in self.roles)
+        # joint columns: servo column -> joints it drives
+        jc: list[int] = []
+        jj: list[int] = []
+        for c, a in enumerate(self.actuators):
+            if a.kind == "joint":
+                for name in a.joints:
+                    jc.append(c)
+                    jj.append(tree.index[name])
+        self._joint_col = np.array(jc, dtype=np.int64)
+        self._joint_idx = np.array(jj, dtype=np.int64)
+        self.anchor_cols = np.array(
+            [c for c, a in enumerate(self.actuators) if a.kind == "anchor"], dtype=np.int64
+        )
+        self.anchor_roles = tuple(self.roles[c] for c in self.anchor_cols)
+        self.anchor_neutral_mm = np.array(
+            [self.actuators[c].neutral_mm for c in self.anchor_cols], dtype=np.float64
+        )
+        servos = calibration.servos
+        self.min_tick = np.array([s.min_tick for s in servos], dtype=np.int64)
+        self.max_tick = np.array([s.max_tick for s in servos], dtype=np.int64)
+        self.neutral_tick = np.array([s.neutral_tick for s in servos], dtype=np.int64)
+        self.models = [s.model for s in servos]
+        self.target_lower = np.array([_lower(a) for a in self.actuators])
+        self.target_upper = np.array([_upper(a) for a in self.actuators])
+        self.target_neutral = np.array([_neutral(a) for a in self.actuators])
+
+    def targets(self, ticks: IntArray) -> FloatArray:
+        """(k, n) actuator targets (deg / mm) for (k, n) ticks (clipped into the tick limits)."""
+        return np.asarray(
+            self.calibration.goals_to_targets_array(np.atleast_2d(ticks), clip=True), dtype=np.float64
+        )
+
+    def joint_angles(self, targets: FloatArray) -> FloatArray:
+        """(k, J) joint angles: driven joints from their servo's target, the rest at neutral, all clamped to
+        the joint limits (the rig's hard stops, as in `sim.kinematics`)."""
+        q = np.broadcast_to(self.tree.neutral_deg, (targets.shape[0], len(self.tree.names))).copy()
+        q[:, self._joint_idx] = targets[:, self._joint_col]
+        return np.clip(q, self.tree.lower_deg, self.tree.upper_deg)
+
+    def pulls(self, targets: FloatArray) -> FloatArray:
+        """(k, n_anchors) anchor pulls relative to the anchors' neutral (mm)."""
+        return targets[:, self.anchor_cols] - self.anchor_neutral_mm
+
+
+def _lower(a: Any) -> float:
+    return float(a.lower_deg if a.kind == "joint" else a.lower_mm)
+
+
+def _upper(a: Any) -> float:
+    return float(a.upper_deg if a.kind == "joint" else a.upper_mm)
+
+
+def _neutral(a: Any) -> float:
+    return float(a.neutral_deg if a.kind == "joint" else a.neutral_mm)
