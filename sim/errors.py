@@ -19,3 +19,15 @@ class ExpressionError(SimError):
 
 class RenderError(SimError):
     """Headless rendering is unavailable or failed (EGL missing, context creation failed)."""
+
+
+class HeadMeshError(HeadProfileError):
+    """A mesh named by a head profile is missing, unreadable or not a usable triangle mesh."""
+
+
+class PoseError(SimError):
+    """A head pose is invalid: unknown joint, non-finite angle, skin offsets of the wrong shape."""
+
+
+class ActionUnitValueError(SimError):
+    """An AU intensity is not a finite number in the AU's range (human 0..1, DFACS -1..1 unless stated)."""

@@ -1,0 +1,213 @@
+"""The face model: AUs -> a posed head (joint angles + skin offsets) -> actuator targets, and back.
+
+``FaceModel(head).solve(aus)`` validates the AUs, maps them through the head's AU table to muscle
+contractions and joint angles (sum of signed contributions, then clamp: contractions to the table's range,
+joints to their limits), deforms the rest skin by the precomputed Waters-style muscle fields
+(``sim.muscles.field``), and reads the actuator targets off the result:
+
+- joint actuator  -> the mean angle of its joints (deg), clamped to the actuator's range;
+- anchor actuator -> the skin offset of its anchor vertex projected on its line of action (mm), clamped.
+
+``pose_from_targets(targets)`` is the twin's inverse: joints straight from the joint targets, skin from the
+anchor pulls by a bounded least-squares fit of muscle contractions plus exact per-anchor bumps
+(``sim.muscles.fit``). Everything heavy is precomputed in the constructor: one ``solve`` is two small
+matrix products, one sparse matrix-vector product and a few dictionary builds.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sim.au.mapping import AUMapping
+from sim.au.table import AUTable, load_au_table
+from sim.errors import HeadProfileError, SimError
+from sim.muscles import MUSCLE_TYPES, Muscle, muscle_from_mapping
+from sim.muscles.field import MuscleField
+from sim.muscles.fit import AnchorFit
+from sim.rig import AnchorActuator, HeadPose, JointActuator
+
+FloatArray = NDArray[np.float64]
+
+
+def as_model_muscle(muscle: Any) -> Muscle:
+    """A muscle of ``sim.muscles`` from any muscle record with the same fields (e.g. ``sim.rig``'s)."""
+    if isinstance(muscle, tuple(MUSCLE_TYPES.values())):
+        return muscle  # type: ignore[no-any-return]
+    if not dataclasses.is_dataclass(muscle) or isinstance(muscle, type):
+        raise HeadProfileError(f"muscle {muscle!r}: expected a muscle dataclass with name and type fields")
+    data = {k: v for k, v in dataclasses.asdict(muscle).items() if v is not None and k != "name"}
+    data = {k: list(v) if isinstance(v, tuple) else v for k, v in data.items()}
+    return muscle_from_mapping(str(muscle.name), data, f"muscles.{muscle.name}")
+
+
+@dataclasses.dataclass(frozen=True)
+class FaceSolution:
+    """A solved frame with the muscle state behind it (for inspection and tests)."""
+
+    pose: HeadPose
+    contractions: dict[str, float]
+
+
+class FaceModel:
+    """AUs -> HeadPose (with actuator targets) for one head, and actuator targets -> HeadPose (the twin).
+
+    ``au_table``: a table, a file path, or None for the head's ``au_table_path`` (else the built-in table
+    of its face type).
+    """
+
+    def __init__(self, head: Any, au_table: AUTable | str | Path | None = None) -> None:
+        self.head = head
+        rest = np.asarray(head.skin.vertices_mm, dtype=np.float64)
+        self.n_vertices = int(rest.shape[0])
+        muscles = [as_model_muscle(m) for m in _values(head.muscles)]
+        self.field = MuscleField(muscles, rest)
+        if isinstance(au_table, AUTable):
+            table = au_table
+        else:
+            table = load_au_table(au_table or getattr(head, "au_table_path", None) or head.face_type)
+        if table.face_type != head.face_type:
+            raise HeadProfileError(
+                f"{table.path}: face_type {table.face_type!r} does not match "
+                f"head {head.name!r} ({head.face_type!r})"
+            )
+        joints = _values(head.joints)
+        self.joint_names: tuple[str, ...] = tuple(j.name for j in joints)
+        self.mapping = AUMapping(table, self.field.names, self.joint_names)
+        self._neutral = np.array([j.neutral_deg for j in joints], dtype=np.float64)
+        self._lower = np.array([j.lower_deg for j in joints], dtype=np.float64)
+        self._upper = np.array([j.upper_deg for j in joints], dtype=np.float64)
+        j_index = {n: i for i, n in enumerate(self.joint_names)}
+        actuators = _values(head.actuators)
+        self.joint_actuators = [a for a in actuators if isinstance(a, JointActuator)]
+        self.anchor_actuators = [a for a in actuators if isinstance(a, AnchorActuator)]
+        for act in self.joint_actuators:
+            missing = [j for j in act.joints if j not in j_index]
+            if missing:
+                raise HeadProfileError(f"actuators.{act.role}.joints: unknown joint(s) {missing}")
+        for anchor in self.anchor_actuators:
+            if not 0 <= anchor.vertex < self.n_vertices:
+                raise HeadProfileError(
+                    f"actuators.{anchor.role}.vertex: expected a skin vertex 0..{self.n_vertices - 1}, "
+                    f"got {anchor.vertex}"
+                )
+        self._joint_cols = [np.array([j_index[j] for j in a.joints]) for a in self.joint_actuators]
+        self._anchor_vertex = np.array([a.vertex for a in self.anchor_actuators], dtype=np.int64)
+        lines = np.array([a.line for a in self.anchor_actuators], dtype=np.float64).reshape(-1, 3)
+        norms = np.linalg.norm(lines, axis=1)
+        self._anchor_line = lines / np.where(norms > 0, norms, 1.0)[:, None]
+        unit = self.field.unit_displacements(self._anchor_vertex)  # (A, 3, M)
+        unit_pull = np.einsum("ak,akm->am", self._anchor_line, unit)
+        self.fit = AnchorFit(
+            unit_pull,
+            table.contraction,
+            rest,
+            self._anchor_vertex,
+            self._anchor_line,
+            [a.radius_mm for a in self.anchor_actuators],
+        )
+        self.roles: tuple[str, ...] = tuple(a.role for a in actuators)
+
+    # --- forward: AUs -> pose ---------------------------------------------------------------------------
+
+    def solve(self, aus: Mapping[str, float]) -> HeadPose:
+        """The posed head for one AU frame (validated first; a bad AU raises and nothing is computed)."""
+        return self.solve_detailed(aus).pose
+
+    def solve_detailed(self, aus: Mapping[str, float]) -> FaceSolution:
+        contractions, joint_delta = self.mapping.evaluate(aus)
+        joint = np.clip(self._neutral + joint_delta, self._lower, self._upper)
+        joint_deg = dict(zip(self.joint_names, joint.tolist(), strict=True))
+        offsets = self.field.offsets(contractions, joint_deg if self.field.eyelids else None)
+        targets = self._targets(joint, offsets)
+        pose = HeadPose(joint_deg, offsets, targets)
+        return FaceSolution(pose, dict(zip(self.field.names, contractions.tolist(), strict=True)))
+
+    def _targets(self, joint: FloatArray, offsets: FloatArray) -> dict[str, float]:
+        targets: dict[str, float] = {}
+        for act, cols in zip(self.joint_actuators, self._joint_cols, strict=True):
+            targets[act.role] = min(max(float(joint[cols].mean()), act.lower_deg), act.upper_deg)
+        if self.anchor_actuators:
+            pulls = np.einsum("ak,ak->a", offsets[self._anchor_vertex], self._anchor_line)
+            for anchor, pull in zip(self.anchor_actuators, pulls.tolist(), strict=True):
+                targets[anchor.role] = min(max(pull, anchor.lower_mm), anchor.upper_mm)
+        return targets
+
+    # --- inverse: targets -> pose (the twin) ------------------------------------------------------------
+
+    def pose_from_targets(self, targets: Mapping[str, float]) -> HeadPose:
+        """The head the actuators produce: joints from joint targets, skin fitted to the anchor pulls.
+
+        Roles missing from ``targets`` sit at their neutral. Unknown roles or non-finite values raise
+        ``SimError`` naming the role. Targets are clamped to the actuator and joint ranges.
+        """
+        clean: dict[str, float] = {}
+        known = set(self.roles)
+        for role, value in targets.items():
+            if role not in known:
+                raise SimError(
+                    f"actuator target {role!r}: not an actuator of head {self.head.name!r} ({sorted(known)})"
+                )
+            if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
+                raise SimError(f"actuator target {role!r}: expected a finite number, got {value!r}")
+            if not math.isfinite(float(value)):
+                raise SimError(f"actuator target {role!r}: expected a finite number, got {value!r}")
+            clean[role] = float(value)
+        joint = self._neutral.copy()
+        for act, cols in zip(self.joint_actuators, self._joint_cols, strict=True):
+            value = min(max(clean.get(act.role, act.neutral_deg), act.lower_deg), act.upper_deg)
+            clean[act.role] = value
+            joint[cols] = value
+        joint = np.clip(joint, self._lower, self._upper)
+        joint_deg = dict(zip(self.joint_names, joint.tolist(), strict=True))
+        pulls = np.array(
+            [min(max(clean.get(a.role, a.neutral_mm), a.lower_mm), a.upper_mm) for a in self.anchor_actuators]
+        )
+        for anchor, pull in zip(self.anchor_actuators, pulls.tolist(), strict=True):
+            clean[anchor.role] = pull
+        contractions = self.fit.contractions(pulls) if pulls.size else np.zeros(len(self.field.names))
+        offsets = self.field.offsets(contractions, joint_deg if self.field.eyelids else None)
+        if pulls.size:
+            got = np.einsum("ak,ak->a", offsets[self._anchor_vertex], self._anchor_line)
+            offsets = offsets + self.fit.bumps(pulls - got)
+        return HeadPose(joint_deg, offsets, clean)
+
+
+def _values(items: Any) -> list[Any]:
+    """Accept a tuple/list of records or a {name: record} mapping."""
+    if isinstance(items, Mapping):
+        return list(items.values())
+    return list(items)
+
+
+def benchmark_solve(head_name: str, n_frames: int = 500) -> list[float]:
+    """Seconds per ``FaceModel.solve`` over ``n_frames`` varied AU frames of a built-in head (or profile).
+
+    The frames cycle through the expression library's apex poses scaled by a slow sine, so every frame
+    differs. For RENDER's bench: ``statistics.median(benchmark_solve("human", 500))``.
+    """
+    from sim.expressions import load_library
+    from sim.heads import load_head  # type: ignore[attr-defined]
+
+    head = load_head(head_name)
+    model = FaceModel(head)
+    apexes = [e.apex() for e in load_library(head.face_type).values()] or [{}]
+    frames = []
+    for i in range(max(n_frames, 1)):
+        scale = 0.5 + 0.5 * math.sin(i * 0.1)
+        frames.append({k: v * scale for k, v in apexes[i % len(apexes)].items()})
+    for frame in frames[:10]:
+        model.solve(frame)  # warm caches
+    out = []
+    for frame in frames[:n_frames]:
+        t0 = time.perf_counter()
+        model.solve(frame)
+        out.append(time.perf_counter() - t0)
+    return out

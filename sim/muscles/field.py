@@ -1,0 +1,90 @@
+"""All muscles of a skin, precomputed once on the rest mesh (muscle-models.md §1.5).
+
+Linear and sheet muscles are linear in their contraction, so each becomes a fixed sparse vector field
+W_m and a frame is ``x_rest + Σ_m c_m W_m``: one sparse matrix-vector product, independent of muscle
+order. Sphincters add a per-vertex cap (never past the centre) and eyelids turn their few vertices by the
+lid joint angle; both are evaluated per frame on their small vertex sets only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from sim.muscles.eyelid import EyelidField, EyelidMuscle
+from sim.muscles.linear import LinearMuscle
+from sim.muscles.sheet import SheetMuscle
+from sim.muscles.sphincter import SphincterField, SphincterMuscle
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+VectorMuscle = LinearMuscle | SheetMuscle | SphincterMuscle
+
+
+class MuscleField:
+    """The displacement model of one skin: contractions (M,) -> skin offsets (n, 3) mm, from rest.
+
+    ``names`` fixes the order of the contraction vector: the vector muscles (linear, sheet, sphincter)
+    in the given order. Eyelid muscles are kept apart (``eyelids``): they are driven by joint angles.
+    """
+
+    def __init__(self, muscles: Sequence[VectorMuscle | EyelidMuscle], rest_mm: FloatArray) -> None:
+        rest = np.asarray(rest_mm, dtype=np.float64)
+        self.n_vertices = int(rest.shape[0])
+        vector = [m for m in muscles if not isinstance(m, EyelidMuscle)]
+        self.names: tuple[str, ...] = tuple(m.name for m in vector)
+        self.index: dict[str, int] = {name: i for i, name in enumerate(self.names)}
+        rows: list[IntArray] = []
+        cols: list[IntArray] = []
+        vals: list[FloatArray] = []
+        self.sphincters: list[tuple[int, SphincterField]] = []
+        for col, muscle in enumerate(vector):
+            if isinstance(muscle, SphincterMuscle):
+                self.sphincters.append((col, muscle.field(rest)))
+                continue
+            idx, disp = muscle.unit_field(rest)
+            rows.append((3 * idx[:, None] + np.arange(3)[None, :]).ravel())
+            cols.append(np.full(3 * idx.size, col, dtype=np.int64))
+            vals.append(disp.ravel())
+        n_rows, n_cols = 3 * self.n_vertices, len(vector)
+        if rows:
+            w = sp.csr_matrix(
+                (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n_rows, n_cols)
+            )
+        else:
+            w = sp.csr_matrix((n_rows, n_cols))
+        w.eliminate_zeros()
+        self.linear_matrix: sp.csr_matrix = w
+        self.eyelids: list[tuple[EyelidMuscle, EyelidField]] = [
+            (m, m.field(rest)) for m in muscles if isinstance(m, EyelidMuscle)
+        ]
+
+    def offsets(self, contractions: FloatArray, joint_deg: Mapping[str, float] | None = None) -> FloatArray:
+        """Skin offsets (n, 3) mm for contractions (M,) (already clamped by the caller) and lid angles."""
+        c = np.asarray(contractions, dtype=np.float64)
+        out = (self.linear_matrix @ c).reshape(self.n_vertices, 3)
+        for col, field in self.sphincters:
+            if c[col] != 0.0:
+                out[field.index] += field.displacement(float(c[col]))
+        if joint_deg:
+            for muscle, lid in self.eyelids:
+                angle = float(joint_deg.get(muscle.joint, 0.0))
+                if angle != 0.0:
+                    out[lid.index] += lid.displacement(angle)
+        return out
+
+    def unit_displacements(self, vertices: Sequence[int]) -> FloatArray:
+        """(len(vertices), 3, M) displacement per unit contraction at the given vertices (caps ignored)."""
+        verts = np.asarray(vertices, dtype=np.int64)
+        rows = (3 * verts[:, None] + np.arange(3)[None, :]).ravel()
+        dense = self.linear_matrix[rows].toarray().reshape(verts.size, 3, len(self.names))
+        for col, field in self.sphincters:
+            lookup = {int(v): k for k, v in enumerate(field.index)}
+            for i, v in enumerate(verts):
+                k = lookup.get(int(v))
+                if k is not None:
+                    dense[i, :, col] += field.gain_mm[k] * field.direction[k]
+        return dense
