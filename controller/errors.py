@@ -11,3 +11,11 @@ class FrameError(ControllerError):
 
 class ScriptError(ControllerError):
     """A timeline script is malformed; the message names the file, key path and what was expected."""
+
+
+class TimelineError(ControllerError):
+    """A timeline, clip, movement share, envelope or event list is malformed (built from code)."""
+
+
+class LoopError(ControllerError):
+    """The fixed-rate loop was misconfigured (rate, clock) or run twice at once."""

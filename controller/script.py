@@ -1,0 +1,376 @@
+"""Timeline scripts in TOML: poses, expressions and when to play them, gaze, blinks, idle, blend rules.
+
+A script becomes a :class:`~controller.timeline.Timeline`; ``Script.sample(t_s) -> AUFrame``. Every error
+is a :class:`ScriptError` naming the file, the key path (and the line when it can be found); TOML syntax
+errors carry tomllib's line and column. The format (all times in seconds, intensities per face):
+
+    [script]                 face = "human" | "dog" (required); title; end_s; initial = pose name/table
+    [poses]                  name = { AU12 = 0.8, ... }        (complete: AUs not named are 0)
+    [expressions.<name>]     one of:
+        duration_s + movements = [{ pose = "name" | {..}, percent = 30 | share = 0.3, easing = ".." }]
+        pose + onset_s + apex_s + offset_s [+ easing]          (onset / apex / offset envelope)
+        keyframes = [{ t_s = 0.2, pose = .., easing = ".." }]  (poses reached at clip times)
+        events = ["AU14", "-AU9", 7, {au = "AU7", value = 0.5}] | recipe = "anger"  [+ timing, repeat] (dog)
+    [[play]]                 at_s, track = "face" (default) | any name; expression = "name" |
+                             sequence = ["a", "b"] | recipe = "anger"; from = pose (optional start pose)
+    [[gaze]]                 at_s, look_at_mm = [x, y, z] (head frame: +x head's left, +y up, +z forward)
+                             | ahead = true
+    [blink]                  seed, mean_interval_s, ... (BlinkConfig); enabled = false to switch off
+    [idle]                   seed, head_amplitude, ... (IdleConfig); enabled = false to switch off
+    [blend]                  default = "max"; priority = [tracks...]; rules = { AU26 = "sum", ... }
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+from controller.alive import BlinkConfig, BlinkLayer, GazeLayer, IdleConfig, IdleLayer
+from controller.alive.gaze import gaze_config_for
+from controller.errors import FrameError, ScriptError, TimelineError
+from controller.frame import AUFrame, FrameValidator
+from controller.script_fields import Reader
+from controller.timeline import (
+    BlendPolicy,
+    Clip,
+    Event,
+    EventTiming,
+    Expression,
+    Movement,
+    Timeline,
+    easing_by_name,
+    events_clip,
+    parse_events,
+    recipe_events,
+    sequence,
+)
+from sim.rig import FaceType
+
+SCRIPTS_DIR = Path(__file__).resolve().parent / "scripts"
+ALIVE_LAYERS = ("gaze", "blink", "idle")
+_TOP = ("script", "poses", "expressions", "play", "gaze", "blink", "idle", "blend")
+_TRACK_RE = re.compile(r"^[a-z][a-z0-9_]*$")
+
+
+@dataclass
+class Script:
+    """A loaded script: its timeline plus what it was built from."""
+
+    source: str
+    title: str
+    face_type: FaceType
+    timeline: Timeline
+    end_s: float
+    poses: dict[str, dict[str, float]] = field(default_factory=dict)
+    clips: dict[str, Clip] = field(default_factory=dict)
+
+    def sample(self, t_s: float) -> AUFrame:
+        return self.timeline.sample(t_s)
+
+
+def example_scripts() -> list[Path]:
+    """The example scripts shipped in ``controller/scripts/``."""
+    return sorted(SCRIPTS_DIR.glob("*.toml"))
+
+
+def load_script(path: str | Path, *, allowed: frozenset[str] | None = None) -> Script:
+    """Read and build a script file. ``allowed`` = the head's AU names (default: the face's built-in set)."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as err:
+        raise ScriptError(f"{p}: cannot read script ({err.strerror or err})") from err
+    return parse_script(text, source=str(p), allowed=allowed)
+
+
+def parse_script(text: str, *, source: str = "<script>", allowed: frozenset[str] | None = None) -> Script:
+    """Build a script from TOML text; ``source`` names it in errors."""
+    r = Reader(source, text)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        match = re.search(r"line (\d+)", str(err))
+        line = int(match.group(1)) if match else None
+        exc = ScriptError(
+            f"{source}:{line}: TOML syntax error: {err}" if line else f"{source}: TOML syntax error: {err}"
+        )
+        exc.file, exc.key_path, exc.line = source, "", line  # type: ignore[attr-defined]
+        raise exc from err
+    return _Builder(r, allowed).build(data)
+
+
+class _Builder:
+    def __init__(self, reader: Reader, allowed: frozenset[str] | None) -> None:
+        self.r = reader
+        self.allowed = allowed
+
+    def build(self, data: Mapping[str, Any]) -> Script:
+        r = self.r
+        r.keys(data, "", _TOP)
+        head = r.table(r.get(data, "script", "", required=True), "script")
+        r.keys(head, "script", ("face", "title", "end_s", "initial"))
+        face = r.string(head, "face", "script")
+        if face not in ("human", "dog"):
+            r.fail("script.face", f"expected 'human' or 'dog', got {face!r}")
+        self.face: FaceType = face  # type: ignore[assignment]
+        self.validator = FrameValidator(self.face, self.allowed)
+        self.poses = {
+            name: self.pose(value, f"poses.{name}", by_name=False)
+            for name, value in r.table(r.get(data, "poses", "", {}), "poses").items()
+        }
+        initial = self.pose(head["initial"], "script.initial") if "initial" in head else {}
+        blend = self.blend(r.table(r.get(data, "blend", "", {}), "blend"))
+        self.timeline = Timeline(self.face, allowed=self.allowed, blend=blend, initial_pose=initial)
+        self.timeline.track("face")
+        self.clips: dict[str, Clip] = {}
+        for name, spec in r.table(r.get(data, "expressions", "", {}), "expressions").items():
+            self.clips[name] = self.expression(name, r.table(spec, f"expressions.{name}"))
+        for i, entry in enumerate(r.array(data, "play", "", [])):
+            self.play(r.table(entry, f"play[{i}]"), f"play[{i}]")
+        self.gaze(r.array(data, "gaze", "", []))
+        self.alive(data)
+        end = self.timeline.end_s
+        end_s = r.number(head, "end_s", "script", None, lo=0.0, what="an end time in seconds")
+        title = r.string(head, "title", "script", Path(r.source).stem)
+        return Script(
+            r.source, title, self.face, self.timeline, end if end_s is None else end_s, self.poses, self.clips
+        )
+
+    # -- pieces -----------------------------------------------------------------------------------
+    def pose(self, value: Any, path: str, *, by_name: bool = True) -> dict[str, float]:
+        if isinstance(value, str) and by_name:
+            if value not in self.poses:
+                known = ", ".join(sorted(self.poses)) or "none defined"
+                self.r.fail(
+                    path, f"unknown pose {value!r}; expected a pose name ({known}) or an inline table"
+                )
+            return self.poses[value]
+        table = self.r.table(value, path)
+        try:
+            return self.validator.pose(table, where=path)
+        except FrameError as err:
+            self.r.fail(_first_path(str(err), path), _strip_path(str(err)), err)
+
+    def easing(self, table: Mapping[str, Any], path: str, default: str = "linear") -> Any:
+        name = self.r.string(table, "easing", path, default)
+        try:
+            return easing_by_name(name, field=f"{path}.easing")
+        except TimelineError as err:
+            self.r.fail(f"{path}.easing", _strip_path(str(err)), err)
+
+    def expression(self, name: str, spec: Mapping[str, Any], path: str | None = None) -> Clip:
+        r, path = self.r, path or f"expressions.{name}"
+        try:
+            if "movements" in spec:
+                r.keys(spec, path, ("duration_s", "movements"))
+                duration = r.number(spec, "duration_s", path, lo=1e-6, what="a duration in seconds > 0")
+                moves = []
+                for i, m in enumerate(r.array(spec, "movements", path)):
+                    mpath = f"{path}.movements[{i}]"
+                    m = r.table(m, mpath)
+                    r.keys(m, mpath, ("pose", "share", "percent", "easing"))
+                    if ("share" in m) == ("percent" in m):
+                        r.fail(mpath, "expected exactly one of share (0..1) or percent (0..100)")
+                    share = (
+                        r.number(m, "share", mpath, lo=0, hi=1, what="a share 0..1")
+                        if "share" in m
+                        else r.number(m, "percent", mpath, lo=0, hi=100, what="a percentage 0..100") / 100
+                    )
+                    pose = self.pose(r.get(m, "pose", mpath, required=True), f"{mpath}.pose")
+                    moves.append(Movement(pose, share, self.easing(m, mpath)))
+                return Expression(name, duration, tuple(moves)).clip()
+            if "keyframes" in spec:
+                r.keys(spec, path, ("keyframes",))
+                return self.keyframes(name, r.array(spec, "keyframes", path), path)
+            if "onset_s" in spec or "apex_s" in spec or "offset_s" in spec:
+                r.keys(spec, path, ("pose", "onset_s", "apex_s", "offset_s", "easing"))
+                pose = self.pose(r.get(spec, "pose", path, required=True), f"{path}.pose")
+                what = "a duration in seconds >= 0"
+                onset, apex, offset = (
+                    r.number(spec, k, path, lo=0, what=what) for k in ("onset_s", "apex_s", "offset_s")
+                )
+                if onset + apex + offset <= 0:
+                    r.fail(path, "onset_s + apex_s + offset_s must be > 0")
+                ease = self.easing(spec, path, "min_jerk")
+                return Expression.envelope(name, pose, onset, apex, offset, easing=ease).clip()
+            if "events" in spec or "recipe" in spec:
+                return self.events(name, spec, path)
+        except (TimelineError, FrameError) as err:
+            r.fail(path, str(err), err)
+        r.fail(
+            path,
+            "expected movements (+ duration_s), keyframes, onset_s/apex_s/offset_s (+ pose), "
+            "or events/recipe",
+        )
+
+    def keyframes(self, name: str, keys: list[Any], path: str) -> Clip:
+        r = self.r
+        if not keys:
+            r.fail(f"{path}.keyframes", "expected at least one keyframe")
+        times, moves, prev = [], [], 0.0
+        for i, k in enumerate(keys):
+            kpath = f"{path}.keyframes[{i}]"
+            k = r.table(k, kpath)
+            r.keys(k, kpath, ("t_s", "pose", "easing"))
+            t = r.number(k, "t_s", kpath, lo=0, what="a clip time in seconds >= 0")
+            if t < prev:
+                r.fail(f"{kpath}.t_s", f"keyframes must be in time order; {t:g} s comes after {prev:g} s")
+            times.append(t)
+            moves.append(
+                (self.pose(r.get(k, "pose", kpath, required=True), f"{kpath}.pose"), self.easing(k, kpath))
+            )
+            prev = t
+        duration = times[-1]
+        if duration <= 0:
+            r.fail(f"{path}.keyframes", "the last keyframe must be at t_s > 0")
+        shares = [(b - a) / duration for a, b in zip([0.0, *times[:-1]], times, strict=True)]
+        movements = tuple(Movement(p, s, e) for (p, e), s in zip(moves, shares, strict=True))
+        return Expression(name, duration, movements).clip()
+
+    def events(self, name: str, spec: Mapping[str, Any], path: str) -> Clip:
+        r = self.r
+        r.keys(spec, path, ("events", "recipe", "timing", "repeat"))
+        if ("events" in spec) == ("recipe" in spec):
+            r.fail(path, "expected exactly one of events = [...] or recipe = '<name>'")
+        if self.face != "dog":
+            r.fail(path, "DFACS events and recipes are for the dog face; use movements for the human face")
+        if "recipe" in spec:
+            events: tuple[Event, ...] = recipe_events(r.string(spec, "recipe", path))
+        else:
+            events = parse_events(r.array(spec, "events", path), field=f"{path}.events")
+        timing = self.timing(r.table(r.get(spec, "timing", path, {}), f"{path}.timing"), f"{path}.timing")
+        clip = events_clip(events, timing, repeat=r.integer(spec, "repeat", path, 1, lo=1), name=name)
+        for au, value in clip.targets():
+            self.pose({au: value}, f"{path}.events")
+        return clip
+
+    def timing(self, table: Mapping[str, Any], path: str) -> EventTiming:
+        names = [f.name for f in fields(EventTiming) if f.name not in ("easing", "exclusive")]
+        self.r.keys(table, path, (*names, "easing"))
+        changes: dict[str, Any] = {}
+        for key in names:
+            if key == "iterations" and key in table:
+                changes[key] = self.r.integer(table, key, path, lo=1)
+            elif key in table:
+                changes[key] = self.r.number(table, key, path, lo=0, what=f"{key} >= 0")
+        if "easing" in table:
+            changes["easing"] = self.easing(table, path, "min_jerk")
+        return EventTiming(**changes)
+
+    def play(self, entry: Mapping[str, Any], path: str) -> None:
+        r = self.r
+        r.keys(entry, path, ("at_s", "track", "expression", "sequence", "recipe", "from"))
+        at = r.number(entry, "at_s", path, lo=0, what="a start time in seconds >= 0")
+        track = r.string(entry, "track", path, "face")
+        if not _TRACK_RE.match(track) or track in ALIVE_LAYERS:
+            r.fail(
+                f"{path}.track",
+                f"expected a track name like 'face', 'gesture', 'speech' "
+                f"(not {', '.join(ALIVE_LAYERS)}), got {track!r}",
+            )
+        kinds = [k for k in ("expression", "sequence", "recipe") if k in entry]
+        if len(kinds) != 1:
+            r.fail(
+                path,
+                "expected exactly one of expression = '<name>', sequence = [names], recipe = '<dog recipe>'",
+            )
+        if kinds[0] == "expression":
+            clip = self.clip_ref(r.string(entry, "expression", path), f"{path}.expression")
+        elif kinds[0] == "sequence":
+            names = r.array(entry, "sequence", path)
+            if not names:
+                r.fail(f"{path}.sequence", "expected at least one expression name")
+            parts = [self.clip_ref(n, f"{path}.sequence[{i}]") for i, n in enumerate(names)]
+            clip = sequence(parts, name="+".join(map(str, names)))  # type: ignore[arg-type]
+        else:
+            clip = self.events("recipe", {"recipe": entry["recipe"]}, path)
+        start = self.pose(entry["from"], f"{path}.from") if "from" in entry else None
+        try:
+            self.timeline.play(clip, at, track=track, from_pose=start)
+        except (TimelineError, FrameError) as err:
+            r.fail(path, str(err), err)
+
+    def clip_ref(self, name: Any, path: str) -> Clip:
+        if not isinstance(name, str) or name not in self.clips:
+            known = ", ".join(sorted(self.clips)) or "none defined"
+            self.r.fail(path, f"unknown expression {name!r}; expected one of: {known}")
+        return self.clips[name]
+
+    def gaze(self, entries: list[Any]) -> None:
+        if not entries:
+            return
+        layer = GazeLayer(self.face, gaze_config_for(self.face))
+        self.timeline.add_layer("gaze", layer)
+        for i, entry in enumerate(entries):
+            path = f"gaze[{i}]"
+            entry = self.r.table(entry, path)
+            self.r.keys(entry, path, ("at_s", "look_at_mm", "ahead"))
+            at = self.r.number(entry, "at_s", path, lo=0, what="a time in seconds >= 0")
+            if ("look_at_mm" in entry) == bool(entry.get("ahead", False)):
+                self.r.fail(path, "expected exactly one of look_at_mm = [x, y, z] or ahead = true")
+            target = None
+            if "look_at_mm" in entry:
+                raw = self.r.array(entry, "look_at_mm", path)
+                if len(raw) != 3 or not all(
+                    isinstance(c, int | float) and not isinstance(c, bool) for c in raw
+                ):
+                    self.r.fail(f"{path}.look_at_mm", f"expected [x, y, z] in mm (head frame), got {raw!r}")
+                target = (float(raw[0]), float(raw[1]), float(raw[2]))
+            try:
+                layer.look_at(at, target)
+            except TimelineError as err:
+                self.r.fail(f"{path}.look_at_mm", str(err), err)
+
+    def alive(self, data: Mapping[str, Any]) -> None:
+        for key, config_cls in (("blink", BlinkConfig), ("idle", IdleConfig)):
+            if key not in data:
+                continue
+            table = dict(self.r.table(data[key], key))
+            names = [f.name for f in fields(config_cls)]
+            self.r.keys(table, key, ("enabled", "seed", *names))
+            if not table.pop("enabled", True):
+                continue
+            seed = self.r.integer(table, "seed", key, 0)
+            table.pop("seed", None)
+            values = {k: self.r.number(table, k, key) for k in table}
+            try:
+                config = config_cls(**values)
+            except TimelineError as err:
+                self.r.fail(key, str(err), err)
+            if key == "blink":
+                self.timeline.add_layer("blink", BlinkLayer(self.face, seed, config))  # type: ignore[arg-type]
+            else:
+                busy = self.timeline.is_playing
+                self.timeline.add_layer("idle", IdleLayer(self.face, seed, config, busy=busy))  # type: ignore[arg-type]
+
+    def blend(self, table: Mapping[str, Any]) -> BlendPolicy:
+        r = self.r
+        r.keys(table, "blend", ("default", "priority", "rules"))
+        rules = r.table(r.get(table, "rules", "blend", {}), "blend.rules")
+        priority = r.array(table, "priority", "blend", [])
+        if not all(isinstance(p, str) for p in priority):
+            r.fail("blend.priority", f"expected an array of track names, got {priority!r}")
+        try:
+            return BlendPolicy.for_face(
+                self.face, rules, priority or None, r.string(table, "default", "blend", "max")
+            )
+        except (TimelineError, FrameError) as err:
+            r.fail("blend.rules" if rules else "blend.default", _strip_path(str(err)), err)
+
+
+def _strip_path(message: str) -> str:
+    """'poses.smile.AU99: msg' -> 'msg' (the Reader puts the path back in front)."""
+    head, sep, rest = message.partition(": ")
+    return rest if sep and " " not in head else message
+
+
+def _first_path(message: str, default: str) -> str:
+    head, sep, _ = message.partition(": ")
+    return head if sep and " " not in head else default
+
+
+__all__ = ["SCRIPTS_DIR", "Script", "ScriptError", "example_scripts", "load_script", "parse_script"]

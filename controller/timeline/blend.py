@@ -1,0 +1,122 @@
+"""Blending parallel tracks, with a declared rule per AU.
+
+Rules:
+- ``max``: the contribution of largest magnitude wins, keeping its sign (for FACS 0..1 that is the plain
+  max; for DFACS a counter AU at -0.8 beats +0.2). Ties go to the higher-priority track.
+- ``sum``: contributions add, clamped to the face's range (head and eye turns: gaze + idle + expression).
+- ``override``: the highest-priority track that provides the AU wins outright (e.g. speech owns the jaw).
+
+A track "provides" an AU when its sample contains that name (a track before its first clip provides
+nothing). A rule for ``AU26`` also covers ``AU26L`` / ``AU26R`` unless those have their own rule.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+from controller.au_names import au_number, canonical_au
+from controller.errors import FrameError, TimelineError
+from sim.rig import FaceType
+
+
+class BlendRule(StrEnum):
+    MAX = "max"
+    SUM = "sum"
+    OVERRIDE = "override"
+
+
+DEFAULT_PRIORITY: tuple[str, ...] = ("speech", "blink", "gaze", "gesture", "face", "head", "idle")
+
+#: AUs summed by default: human head 51-58 and eyes 61-66 plus jaw 25-27; dog jaw 7-8, head 9-11, eyes 12-13.
+_SUM_NUMBERS: dict[str, frozenset[int]] = {
+    "human": frozenset({25, 26, 27, *range(51, 59), *range(61, 67)}),
+    "dog": frozenset({7, 8, 9, 10, 11, 12, 13}),
+}
+
+
+#: Human head/eye AUs that are two directions of one joint; after blending they are netted (AU61 0.3 with
+#: AU62 0.02 -> AU61 0.28), so one joint never gets two opposite commands. Dog AUs are signed already.
+HUMAN_DIRECTION_PAIRS: tuple[tuple[str, str], ...] = (
+    ("AU51", "AU52"), ("AU53", "AU54"), ("AU55", "AU56"),
+    ("AU57", "AU58"), ("AU61", "AU62"), ("AU63", "AU64"),
+)  # fmt: skip
+
+
+def parse_rule(value: object, *, field: str = "blend rule") -> BlendRule:
+    try:
+        return BlendRule(str(value).lower())
+    except ValueError:
+        raise TimelineError(f"{field}: unknown blend rule {value!r}; expected max, sum or override") from None
+
+
+@dataclass(frozen=True)
+class BlendPolicy:
+    """Per-AU blend rules plus a track priority (highest first) for ties and ``override``."""
+
+    default: BlendRule = BlendRule.MAX
+    rules: Mapping[str, BlendRule] = field(default_factory=dict)
+    priority: tuple[str, ...] = DEFAULT_PRIORITY
+    antagonists: tuple[tuple[str, str], ...] = ()
+
+    @classmethod
+    def for_face(
+        cls,
+        face_type: FaceType,
+        rules: Mapping[str, BlendRule | str] | None = None,
+        priority: Sequence[str] | None = None,
+        default: BlendRule | str = BlendRule.MAX,
+    ) -> BlendPolicy:
+        """The default policy of a face (sum on head/eyes/jaw, max elsewhere) with ``rules`` on top."""
+        table: dict[str, BlendRule] = {}
+        for n in _SUM_NUMBERS.get(face_type, frozenset()):
+            table[f"AU{n}"] = BlendRule.SUM
+        for name, rule in (rules or {}).items():
+            try:
+                au = canonical_au(name, field=f"blend.{name}")
+            except FrameError as err:
+                raise TimelineError(str(err)) from err
+            table[au] = parse_rule(rule, field=f"blend.{name}")
+        pairs = HUMAN_DIRECTION_PAIRS if face_type == "human" else ()
+        return cls(
+            parse_rule(default, field="blend.default"), table, tuple(priority or DEFAULT_PRIORITY), pairs
+        )
+
+    def rule_for(self, au: str) -> BlendRule:
+        if au in self.rules:
+            return self.rules[au]
+        base = f"AU{au_number(au)}"
+        return self.rules.get(base, self.default)
+
+    def rank(self, track: str, order: int) -> tuple[int, int]:
+        """Sort key: listed tracks by their priority, then unlisted tracks in layer order."""
+        if track in self.priority:
+            return (0, self.priority.index(track))
+        return (1, order)
+
+    def blend(
+        self, contributions: Sequence[tuple[str, Mapping[str, float]]], lo: float = -1.0, hi: float = 1.0
+    ) -> dict[str, float]:
+        """Blend ``[(track_name, aus), ...]`` (in layer order) into one pose clamped to [lo, hi]."""
+        ranked = sorted(
+            ((self.rank(name, i), aus) for i, (name, aus) in enumerate(contributions)),
+            key=lambda item: item[0],
+        )
+        out: dict[str, float] = {}
+        seen: set[str] = set()
+        for _, aus in ranked:  # highest priority first
+            for au, value in aus.items():
+                rule = self.rule_for(au)
+                if au not in seen:
+                    out[au] = value
+                    seen.add(au)
+                elif rule is BlendRule.SUM:
+                    out[au] += value
+                elif rule is BlendRule.MAX and abs(value) > abs(out[au]):
+                    out[au] = value
+        for pos, neg in self.antagonists:
+            if pos in out and neg in out:
+                net = out[pos] - out[neg]
+                out[pos], out[neg] = max(net, 0.0), max(-net, 0.0)
+        return {au: min(hi, max(lo, v)) for au, v in out.items()}

@@ -1,0 +1,130 @@
+"""The timeline: named layers (tracks and alive behaviours) blended into one AU frame per time.
+
+``Timeline.sample(t_s) -> AUFrame`` is a pure function of ``t_s``: the pipeline calls it every control
+frame with the frame's scheduled time, so a late frame is simply skipped and keyframes land on time.
+
+Layers are evaluated in the order they were added; each gets ``below``, the blend of the layers before it
+(the blink behaviour uses that to see whether the face already closes the lids). The default layer order
+is face, gesture, speech, head, gaze, then whatever alive layers the caller adds (blink, idle).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+from typing import Protocol
+
+from controller.au_names import intensity_range
+from controller.errors import FrameError, TimelineError
+from controller.frame import AUFrame, FrameValidator, check_face_type
+from controller.timeline.blend import BlendPolicy
+from controller.timeline.clip import Clip, Pose
+from controller.timeline.track import Placed, Track
+from sim.rig import FaceType
+
+STANDARD_TRACKS: tuple[str, ...] = ("face", "gesture", "speech", "head", "gaze")
+
+
+class Layer(Protocol):
+    """Anything that yields AUs for a time, given the blend of the layers below it."""
+
+    def sample(self, t_s: float, below: Pose) -> Mapping[str, float]: ...
+
+
+class Timeline:
+    """Tracks of clips plus alive layers for one face type, blended by a :class:`BlendPolicy`."""
+
+    def __init__(
+        self,
+        face_type: FaceType,
+        *,
+        allowed: frozenset[str] | None = None,
+        blend: BlendPolicy | None = None,
+        initial_pose: Pose | None = None,
+    ) -> None:
+        self.face_type: FaceType = check_face_type(face_type)
+        self.validator = FrameValidator(face_type, allowed)
+        self.blend = blend or BlendPolicy.for_face(face_type)
+        self._initial = self.validator.pose(initial_pose or {}, where="initial_pose")
+        self._layers: dict[str, Layer] = {}
+        self._range = intensity_range(face_type)
+
+    # -- building ---------------------------------------------------------------------------------
+    def track(self, name: str) -> Track:
+        """The track called ``name``, created (empty) on first use. The "face" track starts from
+        ``initial_pose``."""
+        layer = self._layers.get(name)
+        if layer is None:
+            track = Track(name, self._initial if name == "face" else None)
+            self._layers[name] = track
+            return track
+        if not isinstance(layer, Track):
+            raise TimelineError(f"layer {name!r} is a {type(layer).__name__}, not a track of clips")
+        return layer
+
+    def add_layer(self, name: str, layer: Layer) -> None:
+        """Add an alive behaviour (blink, gaze, idle) or any custom layer under ``name``."""
+        if name in self._layers:
+            raise TimelineError(f"layer {name!r} already exists; choose another name")
+        self._layers[name] = layer
+
+    def layer(self, name: str) -> Layer:
+        try:
+            return self._layers[name]
+        except KeyError:
+            raise TimelineError(f"no layer {name!r}; have {', '.join(self._layers) or 'none'}") from None
+
+    @property
+    def layer_names(self) -> tuple[str, ...]:
+        return tuple(self._layers)
+
+    def play(
+        self, clip: Clip, at_s: float = 0.0, *, track: str = "face", from_pose: Pose | None = None
+    ) -> Placed:
+        """Place ``clip`` on ``track`` at ``at_s``; it starts from that track's pose then (or ``from_pose``).
+
+        The clip's AUs and values are checked against this face now, not mid-performance.
+        """
+        for au, value in clip.targets():
+            try:
+                self.validator.pose({au: value}, where=f"{clip.name}")
+            except FrameError as err:
+                raise TimelineError(f"track {track}: {err}") from err
+        start = None if from_pose is None else self.validator.pose(from_pose, where="from_pose")
+        return self.track(track).add(at_s, clip, start)
+
+    # -- playing ----------------------------------------------------------------------------------
+    def sample_aus(self, t_s: float) -> dict[str, float]:
+        """Blended AU intensities at ``t_s`` (no validation; zeros dropped)."""
+        contributions: list[tuple[str, Mapping[str, float]]] = []
+        below: dict[str, float] = {}
+        lo, hi = self._range
+        for name, layer in self._layers.items():
+            aus = layer.sample(t_s, below)
+            if aus:
+                contributions.append((name, aus))
+                below = self.blend.blend(contributions, lo, hi)
+        return {au: v for au, v in below.items() if abs(v) > 1e-12}
+
+    def sample(self, t_s: float) -> AUFrame:
+        """The validated frame at ``t_s`` (FrameError if a layer produced something this face rejects)."""
+        return self.validator(t_s, self.sample_aus(t_s))
+
+    def frames(self, rate_hz: float, start_s: float = 0.0, end_s: float | None = None) -> Iterator[AUFrame]:
+        """Frames at ``rate_hz`` from ``start_s`` to ``end_s`` (default: the end of the last clip), for
+        offline rendering. Frame k is at exactly ``start_s + k / rate_hz``."""
+        if not rate_hz > 0:
+            raise TimelineError(f"rate_hz: expected > 0, got {rate_hz!r}")
+        stop = self.end_s if end_s is None else end_s
+        k = 0
+        while start_s + k / rate_hz <= stop + 1e-9:
+            yield self.sample(start_s + k / rate_hz)
+            k += 1
+
+    @property
+    def end_s(self) -> float:
+        """End of the last clip on any track (alive layers run forever and do not count)."""
+        return max((layer.end_s for layer in self._layers.values() if isinstance(layer, Track)), default=0.0)
+
+    def is_playing(self, t_s: float) -> bool:
+        """True while any track has a clip running at ``t_s``."""
+        return any(isinstance(layer, Track) and layer.is_playing(t_s) for layer in self._layers.values())
