@@ -51,10 +51,17 @@ def _ids_type(text: str) -> list[int]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--ids", type=_ids_type, default=parse_ids("1-24"),
-                        help="servo ids: ranges and lists, e.g. 1-4,7,10-12 (default 1-24)")
-    parser.add_argument("--model", default="XL330-M288",
-                        help="servo model: XL330-M288, XL430-W250, XM430-W350 or MX-28(2.0) (default XL330-M288)")
+    parser.add_argument(
+        "--ids",
+        type=_ids_type,
+        default=parse_ids("1-24"),
+        help="servo ids: ranges and lists, e.g. 1-4,7,10-12 (default 1-24)",
+    )
+    parser.add_argument(
+        "--model",
+        default="XL330-M288",
+        help="servo model: XL330-M288, XL430-W250, XM430-W350 or MX-28(2.0) (default XL330-M288)",
+    )
     parser.add_argument("--baud", type=int, default=1_000_000, help="bus baud rate in bps (default 1000000)")
     parser.add_argument("--no-wire-time", action="store_true", help="answer at once instead of at wire speed")
 
@@ -63,7 +70,9 @@ def run(args: argparse.Namespace) -> int:
     from hardware.emulator import EmulatorError, ServoChain
 
     try:
-        chain = ServoChain.create(ids=args.ids, model=args.model, baud=args.baud, wire_time=not args.no_wire_time)
+        chain = ServoChain.create(
+            ids=args.ids, model=args.model, baud=args.baud, wire_time=not args.no_wire_time
+        )
     except EmulatorError as err:
         print(f"servoface emulate: {err}", file=sys.stderr)
         return 2
@@ -77,8 +86,12 @@ def run(args: argparse.Namespace) -> int:
         with chain:
             path = chain.serve_pty()
             print(path, flush=True)
-            print(f"# serving {len(args.ids)} x {args.model} at {args.baud} bps"
-                  f"{' (no wire time)' if args.no_wire_time else ''}; Ctrl-C to stop", file=sys.stderr, flush=True)
+            print(
+                f"# serving {len(args.ids)} x {args.model} at {args.baud} bps"
+                f"{' (no wire time)' if args.no_wire_time else ''}; Ctrl-C to stop",
+                file=sys.stderr,
+                flush=True,
+            )
             while not stop.wait(0.2):
                 pass
     finally:

@@ -57,7 +57,9 @@ class ServoChain:
         elif callable(clock):
             self._clock = clock
         else:
-            raise EmulatorConfigError(f"clock {clock!r}: expected None/'real', 'manual' or a callable returning seconds")
+            raise EmulatorConfigError(
+                f"clock {clock!r}: expected None/'real', 'manual' or a callable returning seconds"
+            )
         self.lock = threading.RLock()
         self.wire_time = bool(wire_time)
         self.baud = int(baud)
@@ -73,7 +75,9 @@ class ServoChain:
                 raise EmulatorConfigError(f"servo id {sid} appears twice in the chain description")
             seen.add(sid)
             code = baud_code_for(self.baud, spec)
-            self.servos.append(EmulatedServo(sid, spec, baud_code=code, clock=self._clock, faults=self.faults))
+            self.servos.append(
+                EmulatedServo(sid, spec, baud_code=code, clock=self._clock, faults=self.faults)
+            )
         self._by_id: dict[int, list[EmulatedServo]] = {}
         self._reindex()
         self._receiver = PacketReceiver()
@@ -102,7 +106,7 @@ class ServoChain:
                 specs.append((int(sid), get_model(m)))
             else:
                 specs.append((int(item), get_model(model)))
-        return cls(specs, baud=baud, wire_time=wire_time, clock=clock, **options)  # type: ignore[arg-type]
+        return cls(specs, baud=baud, wire_time=wire_time, clock=clock, **options)
 
     # ----------------------------------------------------------------- clock and servos
     @property
@@ -117,7 +121,9 @@ class ServoChain:
         """Move a manual clock forward by ``dt_s`` and bring every servo's physics up to it."""
         advance = getattr(self._clock, "advance", None)
         if advance is None:
-            raise EmulatorConfigError("chain.advance() needs a manual clock: create the chain with clock='manual'")
+            raise EmulatorConfigError(
+                "chain.advance() needs a manual clock: create the chain with clock='manual'"
+            )
         with self.lock:
             advance(dt_s)
             for servo in self.servos:
@@ -153,7 +159,7 @@ class ServoChain:
 
     # ----------------------------------------------------------------- the wire
     def host_write(self, data: bytes | bytearray, host_baud: int) -> int:
-        """Bytes from the host onto the bus at ``host_baud``; processes complete packets. Returns len(data)."""
+        """Host bytes onto the bus at ``host_baud``; runs complete packets. Returns len(data)."""
         with self.lock:
             now = self._clock()
             n = len(data)
@@ -272,7 +278,7 @@ class ServoChain:
             if not self._rx:
                 return None
             data, start, byte_s, done = self._rx[0]
-            return start + (done + 1) * byte_s
+            return float(start + (done + 1) * byte_s)
 
     # ----------------------------------------------------------------- transports
     def open_serial(self, port: str = "emulated://servo-chain") -> EmulatedSerial:
@@ -311,7 +317,9 @@ class ServoChain:
         """Logged packets, optionally only those of one instruction code."""
         return [e for e in list(self.log) if instruction is None or e.instruction == instruction]
 
-    def register_writes(self, address: int, size: int, *, signed: bool = True) -> list[tuple[float, int, int]]:
+    def register_writes(
+        self, address: int, size: int, *, signed: bool = True
+    ) -> list[tuple[float, int, int]]:
         """(t_s, servo_id, value) for every write of the whole register at ``address`` (Write, Reg Write,
         Sync Write, Bulk Write), decoded from the log. Broadcast Write is reported with id 254."""
         out: list[tuple[float, int, int]] = []

@@ -19,7 +19,9 @@ class RealClock:
         return time.monotonic() - self._t0
 
     def advance(self, dt_s: float) -> None:
-        raise EmulatorConfigError("chain.advance() needs a manual clock: create the chain with clock='manual'")
+        raise EmulatorConfigError(
+            "chain.advance() needs a manual clock: create the chain with clock='manual'"
+        )
 
 
 class ManualClock:
@@ -35,7 +37,9 @@ class ManualClock:
 
     def advance(self, dt_s: float) -> None:
         if dt_s < 0:
-            raise EmulatorConfigError(f"clock advance dt_s {dt_s}: expected >= 0 (time does not run backwards)")
+            raise EmulatorConfigError(
+                f"clock advance dt_s {dt_s}: expected >= 0 (time does not run backwards)"
+            )
         self._t += float(dt_s)
 
     def set(self, t_s: float) -> None:

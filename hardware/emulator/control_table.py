@@ -53,7 +53,9 @@ class Register:
         return (lo is None or value >= lo) and (hi is None or value <= hi)
 
 
-def R(name: str, address: int, size: int, default: int = 0, *, signed: bool = False, unit: str = "") -> Register:
+def R(
+    name: str, address: int, size: int, default: int = 0, *, signed: bool = False, unit: str = ""
+) -> Register:
     """A read-only register."""
     return Register(name, address, size, "R", default, signed, unit)
 

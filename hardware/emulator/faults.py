@@ -89,11 +89,13 @@ class FaultSchedule:
         delay_s: float = 0.010,
         drop_bytes: int = 3,
     ) -> Fault:
-        """Schedule ``kind`` on ``servo_id`` from ``start_s`` (default now) for ``duration_s`` (default forever)."""
+        """Schedule ``kind`` on ``servo_id`` from ``start_s`` for ``duration_s`` (None = forever)."""
         if kind not in KINDS:
             raise EmulatorConfigError(f"fault kind {kind!r}: expected one of {sorted(KINDS)}")
         if servo_id not in self._known_ids():
-            raise EmulatorConfigError(f"fault on servo {servo_id}: no such servo in the chain {sorted(self._known_ids())}")
+            raise EmulatorConfigError(
+                f"fault on servo {servo_id}: no such servo in the chain {sorted(self._known_ids())}"
+            )
         if duration_s is not None and duration_s < 0:
             raise EmulatorConfigError(f"fault duration_s {duration_s}: expected >= 0")
         if delay_s < 0 or drop_bytes < 0:

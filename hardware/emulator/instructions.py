@@ -8,7 +8,7 @@ is non-zero.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from hardware.emulator.crc import crc16
@@ -26,8 +26,13 @@ from hardware.emulator.servo import EmulatedServo
 
 CLEAR_MULTI_TURN = b"\x01\x44\x58\x4c\x22"
 LEVEL_PING_ONLY, LEVEL_READ = 0, 1
-READS = (Instruction.READ, Instruction.SYNC_READ, Instruction.BULK_READ,
-         Instruction.FAST_SYNC_READ, Instruction.FAST_BULK_READ)
+READS = (
+    Instruction.READ,
+    Instruction.SYNC_READ,
+    Instruction.BULK_READ,
+    Instruction.FAST_SYNC_READ,
+    Instruction.FAST_BULK_READ,
+)
 
 
 @dataclass(slots=True)
@@ -63,8 +68,9 @@ def _answers(servo: EmulatedServo, instruction: int) -> bool:
     return level >= 2
 
 
-def dispatch(packet: Packet, listeners: Sequence[EmulatedServo], by_id: dict[int, list[EmulatedServo]],
-             t_s: float) -> Outcome:
+def dispatch(
+    packet: Packet, listeners: Sequence[EmulatedServo], by_id: dict[int, list[EmulatedServo]], t_s: float
+) -> Outcome:
     """Run ``packet`` on the servos that heard it (``listeners``; ``by_id`` indexes them by id)."""
     out = Outcome([], [], [])
     for servo in listeners:
@@ -89,22 +95,43 @@ def dispatch(packet: Packet, listeners: Sequence[EmulatedServo], by_id: dict[int
     return out
 
 
-def _status(out: Outcome, servo: EmulatedServo, inst: int, number: int, data: bytes = b"", sid: int | None = None,
-            answer: bool | None = None) -> None:
+def _status(
+    out: Outcome,
+    servo: EmulatedServo,
+    inst: int,
+    number: int,
+    data: bytes = b"",
+    sid: int | None = None,
+    answer: bool | None = None,
+) -> None:
     if answer if answer is not None else _answers(servo, inst):
-        out.replies.append(Reply(servo, build_status(servo.id if sid is None else sid, _err(servo, number), data)))
+        out.replies.append(
+            Reply(servo, build_status(servo.id if sid is None else sid, _err(servo, number), data))
+        )
 
 
-def _ping(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
-          by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+def _ping(
+    out: Outcome,
+    pid: int,
+    params: bytes,
+    listeners: Sequence[EmulatedServo],
+    by_id: dict[int, list[EmulatedServo]],
+    targets: list[EmulatedServo],
+) -> None:
     servos = sorted(listeners, key=lambda s: s.id) if pid == BROADCAST_ID else targets
     for servo in servos:
         info = servo.mem[0:2] + servo.mem[6:7]
         _status(out, servo, Instruction.PING, 0, bytes(info))
 
 
-def _read(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
-          by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+def _read(
+    out: Outcome,
+    pid: int,
+    params: bytes,
+    listeners: Sequence[EmulatedServo],
+    by_id: dict[int, list[EmulatedServo]],
+    targets: list[EmulatedServo],
+) -> None:
     for servo in targets:
         if len(params) != 4:
             _status(out, servo, Instruction.READ, ErrorNumber.DATA_LENGTH)
@@ -115,8 +142,14 @@ def _read(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedSer
         _status(out, servo, Instruction.READ, err, data)
 
 
-def _write(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
-           by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+def _write(
+    out: Outcome,
+    pid: int,
+    params: bytes,
+    listeners: Sequence[EmulatedServo],
+    by_id: dict[int, list[EmulatedServo]],
+    targets: list[EmulatedServo],
+) -> None:
     servos = listeners if pid == BROADCAST_ID else targets
     for servo in servos:
         old_id = servo.id
@@ -132,8 +165,14 @@ def _write(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedSe
             _status(out, servo, Instruction.WRITE, err, sid=old_id, answer=answer)
 
 
-def _reg_write(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
-               by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+def _reg_write(
+    out: Outcome,
+    pid: int,
+    params: bytes,
+    listeners: Sequence[EmulatedServo],
+    by_id: dict[int, list[EmulatedServo]],
+    targets: list[EmulatedServo],
+) -> None:
     servos = listeners if pid == BROADCAST_ID else targets
     for servo in servos:
         if len(params) < 3:
@@ -148,8 +187,14 @@ def _reg_write(out: Outcome, pid: int, params: bytes, listeners: Sequence[Emulat
             _status(out, servo, Instruction.REG_WRITE, err)
 
 
-def _action(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
-            by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+def _action(
+    out: Outcome,
+    pid: int,
+    params: bytes,
+    listeners: Sequence[EmulatedServo],
+    by_id: dict[int, list[EmulatedServo]],
+    targets: list[EmulatedServo],
+) -> None:
     servos = listeners if pid == BROADCAST_ID else targets
     for servo in servos:
         pending = servo.registered
@@ -165,8 +210,14 @@ def _action(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedS
             _status(out, servo, Instruction.ACTION, err)
 
 
-def _factory_reset(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
-                   by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+def _factory_reset(
+    out: Outcome,
+    pid: int,
+    params: bytes,
+    listeners: Sequence[EmulatedServo],
+    by_id: dict[int, list[EmulatedServo]],
+    targets: list[EmulatedServo],
+) -> None:
     option = params[0] if len(params) == 1 else -1
     if pid == BROADCAST_ID:
         if option in (0x01, 0x02):  # broadcast 0xFF is ignored (X / MX(2.0) firmware >= 42)
@@ -182,8 +233,14 @@ def _factory_reset(out: Outcome, pid: int, params: bytes, listeners: Sequence[Em
         out.ids_changed = True
 
 
-def _reboot(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
-            by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+def _reboot(
+    out: Outcome,
+    pid: int,
+    params: bytes,
+    listeners: Sequence[EmulatedServo],
+    by_id: dict[int, list[EmulatedServo]],
+    targets: list[EmulatedServo],
+) -> None:
     servos = listeners if pid == BROADCAST_ID else targets
     for servo in servos:
         if pid != BROADCAST_ID:
@@ -191,8 +248,14 @@ def _reboot(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedS
         out.reboot.append(servo)
 
 
-def _clear(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
-           by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+def _clear(
+    out: Outcome,
+    pid: int,
+    params: bytes,
+    listeners: Sequence[EmulatedServo],
+    by_id: dict[int, list[EmulatedServo]],
+    targets: list[EmulatedServo],
+) -> None:
     servos = listeners if pid == BROADCAST_ID else targets
     for servo in servos:
         if bytes(params) != CLEAR_MULTI_TURN:
@@ -206,8 +269,14 @@ def _clear(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedSe
             _status(out, servo, Instruction.CLEAR, err)
 
 
-def _backup(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
-            by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+def _backup(
+    out: Outcome,
+    pid: int,
+    params: bytes,
+    listeners: Sequence[EmulatedServo],
+    by_id: dict[int, list[EmulatedServo]],
+    targets: list[EmulatedServo],
+) -> None:
     for servo in targets:
         _status(out, servo, Instruction.CONTROL_TABLE_BACKUP, 0)
 
@@ -216,8 +285,14 @@ def _first(by_id: dict[int, list[EmulatedServo]], sid: int) -> list[EmulatedServ
     return by_id.get(sid, [])
 
 
-def _sync_read(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
-               by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+def _sync_read(
+    out: Outcome,
+    pid: int,
+    params: bytes,
+    listeners: Sequence[EmulatedServo],
+    by_id: dict[int, list[EmulatedServo]],
+    targets: list[EmulatedServo],
+) -> None:
     if pid != BROADCAST_ID or len(params) < 5:
         return
     addr = params[0] | params[1] << 8
@@ -228,8 +303,14 @@ def _sync_read(out: Outcome, pid: int, params: bytes, listeners: Sequence[Emulat
             _status(out, servo, Instruction.SYNC_READ, err, data)
 
 
-def _bulk_read(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
-               by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+def _bulk_read(
+    out: Outcome,
+    pid: int,
+    params: bytes,
+    listeners: Sequence[EmulatedServo],
+    by_id: dict[int, list[EmulatedServo]],
+    targets: list[EmulatedServo],
+) -> None:
     if pid != BROADCAST_ID or len(params) % 5:
         return
     for i in range(0, len(params), 5):
@@ -241,50 +322,58 @@ def _bulk_read(out: Outcome, pid: int, params: bytes, listeners: Sequence[Emulat
             _status(out, servo, Instruction.BULK_READ, err, data)
 
 
-def _fast_read(out: Outcome, requests: list[tuple[int, int, int]], by_id: dict[int, list[EmulatedServo]],
-               inst: int) -> None:
+def _fast_read(
+    out: Outcome, requests: list[tuple[int, int, int]], by_id: dict[int, list[EmulatedServo]], inst: int
+) -> None:
     """One combined packet: ``FF FF FD 00 FE LEN 55`` then per device ``ERR ID data CRC``; each block's CRC is
     the running CRC of the packet so far, so the last one is the packet CRC (reference sheet §5)."""
-    blocks: list[tuple[EmulatedServo, bytes]] = []
+    blocks: list[tuple[EmulatedServo | None, bytes]] = []
     for sid, addr, length in requests:
         servos = _first(by_id, sid)
         if not servos:
-            blocks.append((None, bytes(length + 2)))  # type: ignore[arg-type]
+            blocks.append((None, bytes(length + 2)))
             continue
         servo = servos[0]
         err, data = servo.read_bytes(addr, length)
         if len(data) < length:
             data = data + bytes(length - len(data))
         blocks.append((servo, bytes((_err(servo, err), servo.id)) + data))
-    if not blocks or blocks[0][0] is None or not _answers(blocks[0][0], inst):
+    lead = blocks[0][0] if blocks else None
+    if lead is None or not _answers(lead, inst):
         return
     length_field = 1 + sum(len(b) + 2 for _, b in blocks)
     head = HEADER + bytes((BROADCAST_ID, length_field & 0xFF, length_field >> 8, 0x55))
     parts: list[tuple[EmulatedServo | None, bytes]] = []
     crc = crc16(head)
-    for servo, block in blocks:
+    for owner, block in blocks:
         crc = crc16(block, crc)
         part = block + bytes((crc & 0xFF, crc >> 8))
         crc = crc16(part[-2:], crc)
-        parts.append((servo, part))
+        parts.append((owner, part))
     logical = b"".join(p for _, p in parts)
     if b"\xff\xff\xfd" in bytes((0x55,)) + logical[:-2]:
         # rare: the body needs byte stuffing; send it as one stuffed packet (the SDK does not unstuff it)
         body = stuff(bytes((0x55,)) + logical[:-2])
         packet = HEADER + bytes((BROADCAST_ID, (len(body) + 2) & 0xFF, (len(body) + 2) >> 8)) + body
         crc = crc16(packet)
-        out.replies.append(Reply(blocks[0][0], packet + bytes((crc & 0xFF, crc >> 8))))
+        out.replies.append(Reply(lead, packet + bytes((crc & 0xFF, crc >> 8))))
         return
     first = True
-    for servo, part in parts:
-        if servo is None:
+    for owner, part in parts:
+        if owner is None:
             continue  # absent: its bytes never appear, the host sees a short, corrupt packet
-        out.replies.append(Reply(servo, (head + part) if first else part, continues=not first))
+        out.replies.append(Reply(owner, (head + part) if first else part, continues=not first))
         first = False
 
 
-def _fast_sync_read(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
-                    by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+def _fast_sync_read(
+    out: Outcome,
+    pid: int,
+    params: bytes,
+    listeners: Sequence[EmulatedServo],
+    by_id: dict[int, list[EmulatedServo]],
+    targets: list[EmulatedServo],
+) -> None:
     if pid != BROADCAST_ID or len(params) < 5:
         return
     addr = params[0] | params[1] << 8
@@ -292,17 +381,31 @@ def _fast_sync_read(out: Outcome, pid: int, params: bytes, listeners: Sequence[E
     _fast_read(out, [(sid, addr, length) for sid in params[4:]], by_id, Instruction.FAST_SYNC_READ)
 
 
-def _fast_bulk_read(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
-                    by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+def _fast_bulk_read(
+    out: Outcome,
+    pid: int,
+    params: bytes,
+    listeners: Sequence[EmulatedServo],
+    by_id: dict[int, list[EmulatedServo]],
+    targets: list[EmulatedServo],
+) -> None:
     if pid != BROADCAST_ID or len(params) % 5 or not params:
         return
-    req = [(params[i], params[i + 1] | params[i + 2] << 8, params[i + 3] | params[i + 4] << 8)
-           for i in range(0, len(params), 5)]
+    req = [
+        (params[i], params[i + 1] | params[i + 2] << 8, params[i + 3] | params[i + 4] << 8)
+        for i in range(0, len(params), 5)
+    ]
     _fast_read(out, req, by_id, Instruction.FAST_BULK_READ)
 
 
-def _sync_write(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
-                by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+def _sync_write(
+    out: Outcome,
+    pid: int,
+    params: bytes,
+    listeners: Sequence[EmulatedServo],
+    by_id: dict[int, list[EmulatedServo]],
+    targets: list[EmulatedServo],
+) -> None:
     if pid != BROADCAST_ID or len(params) < 4:
         return
     addr = params[0] | params[1] << 8
@@ -317,8 +420,14 @@ def _sync_write(out: Outcome, pid: int, params: bytes, listeners: Sequence[Emula
                 out.ids_changed = True
 
 
-def _bulk_write(out: Outcome, pid: int, params: bytes, listeners: Sequence[EmulatedServo],
-                by_id: dict[int, list[EmulatedServo]], targets: list[EmulatedServo]) -> None:
+def _bulk_write(
+    out: Outcome,
+    pid: int,
+    params: bytes,
+    listeners: Sequence[EmulatedServo],
+    by_id: dict[int, list[EmulatedServo]],
+    targets: list[EmulatedServo],
+) -> None:
     if pid != BROADCAST_ID:
         return
     i = 0
@@ -337,7 +446,7 @@ def _bulk_write(out: Outcome, pid: int, params: bytes, listeners: Sequence[Emula
                 out.ids_changed = True
 
 
-_HANDLERS = {
+_HANDLERS: dict[int, Callable[..., None]] = {
     Instruction.PING: _ping,
     Instruction.READ: _read,
     Instruction.WRITE: _write,

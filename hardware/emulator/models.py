@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from hardware.emulator.control_table import R, RW, ControlTable, Register
+from hardware.emulator.control_table import RW, ControlTable, R, Register
 from hardware.emulator.errors import EmulatorConfigError
 
 # baud code (reg 8) -> bits per second
@@ -149,15 +149,30 @@ XL330_M288 = ModelSpec(
     model_number=1200,
     firmware_version=52,
     table=_x_series_table(
-        model_number=1200, firmware=52, temperature_limit=70, max_voltage=70, min_voltage=35,
-        voltage_range=(31, 70), velocity_limit=445, velocity_limit_max=2047, shutdown=53,
-        gains=(1600, 180, 0, 0, 400), current_limit=1750, acceleration_limit=False, max_baud_code=6,
+        model_number=1200,
+        firmware=52,
+        temperature_limit=70,
+        max_voltage=70,
+        min_voltage=35,
+        voltage_range=(31, 70),
+        velocity_limit=445,
+        velocity_limit_max=2047,
+        shutdown=53,
+        gains=(1600, 180, 0, 0, 400),
+        current_limit=1750,
+        acceleration_limit=False,
+        max_baud_code=6,
         indirect=((1, 168, 208),),  # 20 pairs: addresses 168..206, data 208..227 (firmware >= 52)
         extra=(RW("PWM Slope", 62, 1, 140, lo=1, hi=255), R("Backup Ready", 147, 1)),
     ),
     operating_modes=frozenset({0, 1, 3, 4, 5, 16}),
-    no_load_speed_rpm=103.0, stall_torque_nm=0.52, stall_current_a=1.47, nominal_voltage_v=5.0,
-    present_kind="current", current_unit_ma=1.0, max_baud_code=6,
+    no_load_speed_rpm=103.0,
+    stall_torque_nm=0.52,
+    stall_current_a=1.47,
+    nominal_voltage_v=5.0,
+    present_kind="current",
+    current_unit_ma=1.0,
+    max_baud_code=6,
 )
 
 XL430_W250 = ModelSpec(
@@ -165,15 +180,31 @@ XL430_W250 = ModelSpec(
     model_number=1060,
     firmware_version=46,
     table=_x_series_table(
-        model_number=1060, firmware=46, temperature_limit=72, max_voltage=140, min_voltage=60,
-        voltage_range=(60, 140), velocity_limit=265, velocity_limit_max=1023, shutdown=52,
-        gains=(1000, 100, 4000, 0, 640), current_limit=None, acceleration_limit=False, max_baud_code=7,
+        model_number=1060,
+        firmware=46,
+        temperature_limit=72,
+        max_voltage=140,
+        min_voltage=60,
+        voltage_range=(60, 140),
+        velocity_limit=265,
+        velocity_limit_max=1023,
+        shutdown=52,
+        gains=(1000, 100, 4000, 0, 640),
+        current_limit=None,
+        acceleration_limit=False,
+        max_baud_code=7,
         indirect=((1, 168, 224), (29, 578, 634)),
-        extra=(R("Backup Ready", 147, 1),), present_name="Present Load",
+        extra=(R("Backup Ready", 147, 1),),
+        present_name="Present Load",
     ),
     operating_modes=frozenset({1, 3, 4, 16}),
-    no_load_speed_rpm=57.0, stall_torque_nm=1.4, stall_current_a=1.4, nominal_voltage_v=11.1,
-    present_kind="load", current_unit_ma=1.0, max_baud_code=7,
+    no_load_speed_rpm=57.0,
+    stall_torque_nm=1.4,
+    stall_current_a=1.4,
+    nominal_voltage_v=11.1,
+    present_kind="load",
+    current_unit_ma=1.0,
+    max_baud_code=7,
 )
 
 XM430_W350 = ModelSpec(
@@ -181,15 +212,30 @@ XM430_W350 = ModelSpec(
     model_number=1020,
     firmware_version=46,
     table=_x_series_table(
-        model_number=1020, firmware=46, temperature_limit=80, max_voltage=160, min_voltage=95,
-        voltage_range=(95, 160), velocity_limit=200, velocity_limit_max=1023, shutdown=52,
-        gains=(1920, 100, 0, 0, 800), current_limit=1193, acceleration_limit=False, max_baud_code=7,
+        model_number=1020,
+        firmware=46,
+        temperature_limit=80,
+        max_voltage=160,
+        min_voltage=95,
+        voltage_range=(95, 160),
+        velocity_limit=200,
+        velocity_limit_max=1023,
+        shutdown=52,
+        gains=(1920, 100, 0, 0, 800),
+        current_limit=1193,
+        acceleration_limit=False,
+        max_baud_code=7,
         indirect=((1, 168, 224), (29, 578, 634)),
         extra=(R("Backup Ready", 147, 1),),
     ),
     operating_modes=frozenset({0, 1, 3, 4, 5, 16}),
-    no_load_speed_rpm=46.0, stall_torque_nm=4.1, stall_current_a=2.3, nominal_voltage_v=12.0,
-    present_kind="current", current_unit_ma=2.69, max_baud_code=7,
+    no_load_speed_rpm=46.0,
+    stall_torque_nm=4.1,
+    stall_current_a=2.3,
+    nominal_voltage_v=12.0,
+    present_kind="current",
+    current_unit_ma=2.69,
+    max_baud_code=7,
 )
 
 MX28_2 = ModelSpec(
@@ -197,14 +243,30 @@ MX28_2 = ModelSpec(
     model_number=30,
     firmware_version=46,
     table=_x_series_table(
-        model_number=30, firmware=46, temperature_limit=80, max_voltage=160, min_voltage=95,
-        voltage_range=(95, 160), velocity_limit=380, velocity_limit_max=1023, shutdown=52,
-        gains=(1920, 100, 0, 0, 850), current_limit=None, acceleration_limit=True, max_baud_code=7,
-        indirect=((1, 168, 224), (29, 578, 634)), present_name="Present Load",
+        model_number=30,
+        firmware=46,
+        temperature_limit=80,
+        max_voltage=160,
+        min_voltage=95,
+        voltage_range=(95, 160),
+        velocity_limit=380,
+        velocity_limit_max=1023,
+        shutdown=52,
+        gains=(1920, 100, 0, 0, 850),
+        current_limit=None,
+        acceleration_limit=True,
+        max_baud_code=7,
+        indirect=((1, 168, 224), (29, 578, 634)),
+        present_name="Present Load",
     ),
     operating_modes=frozenset({1, 3, 4, 16}),
-    no_load_speed_rpm=55.0, stall_torque_nm=2.5, stall_current_a=1.4, nominal_voltage_v=12.0,
-    present_kind="load", current_unit_ma=1.0, max_baud_code=7,
+    no_load_speed_rpm=55.0,
+    stall_torque_nm=2.5,
+    stall_current_a=1.4,
+    nominal_voltage_v=12.0,
+    present_kind="load",
+    current_unit_ma=1.0,
+    max_baud_code=7,
 )
 
 MODELS: dict[str, ModelSpec] = {m.name: m for m in (XL330_M288, XL430_W250, XM430_W350, MX28_2)}
@@ -212,7 +274,7 @@ _ALIASES = {"MX-28": "MX-28(2.0)", "MX28": "MX-28(2.0)", "MX-28(2)": "MX-28(2.0)
 
 
 def get_model(name: str | ModelSpec) -> ModelSpec:
-    """The model called ``name`` (case-insensitive; "XL330-M288", "XL430-W250", "XM430-W350", "MX-28(2.0)")."""
+    """The model called ``name`` (any case): "XL330-M288", "XL430-W250", "XM430-W350", "MX-28(2.0)"."""
     if isinstance(name, ModelSpec):
         return name
     upper = name.strip().upper()

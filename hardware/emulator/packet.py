@@ -97,7 +97,7 @@ def build_status(servo_id: int, error: int, params: bytes = b"") -> bytes:
 
 @dataclass(frozen=True, slots=True)
 class Packet:
-    """A decoded (unstuffed) packet. For status packets ``instruction`` is 0x55 and ``params[0]`` the error."""
+    """A decoded (unstuffed) packet; a status packet has ``instruction`` 0x55 and ``params[0]`` = error."""
 
     id: int
     instruction: int
@@ -108,7 +108,9 @@ class Packet:
     def error(self) -> int:
         """The error byte of a status packet."""
         if self.instruction != STATUS_INSTRUCTION or not self.params:
-            raise PacketError(f"packet from id {self.id} is not a status packet (instruction {self.instruction:#04x})")
+            raise PacketError(
+                f"packet from id {self.id} is not a status packet (instruction {self.instruction:#04x})"
+            )
         return self.params[0]
 
     @property

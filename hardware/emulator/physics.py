@@ -49,7 +49,7 @@ Obstacle = tuple[float, float]  # (raw tick of the wall, side: +1 the shaft must
 
 
 def step_motion(state: MotorState, profile: MotionProfile, dt: float, obstacle: Obstacle | None) -> None:
-    """Advance position/velocity by ``dt`` towards ``state.target`` under ``profile``; stop at ``obstacle``."""
+    """Advance position/velocity by ``dt`` towards ``state.target`` under ``profile``; stop at a wall."""
     d = state.target - state.pos
     v = state.vel
     a = profile.a_max

@@ -18,7 +18,9 @@ class EmulatedSerial:
     """``write``/``read`` (non-blocking)/``in_waiting``/``reset_*``/``flush``/``close``; ``baudrate`` settable
     (a baud the servos are not set to means they hear garbage and stay silent)."""
 
-    def __init__(self, chain: ServoChain, *, port: str = "emulated://servo-chain", baudrate: int | None = None) -> None:
+    def __init__(
+        self, chain: ServoChain, *, port: str = "emulated://servo-chain", baudrate: int | None = None
+    ) -> None:
         self._chain = chain
         self.port = port
         self.name = port

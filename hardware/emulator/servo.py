@@ -7,7 +7,7 @@ from collections.abc import Callable
 
 from hardware.emulator import physics
 from hardware.emulator.control_table import EEPROM_END, Register
-from hardware.emulator.errors import EmulatorConfigError, RegisterError
+from hardware.emulator.errors import EmulatorConfigError
 from hardware.emulator.faults import HARDWARE_KINDS, FaultSchedule
 from hardware.emulator.models import (
     ACCELERATION_UNIT_RPM2,
@@ -155,7 +155,9 @@ class EmulatedServo:
         """Turn the horn by hand to where Present Position reads ``present_tick`` (only with torque off)."""
         self.advance()
         if self.torque_on:
-            raise EmulatorConfigError(f"servo {self.id}: move_by_hand needs torque off (the motor holds its goal)")
+            raise EmulatorConfigError(
+                f"servo {self.id}: move_by_hand needs torque off (the motor holds its goal)"
+            )
         self.motor.pos = self.motor.target = self._to_shaft(float(present_tick))
         self.motor.vel = 0.0
 

@@ -8,7 +8,9 @@ from hardware.emulator import EmulatedSerial, Packet, ServoChain, build_instruct
 from hardware.emulator.packet import PacketReceiver
 
 
-def quick_chain(ids: Any = range(1, 4), model: str = "XL330-M288", **kw: Any) -> tuple[ServoChain, EmulatedSerial]:
+def quick_chain(
+    ids: Any = range(1, 4), model: str = "XL330-M288", **kw: Any
+) -> tuple[ServoChain, EmulatedSerial]:
     """A manual-clock chain without wire time, and its serial endpoint."""
     kw.setdefault("wire_time", False)
     kw.setdefault("clock", "manual")

@@ -27,7 +27,10 @@ def test_parse_ids_ranges_and_lists() -> None:
 def _start(*args: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
         [sys.executable, "-m", "controller.cli", "emulate", *args],
-        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
     )
 
 
@@ -57,7 +60,9 @@ def test_prints_path_first_then_serves_until_signal(sig: int) -> None:
             proc.wait()
 
 
-@pytest.mark.parametrize("args", [["--ids", "1-x"], ["--model", "XL999"], ["--baud", "12345"], ["--ids", "0-300"]])
+@pytest.mark.parametrize(
+    "args", [["--ids", "1-x"], ["--model", "XL999"], ["--baud", "12345"], ["--ids", "0-300"]]
+)
 def test_invalid_arguments_exit_2_with_a_message(args: list[str]) -> None:
     proc = _start(*args)
     out, err = proc.communicate(timeout=20)

@@ -6,7 +6,6 @@ import pytest
 
 from hardware.emulator import EmulatorConfigError, ServoChain, build_instruction
 from hardware.emulator.packet import PacketReceiver
-
 from tests.hardware.emulator.helpers import quick_chain, sdk_port, transact
 
 COMM_SUCCESS, COMM_RX_TIMEOUT, COMM_RX_CORRUPT = 0, -3001, -3002
@@ -65,8 +64,13 @@ def test_dropped_bytes_make_a_short_packet() -> None:
 
 @pytest.mark.parametrize(
     ("kind", "bit", "drops_torque"),
-    [("overload", 0x20, True), ("overheating", 0x04, True), ("electrical_shock", 0x10, True),
-     ("encoder", 0x08, False), ("input_voltage", 0x01, True)],
+    [
+        ("overload", 0x20, True),
+        ("overheating", 0x04, True),
+        ("electrical_shock", 0x10, True),
+        ("encoder", 0x08, False),
+        ("input_voltage", 0x01, True),
+    ],
 )
 def test_hardware_error_bits(kind: str, bit: int, drops_torque: bool) -> None:
     chain, ser = quick_chain(ids=[1])  # XL330: Shutdown 0x35

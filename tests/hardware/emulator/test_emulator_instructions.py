@@ -5,7 +5,6 @@ from __future__ import annotations
 from hardware.emulator import Instruction as I
 from hardware.emulator.crc import crc16
 from hardware.emulator.packet import BROADCAST_ID
-
 from tests.hardware.emulator.helpers import le, quick_chain, transact
 
 OK, RESULT_FAIL, INSTRUCTION, CRC, RANGE, LENGTH, LIMIT, ACCESS = 0, 1, 2, 3, 4, 5, 6, 7
@@ -141,13 +140,22 @@ def _fast_blocks(raw: bytes, length: int) -> list[tuple[int, int, bytes, bytes]]
 
 def test_fast_sync_read_layout() -> None:
     chain, ser = quick_chain(ids=[1, 2, 3])
-    ser.write(bytes(__import__("hardware.emulator", fromlist=["x"]).build_instruction(
-        BROADCAST_ID, I.FAST_SYNC_READ, rd(132, 4) + bytes((2, 1, 3)))))
+    ser.write(
+        bytes(
+            __import__("hardware.emulator", fromlist=["x"]).build_instruction(
+                BROADCAST_ID, I.FAST_SYNC_READ, rd(132, 4) + bytes((2, 1, 3))
+            )
+        )
+    )
     raw = ser.read(1000)
     assert raw[:8] == b"\xff\xff\xfd\x00\xfe" + le(1 + 3 * (4 + 4), 2) + b"\x55"
     assert len(raw) == 8 + 3 * (4 + 4)  # reference sheet §8: 8 + N(L + 4)
     blocks = _fast_blocks(raw, 4)
-    assert [(b[0], b[1], int.from_bytes(b[2], "little")) for b in blocks] == [(0, 2, 2048), (0, 1, 2048), (0, 3, 2048)]
+    assert [(b[0], b[1], int.from_bytes(b[2], "little")) for b in blocks] == [
+        (0, 2, 2048),
+        (0, 1, 2048),
+        (0, 3, 2048),
+    ]
     assert int.from_bytes(raw[-2:], "little") == crc16(raw[:-2])  # last block's CRC is the packet CRC
     first_end = 8 + 6
     assert int.from_bytes(raw[first_end : first_end + 2], "little") == crc16(raw[:first_end])  # running CRC
@@ -157,7 +165,9 @@ def test_fast_bulk_read_layout() -> None:
     from hardware.emulator import build_instruction
 
     chain, ser = quick_chain(ids=[1, 2])
-    ser.write(build_instruction(BROADCAST_ID, I.FAST_BULK_READ, bytes((1,)) + rd(146, 1) + bytes((2,)) + rd(132, 4)))
+    ser.write(
+        build_instruction(BROADCAST_ID, I.FAST_BULK_READ, bytes((1,)) + rd(146, 1) + bytes((2,)) + rd(132, 4))
+    )
     raw = ser.read(1000)
     assert raw[5] | raw[6] << 8 == 1 + (1 + 4) + (4 + 4)
     assert raw[8:11] == bytes((0, 1, 25)) and raw[13:15] == bytes((0, 2))

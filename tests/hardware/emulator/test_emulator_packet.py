@@ -61,7 +61,9 @@ def test_stuffing_inserts_fd_after_header_pattern() -> None:
     assert parse_packet(packet).params == b"\x74\x00\xff\xff\xfd\x00"
 
 
-@given(st.lists(st.sampled_from([b"\xff", b"\xfd", b"\x00", b"\xff\xff\xfd", b"\xfd\xfd", b"\x55"]), max_size=40))
+@given(
+    st.lists(st.sampled_from([b"\xff", b"\xfd", b"\x00", b"\xff\xff\xfd", b"\xfd\xfd", b"\x55"]), max_size=40)
+)
 def test_stuff_unstuff_round_trip(parts: list[bytes]) -> None:
     body = b"".join(parts)
     stuffed = stuff(body)
@@ -97,7 +99,11 @@ def test_build_parse_round_trip_and_sdk_agrees(pid: int, inst: int, parts: list[
 @given(st.binary(max_size=20), st.lists(st.integers(1, 30), max_size=10))
 def test_receiver_finds_packets_across_arbitrary_splits(garbage: bytes, cuts: list[int]) -> None:
     garbage = garbage.replace(b"\xff", b"\x00")
-    stream = garbage + build_instruction(1, 0x02, b"\x84\x00\x04\x00") + build_instruction(0xFE, 0x83, b"\xff\xff\xfd" * 3)
+    stream = (
+        garbage
+        + build_instruction(1, 0x02, b"\x84\x00\x04\x00")
+        + build_instruction(0xFE, 0x83, b"\xff\xff\xfd" * 3)
+    )
     receiver = PacketReceiver()
     found = []
     pos = 0

@@ -1,4 +1,4 @@
-"""The moving servo on a manual clock: profiles, limits, direction, Moving, Realtime Tick, heat, load, voltage."""
+"""Moving servo (manual clock): profiles, limits, direction, Moving, Realtime Tick, heat, load, voltage."""
 
 from __future__ import annotations
 

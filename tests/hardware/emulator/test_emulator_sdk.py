@@ -5,7 +5,6 @@ from __future__ import annotations
 import dynamixel_sdk as sdk
 
 from hardware.emulator import ServoChain
-
 from tests.hardware.emulator.helpers import sdk_port
 
 OK = 0
@@ -77,7 +76,10 @@ def test_mixed_models_and_stuffed_values() -> None:
     assert [ph.ping(port, i)[0] for i in (1, 2, 3)] == [1060, 1020, 30]
     # a value whose bytes contain FF FF FD exercises stuffing on both directions
     chain.servo(2).write_register("Operating Mode", 4)
-    assert ph.write4ByteTxRx(port, 2, 20, 0x00FDFFFF) == (OK, 4)  # homing offset out of range (stuffed packet)
+    assert ph.write4ByteTxRx(port, 2, 20, 0x00FDFFFF) == (
+        OK,
+        4,
+    )  # homing offset out of range (stuffed packet)
     chain.servo(2).move_by_hand(-515)  # 0xFFFFFDFD
     value, comm, err = ph.read4ByteTxRx(port, 2, 132)
     assert comm == OK and value == (-515) & 0xFFFFFFFF

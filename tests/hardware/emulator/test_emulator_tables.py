@@ -10,16 +10,43 @@ from hardware.emulator import MODELS, EmulatorConfigError, RegisterError, get_mo
 
 # (register, address, size) shared by all four models (reference sheet §3)
 SHARED = [
-    ("Model Number", 0, 2), ("Firmware Version", 6, 1), ("ID", 7, 1), ("Baud Rate", 8, 1),
-    ("Return Delay Time", 9, 1), ("Drive Mode", 10, 1), ("Operating Mode", 11, 1), ("Homing Offset", 20, 4),
-    ("Moving Threshold", 24, 4), ("Temperature Limit", 31, 1), ("Max Voltage Limit", 32, 2),
-    ("Min Voltage Limit", 34, 2), ("PWM Limit", 36, 2), ("Velocity Limit", 44, 4), ("Max Position Limit", 48, 4),
-    ("Min Position Limit", 52, 4), ("Shutdown", 63, 1), ("Torque Enable", 64, 1), ("LED", 65, 1),
-    ("Status Return Level", 68, 1), ("Registered Instruction", 69, 1), ("Hardware Error Status", 70, 1),
-    ("Bus Watchdog", 98, 1), ("Goal PWM", 100, 2), ("Goal Velocity", 104, 4), ("Profile Acceleration", 108, 4),
-    ("Profile Velocity", 112, 4), ("Goal Position", 116, 4), ("Realtime Tick", 120, 2), ("Moving", 122, 1),
-    ("Moving Status", 123, 1), ("Present PWM", 124, 2), ("Present Velocity", 128, 4), ("Present Position", 132, 4),
-    ("Present Input Voltage", 144, 2), ("Present Temperature", 146, 1), ("Indirect Address 1", 168, 2),
+    ("Model Number", 0, 2),
+    ("Firmware Version", 6, 1),
+    ("ID", 7, 1),
+    ("Baud Rate", 8, 1),
+    ("Return Delay Time", 9, 1),
+    ("Drive Mode", 10, 1),
+    ("Operating Mode", 11, 1),
+    ("Homing Offset", 20, 4),
+    ("Moving Threshold", 24, 4),
+    ("Temperature Limit", 31, 1),
+    ("Max Voltage Limit", 32, 2),
+    ("Min Voltage Limit", 34, 2),
+    ("PWM Limit", 36, 2),
+    ("Velocity Limit", 44, 4),
+    ("Max Position Limit", 48, 4),
+    ("Min Position Limit", 52, 4),
+    ("Shutdown", 63, 1),
+    ("Torque Enable", 64, 1),
+    ("LED", 65, 1),
+    ("Status Return Level", 68, 1),
+    ("Registered Instruction", 69, 1),
+    ("Hardware Error Status", 70, 1),
+    ("Bus Watchdog", 98, 1),
+    ("Goal PWM", 100, 2),
+    ("Goal Velocity", 104, 4),
+    ("Profile Acceleration", 108, 4),
+    ("Profile Velocity", 112, 4),
+    ("Goal Position", 116, 4),
+    ("Realtime Tick", 120, 2),
+    ("Moving", 122, 1),
+    ("Moving Status", 123, 1),
+    ("Present PWM", 124, 2),
+    ("Present Velocity", 128, 4),
+    ("Present Position", 132, 4),
+    ("Present Input Voltage", 144, 2),
+    ("Present Temperature", 146, 1),
+    ("Indirect Address 1", 168, 2),
 ]
 # model -> (model number, temperature limit, max V, min V, velocity limit, shutdown, present 126 name)
 DEFAULTS = {
@@ -82,9 +109,16 @@ def test_lookup_errors_name_the_key() -> None:
     assert get_model("mx-28").name == "MX-28(2.0)"
 
 
-SDK_TABLES = Path(__file__).resolve().parents[3] / ".venv/lib/python3.11/site-packages/dynamixel_easy_sdk/control_table"
-SDK_FILES = {"XL330-M288": "xl330_m288_fw52.model", "XL430-W250": "xl430_w250.model",
-             "XM430-W350": "xm430_w350.model", "MX-28(2.0)": "mx_28.model"}
+SDK_TABLES = (
+    Path(__file__).resolve().parents[3]
+    / ".venv/lib/python3.11/site-packages/dynamixel_easy_sdk/control_table"
+)
+SDK_FILES = {
+    "XL330-M288": "xl330_m288_fw52.model",
+    "XL430-W250": "xl430_w250.model",
+    "XM430-W350": "xm430_w350.model",
+    "MX-28(2.0)": "mx_28.model",
+}
 ALIASES = {"BUS Watchdog": "Bus Watchdog"}
 
 

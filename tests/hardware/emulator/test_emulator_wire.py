@@ -1,4 +1,4 @@
-"""Wire-time arithmetic on a manual clock: instruction bytes, Return Delay Time, byte-by-byte arrival, queueing."""
+"""Wire time (manual clock): instruction bytes, Return Delay Time, byte-by-byte arrival, queueing."""
 
 from __future__ import annotations
 
@@ -6,7 +6,6 @@ import pytest
 
 from hardware.emulator import ServoChain, build_instruction
 from hardware.emulator.packet import BROADCAST_ID
-
 from tests.hardware.emulator.helpers import le
 
 BYTE_1M = 10e-6
