@@ -88,7 +88,7 @@ class Driver:
         self._cycle = 0
         self._cycle_events: list[FaultEvent] = []
         self.events: deque[FaultEvent] = deque(maxlen=1000)
-        self._reactions = FaultReactions(bus, self.policy, self._emit, self._recover)
+        self._reactions = FaultReactions(bus, self.policy, self._emit, self._recover, self._request_read)
         self._probe_index = 0
         self._last: ChainSnapshot | None = None
 
@@ -107,6 +107,11 @@ class Driver:
         """Release ownership (call from the owner); the next thread to use the driver becomes its owner."""
         self._check_owner()
         self._owner = None
+
+    def _request_read(self, group_name: str) -> None:
+        for group in self._groups:
+            if group.name == group_name:
+                group.due_s = float("-inf")
 
     # -- events -------------------------------------------------------------------------------------
     def _emit(self, servo_id: int | None, kind: FaultKind, reaction: str) -> None:
@@ -269,8 +274,15 @@ class Driver:
                            f"no reply in {rec.failures} cycles: excluded from group reads, re-probed every "
                            f"{self.policy.reprobe_interval_s:g} s; other servos continue")
 
+    def _readable(self, now: float) -> list[int]:
+        """Ids worth asking: not missing, and not inside the silence after a reboot."""
+        return [
+            sid for sid, rec in self._records.items()
+            if not rec.missing and (rec.recover_at_s is None or rec.recover_at_s <= now or rec.reboot_at_s is not None)
+        ]
+
     def _read_positions(self, now: float) -> None:
-        ids = [sid for sid, rec in self._records.items() if not rec.missing]
+        ids = self._readable(now)
         got = self._read_group(ids, POSITION, fast=self.fast_sync_read)
         for sid, values in got.items():
             rec = self._records[sid]
@@ -287,7 +299,7 @@ class Driver:
             return
         group = min(due, key=lambda g: g.due_s)
         group.due_s = now + group.period_s
-        ids = [sid for sid, rec in self._records.items() if not rec.missing]
+        ids = self._readable(now)
         got = self._read_group(ids, group.registers)
         for sid, values in got.items():
             rec = self._records[sid]
@@ -303,22 +315,30 @@ class Driver:
 
     # -- missing servos, reconnects -----------------------------------------------------------------
     def _recover(self, rec: ServoRecord, kind: FaultKind) -> bool:
-        """Re-configure a servo that is back (reconnected / rebooted / cooled) and re-pin its goal."""
+        """Re-configure a servo that is back (reconnected / rebooted / cooled) and re-pin its goal.
+
+        If its Hardware Error Status is still set (the cause persists), the fault reaction starts over —
+        each reboot counts toward `FaultPolicy.max_reboots`, after which the servo latches off.
+        """
+        now = self._clock()
+        for k in (FaultKind.OVERLOAD, FaultKind.OVERHEATING, FaultKind.VOLTAGE_HIGH, FaultKind.VOLTAGE_LOW):
+            if k != FaultKind.VOLTAGE_LOW or rec.voltage_count == 0:
+                rec.faults.discard(k)
+        rec.derated = FaultKind.THERMAL_DERATE in rec.faults or FaultKind.VOLTAGE_LOW in rec.faults
         try:
             self._configure_one(rec)
+            hw = self.bus.read(rec.servo_id, Register.HARDWARE_ERROR_STATUS)
+            rec.missing, rec.failures, rec.stale = False, 0, False
+            rec.hardware_error = type(rec.hardware_error).NONE
+            if hw:
+                self._reactions.on_status(rec, 0, hw, now)
+                return True
             if rec.torque_wanted:
                 self._pin_and_enable(rec)
         except (BusError, HardwareConfigError) as err:
             if isinstance(err, BusDisconnectedError):
                 raise
             return False
-        rec.missing = False
-        rec.failures = 0
-        rec.stale = False
-        rec.hardware_error = type(rec.hardware_error).NONE
-        for k in (FaultKind.OVERLOAD, FaultKind.OVERHEATING, FaultKind.VOLTAGE_LOW, FaultKind.VOLTAGE_HIGH):
-            if k != FaultKind.VOLTAGE_LOW or rec.voltage_count == 0:
-                rec.faults.discard(k)
         state = "torque on, goal re-pinned to present" if rec.torque_wanted else "torque left off"
         self._emit(rec.servo_id, kind, f"re-configured (verified), {state}")
         return True

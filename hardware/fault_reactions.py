@@ -23,12 +23,18 @@ class FaultReactions:
     """Applies `FaultPolicy` to one servo's fresh telemetry; schedules reboots and recoveries."""
 
     def __init__(
-        self, bus: ServoBus, policy: FaultPolicy, emit: Emit, recover: Callable[[ServoRecord, FaultKind], bool]
+        self,
+        bus: ServoBus,
+        policy: FaultPolicy,
+        emit: Emit,
+        recover: Callable[[ServoRecord, FaultKind], bool],
+        request_read: Callable[[str], None],
     ) -> None:
         self.bus = bus
         self.policy = policy
         self.emit = emit
         self.recover = recover
+        self.request_read = request_read  # make a telemetry group due now ("thermal", "status", "motion")
 
     # -- helpers ------------------------------------------------------------------------------------
     def _torque_off(self, rec: ServoRecord) -> None:
@@ -60,6 +66,9 @@ class FaultReactions:
         if rec.reboot_at_s is None and not rec.latched:
             rec.reboot_at_s = at_s
             rec.reboot_reason = reason
+            rec.fault_t_s = now
+            if reason in (FaultKind.OVERHEATING, FaultKind.VOLTAGE_LOW):
+                self.request_read("thermal")  # the reboot waits for a temperature/voltage read after the fault
 
     # -- telemetry handlers -------------------------------------------------------------------------
     def on_status(self, rec: ServoRecord, torque_enable: int, hw_error: int, now: float) -> None:
@@ -186,12 +195,13 @@ class FaultReactions:
         return len(recent) < self.policy.max_reboots
 
     def _reboot_condition_met(self, rec: ServoRecord, now: float) -> bool:
+        fresh = rec.telemetry_t_s is not None and rec.telemetry_t_s > rec.fault_t_s
         if rec.reboot_reason == FaultKind.OVERHEATING:
-            return rec.temperature_c is not None and (
+            return fresh and rec.temperature_c is not None and (
                 rec.temperature_c <= rec.temperature_limit_c - self.policy.thermal_resume_margin_c
             )
         if rec.reboot_reason == FaultKind.VOLTAGE_LOW:
-            return rec.voltage_count == 0 and rec.voltage_v is not None
+            return fresh and rec.voltage_count == 0 and rec.voltage_v is not None
         return rec.reboot_at_s is not None and now >= rec.reboot_at_s
 
     def service(self, rec: ServoRecord, now: float) -> None:

@@ -41,6 +41,7 @@ class ServoRecord:
     voltage_count: int = 0  # consecutive out-of-range readings (signed: -n low, +n high)
     reboot_at_s: float | None = None  # reboot scheduled (after cool-down)
     reboot_reason: FaultKind | None = None
+    fault_t_s: float = float("-inf")  # when the fault behind the scheduled reboot was seen
     recover_at_s: float | None = None  # re-configure + re-pin after a reboot settles
     reboots: deque[float] = field(default_factory=lambda: deque(maxlen=16))
     latched: bool = False
