@@ -65,6 +65,7 @@ class Skin:
     joint_names: tuple[str, ...]
     weights: NDArray[np.float64]
     color_rgba: tuple[float, float, float, float] = (0.86, 0.70, 0.60, 1.0)
+    vertex_colors_rgba: NDArray[np.float64] | None = None  # (n, 4) float 0..1 (lips, brows), optional
 
 
 @dataclass(frozen=True)
@@ -120,3 +121,81 @@ class HeadPose:
     joint_deg: dict[str, float]
     skin_offset_mm: NDArray[np.float64]
     actuator_targets: dict[str, float] = field(default_factory=dict)  # role -> deg or mm
+
+
+# --- muscles: placement only (the math lives in the face model) -----------------------------------------
+# Waters-style muscles placed on the skin at rest, in the head frame (mm). See
+# /work/shared/reference/muscle-models.md section 1 for the meaning of the parameters.
+
+
+@dataclass(frozen=True)
+class LinearMuscle:
+    """A linear (vector) muscle: the bone end ``attachment_mm`` is fixed, the skin end ``insertion_mm`` moves.
+
+    ``zone_deg`` = half-angle of the influence cone around attachment->insertion; ``rs_mm`` / ``rf_mm`` =
+    fall-off start / finish radii measured from the attachment (Waters' R_s, R_f); ``max_contraction`` in 0..1.
+    """
+
+    name: str
+    attachment_mm: Vec3
+    insertion_mm: Vec3
+    zone_deg: float
+    rs_mm: float
+    rf_mm: float
+    max_contraction: float = 0.25
+    type: Literal["linear"] = "linear"
+
+
+@dataclass(frozen=True)
+class SphincterMuscle:
+    """A sphincter (orbicularis oris/oculi) squeezing skin towards ``centre_mm``.
+
+    ``semi_axes_mm`` = (lx, ly) or (lx, ly, lz): the ellipse (ellipsoid) of influence, lx along
+    ``major_axis``, ly along ``normal`` x ``major_axis``, lz along ``normal`` (depth band).
+    """
+
+    name: str
+    centre_mm: Vec3
+    semi_axes_mm: tuple[float, ...]
+    max_contraction: float = 0.25
+    normal: Vec3 = (0.0, 0.0, 1.0)
+    major_axis: Vec3 = (1.0, 0.0, 0.0)
+    type: Literal["sphincter"] = "sphincter"
+
+
+@dataclass(frozen=True)
+class SheetMuscle:
+    """A sheet muscle with parallel fibres: attachment line (start..end) to insertion line (start..end).
+
+    ``width_mm`` = the perpendicular half-width of influence around the sheet.
+    """
+
+    name: str
+    attachment_mm: Vec3
+    attachment_end_mm: Vec3
+    insertion_mm: Vec3
+    insertion_end_mm: Vec3
+    width_mm: float
+    max_contraction: float = 0.25
+    type: Literal["sheet"] = "sheet"
+
+
+Muscle = LinearMuscle | SphincterMuscle | SheetMuscle
+
+
+@dataclass(frozen=True)
+class CouplingRule:
+    """Actuators that must not all travel far at once (e.g. a mouth corner pulled up and down together).
+
+    The *share* of an actuator is |target - neutral| / |limit - neutral| towards the limit it moves to
+    (0 at neutral, 1 at the limit). The rule holds when the shares of ``roles`` sum to at most
+    ``max_sum_share``. The twin gate enforces it; the profile only states it.
+    """
+
+    roles: tuple[str, ...]
+    max_sum_share: float
+    note: str = ""
+
+
+SERVO_MODELS: tuple[str, ...] = ("XL330-M288", "XL430-W250", "XM430-W350", "MX-28")
+"""Servo models a head profile may name (the emulator and the calibration know these)."""

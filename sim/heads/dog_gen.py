@@ -1,0 +1,273 @@
+"""Procedural meshes of the built-in ``dog`` head, after Londra (mesaticephalic, Staffordshire-terrier-like).
+
+The skin is a loft of cross-sections along the head's length (+z towards the nose). Each ring is split at
+the mouth line on both sides, and the last ring collapses onto the front of the mouth, so upper lip
+(flews) and lower lip/chin share rest positions but not faces: the lower part follows the jaw and the
+mouth opens; raising the flews (snarl) shows the teeth behind them. The nose pad, the eye openings and
+the muzzle are carved in the same loft. Rigid parts: skull, jaw with lower teeth, upper teeth, eyeballs
+(iris, pupil), upper lids, cropped erect ears, a two-segment tongue, neck, mouth cavity and eye sockets.
+
+Design coordinates put the atlas at (0, 70, -50); every mesh is shifted by ``OFFSET`` so that the head
+frame's origin is the top of the neck, as for every head.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from sim.heads import mesh_tools as mt
+from sim.heads.mesh_tools import F64, I64
+
+OFFSET = np.array([0.0, -70.0, 50.0])
+
+# design coordinates (before OFFSET)
+_EYE_L = np.array([33.0, 118.0, 66.0])
+EYE_RADIUS = 11.0
+_EYE_HOLE = (12.5, 8.0)
+_JAW_PIVOT = np.array([0.0, 84.0, 8.0])
+EYE_CENTRE_L = tuple(float(v) for v in _EYE_L + OFFSET)
+JAW_PIVOT = tuple(float(v) for v in _JAW_PIVOT + OFFSET)
+
+SKIN_RGBA = (0.80, 0.62, 0.45, 1.0)  # fawn
+NOSE_RGBA = (0.08, 0.07, 0.07, 1.0)
+LIP_RGBA = (0.20, 0.14, 0.13, 1.0)
+MUZZLE_RGBA = (0.93, 0.90, 0.84, 1.0)  # white blaze on the muzzle
+
+# profile tables along z (design coordinates)
+_Z = np.array([-78, -62, -35, -5, 25, 50, 70, 95, 120, 138, 146, 151, 154, 156, 157.0])
+_TOP = np.array([104, 138, 158, 162, 156, 140, 126, 122, 120, 117, 113, 105, 95, 84, 76.0])
+_YC = np.array([96, 92, 88, 85, 82, 80, 79, 78, 77, 76, 76, 76, 76, 76, 76.0])
+_BOT = np.array([86, 58, 42, 36, 40, 50, 56, 60, 62, 64, 67, 70, 73, 75, 76.0])
+_W = np.array([18, 50, 62, 67, 66, 56, 43, 38, 35, 32, 29, 26, 23, 20, 18.0])
+MOUTH_CORNER_Z = 78.0
+
+
+def _stations(n: int) -> F64:
+    """Station z values (design coords): denser towards the muzzle tip."""
+    s = np.linspace(0.0, 1.0, n)
+    warp = 1.0 - (1.0 - s) ** 1.6
+    return np.asarray(np.interp(warp, np.linspace(0, 1, len(_Z)), np.sort(_Z)), dtype=np.float64)
+
+
+def _ring_params(z: F64) -> tuple[F64, F64, F64, F64]:
+    return np.interp(z, _Z, _TOP), np.interp(z, _Z, _YC), np.interp(z, _Z, _BOT), np.interp(z, _Z, _W)
+
+
+@lru_cache(maxsize=1)
+def _skin() -> tuple[F64, I64, F64]:
+    ns, nu = 58, 88  # nu divisible by 4: columns at +-90 deg lie on the mouth line
+    zs = np.unique(np.concatenate([_stations(ns), _Z[-5:]]))
+    top, yc, bot, w = _ring_params(zs)
+    u = np.linspace(-np.pi, np.pi, nu, endpoint=False)  # 0 = top, +pi/2 = head's left (+x)
+    su, cu = np.sin(u)[None, :], np.cos(u)[None, :]
+    upper = cu >= 0
+    e_up, e_lo = 0.62, 0.85
+    h = np.where(upper, (top - yc)[:, None], (yc - bot)[:, None])
+    e = np.where(upper, e_up, e_lo)
+    x = w[:, None] * np.sign(su) * np.abs(su) ** e
+    y = yc[:, None] + h * np.sign(cu) * np.abs(cu) ** e
+    z = np.broadcast_to(zs[:, None], x.shape).copy()
+    # Staffy cheeks: bulge the lower sides behind the mouth corner
+    zz = z
+    x = x * (1.0 + 0.10 * mt.gauss2(zz - 15.0, (y - 70.0), 30.0, 22.0))
+    # chin recedes below the mouth line near the front
+    below = np.clip((yc[:, None] - y) / 14.0, 0.0, 1.0)
+    z = z - 9.0 * below * mt.smoothstep((zs[:, None] - 110.0) / 40.0)
+    # nostrils and nose pad shape: a slight dip on each side of the front face
+    frontness = mt.smoothstep((zs[:, None] - 148.0) / 6.0)
+    nostril = mt.gauss2(np.abs(x) - 8.0, y - 99.0, 4.0, 3.0)
+    z = z - 3.0 * nostril * frontness
+    # brow: a bump above each eye, a central furrow on the stop
+    ax = np.abs(x)
+    x = x + np.sign(x) * 3.0 * mt.gauss2(z - 40.0, y - 130.0, 14.0, 8.0)
+    y = y + 4.0 * mt.gauss2(ax - 30.0, z - 52.0, 12.0, 10.0)
+    y = y - 3.0 * mt.gauss2(ax, z - 45.0, 6.0, 14.0)
+
+    nz = len(zs)
+    verts = np.stack([x, y, z], -1).reshape(-1, 3)
+    faces = mt.grid_faces(nz, nu, periodic_u=True)[:, ::-1]
+    back = len(verts)
+    verts = np.concatenate([verts, [[0.0, 100.0, -82.0]]])
+    faces = np.concatenate([faces, mt.fan(np.arange(nu), back)])
+    tri = verts[faces]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    if float(np.sum(n * (tri.mean(1) - np.array([0.0, 95.0, 30.0])))) < 0:
+        faces = faces[:, ::-1].copy()
+
+    # the last ring is a segment: drop its zero-area faces, then split the mouth
+    ring_of = np.arange(len(verts)) // nu
+    col_of = np.arange(len(verts)) % nu
+    ring_of[back] = -1
+    lower_col = np.abs(u) > np.pi / 2 + 1e-9
+    side_col = np.isclose(np.abs(u), np.pi / 2)
+    area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    faces = faces[area > 1e-9]
+    # vertices on the mouth line: side columns from the corner forward, and the whole last ring
+    last = nz - 1
+    on_line = ((ring_of >= 0) & side_col[col_of] & (zs[np.clip(ring_of, 0, None)] > MOUTH_CORNER_Z)) | (ring_of == last)
+    on_line[back] = False
+    # a face is "lower" when its vertices lie in lower columns or on the line (not all upper)
+    fl = lower_col[col_of[faces]] | on_line[faces]
+    f_low = fl.all(1) & ~(ring_of[faces] == -1).any(1) & ~on_line[faces].all(1)
+    # the last ring's upper-half vertices stay with the upper lip; the lower lip gets copies
+    ids = np.nonzero(on_line)[0]
+    verts, faces, _ = mt.split_vertices(verts, faces, ids, f_low & on_line[faces].any(1))
+
+    # eye openings (projected along z)
+    cen = verts[faces].mean(1)
+    hole = np.zeros(len(faces), dtype=bool)
+    for sx in (1.0, -1.0):
+        r = ((cen[:, 0] - sx * _EYE_L[0]) / _EYE_HOLE[0]) ** 2 + ((cen[:, 1] - _EYE_L[1]) / _EYE_HOLE[1]) ** 2
+        hole |= (r < 1.0) & (cen[:, 2] > 40.0) & (cen[:, 2] < 100.0) & (np.sign(cen[:, 0]) == sx)
+    faces = faces[~hole]
+    verts, faces, _ = mt.compact(verts, faces)
+
+    col = np.tile(np.array(SKIN_RGBA), (len(verts), 1))
+    vx, vy, vz = verts[:, 0], verts[:, 1], verts[:, 2]
+    blaze = mt.smoothstep((vz - 95.0) / 15.0) * mt.smoothstep((12.0 - np.abs(vx)) / 6.0 + (vz - 100.0) / 25.0)
+    nose = mt.smoothstep((vz - 146.0) / 3.0) * mt.smoothstep((vy - 94.0) / 3.0)
+    lips = mt.smoothstep((vz - MOUTH_CORNER_Z + 4.0) / 4.0) * mt.smoothstep((3.5 - np.abs(vy - np.interp(vz, _Z, _YC))) / 1.5)
+    for wgt, rgba in ((blaze, MUZZLE_RGBA), (lips, LIP_RGBA), (nose, NOSE_RGBA)):
+        col = col * (1.0 - wgt[:, None]) + np.array(rgba) * wgt[:, None]
+    return verts + OFFSET, faces, col
+
+
+def skin() -> tuple[F64, I64, F64]:
+    v, f, c = _skin()
+    return v.copy(), f.copy(), c.copy()
+
+
+# --- rigid parts (built in design coordinates, shifted by OFFSET) -----------------------------------------
+
+
+def _out(v: F64, f: I64) -> tuple[F64, I64]:
+    import trimesh
+
+    if trimesh.Trimesh(v, f, process=False).volume < 0:
+        f = f[:, ::-1].copy()
+    return v + OFFSET, f
+
+
+def _eye(side: float) -> F64:
+    return np.array([side * _EYE_L[0], _EYE_L[1], _EYE_L[2]])
+
+
+def eyeball(side: float) -> tuple[F64, I64]:
+    return _out(*mt.ellipsoid(tuple(_eye(side)), (EYE_RADIUS,) * 3, subdiv=3))
+
+
+def iris(side: float) -> tuple[F64, I64]:
+    v, f = mt.cap(_eye(side), EYE_RADIUS + 0.12, 34.0, n_ring=28, n_rad=4)
+    return v + OFFSET, f
+
+
+def pupil(side: float) -> tuple[F64, I64]:
+    v, f = mt.cap(_eye(side), EYE_RADIUS + 0.25, 16.0, n_ring=20, n_rad=2)
+    return v + OFFSET, f
+
+
+def eyelid(side: float, upper: bool = True) -> tuple[F64, I64]:
+    c = _eye(side)
+    beta = (22.0, 125.0) if upper else (-125.0, -28.0)
+    outer = mt.sphere_patch(c, EYE_RADIUS + 2.2, beta, (-84.0, 84.0), 14, 24)
+    inner = mt.sphere_patch(c, EYE_RADIUS + 0.8, beta, (-84.0, 84.0), 14, 24)
+    return _out(*mt.shell_from_grids(outer, inner))
+
+
+def eye_socket(side: float) -> tuple[F64, I64]:
+    c = _eye(side) - np.array([0.0, 0.0, 1.0])
+    flip = np.array([-1.0, 1.0, -1.0])
+    outer = c + (mt.sphere_patch(c, EYE_RADIUS + 4.0, (-89.0, 89.0), (-89.0, 89.0), 16, 16) - c) * flip
+    inner = c + (mt.sphere_patch(c, EYE_RADIUS + 3.2, (-89.0, 89.0), (-89.0, 89.0), 16, 16) - c) * flip
+    return _out(*mt.shell_from_grids(outer, inner))
+
+
+def skull() -> tuple[F64, I64]:
+    return _out(*mt.ellipsoid((0.0, 118.0, -15.0), (50.0, 34.0, 52.0), subdiv=3))
+
+
+def nose() -> tuple[F64, I64]:
+    """The dark inside of the nostrils (a small body behind the nose pad's dips)."""
+    return _out(*mt.merge(*(mt.ellipsoid((s * 8.0, 99.0, 150.0), (3.5, 2.5, 3.0), subdiv=2) for s in (1.0, -1.0))))
+
+
+def mouth_cavity() -> tuple[F64, I64]:
+    return _out(*mt.ellipsoid((0.0, 74.0, 100.0), (22.0, 11.0, 48.0), subdiv=3))
+
+
+def _arch(y: F64 | float, z_front: float, half_w: float, length: float, n: int) -> F64:
+    t = np.linspace(-1.0, 1.0, n)
+    ang = t * np.pi / 2
+    return np.stack([half_w * np.sin(ang), np.broadcast_to(y, t.shape), z_front - length * (1 - np.cos(ang))], 1)
+
+
+def _tooth_row(y_gum: float, down: bool, z_front: float, half_w: float, length: float, canine_mm: float) -> tuple[F64, I64]:
+    pts = _arch(y_gum, z_front, half_w, length, 19)
+    boxes = []
+    for k, p in enumerate(pts):
+        canine = k in (3, 15)
+        hgt = canine_mm if canine else 4.5
+        lo_y, hi_y = (p[1] - hgt, p[1]) if down else (p[1], p[1] + hgt)
+        boxes.append(mt.box((p[0] - 1.8, lo_y, p[2] - 2.0), (p[0] + 1.8, hi_y, p[2] + 2.0)))
+    return mt.merge(*boxes)
+
+
+def teeth_upper() -> tuple[F64, I64]:
+    return _out(*_tooth_row(82.5, True, 151.0, 24.0, 60.0, 10.0))
+
+
+def jaw() -> tuple[F64, I64]:
+    teeth = _tooth_row(70.5, False, 146.0, 19.0, 55.0, 9.0)
+    t = np.linspace(-1.0, 1.0, 17)
+    ang = t * np.pi / 2
+    spine = np.stack([26.0 * np.sin(ang), 66.0 + 12.0 * np.abs(t) ** 2, 144.0 - 120.0 * (1 - np.cos(ang))], 1)
+    bone = mt.tube_along(spine, np.full(len(spine), 4.0), 12)
+    v, f = mt.merge(teeth, bone)
+    return v + OFFSET, f
+
+
+def tongue_root() -> tuple[F64, I64]:
+    v, f = mt.ellipsoid((0.0, 72.0, 105.0), (13.0, 3.5, 22.0), subdiv=3)
+    return _out(v, f)
+
+
+def tongue_tip() -> tuple[F64, I64]:
+    v, f = mt.ellipsoid((0.0, 72.5, 133.0), (11.5, 3.0, 11.0), subdiv=3)
+    return _out(v, f)
+
+
+def neck() -> tuple[F64, I64]:
+    pts = np.array([[0.0, 40.0, -55.0], [0.0, 10.0, -75.0], [0.0, -40.0, -105.0]])
+    return _out(*mt.tube_along(pts, np.array([44.0, 44.0, 46.0]), 28))
+
+
+def ear(side: float) -> tuple[F64, I64]:
+    """A cropped, erect ear: a tapered cup opening sideways-forward, base on the top of the skull."""
+    nb, nt = 12, 14
+    s = np.linspace(0.0, 1.0, nb)[:, None]  # base -> tip
+    t = np.linspace(-1.0, 1.0, nt)[None, :]  # across the ear
+    half = 16.0 * (1.0 - s) ** 0.8 + 1.2
+    along = s * 62.0
+    across = t * half
+    cup = 5.0 * (1.0 - t**2) * (1.0 - 0.6 * s)
+    base = np.array([40.0, 146.0, -12.0])
+    up = np.array([0.35, 0.93, -0.1])
+    up /= np.linalg.norm(up)
+    fwd = np.array([0.0, 0.1, 1.0])
+    fwd -= up * (fwd @ up)
+    fwd /= np.linalg.norm(fwd)
+    out = np.cross(up, fwd)  # faces +x for the left ear
+    mid = base + along[..., None] * up + across[..., None] * fwd
+    outer = mid - (cup[..., None] - 1.3) * out
+    inner = mid - (cup[..., None] + 1.3) * out
+    v, f = mt.shell_from_grids(outer, inner)
+    if side < 0:
+        v, f = mt.mirror_x(v, f)
+    return _out(v, f)
+
+
+EAR_BASE_L = tuple(float(v) for v in np.array([40.0, 146.0, -12.0]) + OFFSET)
+TONGUE_ROOT_PIVOT = tuple(float(v) for v in np.array([0.0, 72.0, 84.0]) + OFFSET)
+TONGUE_TIP_PIVOT = tuple(float(v) for v in np.array([0.0, 72.0, 124.0]) + OFFSET)

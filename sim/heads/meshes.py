@@ -1,0 +1,76 @@
+"""Resolve the ``mesh = ...`` keys of a head profile: ``"builtin:<name>"`` or a file (STL/OBJ/GLB/PLY).
+
+User meshes are read with ``trimesh.load(..., force="mesh", process=False)`` (vertices are kept as they
+are: merging would close slits such as a mouth) and scaled by the profile's ``scale`` (e.g. 1000 for a
+CAD export in metres).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sim.errors import HeadMeshError
+from sim.heads import builtin
+from sim.heads.mesh_tools import F64, I64
+
+BUILTIN_PREFIX = "builtin:"
+MESH_SUFFIXES = (".stl", ".obj", ".glb", ".gltf", ".ply", ".off")
+
+
+def _read_file(spec: str, folder: Path, where: str) -> Any:
+    import trimesh
+
+    path = (folder / spec).resolve()
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise HeadMeshError(f"{where}: expected a mesh file ending in {list(MESH_SUFFIXES)} or builtin:<name>, got {spec!r}")
+    if not path.is_file():
+        raise HeadMeshError(f"{where}: expected an existing mesh file, {path} not found")
+    try:
+        mesh = trimesh.load(str(path), force="mesh", process=False)
+    except Exception as err:  # trimesh raises many kinds; report them all the same way
+        raise HeadMeshError(f"{where}: could not read mesh {path}: {err}") from err
+    v = np.asarray(getattr(mesh, "vertices", np.zeros((0, 3))), dtype=np.float64)
+    f = np.asarray(getattr(mesh, "faces", np.zeros((0, 3))), dtype=np.int64)
+    if len(v) < 3 or len(f) < 1 or f.ndim != 2 or f.shape[1] != 3:
+        raise HeadMeshError(f"{where}: expected a triangle mesh, {path} has {len(v)} vertices / {len(f)} faces")
+    if not np.all(np.isfinite(v)):
+        raise HeadMeshError(f"{where}: mesh {path} has non-finite vertex coordinates")
+    return mesh
+
+
+def load_part_mesh(spec: str, folder: Path, where: str, scale: float = 1.0) -> Any:
+    """A trimesh.Trimesh for a rigid part, in the head frame (mm)."""
+    import trimesh
+
+    if spec.startswith(BUILTIN_PREFIX):
+        name = spec[len(BUILTIN_PREFIX) :]
+        if name not in builtin.PART_MESHES:
+            raise HeadMeshError(f"{where}: expected a built-in part mesh {sorted(builtin.PART_MESHES)}, got {name!r}")
+        mesh = builtin.part_mesh(name)
+    else:
+        src = _read_file(spec, folder, where)
+        mesh = trimesh.Trimesh(np.asarray(src.vertices, dtype=np.float64), np.asarray(src.faces), process=False)
+    if scale != 1.0:
+        mesh.vertices = np.asarray(mesh.vertices) * scale
+    return mesh
+
+
+def load_skin_mesh(spec: str, folder: Path, where: str, scale: float = 1.0) -> tuple[F64, I64, F64]:
+    """(vertices (n, 3) mm, faces (m, 3), vertex colours (n, 4) in 0..1) of a skin."""
+    if spec.startswith(BUILTIN_PREFIX):
+        name = spec[len(BUILTIN_PREFIX) :]
+        if name not in builtin.SKIN_MESHES:
+            raise HeadMeshError(f"{where}: expected a built-in skin mesh {sorted(builtin.SKIN_MESHES)}, got {name!r}")
+        v, f, c = builtin.skin_mesh(name)
+    else:
+        src = _read_file(spec, folder, where)
+        v = np.asarray(src.vertices, dtype=np.float64).copy()
+        f = np.asarray(src.faces, dtype=np.int64).copy()
+        c = np.tile([0.86, 0.70, 0.60, 1.0], (len(v), 1))
+        vis = getattr(src, "visual", None)
+        if vis is not None and getattr(vis, "kind", None) == "vertex":
+            c = np.asarray(vis.vertex_colors, dtype=np.float64)[:, :4] / 255.0
+    return v * scale, f, c

@@ -1,0 +1,498 @@
+"""Head profiles: read ``head.toml`` (+ meshes) and validate it into a frozen :class:`sim.head.Head`.
+
+Every error is a :class:`sim.errors.HeadProfileError` whose message starts with the file and the key path
+(``head.toml: actuator[3].servo.id: ...``) and says what was expected. The schema is documented in
+``sim/heads/README.md``; the built-in profiles ``sim/heads/human`` and ``sim/heads/dog`` use all of it.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sim.errors import HeadMeshError, HeadProfileError
+from sim.head import Head
+from sim.heads.binding import BindRule, HalfSpace, bind_weights
+from sim.rig import (
+    SERVO_MODELS,
+    Actuator,
+    AnchorActuator,
+    CouplingRule,
+    Joint,
+    JointActuator,
+    LinearMuscle,
+    Muscle,
+    RigidPart,
+    ServoRef,
+    SheetMuscle,
+    Skin,
+    SphincterMuscle,
+    Vec3,
+)
+
+SCHEMA_VERSION = 1
+FACE_TYPES = ("human", "dog")
+_TOP_KEYS = {
+    "schema_version", "name", "face_type", "description", "calibration", "au_table", "expressions",
+    "skin", "joint", "part", "muscle", "anchors", "actuator", "coupling", "landmarks",
+}  # fmt: skip
+
+
+class _Reader:
+    """Typed access to a TOML table with errors naming the file and key path."""
+
+    def __init__(self, file: Path) -> None:
+        self.file = file
+
+    def fail(self, key: str, expected: str, got: Any = None, cause: BaseException | None = None) -> HeadProfileError:
+        got_s = "" if got is None else f", got {got!r}"
+        return HeadProfileError(f"{self.file}: {key}: expected {expected}{got_s}")
+
+    def table(self, d: Any, key: str) -> dict[str, Any]:
+        if not isinstance(d, dict):
+            raise self.fail(key, "a table", d)
+        return d
+
+    def keys(self, d: dict[str, Any], key: str, allowed: set[str]) -> None:
+        extra = sorted(set(d) - allowed)
+        if extra:
+            raise self.fail(f"{key}.{extra[0]}" if key else extra[0], f"one of the known keys {sorted(allowed)}", "unknown key")
+
+    def req(self, d: dict[str, Any], name: str, key: str) -> Any:
+        if name not in d:
+            raise self.fail(f"{key}.{name}" if key else name, "this key (required)", None)
+        return d[name]
+
+    def string(self, d: dict[str, Any], name: str, key: str, default: str | None = None) -> str:
+        if name not in d and default is not None:
+            return default
+        v = self.req(d, name, key)
+        if not isinstance(v, str) or not v:
+            raise self.fail(f"{key}.{name}" if key else name, "a non-empty string", v)
+        return v
+
+    def number(self, d: dict[str, Any], name: str, key: str, default: float | None = None) -> float:
+        if name not in d and default is not None:
+            return default
+        v = self.req(d, name, key)
+        return self.num(v, f"{key}.{name}" if key else name)
+
+    def num(self, v: Any, key: str) -> float:
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(float(v)):
+            raise self.fail(key, "a finite number", v)
+        return float(v)
+
+    def vec(self, d: dict[str, Any], name: str, key: str, n: int = 3, unit: bool = False) -> tuple[float, ...]:
+        v = self.req(d, name, key)
+        k = f"{key}.{name}" if key else name
+        if not isinstance(v, list) or len(v) != n:
+            raise self.fail(k, f"a list of {n} finite numbers", v)
+        out = tuple(self.num(x, f"{k}[{i}]") for i, x in enumerate(v))
+        if unit:
+            norm = math.sqrt(sum(x * x for x in out))
+            if norm < 1e-9:
+                raise self.fail(k, "a non-zero direction vector", v)
+            out = tuple(x / norm for x in out)
+        return out
+
+    def vec3(self, d: dict[str, Any], name: str, key: str, unit: bool = False) -> Vec3:
+        a, b, c = self.vec(d, name, key, 3, unit)
+        return (a, b, c)
+
+    def interval(self, d: dict[str, Any], name: str, key: str) -> tuple[float, float]:
+        lo, hi = self.vec(d, name, key, 2)
+        if not lo < hi:
+            raise self.fail(f"{key}.{name}", "[lower, upper] with lower < upper (limits reversed or empty)", [lo, hi])
+        return lo, hi
+
+    def rgba(self, d: dict[str, Any], key: str, default: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+        if "color_rgba" not in d:
+            return default
+        r, g, b, a = self.vec(d, "color_rgba", key, 4)
+        if not all(0.0 <= x <= 1.0 for x in (r, g, b, a)):
+            raise self.fail(f"{key}.color_rgba", "four numbers in 0..1", d["color_rgba"])
+        return (r, g, b, a)
+
+    def array(self, d: dict[str, Any], name: str) -> list[dict[str, Any]]:
+        v = d.get(name, [])
+        if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
+            raise self.fail(name, f"an array of tables ([[{name}]])", v)
+        return v
+
+
+def load_profile(path: Path) -> Head:
+    """Load and validate a profile: ``path`` is a folder holding ``head.toml`` or the TOML file itself."""
+    path = Path(path)
+    file = path / "head.toml" if path.is_dir() else path
+    if not file.is_file():
+        raise HeadProfileError(f"{file}: expected a head profile file (head.toml), none found")
+    try:
+        data = tomllib.loads(file.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
+        raise HeadProfileError(f"{file}: not valid TOML: {err}") from err
+    return _build(_Reader(file), data, file.parent)
+
+
+def _build(r: _Reader, data: dict[str, Any], folder: Path) -> Head:
+    from sim.heads.meshes import load_part_mesh, load_skin_mesh
+
+    r.keys(data, "", _TOP_KEYS)
+    version = data.get("schema_version", SCHEMA_VERSION)
+    if version != SCHEMA_VERSION:
+        raise r.fail("schema_version", f"{SCHEMA_VERSION}", version)
+    name = r.string(data, "name", "")
+    face_type = r.string(data, "face_type", "")
+    if face_type not in FACE_TYPES:
+        raise r.fail("face_type", f"one of {list(FACE_TYPES)}", face_type)
+
+    joints = _joints(r, data)
+    jnames = {j.name for j in joints}
+
+    parts: list[RigidPart] = []
+    seen: set[str] = set()
+    for i, p in enumerate(r.array(data, "part")):
+        key = f"part[{i}]"
+        r.keys(p, key, {"name", "joint", "mesh", "color_rgba", "collides", "scale"})
+        pname = r.string(p, "name", key)
+        if pname in seen:
+            raise r.fail(f"{key}.name", "a part name not used before", pname)
+        seen.add(pname)
+        pj = p.get("joint")
+        if pj is not None and pj not in jnames:
+            raise r.fail(f"{key}.joint", f"a joint of this head {sorted(jnames)}", pj)
+        scale = r.number(p, "scale", key, 1.0)
+        mesh = load_part_mesh(r.string(p, "mesh", key), folder, f"{r.file}: {key}.mesh", scale)
+        collides = p.get("collides", True)
+        if not isinstance(collides, bool):
+            raise r.fail(f"{key}.collides", "true or false", collides)
+        parts.append(RigidPart(pname, pj, mesh, r.rgba(p, key, (0.8, 0.8, 0.8, 1.0)), collides))
+
+    skin, skin_joint = _skin(r, data, folder, jnames, load_skin_mesh)
+    n_vert = len(skin.vertices_mm)
+    muscles = _muscles(r, data)
+    anchors = _anchors(r, data, skin.vertices_mm)
+    actuators = _actuators(r, data, {j.name: j for j in joints}, anchors, n_vert)
+    couplings = _couplings(r, data, {a.role for a in actuators})
+    landmarks: dict[str, Vec3] = {}
+    lm = r.table(data.get("landmarks", {}), "landmarks")
+    for k in lm:
+        landmarks[k] = r.vec3(lm, k, "landmarks")
+    return Head(
+        name=name,
+        face_type=face_type,  # type: ignore[arg-type]
+        joints=joints,
+        parts=tuple(parts),
+        skin=skin,
+        muscles=muscles,
+        actuators=actuators,
+        coupling_rules=couplings,
+        skin_joint=skin_joint,
+        au_table_path=_data_file(r, data, "au_table", folder),
+        expressions_path=_data_file(r, data, "expressions", folder),
+        calibration_path=(folder / r.string(data, "calibration", "")) if "calibration" in data else None,
+        profile_dir=folder,
+        landmarks_mm=landmarks,
+    )
+
+
+def _data_file(r: _Reader, data: dict[str, Any], name: str, folder: Path) -> Path | None:
+    """``"builtin"`` (or absent) -> None: use the library's table for the face type; else a file that exists."""
+    if name not in data:
+        return None
+    v = r.string(data, name, "")
+    if v == "builtin" or v.startswith("builtin:"):
+        return None
+    p = folder / v
+    if not p.is_file():
+        raise r.fail(name, f"an existing file relative to {folder} (or \"builtin\")", v)
+    return p
+
+
+def _joints(r: _Reader, data: dict[str, Any]) -> tuple[Joint, ...]:
+    raw: dict[str, Joint] = {}
+    keys: dict[str, str] = {}
+    for i, j in enumerate(r.array(data, "joint")):
+        key = f"joint[{i}]"
+        r.keys(j, key, {"name", "parent", "pivot_mm", "axis", "limits_deg", "neutral_deg"})
+        name = r.string(j, "name", key)
+        if name in raw:
+            raise r.fail(f"{key}.name", "a joint name not used before", name)
+        parent = j.get("parent") or None
+        if parent is not None and not isinstance(parent, str):
+            raise r.fail(f"{key}.parent", "a joint name or \"\" for the head base", parent)
+        lo, hi = r.interval(j, "limits_deg", key)
+        neutral = r.number(j, "neutral_deg", key, 0.0)
+        if not lo <= neutral <= hi:
+            raise r.fail(f"{key}.neutral_deg", f"a value within limits_deg [{lo}, {hi}]", neutral)
+        raw[name] = Joint(name, parent, r.vec3(j, "pivot_mm", key), r.vec3(j, "axis", key, unit=True), lo, hi, neutral)
+        keys[name] = key
+    for name, jt in raw.items():
+        if jt.parent is not None and jt.parent not in raw:
+            raise r.fail(f"{keys[name]}.parent", f"a joint of this head {sorted(raw)}", jt.parent)
+    ordered: list[Joint] = []
+    placed: set[str] = set()
+    pending = list(raw.values())
+    while pending:
+        progress = [j for j in pending if j.parent is None or j.parent in placed]
+        if not progress:
+            raise r.fail(f"{keys[pending[0].name]}.parent", "a joint tree (no cycles)", pending[0].parent)
+        for j in progress:
+            ordered.append(j)
+            placed.add(j.name)
+        pending = [j for j in pending if j.name not in placed]
+    return tuple(ordered)
+
+
+def _skin(r: _Reader, data: dict[str, Any], folder: Path, jnames: set[str], loader: Any) -> tuple[Skin, str | None]:
+    s = r.table(r.req(data, "skin", ""), "skin")
+    r.keys(s, "skin", {"mesh", "joint", "color_rgba", "smooth_iterations", "bind", "scale"})
+    joint = s.get("joint") or None
+    if joint is not None and joint not in jnames:
+        raise r.fail("skin.joint", f"a joint of this head {sorted(jnames)}", joint)
+    verts, faces, colours = loader(r.string(s, "mesh", "skin"), folder, f"{r.file}: skin.mesh", r.number(s, "scale", "skin", 1.0))
+    iters = s.get("smooth_iterations", 0)
+    if isinstance(iters, bool) or not isinstance(iters, int) or not 0 <= iters <= 200:
+        raise r.fail("skin.smooth_iterations", "an integer in 0..200", iters)
+    rules: list[BindRule] = []
+    binds = s.get("bind", [])
+    if not isinstance(binds, list):
+        raise r.fail("skin.bind", "an array of tables ([[skin.bind]])", binds)
+    for i, b in enumerate(binds):
+        key = f"skin.bind[{i}]"
+        b = r.table(b, key)
+        r.keys(b, key, {"joint", "halfspaces", "sphere_centre_mm", "sphere_radius_mm", "falloff_mm", "weight"})
+        bj = r.string(b, "joint", key)
+        if bj not in jnames:
+            raise r.fail(f"{key}.joint", f"a joint of this head {sorted(jnames)}", bj)
+        hs = []
+        for k, h in enumerate(b.get("halfspaces", [])):
+            hk = f"{key}.halfspaces[{k}]"
+            h = r.table(h, hk)
+            r.keys(h, hk, {"point_mm", "normal"})
+            hs.append(HalfSpace(r.vec3(h, "point_mm", hk), r.vec3(h, "normal", hk, unit=True)))
+        centre = r.vec3(b, "sphere_centre_mm", key) if "sphere_centre_mm" in b else None
+        radius = r.number(b, "sphere_radius_mm", key, 0.0)
+        if centre is not None and radius <= 0:
+            raise r.fail(f"{key}.sphere_radius_mm", "a positive radius with sphere_centre_mm", radius)
+        fall = r.number(b, "falloff_mm", key, 2.0)
+        weight = r.number(b, "weight", key, 1.0)
+        if fall <= 0 or not 0 <= weight <= 1:
+            raise r.fail(key, "falloff_mm > 0 and weight in 0..1", {"falloff_mm": fall, "weight": weight})
+        rules.append(BindRule(bj, tuple(hs), centre, radius, fall, weight))
+    names, w = bind_weights(verts, faces, tuple(rules), iters)
+    if joint is not None:
+        names = (joint, *names)
+        w = np.concatenate([np.zeros((len(w), 1)), w], axis=1)
+    elif names:
+        pass  # column 0 (rest) is the head base already
+    for arr in (verts, faces, w, colours):
+        arr.flags.writeable = False
+    skin = Skin(verts, faces, tuple(names), w, r.rgba(s, "skin", (0.86, 0.70, 0.60, 1.0)), colours)
+    return skin, joint
+
+
+def _mirror(p: Vec3) -> Vec3:
+    return (-p[0], p[1], p[2])
+
+
+def _muscles(r: _Reader, data: dict[str, Any]) -> tuple[Muscle, ...]:
+    out: list[Muscle] = []
+    names: set[str] = set()
+    common = {"name", "type", "max_contraction", "mirror"}
+    for i, m in enumerate(r.array(data, "muscle")):
+        key = f"muscle[{i}]"
+        name = r.string(m, "name", key)
+        mtype = r.string(m, "type", key)
+        mc = r.number(m, "max_contraction", key, 0.25)
+        if not 0.0 < mc <= 1.0:
+            raise r.fail(f"{key}.max_contraction", "a number in (0, 1]", mc)
+        muscle: Muscle
+        if mtype == "linear":
+            r.keys(m, key, common | {"attachment_mm", "insertion_mm", "zone_deg", "rs_mm", "rf_mm"})
+            zone = r.number(m, "zone_deg", key)
+            rs, rf = r.number(m, "rs_mm", key), r.number(m, "rf_mm", key)
+            if not 0 < zone < 180:
+                raise r.fail(f"{key}.zone_deg", "a half-angle in (0, 180) degrees", zone)
+            if not 0 < rs < rf:
+                raise r.fail(f"{key}.rf_mm", "0 < rs_mm < rf_mm", [rs, rf])
+            a, ins = r.vec3(m, "attachment_mm", key), r.vec3(m, "insertion_mm", key)
+            if math.dist(a, ins) < 1e-6:
+                raise r.fail(f"{key}.insertion_mm", "a point distinct from attachment_mm", list(ins))
+            muscle = LinearMuscle(name, a, ins, zone, rs, rf, mc)
+        elif mtype == "sphincter":
+            r.keys(m, key, common | {"centre_mm", "semi_axes_mm", "normal", "major_axis"})
+            axes = m.get("semi_axes_mm")
+            if not isinstance(axes, list) or len(axes) not in (2, 3):
+                raise r.fail(f"{key}.semi_axes_mm", "[lx, ly] or [lx, ly, lz] in mm", axes)
+            ax = tuple(r.num(v, f"{key}.semi_axes_mm[{k}]") for k, v in enumerate(axes))
+            if min(ax) <= 0:
+                raise r.fail(f"{key}.semi_axes_mm", "positive semi-axes", axes)
+            nrm = r.vec3(m, "normal", key, unit=True) if "normal" in m else (0.0, 0.0, 1.0)
+            maj = r.vec3(m, "major_axis", key, unit=True) if "major_axis" in m else (1.0, 0.0, 0.0)
+            muscle = SphincterMuscle(name, r.vec3(m, "centre_mm", key), ax, mc, nrm, maj)
+        elif mtype == "sheet":
+            r.keys(m, key, common | {"attachment_mm", "attachment_end_mm", "insertion_mm", "insertion_end_mm", "width_mm"})
+            width = r.number(m, "width_mm", key)
+            if width <= 0:
+                raise r.fail(f"{key}.width_mm", "a positive width", width)
+            muscle = SheetMuscle(
+                name,
+                r.vec3(m, "attachment_mm", key),
+                r.vec3(m, "attachment_end_mm", key),
+                r.vec3(m, "insertion_mm", key),
+                r.vec3(m, "insertion_end_mm", key),
+                width,
+                mc,
+            )
+        else:
+            raise r.fail(f"{key}.type", "one of ['linear', 'sphincter', 'sheet']", mtype)
+        batch = [muscle]
+        if "mirror" in m:
+            twin = r.string(m, "mirror", key)
+            batch.append(_mirrored(muscle, twin))
+        for mm in batch:
+            if mm.name in names:
+                raise r.fail(f"{key}.name", "a muscle name not used before", mm.name)
+            names.add(mm.name)
+            out.append(mm)
+    return tuple(out)
+
+
+def _mirrored(m: Muscle, name: str) -> Muscle:
+    if isinstance(m, LinearMuscle):
+        return LinearMuscle(name, _mirror(m.attachment_mm), _mirror(m.insertion_mm), m.zone_deg, m.rs_mm, m.rf_mm, m.max_contraction)
+    if isinstance(m, SphincterMuscle):
+        return SphincterMuscle(name, _mirror(m.centre_mm), m.semi_axes_mm, m.max_contraction, _mirror(m.normal), _mirror(m.major_axis))
+    return SheetMuscle(
+        name, _mirror(m.attachment_mm), _mirror(m.attachment_end_mm), _mirror(m.insertion_mm),
+        _mirror(m.insertion_end_mm), m.width_mm, m.max_contraction,
+    )  # fmt: skip
+
+
+def _anchors(r: _Reader, data: dict[str, Any], verts: np.ndarray) -> dict[str, int]:
+    table = r.table(data.get("anchors", {}), "anchors")
+    out: dict[str, int] = {}
+    n = len(verts)
+    for name, a in table.items():
+        key = f"anchors.{name}"
+        a = r.table(a, key)
+        r.keys(a, key, {"vertex", "near_mm", "mirror"})
+        if "vertex" in a:
+            v = a["vertex"]
+            if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v < n:
+                raise r.fail(f"{key}.vertex", f"a skin vertex index in 0..{n - 1}", v)
+            idx = [(name, v)]
+            if "mirror" in a:
+                p = verts[v] * np.array([-1.0, 1.0, 1.0])
+                idx.append((r.string(a, "mirror", key), int(np.argmin(np.linalg.norm(verts - p, axis=1)))))
+        elif "near_mm" in a:
+            p = np.asarray(r.vec3(a, "near_mm", key))
+            idx = [(name, int(np.argmin(np.linalg.norm(verts - p, axis=1))))]
+            if "mirror" in a:
+                q = p * np.array([-1.0, 1.0, 1.0])
+                idx.append((r.string(a, "mirror", key), int(np.argmin(np.linalg.norm(verts - q, axis=1)))))
+        else:
+            raise r.fail(key, "a table with vertex = <index> or near_mm = [x, y, z]", a)
+        for nm, vi in idx:
+            if nm in out:
+                raise r.fail(key, "an anchor name not used before", nm)
+            out[nm] = vi
+    return out
+
+
+def _actuators(
+    r: _Reader, data: dict[str, Any], joints: dict[str, Joint], anchors: dict[str, int], n_vert: int
+) -> tuple[Actuator, ...]:
+    out: list[Actuator] = []
+    ids: dict[int, str] = {}
+    driven: dict[str, str] = {}
+    roles: set[str] = set()
+    for i, a in enumerate(r.array(data, "actuator")):
+        key = f"actuator[{i}]"
+        role = r.string(a, "role", key)
+        if role in roles:
+            raise r.fail(f"{key}.role", "a role not used before", role)
+        roles.add(role)
+        servo = _servo(r, r.table(r.req(a, "servo", key), f"{key}.servo"), f"{key}.servo")
+        if servo.id in ids:
+            raise r.fail(f"{key}.servo.id", f"a servo id not used before (id {servo.id} is {ids[servo.id]!r})", servo.id)
+        ids[servo.id] = role
+        kind = r.string(a, "kind", key)
+        if kind == "joint":
+            r.keys(a, key, {"role", "servo", "kind", "joints", "range_deg", "neutral_deg"})
+            js = a.get("joints", [role])
+            if not isinstance(js, list) or not js or not all(isinstance(j, str) for j in js):
+                raise r.fail(f"{key}.joints", "a non-empty list of joint names", js)
+            for k, jn in enumerate(js):
+                if jn not in joints:
+                    raise r.fail(f"{key}.joints[{k}]", f"a joint of this head {sorted(joints)}", jn)
+                if jn in driven:
+                    raise r.fail(f"{key}.joints[{k}]", f"a joint no other actuator drives ({driven[jn]!r} does)", jn)
+                driven[jn] = role
+            lo_j = max(joints[j].lower_deg for j in js)
+            hi_j = min(joints[j].upper_deg for j in js)
+            lo, hi = r.interval(a, "range_deg", key) if "range_deg" in a else (lo_j, hi_j)
+            if lo < lo_j - 1e-9 or hi > hi_j + 1e-9:
+                raise r.fail(f"{key}.range_deg", f"a range within the joints' limits [{lo_j}, {hi_j}]", [lo, hi])
+            neutral = r.number(a, "neutral_deg", key, float(np.clip(0.0, lo, hi)))
+            if not lo <= neutral <= hi:
+                raise r.fail(f"{key}.neutral_deg", f"a value within [{lo}, {hi}]", neutral)
+            out.append(JointActuator(role, servo, tuple(js), lo, hi, neutral))
+        elif kind == "anchor":
+            r.keys(a, key, {"role", "servo", "kind", "anchor", "vertex", "line", "range_mm", "neutral_mm", "radius_mm"})
+            if "anchor" in a:
+                an = r.string(a, "anchor", key)
+                if an not in anchors:
+                    raise r.fail(f"{key}.anchor", f"an anchor named in [anchors] {sorted(anchors)}", an)
+                vertex = anchors[an]
+            else:
+                vertex = a.get("vertex")
+                if isinstance(vertex, bool) or not isinstance(vertex, int) or not 0 <= vertex < n_vert:
+                    raise r.fail(f"{key}.vertex", f"a skin vertex index in 0..{n_vert - 1} (or anchor = <name>)", vertex)
+            lo, hi = r.interval(a, "range_mm", key)
+            neutral = r.number(a, "neutral_mm", key, float(np.clip(0.0, lo, hi)))
+            if not lo <= neutral <= hi:
+                raise r.fail(f"{key}.neutral_mm", f"a value within [{lo}, {hi}]", neutral)
+            radius = r.number(a, "radius_mm", key, 15.0)
+            if radius <= 0:
+                raise r.fail(f"{key}.radius_mm", "a positive radius", radius)
+            out.append(AnchorActuator(role, servo, vertex, r.vec3(a, "line", key, unit=True), lo, hi, neutral, radius))
+        else:
+            raise r.fail(f"{key}.kind", "\"joint\" or \"anchor\"", kind)
+    return tuple(out)
+
+
+def _servo(r: _Reader, s: dict[str, Any], key: str) -> ServoRef:
+    r.keys(s, key, {"id", "model"})
+    sid = r.req(s, "id", key)
+    if isinstance(sid, bool) or not isinstance(sid, int) or not 0 <= sid <= 252:
+        raise r.fail(f"{key}.id", "an integer Dynamixel id in 0..252", sid)
+    model = r.string(s, "model", key)
+    if model not in SERVO_MODELS:
+        raise r.fail(f"{key}.model", f"one of the known servo models {list(SERVO_MODELS)}", model)
+    return ServoRef(sid, model)
+
+
+def _couplings(r: _Reader, data: dict[str, Any], roles: set[str]) -> tuple[CouplingRule, ...]:
+    out = []
+    for i, c in enumerate(r.array(data, "coupling")):
+        key = f"coupling[{i}]"
+        r.keys(c, key, {"roles", "max_sum_share", "note"})
+        rl = r.req(c, "roles", key)
+        if not isinstance(rl, list) or len(rl) < 2 or not all(isinstance(x, str) for x in rl):
+            raise r.fail(f"{key}.roles", "a list of at least two actuator roles", rl)
+        for k, role in enumerate(rl):
+            if role not in roles:
+                raise r.fail(f"{key}.roles[{k}]", f"an actuator role of this head {sorted(roles)}", role)
+        share = r.number(c, "max_sum_share", key)
+        if not 0 < share <= len(rl):
+            raise r.fail(f"{key}.max_sum_share", f"a number in (0, {len(rl)}]", share)
+        note = c.get("note", "")
+        if not isinstance(note, str):
+            raise r.fail(f"{key}.note", "a string", note)
+        out.append(CouplingRule(tuple(rl), share, note))
+    return tuple(out)
