@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 
 from sim.au.mapping import AUMapping
 from sim.au.table import AUTable, load_au_table
-from sim.errors import HeadProfileError, SimError
+from sim.errors import HeadProfileError, PoseError
 from sim.muscles import MUSCLE_TYPES, Muscle, muscle_from_mapping
 from sim.muscles.field import MuscleField
 from sim.muscles.fit import AnchorFit
@@ -146,19 +146,19 @@ class FaceModel:
         """The head the actuators produce: joints from joint targets, skin fitted to the anchor pulls.
 
         Roles missing from ``targets`` sit at their neutral. Unknown roles or non-finite values raise
-        ``SimError`` naming the role. Targets are clamped to the actuator and joint ranges.
+        ``PoseError`` naming the role. Targets are clamped to the actuator and joint ranges.
         """
         clean: dict[str, float] = {}
         known = set(self.roles)
         for role, value in targets.items():
             if role not in known:
-                raise SimError(
+                raise PoseError(
                     f"actuator target {role!r}: not an actuator of head {self.head.name!r} ({sorted(known)})"
                 )
             if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
-                raise SimError(f"actuator target {role!r}: expected a finite number, got {value!r}")
+                raise PoseError(f"actuator target {role!r}: expected a finite number, got {value!r}")
             if not math.isfinite(float(value)):
-                raise SimError(f"actuator target {role!r}: expected a finite number, got {value!r}")
+                raise PoseError(f"actuator target {role!r}: expected a finite number, got {value!r}")
             clean[role] = float(value)
         joint = self._neutral.copy()
         for act, cols in zip(self.joint_actuators, self._joint_cols, strict=True):

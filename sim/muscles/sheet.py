@@ -7,7 +7,9 @@ attachment line:
     p      = signed projection of (x - fibre start) on the fibre direction f̂, I = fibre length
     a_par  = sin(p/I · π/2)                      for 0 <= p <= I          (0 on the attachment line)
            = cos((p - I)/(D_par - I) · π/2)      for I < p <= D_par        (corrected outer falloff)
-    a_perp = 1 inside the ribbon's side edges; cos(e/width · π/2) at distance e beyond them (0 at width)
+    a_perp = 1 inside the ribbon's side edges; cos(e/width · π/2) at distance e beyond them (0 at width);
+             the edges and the fibre u of a point are found at its level between the attachment edge
+             and the insertion edge, so a fanned sheet widens or narrows smoothly
     a_dep  = 1 within depth_mm of the ribbon's plane; cos falloff to 0 at 2 · depth_mm (keeps the back of
              the head out)
     x'     = x - c · k · a_par · a_perp · a_dep · f̂,   k = max_contraction · I
@@ -89,7 +91,12 @@ class SheetMuscle:
             object.__setattr__(self, "falloff_mm", 0.5 * mean)
         if self.depth_mm <= 0.0:
             object.__setattr__(self, "depth_mm", 0.5 * mean)
-        _, t_hat, _ = self._frame()
+        _, t_hat, half_a, half_i = self._frame()
+        if t_hat is not None and min(half_a, half_i) < 0.0:
+            raise HeadProfileError(
+                f"{where}: the fibres cross (attachment_end_mm and insertion_end_mm lie on opposite sides); "
+                "swap insertion_mm and insertion_end_mm"
+            )
         if t_hat is None:
             raise HeadProfileError(
                 f"{where}: attachment_end_mm/insertion_end_mm give the sheet no sideways extent; "
@@ -103,8 +110,9 @@ class SheetMuscle:
             + distance(self.attachment_end_mm, self.insertion_end_mm)
         )
 
-    def _frame(self) -> tuple[FloatArray, FloatArray | None, float]:
-        """(mean fibre direction m̂, sideways unit t̂ or None, half-span h) of the ribbon."""
+    def _frame(self) -> tuple[FloatArray, FloatArray | None, float, float]:
+        """(mean fibre direction m̂, sideways unit t̂ or None, half-span of the attachment edge, of the
+        insertion edge) of the ribbon, spans measured along t̂."""
         a0, a1 = np.asarray(self.attachment_mm), np.asarray(self.attachment_end_mm)
         i0, i1 = np.asarray(self.insertion_mm), np.asarray(self.insertion_end_mm)
         m = 0.5 * (i0 + i1) - 0.5 * (a0 + a1)
@@ -113,8 +121,9 @@ class SheetMuscle:
         side = side - (side @ m_hat) * m_hat
         span = float(np.linalg.norm(side))
         if span < 1e-6:
-            return m_hat, None, 0.0
-        return m_hat, side / span, 0.5 * float(np.linalg.norm((a1 - a0) - ((a1 - a0) @ m_hat) * m_hat))
+            return m_hat, None, 0.0, 0.0
+        t_hat = side / span
+        return m_hat, t_hat, 0.5 * float((a1 - a0) @ t_hat), 0.5 * float((i1 - i0) @ t_hat)
 
     @classmethod
     def from_mapping(cls, name: str, data: Mapping[str, Any], where: str | None = None) -> SheetMuscle:
@@ -149,18 +158,23 @@ class SheetMuscle:
         x = np.asarray(rest_mm, dtype=np.float64)
         a0, a1 = np.asarray(self.attachment_mm), np.asarray(self.attachment_end_mm)
         i0, i1 = np.asarray(self.insertion_mm), np.asarray(self.insertion_end_mm)
-        m_hat, t_hat, half = self._frame()
+        m_hat, t_hat, half_a, half_i = self._frame()
         if t_hat is None:  # rejected in __post_init__; kept for the type checker
             raise HeadProfileError(f"muscles.{self.name}: the sheet has no sideways extent")
         n_hat = np.cross(m_hat, t_hat)
-        centre = 0.5 * (a0 + a1)
-        rel = x - centre
+        mid_a, mid_i = 0.5 * (a0 + a1), 0.5 * (i0 + i1)
+        # the level of each point between the attachment edge (0) and the insertion edge (1), and the
+        # ribbon's centre and half-width at that level (a fanned sheet widens or narrows)
+        level = np.clip(((x - mid_a) @ m_hat) / float((mid_i - mid_a) @ m_hat), 0.0, 1.0)
+        rel = x - (mid_a[None, :] + level[:, None] * (mid_i - mid_a)[None, :])
+        half = half_a + level * (half_i - half_a)
         s = rel @ t_hat
         across = np.abs(s) - half
         depth = np.abs(rel @ n_hat) - self.depth_mm
         a_perp = band_factor(across, self.width_mm) * band_factor(depth, self.depth_mm)
         cand = np.nonzero(a_perp > 0.0)[0]
-        u = np.clip((s[cand] + half) / (2 * half), 0.0, 1.0) if half > 1e-9 else np.full(cand.size, 0.5)
+        hc = half[cand]
+        u = np.where(hc > 1e-9, np.clip((s[cand] + hc) / np.maximum(2 * hc, 1e-9), 0.0, 1.0), 0.5)
         start = a0 + u[:, None] * (a1 - a0)
         fibre = (i0 - a0) + u[:, None] * ((i1 - i0) - (a1 - a0))
         length = np.linalg.norm(fibre, axis=1)
