@@ -224,9 +224,9 @@ class PchipCurve(_PointCurve):
     """Monotone cubic (PCHIP, Fritsch-Carlson) through measured (target, tick) points.
 
     PCHIP keeps monotone data monotone by construction; the end slopes are the end secants (scipy's
-    one-sided estimate can be 0, which would make the ends flat). The inverse starts from a dense monotone table
-    (64 samples per segment) and polishes with safeguarded Newton steps, so it is exact to float
-    rounding and vectorised.
+    one-sided estimate can be 0, which would make the ends flat). The inverse starts from a dense
+    monotone table (64 samples per segment) and polishes with safeguarded Newton steps, so it is exact
+    to float rounding and vectorised.
     """
 
     kind: ClassVar[str] = "pchip"

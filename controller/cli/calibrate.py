@@ -1,0 +1,301 @@
+"""`servoface calibrate --head PATH|human|dog (--port PORT | --emulate | --csv FILE | --builtin) ...`
+
+Calibrate a head's servos and write its calibration file (JSON, atomically):
+
+- interactive (``--port`` or ``--emulate``): torque goes off, you move each servo by hand (or jog it with
+  keys) to its neutral, lower and upper targets and a few points between, confirming each; the present
+  tick is captured. Curves are fitted, checked (monotone, coverage), plotted, saved;
+- ``--csv FILE``: the same fit and checks from measured ``role,target,tick`` rows, no bus needed;
+- ``--builtin``: regenerate the ideal calibration of the emulated servos from the head profile's ranges
+  (what ships as ``sim/heads/<head>/calibration.json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from calibration.procedure import ProcedureOptions, ProcedureResult, Prompt, Reply
+    from calibration.spec import ServoSpec
+    from hardware.bus import ServoBus
+
+HELP = "calibrate a head's servos (interactive on a port/emulator, or from a CSV) and save the calibration"
+
+KEYS_HELP = """keys: Enter = capture here (at the asked target) | =VALUE = capture, the actuator is at VALUE
+      j / k = jog -/+ one step (torque on) | J / K = ten steps | +N / -N = jog N ticks
+      d = done (no more points / skip this point) | q = abort (nothing saved) | ? = this help"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--head", required=True, help="head profile: 'human', 'dog' or a profile folder")
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument(
+        "--port", help="serial port of the chain (a real adapter, or a pty from 'servoface emulate')"
+    )
+    source.add_argument("--emulate", action="store_true", help="run on an in-process emulated chain")
+    source.add_argument("--csv", type=Path, help="non-interactive: measured role,target,tick rows")
+    source.add_argument(
+        "--builtin",
+        action="store_true",
+        help="regenerate the ideal calibration of the emulated servos from the head's ranges",
+    )
+    parser.add_argument("--baud", type=int, default=1_000_000, help="bus baud rate in bps (default 1000000)")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        help="calibration file to write (default: the profile's calibration.json for a profile "
+        "folder, ./calibration-<head>.json for a built-in head)",
+    )
+    parser.add_argument("--plot-dir", type=Path, help="write one PNG per calibrated servo here")
+    parser.add_argument(
+        "--roles", help="comma-separated roles to calibrate (others are kept from the existing file)"
+    )
+    parser.add_argument(
+        "--points", type=int, default=3, help="intermediate points asked per servo (default 3)"
+    )
+    parser.add_argument(
+        "--free-points",
+        action="store_true",
+        help="after the asked points, let me add points whose target I type in",
+    )
+    parser.add_argument(
+        "--curve",
+        choices=("linear", "piecewise_linear", "pchip"),
+        help="curve kind for every servo (default: linear for joints, pchip for anchors)",
+    )
+    parser.add_argument("--jog-step", type=int, default=10, help="ticks per jog key (default 10)")
+
+
+def specs_from_head(head: Any) -> list[ServoSpec]:
+    """Calibration's view of a head's actuators (sim.head.Head -> calibration.spec.ServoSpec)."""
+    from calibration.spec import ServoSpec, default_direction
+    from sim.rig import JointActuator
+
+    specs = []
+    for a in head.actuators:
+        direction = default_direction(a.role)
+        if isinstance(a, JointActuator):
+            specs.append(
+                ServoSpec(
+                    a.role,
+                    a.servo.id,
+                    a.servo.model,
+                    "deg",
+                    a.lower_deg,
+                    a.upper_deg,
+                    a.neutral_deg,
+                    "joint",
+                    direction,
+                )
+            )
+        else:
+            specs.append(
+                ServoSpec(
+                    a.role,
+                    a.servo.id,
+                    a.servo.model,
+                    "mm",
+                    a.lower_mm,
+                    a.upper_mm,
+                    a.neutral_mm,
+                    "anchor",
+                    direction,
+                )
+            )
+    return specs
+
+
+class BusServoAccess:
+    """`calibration.procedure.ServoAccess` over a `hardware.bus.ServoBus` (single reads and writes)."""
+
+    def __init__(self, bus: ServoBus) -> None:
+        self.bus = bus
+
+    def read_present_tick(self, servo_id: int) -> int:
+        from hardware.registers import Register
+
+        return int(self.bus.read(servo_id, Register.PRESENT_POSITION))
+
+    def set_torque(self, servo_id: int, enabled: bool) -> None:
+        from hardware.registers import Register
+
+        self.bus.write(servo_id, Register.TORQUE_ENABLE, 1 if enabled else 0)
+
+    def write_goal_tick(self, servo_id: int, tick: int) -> None:
+        from hardware.registers import Register
+
+        self.bus.write(servo_id, Register.GOAL_POSITION, int(tick))
+
+
+class TerminalOperator:
+    """`calibration.procedure.Operator` that asks through input() and answers with print()."""
+
+    def __init__(self, jog_step: int = 10) -> None:
+        self.jog_step = jog_step
+        self._shown_help = False
+
+    def tell(self, message: str) -> None:
+        print(f"  ! {message}")
+
+    def ask(self, prompt: Prompt) -> Reply:
+        from calibration.procedure import Abort, Capture, Finish, Jog
+
+        if not self._shown_help:
+            print(KEYS_HELP)
+            self._shown_help = True
+        while True:
+            hint = "Enter to capture" if prompt.target is not None else "=VALUE to capture, d when done"
+            try:
+                text = input(
+                    f"[{prompt.role} #{prompt.servo_id} @ {prompt.present_tick}] {prompt.text} ({hint}): "
+                )
+            except EOFError:
+                return Abort()
+            text = text.strip()
+            if text == "":
+                if prompt.target is None:
+                    print("  enter the target as =VALUE (e.g. =4.5), or d when done")
+                    continue
+                return Capture()
+            if text in ("j", "k", "J", "K"):
+                step = self.jog_step * (10 if text.isupper() else 1)
+                return Jog(step if text.lower() == "k" else -step)
+            if text[0] in "+-":
+                try:
+                    return Jog(int(text))
+                except ValueError:
+                    print(f"  '{text}': a jog is +N or -N ticks")
+                    continue
+            if text[0] == "=":
+                try:
+                    return Capture(float(text[1:]))
+                except ValueError:
+                    print(f"  '{text}': expected =VALUE in {prompt.unit}, e.g. =4.5")
+                    continue
+            if text == "d":
+                return Finish()
+            if text == "q":
+                return Abort()
+            print(KEYS_HELP)
+
+
+def _default_out(head: Any, name: str) -> Path:
+    from sim.heads import BUILTIN_HEADS
+
+    if name in BUILTIN_HEADS or head.profile_dir is None:
+        return Path(f"calibration-{head.name}.json")
+    return Path(head.calibration_path or Path(head.profile_dir) / "calibration.json")
+
+
+def run(args: argparse.Namespace) -> int:
+    from calibration.builtin import write_builtin
+    from calibration.errors import CalibrationError, ProcedureAborted
+    from calibration.fileformat import load_calibration
+    from calibration.procedure import ProcedureOptions, calibrate_from_csv
+    from sim.heads import load_head
+
+    try:
+        head = load_head(args.head)
+    except Exception as err:  # noqa: BLE001 - any profile error is reported, not traced
+        print(f"servoface calibrate: {err}", file=sys.stderr)
+        return 2
+    specs = specs_from_head(head)
+    if args.roles:
+        wanted = [r.strip() for r in args.roles.split(",") if r.strip()]
+        unknown = sorted(set(wanted) - {s.role for s in specs})
+        if unknown:
+            print(
+                f"servoface calibrate: unknown role(s) {unknown}; the head has {[s.role for s in specs]}",
+                file=sys.stderr,
+            )
+            return 2
+        specs = [s for s in specs if s.role in wanted]
+    out = args.out or _default_out(head, args.head)
+    if args.builtin:
+        path = write_builtin(head.name, specs, out, source=f"head profile {head.profile_dir}")
+        print(f"wrote the built-in calibration of '{head.name}' ({len(specs)} servos) to {path}")
+        return 0
+    keep = None
+    existing = head.calibration_path
+    if args.roles and existing is not None and Path(existing).exists():
+        keep = load_calibration(existing)
+    try:
+        if args.csv is not None:
+            result = calibrate_from_csv(
+                args.csv, specs, head.name, curve_kind=args.curve, plot_dir=args.plot_dir, out=out, keep=keep
+            )
+        else:
+            options = ProcedureOptions(
+                intermediate=args.points, free_points=args.free_points, curve_kind=args.curve
+            )
+            result = _interactive(args, specs, head.name, options, out, keep)
+    except ProcedureAborted as err:
+        print(f"servoface calibrate: {err}; nothing saved", file=sys.stderr)
+        return 1
+    except CalibrationError as err:
+        print(f"servoface calibrate: {err}", file=sys.stderr)
+        return 1
+    _report(result)
+    return 0
+
+
+def _interactive(
+    args: argparse.Namespace,
+    specs: list[ServoSpec],
+    head_name: str,
+    options: ProcedureOptions,
+    out: Path,
+    keep: Any,
+) -> ProcedureResult:
+    from calibration.procedure import run_procedure
+    from hardware.bus import open_bus
+
+    chain = None
+    if args.emulate:
+        from hardware.emulator import ServoChain
+
+        chain = ServoChain.create(ids=[(s.servo_id, s.model) for s in specs], baud=args.baud, wire_time=False)
+        bus = open_bus("dynamixel", port=chain, baud=args.baud)
+        print(f"# emulated chain: {len(specs)} servos; jog them with j/k (there is no hand to move them)")
+    else:
+        bus = open_bus("dynamixel", port=args.port, baud=args.baud)
+    try:
+        return run_procedure(
+            BusServoAccess(bus),
+            TerminalOperator(args.jog_step),
+            specs,
+            head_name,
+            options=options,
+            plot_dir=args.plot_dir,
+            out=out,
+            keep=keep,
+        )
+    finally:
+        bus.close()
+        if chain is not None:
+            chain.close()
+
+
+def _report(result: Any) -> None:
+    cal = result.calibration
+    print(f"calibrated {len(result.reports)} servo(s) of '{cal.head}'")
+    for role, report in result.reports.items():
+        s = report.servo
+        print(
+            f"  {role:18s} id {s.servo_id:3d}  {s.curve.kind:16s} ticks {s.min_tick:4d}..{s.max_tick:4d}  "
+            f"neutral {s.neutral_tick:4d}  {s.min_target:g}..{s.max_target:g} {s.unit}  "
+            f"max residual {report.max_residual_tick:.2f} tick"
+        )
+    for w in result.warnings:
+        print(f"  warning: {w}")
+    for role, path in result.plots.items():
+        print(f"  plot {role}: {path}")
+    if result.saved_to is not None:
+        print(f"saved {result.saved_to}")
+    print(
+        "EEPROM backstop (Min/Max Position Limit) per id: "
+        + ", ".join(f"{i}: {lo}..{hi}" for i, (lo, hi) in cal.position_limits_tick().items())
+    )

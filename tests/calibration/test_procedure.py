@@ -1,0 +1,265 @@
+"""The calibration procedure core with a scripted operator, the CSV mode, and the plots."""
+
+from __future__ import annotations
+
+import math
+import struct
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from calibration.errors import (
+    CoverageError,
+    MeasurementCsvError,
+    ProcedureAborted,
+    ProcedureError,
+)
+from calibration.fileformat import load_calibration
+from calibration.procedure import (
+    Abort,
+    Capture,
+    Finish,
+    Jog,
+    ProcedureOptions,
+    Prompt,
+    Reply,
+    calibrate_from_csv,
+    run_procedure,
+)
+from calibration.spec import ServoSpec
+from tests.calibration.helpers import small_specs
+
+
+def true_tick(spec: ServoSpec, target: float) -> float:
+    """The physical head: joints linear (mirrored for _r), anchors on a 15 mm crank."""
+    if spec.kind == "joint":
+        return 2048 + spec.direction * target * 4096 / 360
+    return 2048 + spec.direction * math.degrees(math.asin(target / 15.0)) * 4096 / 360
+
+
+@dataclass
+class FakeServos:
+    """ServoAccess of ideal servos: a goal moves the horn at once when torque is on."""
+
+    present: dict[int, int]
+    torque: dict[int, bool] = field(default_factory=dict)
+    log: list[tuple[str, int, int]] = field(default_factory=list)
+
+    def read_present_tick(self, servo_id: int) -> int:
+        return self.present[servo_id]
+
+    def set_torque(self, servo_id: int, enabled: bool) -> None:
+        self.torque[servo_id] = enabled
+        self.log.append(("torque", servo_id, int(enabled)))
+
+    def write_goal_tick(self, servo_id: int, tick: int) -> None:
+        self.log.append(("goal", servo_id, tick))
+        if self.torque.get(servo_id):
+            self.present[servo_id] = tick
+
+
+class ScriptedHand:
+    """An operator who moves each servo by hand to the asked target (or jogs first when told to)."""
+
+    def __init__(self, servos: FakeServos, specs: list[ServoSpec], jog_first: bool = False) -> None:
+        self.servos = servos
+        self.specs = {s.role: s for s in specs}
+        self.jog_first = jog_first
+        self.prompts: list[Prompt] = []
+        self.messages: list[str] = []
+        self.extra: list[float] = []
+
+    def tell(self, message: str) -> None:
+        self.messages.append(message)
+
+    def ask(self, prompt: Prompt) -> Reply:
+        self.prompts.append(prompt)
+        spec = self.specs[prompt.role]
+        if prompt.step == "extra":
+            if not self.extra:
+                return Finish()
+            value = self.extra.pop()
+            self.servos.present[spec.servo_id] = round(true_tick(spec, value))
+            return Capture(value)
+        assert prompt.target is not None
+        want = round(true_tick(spec, prompt.target))
+        if self.jog_first and prompt.present_tick != want:
+            return Jog(want - prompt.present_tick)  # jog straight there under torque
+        if not self.servos.torque.get(spec.servo_id):
+            self.servos.present[spec.servo_id] = want  # move the horn by hand
+        return Capture()
+
+
+def _run(tmp_path: Path, **kw: object) -> tuple[FakeServos, ScriptedHand, object]:
+    specs = small_specs()
+    servos = FakeServos({s.servo_id: 2048 for s in specs})
+    hand = ScriptedHand(servos, specs, jog_first=bool(kw.pop("jog_first", False)))
+    result = run_procedure(
+        servos, hand, specs, "small", plot_dir=tmp_path / "plots", out=tmp_path / "cal.json", **kw
+    )  # type: ignore[arg-type]
+    return servos, hand, result
+
+
+def test_procedure_captures_fits_plots_and_saves(tmp_path: Path) -> None:
+    servos, hand, result = _run(tmp_path, options=ProcedureOptions(intermediate=3))
+    cal = load_calibration(tmp_path / "cal.json")
+    assert cal.metadata.method == "procedure"
+    specs = {s.role: s for s in small_specs()}
+    for role in cal:
+        s, spec = cal[role], specs[role]
+        assert (s.min_target, s.max_target) == (spec.lower, spec.upper)
+        assert s.curve.kind == ("linear" if spec.kind == "joint" else "pchip")
+        # the fitted curve reproduces the 'physical' head: within a tick for the geared joints, within 1 %
+        # of the tick span for the crank-driven anchors measured at only 6 points
+        t = np.linspace(spec.lower, spec.upper, 41)
+        truth = np.array([true_tick(spec, x) for x in t])
+        tolerance = 1.5 if spec.kind == "joint" else 0.01 * (s.max_tick - s.min_tick)
+        assert np.max(np.abs(s.curve.forward(t) - truth)) < tolerance
+        assert np.allclose(s.curve.forward(s.measured_points[:, 0]), s.measured_points[:, 1], atol=0.6)
+        assert s.direction == spec.direction
+        assert len(s.measured_points) == len({spec.lower, spec.neutral, spec.upper}) + 3
+        png = tmp_path / "plots" / f"{role}.png"
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # torque was switched off before and after every servo, never left on
+    assert all(not on for on in servos.torque.values())
+    steps = [p.step for p in hand.prompts if p.role == "upper_lid_r"]
+    assert steps == ["neutral", "lower", "upper", "point", "point", "point"]
+
+
+def test_jogging_pins_the_goal_before_torque_on(tmp_path: Path) -> None:
+    servos, hand, result = _run(tmp_path, jog_first=True, options=ProcedureOptions(intermediate=1))
+    first_torque_on = servos.log.index(("torque", 18, 1))
+    assert servos.log[first_torque_on - 1] == ("goal", 18, 2048)  # goal = present, then torque on
+    assert load_calibration(tmp_path / "cal.json")["jaw"].to_tick(25.0) == round(2048 + 25 * 4096 / 360)
+
+
+def test_free_points_are_added_and_abort_saves_nothing(tmp_path: Path) -> None:
+    specs = small_specs()[:1]
+    servos = FakeServos({18: 2048})
+    hand = ScriptedHand(servos, specs)
+    hand.extra = [3.3, 17.5]
+    result = run_procedure(
+        servos, hand, specs, "one", options=ProcedureOptions(intermediate=0, free_points=True)
+    )
+    assert sorted(result.calibration["jaw"].measured_points[:, 0].tolist()) == [0.0, 3.3, 17.5, 25.0]
+
+    class Quitter(ScriptedHand):
+        def ask(self, prompt: Prompt) -> Reply:
+            return Abort() if prompt.step == "upper" else super().ask(prompt)
+
+    with pytest.raises(ProcedureAborted, match="'jaw'"):
+        run_procedure(servos, Quitter(servos, specs), specs, "one", out=tmp_path / "never.json")
+    assert not (tmp_path / "never.json").exists()
+
+
+def test_a_bad_capture_is_reported_and_the_servo_measured_again(tmp_path: Path) -> None:
+    specs = small_specs()[:1]
+    servos = FakeServos({18: 2048})
+
+    class Clumsy(ScriptedHand):
+        """First attempt: leaves the horn at neutral for the upper limit (not monotone)."""
+
+        attempts = 0
+
+        def ask(self, prompt: Prompt) -> Reply:
+            if prompt.step == "neutral":
+                Clumsy.attempts += 1
+            if prompt.step == "upper" and Clumsy.attempts == 1:
+                return Capture()
+            return super().ask(prompt)
+
+    hand = Clumsy(servos, specs)
+    result = run_procedure(servos, hand, specs, "one", options=ProcedureOptions(intermediate=2))
+    assert Clumsy.attempts == 2
+    assert any("attempt 1 of 3" in m for m in hand.messages)
+    assert result.calibration["jaw"].to_tick(25.0) == round(2048 + 25 * 4096 / 360)
+
+    class Hopeless(ScriptedHand):
+        def ask(self, prompt: Prompt) -> Reply:
+            return Capture()  # never moves anything
+
+    with pytest.raises(ProcedureError, match="no usable calibration after 3 attempts"):
+        run_procedure(servos, Hopeless(servos, specs), specs, "one")
+
+
+def _write_csv(path: Path, specs: list[ServoSpec], n: int = 6) -> None:
+    lines = ["role,target,tick", "# measured with a protractor and calipers"]
+    for s in specs:
+        for t in np.linspace(s.lower, s.upper, n):
+            lines.append(f"{s.role},{t:.4f},{round(true_tick(s, float(t)))}")
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_csv_mode_end_to_end(tmp_path: Path) -> None:
+    specs = small_specs()
+    _write_csv(tmp_path / "m.csv", specs)
+    result = calibrate_from_csv(
+        tmp_path / "m.csv", specs, "small", plot_dir=tmp_path / "plots", out=tmp_path / "cal.json"
+    )
+    cal = load_calibration(tmp_path / "cal.json")
+    assert cal.metadata.method == "csv" and cal.metadata.source.endswith("m.csv")
+    assert cal.roles == tuple(s.role for s in specs)
+    goals = cal.targets_to_goals({"jaw": 12.5, "lip_corner_r": 5.0})
+    assert goals[18] == pytest.approx(2048 + 12.5 * 4096 / 360, abs=1)
+    assert goals[13] == pytest.approx(true_tick(specs[3], 5.0), abs=1.5)
+    assert set(result.plots) == {s.role for s in specs}
+    png = (tmp_path / "plots" / "lip_corner_r.png").read_bytes()
+    assert _png_size(png)[0] > 300
+
+
+@pytest.mark.parametrize(
+    "body, line, message",
+    [
+        ("jaw,0,2048\njaw,25\n", 2, "expected 3 columns"),
+        ("jaw,0,2048\njaw,x,2100\n", 2, "target 'x' is not a number"),
+        ("jaw,0,2048\njaw,nan,2100\n", 2, "not a finite number"),
+        ("jaw,0,2048\njaw,25,2332.5\n", 2, "tick '2332.5' is not an integer"),
+        ("jaw,0,2048\njaw,25,5000\n", 2, "outside 0..4095"),
+        ("jaw,0,2048\nnose,2,2100\n", 2, "unknown role 'nose'"),
+        ("role,target,tick\njaw,0,2048\njaw,10,2200\njaw,25,2100\n", 4, "not strictly increasing"),
+        ("jaw,0,2048\n\n# c\njaw,0,2100\n", 4, "target 0 already measured on line 1"),
+        ("jaw,0,2048\n", 1, "only one measurement"),
+        ("# nothing\n", 0, "no measurements"),
+    ],
+)
+def test_csv_errors_name_the_line(tmp_path: Path, body: str, line: int, message: str) -> None:
+    path = tmp_path / "bad.csv"
+    path.write_text(body)
+    with pytest.raises(MeasurementCsvError, match=message) as info:
+        calibrate_from_csv(path, small_specs()[:1], "one")
+    assert info.value.line == line
+    assert str(path) in str(info.value)
+
+
+def test_coverage_and_monotonicity_are_checked_with_numbers(tmp_path: Path) -> None:
+    spec = small_specs()[:1]
+    path = tmp_path / "short.csv"
+    path.write_text("jaw,0,2048\njaw,10,2162\njaw,20,2276\n")
+    with pytest.raises(CoverageError, match=r"span 0\.\.20 deg but the range is 0\.\.25 deg"):
+        calibrate_from_csv(path, spec, "one")
+    path.write_text("jaw,0,2048\njaw,1,2059\njaw,25,2332\n")
+    result = calibrate_from_csv(path, spec, "one")
+    assert any("no measured point between 1 and 25 deg" in w for w in result.warnings)
+    path.write_text("jaw,0,2048\njaw,12,2248\njaw,25,2332\n")
+    result = calibrate_from_csv(path, spec, "one", curve_kind="linear")
+    assert any("misses a measured point by" in w for w in result.warnings)
+
+
+def _png_size(data: bytes) -> tuple[int, int]:
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    width, height = struct.unpack(">II", data[16:24])
+    # every chunk's CRC is valid and the image data decompresses: a real, complete PNG
+    pos, idat = 8, b""
+    while pos < len(data):
+        (length,) = struct.unpack(">I", data[pos : pos + 4])
+        kind = data[pos + 4 : pos + 8]
+        chunk = data[pos + 8 : pos + 8 + length]
+        (crc,) = struct.unpack(">I", data[pos + 8 + length : pos + 12 + length])
+        assert zlib.crc32(kind + chunk) == crc
+        idat += chunk if kind == b"IDAT" else b""
+        pos += 12 + length
+    assert len(zlib.decompress(idat)) > width * height
+    return width, height
