@@ -48,7 +48,9 @@ class _Reader:
     def __init__(self, file: Path) -> None:
         self.file = file
 
-    def fail(self, key: str, expected: str, got: Any = None, cause: BaseException | None = None) -> HeadProfileError:
+    def fail(
+        self, key: str, expected: str, got: Any = None, cause: BaseException | None = None
+    ) -> HeadProfileError:
         got_s = "" if got is None else f", got {got!r}"
         return HeadProfileError(f"{self.file}: {key}: expected {expected}{got_s}")
 
@@ -60,7 +62,11 @@ class _Reader:
     def keys(self, d: dict[str, Any], key: str, allowed: set[str]) -> None:
         extra = sorted(set(d) - allowed)
         if extra:
-            raise self.fail(f"{key}.{extra[0]}" if key else extra[0], f"one of the known keys {sorted(allowed)}", "unknown key")
+            raise self.fail(
+                f"{key}.{extra[0]}" if key else extra[0],
+                f"one of the known keys {sorted(allowed)}",
+                "unknown key",
+            )
 
     def req(self, d: dict[str, Any], name: str, key: str) -> Any:
         if name not in d:
@@ -86,7 +92,9 @@ class _Reader:
             raise self.fail(key, "a finite number", v)
         return float(v)
 
-    def vec(self, d: dict[str, Any], name: str, key: str, n: int = 3, unit: bool = False) -> tuple[float, ...]:
+    def vec(
+        self, d: dict[str, Any], name: str, key: str, n: int = 3, unit: bool = False
+    ) -> tuple[float, ...]:
         v = self.req(d, name, key)
         k = f"{key}.{name}" if key else name
         if not isinstance(v, list) or len(v) != n:
@@ -106,10 +114,14 @@ class _Reader:
     def interval(self, d: dict[str, Any], name: str, key: str) -> tuple[float, float]:
         lo, hi = self.vec(d, name, key, 2)
         if not lo < hi:
-            raise self.fail(f"{key}.{name}", "[lower, upper] with lower < upper (limits reversed or empty)", [lo, hi])
+            raise self.fail(
+                f"{key}.{name}", "[lower, upper] with lower < upper (limits reversed or empty)", [lo, hi]
+            )
         return lo, hi
 
-    def rgba(self, d: dict[str, Any], key: str, default: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+    def rgba(
+        self, d: dict[str, Any], key: str, default: tuple[float, float, float, float]
+    ) -> tuple[float, float, float, float]:
         if "color_rgba" not in d:
             return default
         r, g, b, a = self.vec(d, "color_rgba", key, 4)
@@ -208,7 +220,7 @@ def _data_file(r: _Reader, data: dict[str, Any], name: str, folder: Path) -> Pat
         return None
     p = folder / v
     if not p.is_file():
-        raise r.fail(name, f"an existing file relative to {folder} (or \"builtin\")", v)
+        raise r.fail(name, f'an existing file relative to {folder} (or "builtin")', v)
     return p
 
 
@@ -223,12 +235,14 @@ def _joints(r: _Reader, data: dict[str, Any]) -> tuple[Joint, ...]:
             raise r.fail(f"{key}.name", "a joint name not used before", name)
         parent = j.get("parent") or None
         if parent is not None and not isinstance(parent, str):
-            raise r.fail(f"{key}.parent", "a joint name or \"\" for the head base", parent)
+            raise r.fail(f"{key}.parent", 'a joint name or "" for the head base', parent)
         lo, hi = r.interval(j, "limits_deg", key)
         neutral = r.number(j, "neutral_deg", key, 0.0)
         if not lo <= neutral <= hi:
             raise r.fail(f"{key}.neutral_deg", f"a value within limits_deg [{lo}, {hi}]", neutral)
-        raw[name] = Joint(name, parent, r.vec3(j, "pivot_mm", key), r.vec3(j, "axis", key, unit=True), lo, hi, neutral)
+        raw[name] = Joint(
+            name, parent, r.vec3(j, "pivot_mm", key), r.vec3(j, "axis", key, unit=True), lo, hi, neutral
+        )
         keys[name] = key
     for name, jt in raw.items():
         if jt.parent is not None and jt.parent not in raw:
@@ -247,13 +261,17 @@ def _joints(r: _Reader, data: dict[str, Any]) -> tuple[Joint, ...]:
     return tuple(ordered)
 
 
-def _skin(r: _Reader, data: dict[str, Any], folder: Path, jnames: set[str], loader: Any) -> tuple[Skin, str | None]:
+def _skin(
+    r: _Reader, data: dict[str, Any], folder: Path, jnames: set[str], loader: Any
+) -> tuple[Skin, str | None]:
     s = r.table(r.req(data, "skin", ""), "skin")
     r.keys(s, "skin", {"mesh", "joint", "color_rgba", "smooth_iterations", "bind", "scale"})
     joint = s.get("joint") or None
     if joint is not None and joint not in jnames:
         raise r.fail("skin.joint", f"a joint of this head {sorted(jnames)}", joint)
-    verts, faces, colours = loader(r.string(s, "mesh", "skin"), folder, f"{r.file}: skin.mesh", r.number(s, "scale", "skin", 1.0))
+    verts, faces, colours = loader(
+        r.string(s, "mesh", "skin"), folder, f"{r.file}: skin.mesh", r.number(s, "scale", "skin", 1.0)
+    )
     iters = s.get("smooth_iterations", 0)
     if isinstance(iters, bool) or not isinstance(iters, int) or not 0 <= iters <= 200:
         raise r.fail("skin.smooth_iterations", "an integer in 0..200", iters)
@@ -264,7 +282,9 @@ def _skin(r: _Reader, data: dict[str, Any], folder: Path, jnames: set[str], load
     for i, b in enumerate(binds):
         key = f"skin.bind[{i}]"
         b = r.table(b, key)
-        r.keys(b, key, {"joint", "halfspaces", "sphere_centre_mm", "sphere_radius_mm", "falloff_mm", "weight"})
+        r.keys(
+            b, key, {"joint", "halfspaces", "sphere_centre_mm", "sphere_radius_mm", "falloff_mm", "weight"}
+        )
         bj = r.string(b, "joint", key)
         if bj not in jnames:
             raise r.fail(f"{key}.joint", f"a joint of this head {sorted(jnames)}", bj)
@@ -335,7 +355,12 @@ def _muscles(r: _Reader, data: dict[str, Any]) -> tuple[Muscle, ...]:
             maj = r.vec3(m, "major_axis", key, unit=True) if "major_axis" in m else (1.0, 0.0, 0.0)
             muscle = SphincterMuscle(name, r.vec3(m, "centre_mm", key), ax, mc, nrm, maj)
         elif mtype == "sheet":
-            r.keys(m, key, common | {"attachment_mm", "attachment_end_mm", "insertion_mm", "insertion_end_mm", "width_mm"})
+            r.keys(
+                m,
+                key,
+                common
+                | {"attachment_mm", "attachment_end_mm", "insertion_mm", "insertion_end_mm", "width_mm"},
+            )
             width = r.number(m, "width_mm", key)
             if width <= 0:
                 raise r.fail(f"{key}.width_mm", "a positive width", width)
@@ -364,9 +389,24 @@ def _muscles(r: _Reader, data: dict[str, Any]) -> tuple[Muscle, ...]:
 
 def _mirrored(m: Muscle, name: str) -> Muscle:
     if isinstance(m, LinearMuscle):
-        return LinearMuscle(name, _mirror(m.attachment_mm), _mirror(m.insertion_mm), m.zone_deg, m.rs_mm, m.rf_mm, m.max_contraction)
+        return LinearMuscle(
+            name,
+            _mirror(m.attachment_mm),
+            _mirror(m.insertion_mm),
+            m.zone_deg,
+            m.rs_mm,
+            m.rf_mm,
+            m.max_contraction,
+        )
     if isinstance(m, SphincterMuscle):
-        return SphincterMuscle(name, _mirror(m.centre_mm), m.semi_axes_mm, m.max_contraction, _mirror(m.normal), _mirror(m.major_axis))
+        return SphincterMuscle(
+            name,
+            _mirror(m.centre_mm),
+            m.semi_axes_mm,
+            m.max_contraction,
+            _mirror(m.normal),
+            _mirror(m.major_axis),
+        )
     return SheetMuscle(
         name, _mirror(m.attachment_mm), _mirror(m.attachment_end_mm), _mirror(m.insertion_mm),
         _mirror(m.insertion_end_mm), m.width_mm, m.max_contraction,
@@ -419,7 +459,11 @@ def _actuators(
         roles.add(role)
         servo = _servo(r, r.table(r.req(a, "servo", key), f"{key}.servo"), f"{key}.servo")
         if servo.id in ids:
-            raise r.fail(f"{key}.servo.id", f"a servo id not used before (id {servo.id} is {ids[servo.id]!r})", servo.id)
+            raise r.fail(
+                f"{key}.servo.id",
+                f"a servo id not used before (id {servo.id} is {ids[servo.id]!r})",
+                servo.id,
+            )
         ids[servo.id] = role
         kind = r.string(a, "kind", key)
         if kind == "joint":
@@ -431,19 +475,27 @@ def _actuators(
                 if jn not in joints:
                     raise r.fail(f"{key}.joints[{k}]", f"a joint of this head {sorted(joints)}", jn)
                 if jn in driven:
-                    raise r.fail(f"{key}.joints[{k}]", f"a joint no other actuator drives ({driven[jn]!r} does)", jn)
+                    raise r.fail(
+                        f"{key}.joints[{k}]", f"a joint no other actuator drives ({driven[jn]!r} does)", jn
+                    )
                 driven[jn] = role
             lo_j = max(joints[j].lower_deg for j in js)
             hi_j = min(joints[j].upper_deg for j in js)
             lo, hi = r.interval(a, "range_deg", key) if "range_deg" in a else (lo_j, hi_j)
             if lo < lo_j - 1e-9 or hi > hi_j + 1e-9:
-                raise r.fail(f"{key}.range_deg", f"a range within the joints' limits [{lo_j}, {hi_j}]", [lo, hi])
+                raise r.fail(
+                    f"{key}.range_deg", f"a range within the joints' limits [{lo_j}, {hi_j}]", [lo, hi]
+                )
             neutral = r.number(a, "neutral_deg", key, float(np.clip(0.0, lo, hi)))
             if not lo <= neutral <= hi:
                 raise r.fail(f"{key}.neutral_deg", f"a value within [{lo}, {hi}]", neutral)
             out.append(JointActuator(role, servo, tuple(js), lo, hi, neutral))
         elif kind == "anchor":
-            r.keys(a, key, {"role", "servo", "kind", "anchor", "vertex", "line", "range_mm", "neutral_mm", "radius_mm"})
+            r.keys(
+                a,
+                key,
+                {"role", "servo", "kind", "anchor", "vertex", "line", "range_mm", "neutral_mm", "radius_mm"},
+            )
             if "anchor" in a:
                 an = r.string(a, "anchor", key)
                 if an not in anchors:
@@ -452,7 +504,11 @@ def _actuators(
             else:
                 vertex = a.get("vertex")
                 if isinstance(vertex, bool) or not isinstance(vertex, int) or not 0 <= vertex < n_vert:
-                    raise r.fail(f"{key}.vertex", f"a skin vertex index in 0..{n_vert - 1} (or anchor = <name>)", vertex)
+                    raise r.fail(
+                        f"{key}.vertex",
+                        f"a skin vertex index in 0..{n_vert - 1} (or anchor = <name>)",
+                        vertex,
+                    )
             lo, hi = r.interval(a, "range_mm", key)
             neutral = r.number(a, "neutral_mm", key, float(np.clip(0.0, lo, hi)))
             if not lo <= neutral <= hi:
@@ -460,9 +516,13 @@ def _actuators(
             radius = r.number(a, "radius_mm", key, 15.0)
             if radius <= 0:
                 raise r.fail(f"{key}.radius_mm", "a positive radius", radius)
-            out.append(AnchorActuator(role, servo, vertex, r.vec3(a, "line", key, unit=True), lo, hi, neutral, radius))
+            out.append(
+                AnchorActuator(
+                    role, servo, vertex, r.vec3(a, "line", key, unit=True), lo, hi, neutral, radius
+                )
+            )
         else:
-            raise r.fail(f"{key}.kind", "\"joint\" or \"anchor\"", kind)
+            raise r.fail(f"{key}.kind", '"joint" or "anchor"', kind)
     return tuple(out)
 
 

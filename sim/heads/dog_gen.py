@@ -38,7 +38,7 @@ MUZZLE_RGBA = (0.93, 0.90, 0.84, 1.0)  # white blaze on the muzzle
 # profile tables along z (design coordinates)
 _Z = np.array([-78, -62, -35, -5, 25, 50, 70, 95, 120, 138, 146, 151, 154, 156, 157.0])
 _TOP = np.array([104, 138, 158, 162, 156, 140, 126, 122, 120, 117, 113, 105, 95, 84, 76.0])
-_YC = np.array([96, 92, 88, 85, 82, 80, 79, 78, 77, 76, 76, 76, 76, 76, 76.0])
+_YC = np.array([96, 92, 88, 85, 82, 79, 78, 78, 78, 78, 78, 78, 78, 78, 78.0])
 _BOT = np.array([86, 58, 42, 36, 40, 50, 56, 60, 62, 64, 67, 70, 73, 75, 76.0])
 _W = np.array([18, 50, 62, 67, 66, 56, 43, 38, 35, 32, 29, 26, 23, 20, 18.0])
 MOUTH_CORNER_Z = 78.0
@@ -106,7 +106,9 @@ def _skin() -> tuple[F64, I64, F64]:
     faces = faces[area > 1e-9]
     # vertices on the mouth line: side columns from the corner forward, and the whole last ring
     last = nz - 1
-    on_line = ((ring_of >= 0) & side_col[col_of] & (zs[np.clip(ring_of, 0, None)] > MOUTH_CORNER_Z)) | (ring_of == last)
+    on_line = ((ring_of >= 0) & side_col[col_of] & (zs[np.clip(ring_of, 0, None)] > MOUTH_CORNER_Z)) | (
+        ring_of == last
+    )
     on_line[back] = False
     # a face is "lower" when its vertices lie in lower columns or on the line (not all upper)
     fl = lower_col[col_of[faces]] | on_line[faces]
@@ -128,7 +130,9 @@ def _skin() -> tuple[F64, I64, F64]:
     vx, vy, vz = verts[:, 0], verts[:, 1], verts[:, 2]
     blaze = mt.smoothstep((vz - 95.0) / 15.0) * mt.smoothstep((12.0 - np.abs(vx)) / 6.0 + (vz - 100.0) / 25.0)
     nose = mt.smoothstep((vz - 146.0) / 3.0) * mt.smoothstep((vy - 94.0) / 3.0)
-    lips = mt.smoothstep((vz - MOUTH_CORNER_Z + 4.0) / 4.0) * mt.smoothstep((3.5 - np.abs(vy - np.interp(vz, _Z, _YC))) / 1.5)
+    lips = mt.smoothstep((vz - MOUTH_CORNER_Z + 4.0) / 4.0) * mt.smoothstep(
+        (3.5 - np.abs(vy - np.interp(vz, _Z, _YC))) / 1.5
+    )
     for wgt, rgba in ((blaze, MUZZLE_RGBA), (lips, LIP_RGBA), (nose, NOSE_RGBA)):
         col = col * (1.0 - wgt[:, None]) + np.array(rgba) * wgt[:, None]
     return verts + OFFSET, faces, col
@@ -190,7 +194,9 @@ def skull() -> tuple[F64, I64]:
 
 def nose() -> tuple[F64, I64]:
     """The dark inside of the nostrils (a small body behind the nose pad's dips)."""
-    return _out(*mt.merge(*(mt.ellipsoid((s * 8.0, 99.0, 150.0), (3.5, 2.5, 3.0), subdiv=2) for s in (1.0, -1.0))))
+    return _out(
+        *mt.merge(*(mt.ellipsoid((s * 8.0, 99.0, 150.0), (3.5, 2.5, 3.0), subdiv=2) for s in (1.0, -1.0)))
+    )
 
 
 def mouth_cavity() -> tuple[F64, I64]:
@@ -200,10 +206,14 @@ def mouth_cavity() -> tuple[F64, I64]:
 def _arch(y: F64 | float, z_front: float, half_w: float, length: float, n: int) -> F64:
     t = np.linspace(-1.0, 1.0, n)
     ang = t * np.pi / 2
-    return np.stack([half_w * np.sin(ang), np.broadcast_to(y, t.shape), z_front - length * (1 - np.cos(ang))], 1)
+    return np.stack(
+        [half_w * np.sin(ang), np.broadcast_to(y, t.shape), z_front - length * (1 - np.cos(ang))], 1
+    )
 
 
-def _tooth_row(y_gum: float, down: bool, z_front: float, half_w: float, length: float, canine_mm: float) -> tuple[F64, I64]:
+def _tooth_row(
+    y_gum: float, down: bool, z_front: float, half_w: float, length: float, canine_mm: float
+) -> tuple[F64, I64]:
     pts = _arch(y_gum, z_front, half_w, length, 19)
     boxes = []
     for k, p in enumerate(pts):
