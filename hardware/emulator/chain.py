@@ -49,6 +49,7 @@ class ServoChain:
         wire_time: bool = True,
         clock: Callable[[], float] | str | None = None,
         log_limit: int | None = 1_000_000,
+        delivery: str = "byte",
     ) -> None:
         if clock is None or clock == "real":
             self._clock: Callable[[], float] = RealClock()
@@ -62,6 +63,11 @@ class ServoChain:
             )
         self.lock = threading.RLock()
         self.wire_time = bool(wire_time)
+        if delivery not in ("byte", "packet"):
+            raise EmulatorConfigError(f"delivery {delivery!r}: expected 'byte' or 'packet'")
+        # "byte": reply bytes readable one by one as they arrive; "packet": each status packet (or fast-read
+        # block) readable whole once its last byte has arrived, like a USB adapter handing over a frame
+        self.delivery = delivery
         self.baud = int(baud)
         self.reboot_silence_s = REBOOT_SILENCE_S
         self.log: deque[LogEntry] = deque(maxlen=log_limit)
@@ -79,11 +85,14 @@ class ServoChain:
                 EmulatedServo(sid, spec, baud_code=code, clock=self._clock, faults=self.faults)
             )
         self._by_id: dict[int, list[EmulatedServo]] = {}
+        self._silence_until_s = -1.0
+        for servo in self.servos:
+            servo.on_change = self._servo_changed
         self._reindex()
         self._receiver = PacketReceiver()
         self._tx_free_s = 0.0  # host -> servos line busy until
         self._rx_free_s = 0.0  # servos -> host line busy until
-        # pending reply bytes: [data, start_s, byte_s, bytes already read]
+        # pending reply bytes: [data, start_s, byte_s, bytes already read, readable only whole]
         self._rx: deque[list] = deque()  # type: ignore[type-arg]
         self._pty: object | None = None
         self._closed = False
@@ -96,9 +105,16 @@ class ServoChain:
         baud: int = 1_000_000,
         wire_time: bool = True,
         clock: Callable[[], float] | str | None = None,
-        **options: int | None,
+        *,
+        log_limit: int | None = 1_000_000,
+        delivery: str = "byte",
     ) -> ServoChain:
-        """A chain of servos: ``ids`` are ints (all of ``model``) or ``(id, model)`` pairs."""
+        """A chain of servos: ``ids`` are ints (all of ``model``) or ``(id, model)`` pairs.
+
+        ``clock``: None/"real" (monotonic, the SDK's timeouts behave), "manual" (moves only with
+        :meth:`advance`) or any callable returning seconds. ``delivery``: "byte" (reply bytes readable as
+        each arrives) or "packet" (each status packet readable whole when its last byte arrives).
+        """
         specs: list[tuple[int, ModelSpec]] = []
         for item in ids:
             if isinstance(item, tuple):
@@ -106,7 +122,7 @@ class ServoChain:
                 specs.append((int(sid), get_model(m)))
             else:
                 specs.append((int(item), get_model(model)))
-        return cls(specs, baud=baud, wire_time=wire_time, clock=clock, **options)
+        return cls(specs, baud=baud, wire_time=wire_time, clock=clock, log_limit=log_limit, delivery=delivery)
 
     # ----------------------------------------------------------------- clock and servos
     @property
@@ -151,7 +167,12 @@ class ServoChain:
             for s in self.servos if servo_id is None else [self.servo(servo_id)]:
                 s.set_input_voltage(volts)
 
+    def _servo_changed(self, servo: EmulatedServo) -> None:
+        self._silence_until_s = max(self._silence_until_s, servo.silent_until_s)
+        self._reindex()
+
     def _reindex(self) -> None:
+        self._listener_cache: dict[int, list[EmulatedServo]] = {}
         by_id: dict[int, list[EmulatedServo]] = {}
         for s in self.servos:
             by_id.setdefault(s.id, []).append(s)
@@ -171,8 +192,13 @@ class ServoChain:
             return n
 
     def _listeners(self, t_s: float, host_baud: int) -> list[EmulatedServo]:
-        out = []
         faults = self.faults
+        quiet = not faults.any and t_s >= self._silence_until_s
+        if quiet:
+            cached = self._listener_cache.get(host_baud)
+            if cached is not None:
+                return cached
+        out = []
         for s in self.servos:
             if s.baud_bps != host_baud or t_s < s.silent_until_s:
                 continue
@@ -181,6 +207,8 @@ class ServoChain:
                 if not s.powered or faults.active(s.uid, "disconnect", t_s):
                     continue
             out.append(s)
+        if quiet:
+            self._listener_cache[host_baud] = out
         return out
 
     def _handle(self, packet: Packet, t_rx: float, host_baud: int) -> None:
@@ -194,11 +222,13 @@ class ServoChain:
         if outcome.replies:
             self._schedule(outcome.replies, t_rx, host_baud)
         for servo in outcome.reboot:
-            servo.reboot(self.reboot_silence_s)
             servo.silent_until_s = t_rx + self.reboot_silence_s
+            servo.reboot(self.reboot_silence_s)
+            servo.silent_until_s = max(servo.silent_until_s, t_rx + self.reboot_silence_s)
+            self._servo_changed(servo)
         for servo, option in outcome.reset:
             servo.factory_reset(option)
-        if outcome.ids_changed or outcome.reset:
+        if outcome.ids_changed or outcome.reset or outcome.reboot:
             self._reindex()
 
     def _schedule(self, replies: list, t_rx: float, host_baud: int) -> None:  # type: ignore[type-arg]
@@ -217,7 +247,7 @@ class ServoChain:
                 data = rf.apply(data)
                 delay += rf.extra_delay_s
             start = line + delay
-            self._rx.append([data, start, byte_s, 0])
+            self._rx.append([data, start, byte_s, 0, self.delivery == "packet"])
             line = start + len(data) * byte_s
         self._rx_free_s = line
 
@@ -226,8 +256,8 @@ class ServoChain:
         with self.lock:
             now = self._clock()
             total = 0
-            for data, start, byte_s, done in self._rx:
-                arrived = _arrived(len(data), start, byte_s, now)
+            for data, start, byte_s, done, whole in self._rx:
+                arrived = _arrived(len(data), start, byte_s, now, whole)
                 total += arrived - done
                 if arrived < len(data):
                     break
@@ -243,8 +273,8 @@ class ServoChain:
             out = b""
             while rx and size > 0:
                 seg = rx[0]
-                data, start, byte_s, done = seg
-                arrived = _arrived(len(data), start, byte_s, now)
+                data, start, byte_s, done, whole = seg
+                arrived = _arrived(len(data), start, byte_s, now, whole)
                 take = min(arrived - done, size)
                 if take <= 0:
                     break
@@ -265,7 +295,7 @@ class ServoChain:
             rx = self._rx
             while rx:
                 seg = rx[0]
-                arrived = _arrived(len(seg[0]), seg[1], seg[2], now)
+                arrived = _arrived(len(seg[0]), seg[1], seg[2], now, seg[4])
                 if arrived == len(seg[0]):
                     rx.popleft()
                 else:
@@ -277,8 +307,8 @@ class ServoChain:
         with self.lock:
             if not self._rx:
                 return None
-            data, start, byte_s, done = self._rx[0]
-            return float(start + (done + 1) * byte_s)
+            data, start, byte_s, done, whole = self._rx[0]
+            return float(start + (len(data) if whole else done + 1) * byte_s)
 
     # ----------------------------------------------------------------- transports
     def open_serial(self, port: str = "emulated://servo-chain") -> EmulatedSerial:
@@ -358,11 +388,13 @@ class ServoChain:
         return self.register_writes(GOAL_ADDRESS, 4)
 
 
-def _arrived(n: int, start: float, byte_s: float, now: float) -> int:
+def _arrived(n: int, start: float, byte_s: float, now: float, whole: bool) -> int:
     if byte_s <= 0.0:
         return n if now >= start else 0
     if now < start:
         return 0
+    if whole:
+        return n if now + 1e-12 >= start + n * byte_s else 0
     k = int((now - start) / byte_s + 1e-9)
     return n if k > n else k
 

@@ -78,6 +78,7 @@ class FaultSchedule:
         self._clock = clock
         self._known_ids = known_ids
         self._faults: dict[int, list[Fault]] = {}
+        self.any = False  # fast check on the hot path: has any fault ever been injected?
 
     def inject(
         self,
@@ -104,6 +105,7 @@ class FaultSchedule:
         end = math.inf if duration_s is None else start + float(duration_s)
         fault = Fault(servo_id, kind, start, end, float(delay_s), int(drop_bytes))
         self._faults.setdefault(servo_id, []).append(fault)
+        self.any = True
         return fault
 
     def inject_now(self, servo_id: int, kind: str, **options: float) -> Fault:
@@ -129,7 +131,7 @@ class FaultSchedule:
         return [f for faults in self._faults.values() for f in faults]
 
     def has_any(self, servo_id: int) -> bool:
-        return bool(self._faults.get(servo_id))
+        return self.any and bool(self._faults.get(servo_id))
 
     def active(self, servo_id: int, kind: str, t_s: float) -> Fault | None:
         for f in self._faults.get(servo_id, ()):

@@ -74,7 +74,6 @@ def dispatch(
     """Run ``packet`` on the servos that heard it (``listeners``; ``by_id`` indexes them by id)."""
     out = Outcome([], [], [])
     for servo in listeners:
-        servo.advance(t_s)
         servo.heard(t_s)
     inst = packet.instruction
     pid = packet.id

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Callable
 
 from hardware.emulator import physics
@@ -54,12 +55,16 @@ class EmulatedServo:
         self.obstacle: physics.Obstacle | None = None
         self.registered: tuple[int, bytes] | None = None
         self.silent_until_s = -math.inf
+        self.on_change: Callable[[EmulatedServo], None] | None = None  # chain hook: id/baud/silence changed
         self.powered = True
         self.mem = bytearray()
         self.motor = physics.MotorState()
         self._profile = physics.MotionProfile(spec.no_load_speed_tick_s, math.inf)
         self._t = clock()
         self._accel = 0.0
+        self._live_t = math.nan
+        self._plan_key: tuple[object, ...] = ()
+        self._stall_units = spec.stall_current_a * 1000.0 / spec.current_unit_ma
         self._last_rx_s = self._t
         self._watchdog_tripped = False
         self._power_on(keep=None)
@@ -159,6 +164,8 @@ class EmulatedServo:
                 f"servo {self.id}: move_by_hand needs torque off (the motor holds its goal)"
             )
         self.motor.pos = self.motor.target = self._to_shaft(float(present_tick))
+        self._plan_key = ()
+        self._live_t = math.nan
         self.motor.vel = 0.0
 
     def set_obstacle(self, present_tick: float | None) -> None:
@@ -174,6 +181,7 @@ class EmulatedServo:
     # ----------------------------------------------------------------- power
     def _power_on(self, keep: bytes | None) -> None:
         """Power-up state: RAM defaults; EEPROM from ``keep`` (None = model defaults)."""
+        self._live_t = math.nan
         image = self.table.defaults_image()
         if keep is not None:
             image[:EEPROM_END] = keep[:EEPROM_END]
@@ -182,6 +190,7 @@ class EmulatedServo:
         self._watchdog_tripped = False
         self.motor.vel = 0.0
         self.motor.target = self.motor.pos
+        self._plan_key = ()
         self.motor.overload_s = 0.0
         _put(self.mem, A_GOAL_POS, 4, round(self._to_present(self.motor.pos)))
         self._recheck_causes()
@@ -192,6 +201,7 @@ class EmulatedServo:
         self.advance()
         self._power_on(keep=bytes(self.mem[:EEPROM_END]))
         self.silent_until_s = self._t + silence_s
+        self._changed()
 
     def factory_reset(self, option: int) -> None:
         """Factory Reset: 0xFF everything (ID 1, 57 600 bps), 0x01 all but ID, 0x02 all but ID and baud."""
@@ -202,6 +212,11 @@ class EmulatedServo:
             self.mem[7] = old[7]
         if option == 0x02:
             self.mem[8] = old[8]
+        self._changed()
+
+    def _changed(self) -> None:
+        if self.on_change is not None:
+            self.on_change(self)
 
     def clear_multi_turn(self) -> None:
         """Clear: bring Present Position back into one turn (0..4095), keeping the shaft where it is."""
@@ -211,6 +226,7 @@ class EmulatedServo:
         shift = -turns if not self.reversed else turns
         self.motor.pos += shift
         self.motor.target += shift
+        self._plan_key = ()
 
     # ----------------------------------------------------------------- reads
     def read_bytes(self, address: int, length: int) -> tuple[int, bytes]:
@@ -221,8 +237,6 @@ class EmulatedServo:
         self.advance()
         if address < 147 and address + length > 120:
             self._sync_live()
-        elif address <= A_HW_ERR < address + length or address <= A_TORQUE < address + length:
-            pass  # torque / error bytes are kept current by advance()
         return 0, bytes(self.mem[address : address + length])
 
     # ----------------------------------------------------------------- writes
@@ -288,6 +302,7 @@ class EmulatedServo:
         """Store ``data`` and run side effects of the registers it covers (no checks)."""
         mem = self.mem
         end = address + len(data)
+        self._live_t = math.nan
         old_torque = mem[A_TORQUE]
         old_mode = mem[A_MODE]
         mem[address:end] = data
@@ -297,6 +312,8 @@ class EmulatedServo:
             _put(mem, 100, 2, _i(mem, 36, 2))
             if 102 in self.table:
                 _put(mem, 102, 2, _i(mem, 38, 2))
+        if address < 9 and end > 7:
+            self._changed()
         if address <= A_WATCHDOG < end:
             self._watchdog_tripped = False
             self._last_rx_s = self._t
@@ -305,26 +322,43 @@ class EmulatedServo:
                 self._start_move()
             elif not mem[A_TORQUE]:
                 self.motor.target = self.motor.pos
+                self._plan_key = ()
                 self.motor.vel = 0.0
         if mem[A_TORQUE] and ((address < 120 and end > 100) or (address < 56 and end > 44)):
             self._start_move()
 
     def _start_move(self) -> None:
-        """Aim at Goal Position with the current profile registers."""
+        """Aim at Goal Position with the current profile registers (re-planned only when they changed)."""
         mem = self.mem
         motor = self.motor
-        goal = _i(mem, A_GOAL_POS, 4, True)
-        if self.operating_mode == 3:
-            goal = min(max(goal, _i(mem, 52, 4)), _i(mem, 48, 4))
-        if self.operating_mode in POSITION_MODES:
+        v_limit_reg, max_pos, min_pos = _LIMITS.unpack_from(mem, 44)
+        prof_a, prof_v, goal = _GOALS.unpack_from(mem, 108)
+        mode = mem[A_MODE]
+        drive = mem[A_DRIVE]
+        key = (
+            goal,
+            prof_a,
+            prof_v,
+            mode,
+            drive,
+            v_limit_reg,
+            max_pos,
+            min_pos,
+            self.input_voltage_v,
+            _i(mem, 20, 4, True),
+        )
+        if key == self._plan_key and not drive & 0x04:
+            return  # same goal and profile again (typical of a periodic sync write): nothing to re-plan
+        self._plan_key = key
+        if mode == 3:
+            goal = min(max(goal, min_pos), max_pos)
+        if mode in POSITION_MODES:
             motor.target = self._to_shaft(goal)
         v_cap = self.spec.no_load_speed_tick_s * max(0.0, self.input_voltage_v / self.spec.nominal_voltage_v)
-        v_limit = _i(mem, 44, 4) * VEL_UNIT_TICK_S
+        v_limit = v_limit_reg * VEL_UNIT_TICK_S
         if v_limit > 0:
             v_cap = min(v_cap, v_limit)
-        prof_v = _i(mem, 112, 4)
-        prof_a = _i(mem, 108, 4)
-        if mem[A_DRIVE] & 0x04:
+        if drive & 0x04:
             self._profile = physics.time_based_profile(motor.target - motor.pos, prof_v, prof_a, v_cap)
         else:
             v = prof_v * VEL_UNIT_TICK_S if prof_v else v_cap
@@ -334,7 +368,10 @@ class EmulatedServo:
     # ----------------------------------------------------------------- physics
     def heard(self, t_s: float) -> None:
         """An instruction packet reached this servo at ``t_s`` (feeds the Bus Watchdog)."""
-        self._last_rx_s = max(self._last_rx_s, t_s)
+        if self.mem[A_WATCHDOG]:
+            self.advance(t_s)  # a trip due before this packet must happen first
+        if t_s > self._last_rx_s:
+            self._last_rx_s = t_s
 
     def advance(self, t_s: float | None = None) -> None:
         """Bring the physics up to ``t_s`` (default: now)."""
@@ -352,6 +389,7 @@ class EmulatedServo:
             self._watchdog_tripped = True
             mem[A_WATCHDOG] = 0xFF
             motor.target = motor.pos
+            self._plan_key = ()
         torque = mem[A_TORQUE] == 1
         mode = mem[A_MODE]
         if torque and mode not in POSITION_MODES:
@@ -429,6 +467,7 @@ class EmulatedServo:
         if bits & mem[63] and mem[A_TORQUE]:
             mem[A_TORQUE] = 0
             self.motor.target = self.motor.pos
+            self._plan_key = ()
             self.motor.vel = 0.0
             self.motor.load = 0.0
 
@@ -449,6 +488,7 @@ class EmulatedServo:
     def set_input_voltage(self, volts: float) -> None:
         self.advance()
         self.input_voltage_v = float(volts)
+        self._live_t = math.nan
         if not self._voltage_ok():
             self._trip(HW_INPUT_VOLTAGE)
 
@@ -462,6 +502,7 @@ class EmulatedServo:
                     self.powered = False
                     self.mem[A_TORQUE] = 0
                     self.motor.target = self.motor.pos
+                    self._plan_key = ()
                     self.motor.vel = 0.0
                 if t0 < f.end_s <= t1:
                     self.powered = True
@@ -474,27 +515,52 @@ class EmulatedServo:
         return {r.name: r.decode(self.mem[r.address : r.end]) for r in self.table if 120 <= r.address < 148}
 
     def _sync_live(self) -> None:
-        """Write the live (read-only) registers from the physics state into memory."""
+        """Write the live (read-only) registers 120..146 from the physics state into memory (one pack)."""
+        if self._live_t == self._t:
+            return
+        self._live_t = self._t
         mem = self.mem
         motor = self.motor
-        sign = -1.0 if self.reversed else 1.0
-        present = self._to_present(motor.pos)
-        _put(mem, 120, 2, int(self._t * 1000.0) % 32768)
-        moving = abs(motor.vel) > _i(mem, 24, 4) * VEL_UNIT_TICK_S or motor.vel != 0.0
-        mem[122] = 1 if moving else 0
+        vel = motor.vel
+        rev = mem[A_DRIVE] & 1
+        offset = _i(mem, 20, 4, True)
+        present = (4095.0 - motor.pos if rev else motor.pos) + offset
+        target = (4095.0 - motor.target if rev else motor.target) + offset
+        moving = vel != 0.0
         in_pos = abs(motor.target - motor.pos) <= IN_POSITION_TICK
-        prof = 0x30 if _i(mem, 108, 4) and _i(mem, 112, 4) else 0x10 if _i(mem, 112, 4) else 0
-        mem[123] = (1 if in_pos else 0) | (2 if moving else 0) | prof
-        load = motor.load * sign
-        _put(mem, 124, 2, round(load * 885))
+        prof_v = _i(mem, 112, 4)
+        prof = (0x30 if _i(mem, 108, 4) else 0x10) if prof_v else 0
+        load = -motor.load if rev else motor.load
         if self.spec.present_kind == "load":
-            _put(mem, 126, 2, round(load * 1000))
+            present_load = round(load * 1000)
         else:
-            _put(mem, 126, 2, round(load * self.spec.stall_current_a * 1000.0 / self.spec.current_unit_ma))
-        vel_units = round(motor.vel * sign / VEL_UNIT_TICK_S)
-        _put(mem, 128, 4, vel_units)
-        _put(mem, 132, 4, round(present))
-        _put(mem, 136, 4, vel_units)
-        _put(mem, 140, 4, round(self._to_present(motor.target)))
-        _put(mem, 144, 2, round(self.input_voltage_v * 10))
-        mem[146] = max(0, min(255, round(motor.temperature_c)))
+            present_load = round(load * self._stall_units)
+        vel_units = round((-vel if rev else vel) / VEL_UNIT_TICK_S)
+        _LIVE.pack_into(
+            mem,
+            120,
+            int(self._t * 1000.0) % 32768,
+            1 if moving else 0,
+            (1 if in_pos else 0) | (2 if moving else 0) | prof,
+            _clamp16(round(load * 885)),
+            _clamp16(present_load),
+            _clamp32(vel_units),
+            _clamp32(round(present)),
+            _clamp32(vel_units),
+            _clamp32(round(target)),
+            max(0, min(65535, round(self.input_voltage_v * 10))),
+            max(0, min(255, round(motor.temperature_c))),
+        )
+
+
+_LIVE = struct.Struct("<HBBhhiiiiHB")  # Realtime Tick (120) .. Present Temperature (146)
+_LIMITS = struct.Struct("<III")  # Velocity Limit (44), Max (48) / Min (52) Position Limit
+_GOALS = struct.Struct("<IIi")  # Profile Acceleration (108), Profile Velocity (112), Goal Position (116)
+
+
+def _clamp16(v: int) -> int:
+    return -32768 if v < -32768 else 32767 if v > 32767 else v
+
+
+def _clamp32(v: int) -> int:
+    return -(1 << 31) if v < -(1 << 31) else (1 << 31) - 1 if v > (1 << 31) - 1 else v
