@@ -200,7 +200,7 @@ class _Builder:
             if "events" in spec or "recipe" in spec:
                 return self.events(name, spec, path)
         except (TimelineError, FrameError) as err:
-            r.fail(path, str(err), err)
+            r.fail(_first_path(str(err), path), _strip_path(str(err)), err)
         r.fail(
             path,
             "expected movements (+ duration_s), keyframes, onset_s/apex_s/offset_s (+ pose), "

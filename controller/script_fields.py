@@ -30,6 +30,8 @@ def line_of(text: str, path: str) -> int | None:
                 i for i in range(lo, hi) if re.match(rf"^\s*\[\[\s*{re.escape(header_path)}\s*\]\]", lines[i])
             ]
             if index < len(headers):
+                if depth == len(parts) - 1:
+                    return headers[index] + 1
                 lo = headers[index] + 1
                 hi = next((i for i in range(lo, len(lines)) if re.match(r"^\s*\[", lines[i])), len(lines))
                 continue

@@ -155,7 +155,8 @@ def _event_from_mapping(token: Mapping[str, Any], field: str) -> Event:
         isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 1
     ):
         raise TimelineError(f"{field}.iterations: expected an integer >= 1, got {iterations!r}")
-    return Event(base.au, base.sign, value, iterations)
+    sign = base.sign if value is None else (-1 if value < 0 else 1)
+    return Event(base.au, sign, value, iterations)
 
 
 def parse_events(tokens: Iterable[Any], *, field: str = "events") -> tuple[Event, ...]:
