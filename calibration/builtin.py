@@ -6,7 +6,7 @@ The emulated servos are ideal X-series servos: 4096 ticks per turn, 2048 at the 
   (mirrored mounting: ``_r`` servos reversed unless the spec says otherwise).
 - Skin anchors are pulled by a cable on a crank (a linkage): pull_mm - neutral_mm = r * sin(angle), with
   r chosen so the larger end of the range sits at a 60 deg crank angle. That is non-linear, so it is
-  stored as a monotone spline (PCHIP) through 9 points plus neutral, and exercises the point-curve path.
+  stored as a monotone spline (PCHIP) through 13 points plus neutral, and exercises the point-curve path.
 
 It takes the servo list as data (:class:`ServoSpec`), never imports sim: the controller CLI
 (``servoface calibrate --head human --builtin --out ...``) builds the specs from the head profile and
@@ -29,7 +29,7 @@ from calibration.head import CalibrationMetadata, HeadCalibration
 from calibration.spec import ServoSpec
 
 CRANK_MAX_ANGLE_DEG = 60.0
-ANCHOR_POINTS = 9
+ANCHOR_POINTS = 13  # PCHIP through 13 crank points stays within 0.3 tick of the crank
 
 
 def crank_radius_mm(spec: ServoSpec) -> float:

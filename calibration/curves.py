@@ -223,8 +223,8 @@ class PiecewiseLinearCurve(_PointCurve):
 class PchipCurve(_PointCurve):
     """Monotone cubic (PCHIP, Fritsch-Carlson) through measured (target, tick) points.
 
-    PCHIP keeps monotone data monotone by construction; the end slopes are the end secants (scipy's
-    one-sided estimate can be 0, which would make the ends flat). The inverse starts from a dense
+    PCHIP keeps monotone data monotone by construction; each end slope is kept within 0.5..3 times the
+    end secant (scipy's one-sided estimate can be 0: a flat end). The inverse starts from a dense
     monotone table (64 samples per segment) and polishes with safeguarded Newton steps, so it is exact
     to float rounding and vectorised.
     """
@@ -234,11 +234,13 @@ class PchipCurve(_PointCurve):
 
     def __init__(self, points: ArrayLike) -> None:
         super().__init__(points)
-        # PCHIP's interior slopes (Fritsch-Butland, < 3x the neighbouring secants) with the end slopes
-        # set to the end secants: still monotone (Fritsch-Carlson box), but never flat at an end, so
-        # every target has a finite resolution and the curve joins its straight continuation smoothly.
+        # PCHIP's slopes, with each end slope kept within [0.5, 3] x its end secant (scipy's one-sided
+        # estimate may be 0 or nearly): still monotone (inside the Fritsch-Carlson box), never flat at an
+        # end, so every target has a finite resolution and the inverse stays well conditioned.
         slopes = np.asarray(PchipInterpolator(self._x, self._y).derivative()(self._x), dtype=np.float64)
-        slopes[0], slopes[-1] = self._slope_lo, self._slope_hi
+        for i, secant in ((0, self._slope_lo), (-1, self._slope_hi)):
+            ratio = slopes[i] / secant
+            slopes[i] = secant * min(max(ratio, 0.5), 3.0)
         self._spline = CubicHermiteSpline(self._x, self._y, slopes, extrapolate=True)
         self._dspline = self._spline.derivative()
         n = self._SAMPLES_PER_SEGMENT

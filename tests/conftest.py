@@ -68,3 +68,26 @@ def driver(dxl_bus, servo_specs):  # type: ignore[no-untyped-def]
         drv.torque_off()
     except Exception:  # noqa: BLE001 - teardown of a test that may have broken the bus on purpose
         pass
+
+
+# ---- calibration fixtures (calibration engineer): the built-in heads' shipped calibration files ----
+# `calibration` is a `calibration.HeadCalibration` (role -> curve, limits, neutral). For your own head, load
+# yours with `calibration.load_calibration(path)` in a fixture of the same shape.
+@_pytest.fixture
+def calibration():  # type: ignore[no-untyped-def]
+    """The built-in human head's `HeadCalibration` (sim/heads/human/calibration.json)."""
+    from pathlib import Path
+
+    from calibration.fileformat import load_calibration
+
+    return load_calibration(Path(__file__).resolve().parents[1] / "sim" / "heads" / "human" / "calibration.json")
+
+
+@_pytest.fixture
+def dog_calibration():  # type: ignore[no-untyped-def]
+    """The built-in dog head's `HeadCalibration` (sim/heads/dog/calibration.json)."""
+    from pathlib import Path
+
+    from calibration.fileformat import load_calibration
+
+    return load_calibration(Path(__file__).resolve().parents[1] / "sim" / "heads" / "dog" / "calibration.json")

@@ -108,6 +108,11 @@ def specs_from_head(head: Any) -> list[ServoSpec]:
     return specs
 
 
+def builtin_source(head: Any) -> str:
+    """The ``metadata.source`` of a generated built-in calibration (no absolute paths: files are shipped)."""
+    return f"calibration.builtin from the ranges of head profile '{head.name}' (ideal emulated servos)"
+
+
 class BusServoAccess:
     """`calibration.procedure.ServoAccess` over a `hardware.bus.ServoBus` (single reads and writes)."""
 
@@ -215,7 +220,7 @@ def run(args: argparse.Namespace) -> int:
         specs = [s for s in specs if s.role in wanted]
     out = args.out or _default_out(head, args.head)
     if args.builtin:
-        path = write_builtin(head.name, specs, out, source=f"head profile {head.profile_dir}")
+        path = write_builtin(head.name, specs, out, source=builtin_source(head))
         print(f"wrote the built-in calibration of '{head.name}' ({len(specs)} servos) to {path}")
         return 0
     keep = None

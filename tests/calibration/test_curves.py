@@ -25,7 +25,7 @@ def monotone_points(draw: st.DrawFn) -> np.ndarray:
 
 
 @pytest.mark.parametrize("cls", [PiecewiseLinearCurve, PchipCurve])
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=40, deadline=None)
 @given(pts=monotone_points(), frac=st.lists(st.floats(-0.2, 1.2), min_size=1, max_size=20))
 def test_point_curves_invert_exactly_and_pass_through_points(
     cls: type[PchipCurve], pts: np.ndarray, frac: list[float]
@@ -40,7 +40,7 @@ def test_point_curves_invert_exactly_and_pass_through_points(
     assert np.all(steps > 0) if curve.increasing else np.all(steps < 0)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=40, deadline=None)
 @given(
     offset=st.floats(0, 4095),
     scale=st.floats(0.5, 60),

@@ -97,9 +97,8 @@ def _run(tmp_path: Path, **kw: object) -> tuple[FakeServos, ScriptedHand, object
     specs = small_specs()
     servos = FakeServos({s.servo_id: 2048 for s in specs})
     hand = ScriptedHand(servos, specs, jog_first=bool(kw.pop("jog_first", False)))
-    result = run_procedure(
-        servos, hand, specs, "small", plot_dir=tmp_path / "plots", out=tmp_path / "cal.json", **kw
-    )  # type: ignore[arg-type]
+    plots = tmp_path / "plots" if kw.pop("plots", True) else None
+    result = run_procedure(servos, hand, specs, "small", plot_dir=plots, out=tmp_path / "cal.json", **kw)  # type: ignore[arg-type]
     return servos, hand, result
 
 
@@ -130,7 +129,9 @@ def test_procedure_captures_fits_plots_and_saves(tmp_path: Path) -> None:
 
 
 def test_jogging_pins_the_goal_before_torque_on(tmp_path: Path) -> None:
-    servos, hand, result = _run(tmp_path, jog_first=True, options=ProcedureOptions(intermediate=1))
+    servos, hand, result = _run(
+        tmp_path, jog_first=True, plots=False, options=ProcedureOptions(intermediate=1)
+    )
     first_torque_on = servos.log.index(("torque", 18, 1))
     assert servos.log[first_torque_on - 1] == ("goal", 18, 2048)  # goal = present, then torque on
     assert load_calibration(tmp_path / "cal.json")["jaw"].to_tick(25.0) == round(2048 + 25 * 4096 / 360)
