@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from sim.au.mapping import AUMapping
 from sim.au.table import AUTable, load_au_table
 from sim.errors import HeadProfileError, PoseError
-from sim.muscles import MUSCLE_TYPES, Muscle, muscle_from_mapping
+from sim.muscles import EyelidMuscle, LinearMuscle, Muscle, SheetMuscle, SphincterMuscle, muscle_from_mapping
 from sim.muscles.field import MuscleField
 from sim.muscles.fit import AnchorFit
 from sim.rig import AnchorActuator, HeadPose, JointActuator
@@ -39,13 +39,14 @@ FloatArray = NDArray[np.float64]
 
 def as_model_muscle(muscle: Any) -> Muscle:
     """A muscle of ``sim.muscles`` from any muscle record with the same fields (e.g. ``sim.rig``'s)."""
-    if isinstance(muscle, tuple(MUSCLE_TYPES.values())):
-        return muscle  # type: ignore[no-any-return]
-    if not dataclasses.is_dataclass(muscle) or isinstance(muscle, type):
+    if isinstance(muscle, LinearMuscle | SheetMuscle | SphincterMuscle | EyelidMuscle):
+        return muscle
+    name = getattr(muscle, "name", None)
+    if not dataclasses.is_dataclass(muscle) or isinstance(muscle, type) or not isinstance(name, str):
         raise HeadProfileError(f"muscle {muscle!r}: expected a muscle dataclass with name and type fields")
     data = {k: v for k, v in dataclasses.asdict(muscle).items() if v is not None and k != "name"}
     data = {k: list(v) if isinstance(v, tuple) else v for k, v in data.items()}
-    return muscle_from_mapping(str(muscle.name), data, f"muscles.{muscle.name}")
+    return muscle_from_mapping(name, data, f"muscles.{name}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -194,7 +195,7 @@ def benchmark_solve(head_name: str, n_frames: int = 500) -> list[float]:
     differs. For RENDER's bench: ``statistics.median(benchmark_solve("human", 500))``.
     """
     from sim.expressions import load_library
-    from sim.heads import load_head  # type: ignore[attr-defined]
+    from sim.heads import load_head
 
     head = load_head(head_name)
     model = FaceModel(head)

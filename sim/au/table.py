@@ -89,13 +89,13 @@ class AUTable:
 
 
 def _pair(value: object, where: str) -> tuple[float, float]:
-    ok = isinstance(value, list) and len(value) == 2
-    ok = ok and all(
-        isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value
+    items: list[Any] = list(value) if isinstance(value, list) else []
+    ok = len(items) == 2 and all(
+        isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in items
     )
-    if not ok or value[0] >= value[1]:  # type: ignore[index]
+    if not ok or items[0] >= items[1]:
         raise HeadProfileError(f"{where}: expected [low, high] with low < high, got {value!r}")
-    return (float(value[0]), float(value[1]))  # type: ignore[index]
+    return (float(items[0]), float(items[1]))
 
 
 def _weights(data: Mapping[str, Any], key: str, where: str) -> tuple[tuple[str, float], ...]:

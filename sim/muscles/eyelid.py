@@ -39,7 +39,8 @@ def rotation_matrix(axis: FloatArray, angle_rad: FloatArray) -> FloatArray:
     x, y, z = axis
     k_mat = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
     s, c = np.sin(ang)[:, None, None], np.cos(ang)[:, None, None]
-    return np.eye(3)[None] + s * k_mat[None] + (1.0 - c) * (k_mat @ k_mat)[None]
+    out = np.eye(3)[None] + s * k_mat[None] + (1.0 - c) * (k_mat @ k_mat)[None]
+    return np.asarray(out, dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -60,7 +61,7 @@ class EyelidField:
         w = np.einsum("kij,kj->ki", rot, self.rel_mm)
         norm = np.linalg.norm(w, axis=1)
         scale = np.maximum(norm, self.shell_mm) / np.maximum(norm, 1e-12)
-        return w * scale[:, None] - self.rel_mm
+        return np.asarray(w * scale[:, None] - self.rel_mm, dtype=np.float64)
 
 
 @dataclass(frozen=True)

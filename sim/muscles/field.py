@@ -74,9 +74,9 @@ class MuscleField:
                 angle = float(joint_deg.get(muscle.joint, 0.0))
                 if angle != 0.0:
                     out[lid.index] += lid.displacement(angle)
-        return out
+        return np.asarray(out, dtype=np.float64)
 
-    def unit_displacements(self, vertices: Sequence[int]) -> FloatArray:
+    def unit_displacements(self, vertices: Sequence[int] | IntArray) -> FloatArray:
         """(len(vertices), 3, M) displacement per unit contraction at the given vertices (caps ignored)."""
         verts = np.asarray(vertices, dtype=np.int64)
         rows = (3 * verts[:, None] + np.arange(3)[None, :]).ravel()
@@ -87,4 +87,4 @@ class MuscleField:
                 k = lookup.get(int(v))
                 if k is not None:
                     dense[i, :, col] += field.gain_mm[k] * field.direction[k]
-        return dense
+        return np.asarray(dense, dtype=np.float64)

@@ -39,7 +39,7 @@ class AnchorFit:
         unit_pull_mm: FloatArray,
         bounds: tuple[float, float],
         rest_mm: FloatArray,
-        anchor_vertices: Sequence[int],
+        anchor_vertices: Sequence[int] | NDArray[np.int64],
         lines: FloatArray,
         radii_mm: Sequence[float],
         regularisation_mm: float = REGULARISATION_MM,
