@@ -11,8 +11,10 @@ errors carry tomllib's line and column. The format (all times in seconds, intens
         pose + onset_s + apex_s + offset_s [+ easing]          (onset / apex / offset envelope)
         keyframes = [{ t_s = 0.2, pose = .., easing = ".." }]  (poses reached at clip times)
         events = ["AU14", "-AU9", 7, {au = "AU7", value = 0.5}] | recipe = "anger"  [+ timing, repeat] (dog)
+        library = "happiness" [+ onset_s, apex_s, offset_s, easing | + timing (dog)]  (sim.expressions)
     [[play]]                 at_s, track = "face" (default) | any name; expression = "name" |
-                             sequence = ["a", "b"] | recipe = "anger"; from = pose (optional start pose)
+                             sequence = ["a", "b"] | recipe = "anger" | library = "happiness";
+                             from = pose (optional start pose)
     [[gaze]]                 at_s, look_at_mm = [x, y, z] (head frame: +x head's left, +y up, +z forward)
                              | ahead = true
     [blink]                  seed, mean_interval_s, ... (BlinkConfig); enabled = false to switch off
@@ -48,6 +50,7 @@ from controller.timeline import (
     recipe_events,
     sequence,
 )
+from controller.timeline.library import library_clip
 from sim.rig import FaceType
 
 SCRIPTS_DIR = Path(__file__).resolve().parent / "scripts"
@@ -165,6 +168,8 @@ class _Builder:
     def expression(self, name: str, spec: Mapping[str, Any], path: str | None = None) -> Clip:
         r, path = self.r, path or f"expressions.{name}"
         try:
+            if "library" in spec:
+                return self.library(name, spec, path)
             if "movements" in spec:
                 r.keys(spec, path, ("duration_s", "movements"))
                 duration = r.number(spec, "duration_s", path, lo=1e-6, what="a duration in seconds > 0")
@@ -231,6 +236,22 @@ class _Builder:
         movements = tuple(Movement(p, s, e) for (p, e), s in zip(moves, shares, strict=True))
         return Expression(name, duration, movements).clip()
 
+    def library(self, name: str, spec: Mapping[str, Any], path: str) -> Clip:
+        r = self.r
+        if self.face == "dog":
+            r.keys(spec, path, ("library", "timing"))
+            timing = None
+            if "timing" in spec:
+                timing = self.timing(r.table(spec["timing"], f"{path}.timing"), f"{path}.timing")
+            return library_clip("dog", r.string(spec, "library", path), timing=timing)
+        r.keys(spec, path, ("library", "onset_s", "apex_s", "offset_s", "easing"))
+        what = "a duration in seconds >= 0"
+        times = {k: r.number(spec, k, path, None, lo=0, what=what) for k in ("onset_s", "apex_s", "offset_s")}
+        given = {k: v for k, v in times.items() if v is not None}
+        return library_clip(
+            "human", r.string(spec, "library", path), easing=self.easing(spec, path, "min_jerk"), **given
+        )
+
     def events(self, name: str, spec: Mapping[str, Any], path: str) -> Clip:
         r = self.r
         r.keys(spec, path, ("events", "recipe", "timing", "repeat"))
@@ -263,7 +284,7 @@ class _Builder:
 
     def play(self, entry: Mapping[str, Any], path: str) -> None:
         r = self.r
-        r.keys(entry, path, ("at_s", "track", "expression", "sequence", "recipe", "from"))
+        r.keys(entry, path, ("at_s", "track", "expression", "sequence", "recipe", "library", "from"))
         at = r.number(entry, "at_s", path, lo=0, what="a start time in seconds >= 0")
         track = r.string(entry, "track", path, "face")
         if not _TRACK_RE.match(track) or track in ALIVE_LAYERS:
@@ -272,11 +293,12 @@ class _Builder:
                 f"expected a track name like 'face', 'gesture', 'speech' "
                 f"(not {', '.join(ALIVE_LAYERS)}), got {track!r}",
             )
-        kinds = [k for k in ("expression", "sequence", "recipe") if k in entry]
+        kinds = [k for k in ("expression", "sequence", "recipe", "library") if k in entry]
         if len(kinds) != 1:
             r.fail(
                 path,
-                "expected exactly one of expression = '<name>', sequence = [names], recipe = '<dog recipe>'",
+                "expected exactly one of expression = '<name>', sequence = [names], recipe = '<dog recipe>', "
+                "library = '<library expression>'",
             )
         if kinds[0] == "expression":
             clip = self.clip_ref(r.string(entry, "expression", path), f"{path}.expression")
@@ -286,8 +308,13 @@ class _Builder:
                 r.fail(f"{path}.sequence", "expected at least one expression name")
             parts = [self.clip_ref(n, f"{path}.sequence[{i}]") for i, n in enumerate(names)]
             clip = sequence(parts, name="+".join(map(str, names)))  # type: ignore[arg-type]
-        else:
+        elif kinds[0] == "recipe":
             clip = self.events("recipe", {"recipe": entry["recipe"]}, path)
+        else:
+            try:
+                clip = self.library(str(entry["library"]), {"library": entry["library"]}, path)
+            except TimelineError as err:
+                r.fail(f"{path}.library", str(err), err)
         start = self.pose(entry["from"], f"{path}.from") if "from" in entry else None
         try:
             self.timeline.play(clip, at, track=track, from_pose=start)

@@ -214,3 +214,20 @@ def test_allowed_names_come_from_the_caller() -> None:
         ScriptError, match="poses.smile.AU12: AU12 is not an AU of the human face; expected one of AU6"
     ):
         parse_script(MINIMAL, allowed=frozenset({"AU6"}))
+
+
+def test_library_expressions_play_from_a_script() -> None:
+    human = parse_script(
+        '[script]\nface = "human"\n[expressions.joy]\nlibrary = "happiness"\n'
+        "onset_s = 0.2\napex_s = 1.0\noffset_s = 0.3\n"
+        '[[play]]\nat_s = 0\nexpression = "joy"\n[[play]]\nat_s = 3\nlibrary = "surprise"\n'
+    )
+    assert human.sample(0.7).get("AU12") > 0.5
+    assert human.sample(1.5).get("AU12") == pytest.approx(0.0)
+    assert human.sample(3.0 + 0.4 + 0.5).get("AU1") > 0.3
+    dog = parse_script('[script]\nface = "dog"\n[[play]]\nat_s = 0\nlibrary = "fear"\n')
+    assert dog.sample(1.2).get("AU5") < 0  # ears back
+    assert dog.sample(dog.end_s).get("AU5") == pytest.approx(0.0)  # released
+    e = err('[script]\nface = "human"\n[[play]]\nat_s = 0\nlibrary = "glee"\n')
+    assert "play[0].library: expression 'glee' is not in the human library; known:" in str(e)
+    assert e.line == 5  # type: ignore[attr-defined]

@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from controller.errors import FrameError, TimelineError
 from controller.timeline import (
@@ -253,3 +255,33 @@ def test_a_layer_producing_an_invalid_value_is_a_frame_error() -> None:
         tl.sample(0.0)
     with pytest.raises(TimelineError, match="layer 'broken' already exists"):
         tl.add_layer("broken", Broken())
+
+
+@given(
+    st.lists(
+        st.tuples(
+            st.sampled_from(["face", "speech", "gaze", "idle", "gesture"]),
+            st.dictionaries(st.sampled_from(["AU12", "AU26", "AU61", "AU62", "AU45"]), st.floats(0, 1)),
+        ),
+        max_size=5,
+    )
+)
+def test_property_blending_stays_in_range(contribs: list[tuple[str, dict[str, float]]]) -> None:
+    out = BlendPolicy.for_face("human").blend(contribs, 0.0, 1.0)
+    assert all(0.0 <= v <= 1.0 for v in out.values())
+    assert not (out.get("AU61", 0) > 0 and out.get("AU62", 0) > 0)  # one direction per joint
+    provided = {au for _, aus in contribs for au in aus}
+    assert set(out) == provided
+
+
+def test_library_clip_for_both_faces() -> None:
+    from controller.timeline.library import library_clip
+
+    happy = library_clip("human", "happiness", onset_s=0.2, apex_s=1.0, offset_s=0.2)
+    assert happy.duration_s == pytest.approx(1.4)
+    assert happy.sample(0.7, {})["AU12"] > 0.5 and happy.end_pose({})["AU12"] == 0.0
+    anger = library_clip("dog", "anger")
+    firsts = {au: moves[0][0] for au, moves in anger.onsets().items() if moves}
+    assert sorted(firsts, key=firsts.__getitem__)[:3] == ["AU14", "AU4", "AU1"]
+    with pytest.raises(TimelineError, match="expression 'glee' is not in the human library"):
+        library_clip("human", "glee")
