@@ -82,7 +82,9 @@ class ServoChain:
             seen.add(sid)
             code = baud_code_for(self.baud, spec)
             self.servos.append(
-                EmulatedServo(sid, spec, baud_code=code, clock=self._clock, faults=self.faults)
+                EmulatedServo(
+                    sid, spec, baud_code=code, clock=self._clock, faults=self.faults, lock=self.lock
+                )
             )
         self._by_id: dict[int, list[EmulatedServo]] = {}
         self._silence_until_s = -1.0

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import math
 import struct
+import threading
 from collections.abc import Callable
+from functools import wraps
+from typing import Any, TypeVar
 
 from hardware.emulator import physics
 from hardware.emulator.control_table import EEPROM_END, Register
@@ -29,6 +32,20 @@ A_TORQUE, A_GOAL_POS, A_HW_ERR, A_WATCHDOG, A_MODE, A_DRIVE = 64, 116, 70, 98, 1
 IN_POSITION_TICK = 2.0
 
 
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def _locked(method: _F) -> _F:
+    """Run a test hook under the chain's lock (the pty thread may be serving the same servo)."""
+
+    @wraps(method)
+    def wrapper(self: EmulatedServo, *args: Any, **kwargs: Any) -> Any:
+        with self._lock:
+            return method(self, *args, **kwargs)
+
+    return wrapper  # type: ignore[return-value]
+
+
 def _i(mem: bytearray, addr: int, size: int, signed: bool = False) -> int:
     return int.from_bytes(mem[addr : addr + size], "little", signed=signed)
 
@@ -43,9 +60,17 @@ class EmulatedServo:
     """
 
     def __init__(
-        self, uid: int, spec: ModelSpec, *, baud_code: int, clock: Callable[[], float], faults: FaultSchedule
+        self,
+        uid: int,
+        spec: ModelSpec,
+        *,
+        baud_code: int,
+        clock: Callable[[], float],
+        faults: FaultSchedule,
+        lock: threading.RLock | None = None,
     ) -> None:
         self.uid = uid
+        self._lock = lock if lock is not None else threading.RLock()
         self.spec = spec
         self.table = spec.table
         self._clock = clock
@@ -64,6 +89,10 @@ class EmulatedServo:
         self._accel = 0.0
         self._live_t = math.nan
         self._plan_key: tuple[object, ...] = ()
+        # (first Indirect Data address, first Indirect Address address, count) per indirect block
+        self._indirect: list[tuple[int, int, int]] = _indirect_blocks(spec)
+        self._indirect_lo = min((d for d, _, _ in self._indirect), default=1 << 30)
+        self._indirect_hi = max((d + n for d, _, n in self._indirect), default=0)
         self._stall_units = spec.stall_current_a * 1000.0 / spec.current_unit_ma
         self._last_rx_s = self._t
         self._watchdog_tripped = False
@@ -143,6 +172,7 @@ class EmulatedServo:
         self.advance()
         return self.motor.load
 
+    @_locked
     def read_register(self, key: str | int) -> int:
         """Value of a register (by name or start address), live values brought up to now."""
         reg = self.table.get(key)
@@ -150,12 +180,14 @@ class EmulatedServo:
         self._sync_live()
         return reg.decode(self.mem[reg.address : reg.end])
 
+    @_locked
     def write_register(self, key: str | int, value: int) -> None:
         """Set a register directly, with the write's side effects but no access/range checks."""
         reg = self.table.get(key)
         self.advance()
         self._apply(reg.address, reg.encode(int(value)))
 
+    @_locked
     def move_by_hand(self, present_tick: float) -> None:
         """Turn the horn by hand to where Present Position reads ``present_tick`` (only with torque off)."""
         self.advance()
@@ -168,6 +200,7 @@ class EmulatedServo:
         self._live_t = math.nan
         self.motor.vel = 0.0
 
+    @_locked
     def set_obstacle(self, present_tick: float | None) -> None:
         """A rigid stop at ``present_tick`` on the side away from the current position (None removes it)."""
         self.advance()
@@ -196,6 +229,7 @@ class EmulatedServo:
         self._recheck_causes()
         self._sync_live()
 
+    @_locked
     def reboot(self, silence_s: float) -> None:
         """Reboot: RAM back to defaults (torque off, errors cleared unless their cause persists)."""
         self.advance()
@@ -203,6 +237,7 @@ class EmulatedServo:
         self.silent_until_s = self._t + silence_s
         self._changed()
 
+    @_locked
     def factory_reset(self, option: int) -> None:
         """Factory Reset: 0xFF everything (ID 1, 57 600 bps), 0x01 all but ID, 0x02 all but ID and baud."""
         self.advance()
@@ -218,6 +253,7 @@ class EmulatedServo:
         if self.on_change is not None:
             self.on_change(self)
 
+    @_locked
     def clear_multi_turn(self) -> None:
         """Clear: bring Present Position back into one turn (0..4095), keeping the shaft where it is."""
         self.advance()
@@ -235,9 +271,44 @@ class EmulatedServo:
         if address + length > size or length < 0:
             return ErrorNumber.ACCESS, b""
         self.advance()
-        if address < 147 and address + length > 120:
+        end = address + length
+        if address < 147 and end > 120:
             self._sync_live()
-        return 0, bytes(self.mem[address : address + length])
+        if self._indirect_lo < end and address < self._indirect_hi:
+            return 0, self._read_indirect(address, length)
+        return 0, bytes(self.mem[address:end])
+
+    # ----------------------------------------------------------------- indirect addressing
+    def _indirect_target(self, address: int) -> int | None:
+        """The address Indirect Data byte ``address`` stands for (None if it is not an Indirect Data byte)."""
+        for data_start, addr_start, count in self._indirect:
+            if data_start <= address < data_start + count:
+                slot = addr_start + 2 * (address - data_start)
+                return self.mem[slot] | self.mem[slot + 1] << 8
+        return None
+
+    def _read_indirect(self, address: int, length: int) -> bytes:
+        targets = [self._indirect_target(a) for a in range(address, address + length)]
+        if any(t is not None and 120 <= t < 147 for t in targets):
+            self._sync_live()
+        mem = self.mem
+        return bytes(
+            mem[a] if t is None else mem[t]
+            for a, t in zip(range(address, address + length), targets, strict=True)
+        )
+
+    def _indirect_runs(self, address: int, data: bytes) -> list[tuple[int, bytes]]:
+        """Split a write into contiguous runs of real addresses (Indirect Data bytes mapped to targets)."""
+        runs: list[tuple[int, bytearray]] = []
+        for i, byte in enumerate(data):
+            a = address + i
+            t = self._indirect_target(a)
+            real = a if t is None else t
+            if runs and runs[-1][0] + len(runs[-1][1]) == real:
+                runs[-1][1].append(byte)
+            else:
+                runs.append((real, bytearray((byte,))))
+        return [(start, bytes(chunk)) for start, chunk in runs]
 
     # ----------------------------------------------------------------- writes
     def check_write(self, address: int, data: bytes) -> int:
@@ -293,10 +364,23 @@ class EmulatedServo:
     def wire_write(self, address: int, data: bytes) -> int:
         """Check then apply a Write from the bus; returns its error number."""
         self.advance()
+        if self._indirect_lo < address + len(data) and address < self._indirect_hi:
+            return self._write_indirect(address, data)
         err = self.check_write(address, data)
         if not err:
             self._apply(address, data)
         return err
+
+    def _write_indirect(self, address: int, data: bytes) -> int:
+        """A write touching Indirect Data goes to the mapped registers (all checked before any change)."""
+        runs = self._indirect_runs(address, data)
+        for start, chunk in runs:
+            err = self.check_write(start, chunk)
+            if err:
+                return err
+        for start, chunk in runs:
+            self._apply(start, chunk)
+        return 0
 
     def _apply(self, address: int, data: bytes) -> None:
         """Store ``data`` and run side effects of the registers it covers (no checks)."""
@@ -485,6 +569,7 @@ class EmulatedServo:
             if self._faults.active(self.uid, kind, self._t):
                 self._trip(bit)
 
+    @_locked
     def set_input_voltage(self, volts: float) -> None:
         self.advance()
         self.input_voltage_v = float(volts)
@@ -508,6 +593,7 @@ class EmulatedServo:
                     self.powered = True
                     self._power_on(keep=bytes(self.mem[:EEPROM_END]))
 
+    @_locked
     def present_values(self) -> dict[str, int]:
         """Live register values as the servo would report them now."""
         self.advance()
@@ -556,6 +642,25 @@ class EmulatedServo:
 _LIVE = struct.Struct("<HBBhhiiiiHB")  # Realtime Tick (120) .. Present Temperature (146)
 _LIMITS = struct.Struct("<III")  # Velocity Limit (44), Max (48) / Min (52) Position Limit
 _GOALS = struct.Struct("<IIi")  # Profile Acceleration (108), Profile Velocity (112), Goal Position (116)
+
+
+def _indirect_blocks(spec: ModelSpec) -> list[tuple[int, int, int]]:
+    blocks: list[tuple[int, int, int]] = []
+    for reg in spec.table:
+        if not reg.name.startswith("Indirect Data "):
+            continue
+        n = int(reg.name.rsplit(" ", 1)[1])
+        addr_reg = spec.table.get(f"Indirect Address {n}")
+        if (
+            blocks
+            and blocks[-1][0] + blocks[-1][2] == reg.address
+            and blocks[-1][1] + 2 * blocks[-1][2] == addr_reg.address
+        ):
+            d, a, c = blocks[-1]
+            blocks[-1] = (d, a, c + 1)
+        else:
+            blocks.append((reg.address, addr_reg.address, 1))
+    return blocks
 
 
 def _clamp16(v: int) -> int:

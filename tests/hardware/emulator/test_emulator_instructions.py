@@ -255,3 +255,28 @@ def test_log_records_decoded_packets() -> None:
     assert (entry.id, entry.instruction, entry.params) == (1, I.WRITE, wr(116, 1234, 4))
     assert chain.goal_writes() == [(entry.t_s, 1, 1234)]
     assert chain.instructions(I.WRITE) == [entry]
+
+
+def test_indirect_addressing_reads_and_writes_through() -> None:
+    chain, ser = quick_chain(ids=[1], model="XL430-W250")
+    servo = chain.servo(1)
+    # map Indirect Data 1..4 -> Present Position, 5..8 -> Goal Position
+    for i in range(4):
+        assert transact(ser, 1, I.WRITE, wr(168 + 2 * i, 132 + i, 2))[0].error == OK
+        assert transact(ser, 1, I.WRITE, wr(176 + 2 * i, 116 + i, 2))[0].error == OK
+    servo.move_by_hand(1234)
+    (st,) = transact(ser, 1, I.READ, rd(224, 4))
+    assert int.from_bytes(st.data, "little") == 1234
+    assert transact(ser, 1, I.WRITE, wr(228, 2222, 4))[0].error == OK
+    assert servo.read_register("Goal Position") == 2222
+    assert transact(ser, 1, I.WRITE, le(228, 2) + le(7, 2))[0].error == LENGTH  # half a Goal Position
+    assert transact(ser, 1, I.WRITE, wr(224, 5, 4))[0].error == ACCESS  # Present Position is read-only
+
+
+def test_id_and_baud_changed_through_test_hooks_are_heard() -> None:
+    chain, ser = quick_chain(ids=[1, 2])
+    assert len(transact(ser, 2, I.PING)) == 1
+    chain.servo(2).write_register("ID", 12)
+    assert transact(ser, 2, I.PING) == [] and transact(ser, 12, I.PING)[0].id == 12
+    chain.servo(1).write_register("Baud Rate", 1)
+    assert transact(ser, 1, I.PING) == []

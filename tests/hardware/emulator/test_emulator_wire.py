@@ -103,3 +103,14 @@ def test_closed_endpoint_raises() -> None:
     ser.close()
     with pytest.raises(PortClosedError):
         ser.write(b"\x00")
+
+
+def test_packet_delivery_hands_over_whole_status_packets() -> None:
+    chain = ServoChain.create(ids=[1], wire_time=True, clock="manual", delivery="packet")
+    chain.servo(1).write_register("Return Delay Time", 0)
+    ser = chain.open_serial()
+    ser.write(build_instruction(1, 0x01))
+    chain.advance((10 + 13) * BYTE_1M)
+    assert ser.in_waiting == 0  # 13 of 14 bytes on the wire: nothing handed over yet
+    chain.advance(BYTE_1M + 1e-7)
+    assert len(ser.read(100)) == 14
