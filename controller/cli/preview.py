@@ -31,7 +31,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="WIDTHxHEIGHT in pixels (default 640x480; per cell with --all, default 320x240)",
     )
-    parser.add_argument("--view", default="front", choices=["front", "three-quarter", "side"])
+    parser.add_argument(
+        "--view",
+        default=None,
+        choices=["front", "three-quarter", "side"],
+        help="camera (default: front for a human head, three-quarter for a dog)",
+    )
     parser.add_argument("--duration", type=float, default=2.0, help="clip length in seconds (default 2.0)")
     parser.add_argument("--fps", type=float, default=20.0, help="clip frame rate (default 20)")
     parser.add_argument(
@@ -77,8 +82,8 @@ def run(args: argparse.Namespace) -> int:
             return _fail(str(err))
 
     from sim.expressions import load_library
-
     from sim.heads import load_head
+    from sim.render.camera import default_view
     from sim.render.clips import clip_frames, library_sheet, pick_expression, render_aus
     from sim.render.images import save_image
     from sim.render.renderer import HeadRenderer
@@ -95,8 +100,9 @@ def run(args: argparse.Namespace) -> int:
         return _fail(str(err))
 
     show = False if args.quiet else None
+    view = args.view or default_view(head.face_type)
     try:
-        with HeadRenderer(width, height, view=args.view) as renderer:
+        with HeadRenderer(width, height, view=view) as renderer:
             if args.all:
                 sheet, names = library_sheet(renderer, head, library, args.columns, show_progress=show)
                 save_image(sheet, args.output)

@@ -49,6 +49,14 @@ class CameraSetup:
     zfar_mm: float
 
 
+DEFAULT_VIEWS: dict[str, View] = {"human": "front", "dog": "three-quarter"}  # a dog's snout reads from aside
+
+
+def default_view(face_type: str) -> View:
+    """The view that reads best for a face type: front for a human face, three-quarter for a dog."""
+    return DEFAULT_VIEWS.get(face_type, "front")
+
+
 def check_view(view: str) -> View:
     if view not in VIEWS:
         raise ValueError(f"unknown view {view!r}; expected one of {sorted(VIEWS)}")

@@ -39,7 +39,9 @@ class MeshItem:
     name: str = ""
 
 
-def _material(pyrender: Any, name: str, rgba: Sequence[float], vertex_colored: bool = False) -> Any:
+def _material(
+    pyrender: Any, name: str, rgba: Sequence[float], vertex_colored: bool = False, double_sided: bool = False
+) -> Any:
     finish = finish_for(name)
     base = np.ones(4) if vertex_colored else srgb_to_linear(tuple(rgba))
     return pyrender.MetallicRoughnessMaterial(
@@ -47,6 +49,7 @@ def _material(pyrender: Any, name: str, rgba: Sequence[float], vertex_colored: b
         metallicFactor=finish.metallic,
         roughnessFactor=finish.roughness,
         alphaMode="BLEND" if base[3] < 1.0 else "OPAQUE",
+        doubleSided=double_sided,
     )
 
 
@@ -211,7 +214,14 @@ class MeshScene:
             normals=np.asarray(normals, dtype=np.float32),
             indices=np.asarray(faces, dtype=np.uint32),
             color_0=colors,
-            material=_material(pr, name, item.color_rgba, vertex_colored=colors is not None),
+            # an open mesh (an iris disc, an ear flap) is drawn from both sides, whatever its winding
+            material=_material(
+                pr,
+                name,
+                item.color_rgba,
+                vertex_colored=colors is not None,
+                double_sided=not mesh.is_watertight,
+            ),
         )
         return pr.Mesh([prim], name=name)
 

@@ -181,3 +181,13 @@ def test_colours_are_linearised_and_eyes_painted() -> None:
     back = np.argmin(EYE.vertices[:, 2])
     assert colours[front, :3].max() < 0.05  # pupil
     assert colours[back, :3].min() > 0.8  # sclera
+
+
+def test_missing_egl_is_a_render_error_with_an_install_hint(monkeypatch: pytest.MonkeyPatch) -> None:
+    import sim.render.backend as backend
+
+    monkeypatch.setenv("PYOPENGL_PLATFORM", "egl")
+    monkeypatch.setattr(backend.ctypes.util, "find_library", lambda name: None)
+    assert "apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri" in (backend.egl_missing_reason() or "")
+    with pytest.raises(RenderError, match="libEGL not found"):
+        HeadRenderer(32, 32)

@@ -43,7 +43,8 @@ void main()
     base *= color_multiplier;
 #endif
 #ifdef NORMAL_LOC
-    vec3 n = normalize(frag_normal);
+    // two-sided lighting: a back face seen (open, double-sided meshes) is lit as its other side
+    vec3 n = gl_FrontFacing ? normalize(frag_normal) : -normalize(frag_normal);
 #else
     vec3 n = normalize(cross(dFdx(frag_position), dFdy(frag_position)));
 #endif
