@@ -190,3 +190,11 @@ def test_a_table_naming_a_missing_muscle_fails_to_bind(tmp_path: Path) -> None:
         AUMapping(table, ["procerus"], [])
     with pytest.raises(HeadProfileError, match="not found"):
         load_au_table(tmp_path / "nope.toml")
+
+
+@pytest.mark.parametrize("face_type", ["human", "dog"])
+def test_table_names_match_the_controllers_fallback_sets(face_type: str) -> None:
+    """The controller validates frames with these names when it cannot load a table: keep them equal."""
+    from controller.au_names import builtin_au_names
+
+    assert load_au_table(face_type).names() == builtin_au_names(face_type)  # type: ignore[arg-type]
