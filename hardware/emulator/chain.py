@@ -11,7 +11,7 @@ from __future__ import annotations
 import threading
 from collections import deque
 from collections.abc import Callable, Iterable
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from hardware.emulator.clock import ManualClock, RealClock
 from hardware.emulator.errors import EmulatorConfigError
@@ -70,7 +70,8 @@ class ServoChain:
         self.delivery = delivery
         self.baud = int(baud)
         self.reboot_silence_s = REBOOT_SILENCE_S
-        self.log: deque[LogEntry] = deque(maxlen=log_limit)
+        self.log: list[LogEntry] = []
+        self._log_limit = log_limit
         self.faults = FaultSchedule(self._clock, lambda: {s.uid for s in self.servos})
         self.servos: list[EmulatedServo] = []
         seen: set[int] = set()
@@ -95,7 +96,7 @@ class ServoChain:
         self._tx_free_s = 0.0  # host -> servos line busy until
         self._rx_free_s = 0.0  # servos -> host line busy until
         # pending reply bytes: [data, start_s, byte_s, bytes already read, readable only whole]
-        self._rx: deque[list] = deque()  # type: ignore[type-arg]
+        self._rx: deque[list[Any]] = deque()
         self._pty: object | None = None
         self._closed = False
 
@@ -215,7 +216,10 @@ class ServoChain:
 
     def _handle(self, packet: Packet, t_rx: float, host_baud: int) -> None:
         if packet.crc_ok:
-            self.log.append(LogEntry(t_rx, packet.id, packet.instruction, packet.params))
+            log = self.log
+            log.append(LogEntry(t_rx, packet.id, packet.instruction, packet.params))
+            if self._log_limit is not None and len(log) > self._log_limit:
+                del log[: len(log) - self._log_limit // 2]  # keep the newer half (amortised O(1))
         listeners = self._listeners(t_rx, host_baud)
         if not listeners:
             return
