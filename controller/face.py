@@ -1,0 +1,242 @@
+"""`Face`: the ten-line Python API. Open a head on a port or on the emulator, set AUs or an expression,
+play a script, look at a point, close safely.
+
+    from controller.face import Face
+
+    with Face.open("human", emulate=True) as face:      # or Face.open("my_head/", port="/dev/ttyUSB0")
+        face.express("happiness", hold_s=1.0)
+        face.set_aus({"AU1": 0.6, "AU2": 0.6}, transition_s=0.3)
+        face.look_at((150.0, 40.0, 600.0))              # mm, head frame: +x the head's left, +y up, +z ahead
+        face.play("controller/scripts/human_performance.toml")
+    # leaving the block eases to neutral, turns torque off and closes the port
+
+Every call runs the fixed-rate loop in the calling thread (which therefore owns the bus) until its motion
+is done; every frame passes the twin gate. ``face.traces`` keeps the recent frame traces.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+from calibration import HeadCalibration, load_calibration
+from controller.alive.gaze import gaze_config_for, solve_look_at
+from controller.alive.gaze_layer import angles_to_aus
+from controller.errors import ControllerError
+from controller.frame import FrameValidator
+from controller.head_servos import servo_specs, temperature_limits_c
+from controller.performance import Performance, play_timeline
+from controller.pipeline import FrameTrace, Pipeline
+from controller.script import Script, load_script
+from controller.timeline import ChannelClip, Key, Timeline, min_jerk
+from hardware.bus import ServoBus, open_bus
+from hardware.driver import Driver
+from sim.expressions import load_library
+from sim.head import Head
+from sim.heads import load_head
+
+_GAZE_AUS = frozenset({"AU51", "AU52", "AU53", "AU54", "AU55", "AU56", "AU61", "AU62", "AU63", "AU64"})
+_DOG_GAZE_AUS = frozenset({"AU9", "AU10", "AU11", "AU12", "AU13"})
+
+
+def head_calibration(head: Head, calibration: HeadCalibration | str | Path | None = None) -> HeadCalibration:
+    """The calibration given, or the one the head profile names."""
+    if isinstance(calibration, HeadCalibration):
+        return calibration
+    path = calibration if calibration is not None else head.calibration_path
+    if path is None:
+        raise ControllerError(
+            f"head {head.name!r} names no calibration file; run `servoface calibrate --head ...` first"
+        )
+    return load_calibration(path)
+
+
+class Face:
+    """A head driven through the whole pipeline. Build it with `Face.open`."""
+
+    def __init__(
+        self,
+        head: Head,
+        pipeline: Pipeline,
+        *,
+        driver: Driver | None = None,
+        bus: ServoBus | None = None,
+        chain: Any = None,
+        history: int = 3000,
+    ) -> None:
+        self.head = head
+        self.pipeline = pipeline
+        self.driver = driver
+        self.bus = bus
+        self.chain = chain  # the emulated chain, when emulating
+        self.validator = FrameValidator(head.face_type)
+        self.pose: dict[str, float] = {}
+        self.t_s = 0.0
+        self.traces: deque[FrameTrace] = deque(maxlen=history)
+        self._closed = False
+
+    # -- opening ------------------------------------------------------------------------------------
+    @classmethod
+    def open(
+        cls,
+        head: str | Path | Head = "human",
+        *,
+        port: str | None = None,
+        baud: int = 1_000_000,
+        emulate: bool = False,
+        wire_time: bool = True,
+        rate_hz: float = 50.0,
+        calibration: HeadCalibration | str | Path | None = None,
+        fast_sync_read: bool = False,
+    ) -> Face:
+        """Open ``head`` (built-in name, profile folder, or a loaded Head) on ``port`` or on the emulator.
+
+        The servos are configured from the profile and calibration (EEPROM only with torque off, limits
+        written as a hardware backstop), torque goes on with goals pinned to present positions, and the
+        pipeline starts from where the servos are.
+        """
+        if (port is None) == (not emulate):
+            raise ControllerError("Face.open: give exactly one of port='/dev/ttyUSB0' or emulate=True")
+        the_head = head if isinstance(head, Head) else load_head(head)
+        cal = head_calibration(the_head, calibration)
+        specs = servo_specs(the_head, cal)
+        chain = None
+        if emulate:
+            from hardware.emulator import ServoChain
+
+            chain = ServoChain.create([(s.servo_id, s.model) for s in specs], baud=baud, wire_time=wire_time)
+            for s in specs:  # the head powers up at rest
+                chain.servo(s.servo_id).move_by_hand(cal.by_id(s.servo_id).neutral_tick)
+            bus = open_bus("dynamixel", port=chain, baud=baud)
+        else:
+            bus = open_bus("dynamixel", port=port, baud=baud)
+        try:
+            driver = Driver(bus, specs, fast_sync_read=fast_sync_read)
+            driver.configure()
+            driver.torque_on()
+            pipeline = Pipeline(the_head, cal, driver=driver, rate_hz=rate_hz,
+                                temperature_limits_c=temperature_limits_c(specs))
+            snapshot = driver.read_state()
+            lo_hi = cal.position_limits_tick()
+            present = {
+                sid: min(max(tick, lo_hi[sid][0]), lo_hi[sid][1])
+                for sid, tick in snapshot.positions_tick().items()
+            }
+            pipeline.pin_to(present)
+            pipeline.last_snapshot = snapshot
+        except BaseException:
+            bus.close()
+            if chain is not None:
+                chain.close()
+            raise
+        return cls(the_head, pipeline, driver=driver, bus=bus, chain=chain)
+
+    @classmethod
+    def offline(cls, head: str | Path | Head = "human", *, rate_hz: float = 50.0,
+                calibration: HeadCalibration | str | Path | None = None) -> Face:
+        """The pipeline without a bus: muscle model, calibration and twin gate only (previews, checks)."""
+        the_head = head if isinstance(head, Head) else load_head(head)
+        return cls(the_head, Pipeline(the_head, head_calibration(the_head, calibration), rate_hz=rate_hz))
+
+    # -- motion -------------------------------------------------------------------------------------
+    def _run(self, timeline: Timeline | Script, duration_s: float) -> Performance:
+        self._check_open()
+        perf = play_timeline(self.pipeline, timeline, duration_s, start_s=0.0,
+                             on_frame=self.traces.append, keep_traces=True, stop_on_interrupt=True)
+        self.t_s += duration_s
+        if perf.traces:
+            self.pose = dict(perf.traces[-1].aus)
+        return perf
+
+    def set_aus(self, aus: Mapping[str, float], *, transition_s: float = 0.4, hold_s: float = 0.0) -> Performance:
+        """Move to the AU pose ``aus`` (AUs not named go to 0) over ``transition_s``, then hold."""
+        pose = self.validator.pose(dict(aus), where="set_aus")
+        for name, value in (("transition_s", transition_s), ("hold_s", hold_s)):
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+                raise ControllerError(f"set_aus: {name} must be a finite number of seconds >= 0, got {value!r}")
+        transition = max(float(transition_s), 1.0 / self.pipeline.rate_hz)
+        duration = transition + float(hold_s)
+        timeline = Timeline(self.head.face_type, initial_pose=self.pose)
+        channels = {
+            au: (Key(0.0, None), Key(transition, value, min_jerk), Key(duration, value)) for au, value in pose.items()
+        }
+        clip = ChannelClip(channels, duration, unlisted="to_zero", release_s=transition,
+                           release_easing=min_jerk, name="set_aus")
+        timeline.play(clip)
+        return self._run(timeline, duration)
+
+    def express(self, name: str, *, intensity: float = 1.0, transition_s: float = 0.5,
+                hold_s: float = 1.0) -> Performance:
+        """Move to a named expression's apex (scaled by ``intensity``) and hold it."""
+        library = load_library(self.head.expressions_path or self.head.face_type)
+        if name not in library:
+            raise ControllerError(f"unknown expression {name!r}; known: {sorted(library)}")
+        if not (isinstance(intensity, int | float) and math.isfinite(intensity) and 0 <= intensity <= 1):
+            raise ControllerError(f"express: intensity must be within 0..1, got {intensity!r}")
+        apex = {au: v * float(intensity) for au, v in library[name].apex().items()}
+        return self.set_aus(apex, transition_s=transition_s, hold_s=hold_s)
+
+    def neutral(self, transition_s: float = 0.6) -> Performance:
+        return self.set_aus({}, transition_s=transition_s)
+
+    def look_at(self, point_mm: tuple[float, float, float], *, transition_s: float = 0.5) -> Performance:
+        """Turn eyes and head towards a point (head frame, mm); eyes lead, the neck takes the rest."""
+        if len(point_mm) != 3 or not all(isinstance(v, int | float) and math.isfinite(v) for v in point_mm):
+            raise ControllerError(f"look_at: point_mm must be three finite numbers (x, y, z) in mm, got {point_mm!r}")
+        cfg = gaze_config_for(self.head.face_type, self.head)
+        gaze = solve_look_at(tuple(float(v) for v in point_mm), cfg)  # type: ignore[arg-type]
+        gaze_aus = angles_to_aus(self.head.face_type, cfg, gaze.head_yaw_deg, gaze.head_pitch_deg,
+                                 gaze.eye_yaw_deg, gaze.eye_pitch_deg)
+        keep = _GAZE_AUS if self.head.face_type == "human" else _DOG_GAZE_AUS
+        pose = {au: v for au, v in self.pose.items() if au not in keep}
+        pose.update({au: v for au, v in gaze_aus.items() if abs(v) > 1e-9})
+        return self.set_aus(pose, transition_s=transition_s)
+
+    def play(self, script: Script | str | Path) -> Performance:
+        """Play a timeline script (a TOML file or a loaded Script) to its end."""
+        loaded = script if isinstance(script, Script) else load_script(script)
+        if loaded.face_type != self.head.face_type:
+            raise ControllerError(
+                f"script {loaded.source} is for a {loaded.face_type} face; head {self.head.name!r} is {self.head.face_type}"
+            )
+        return self._run(loaded, loaded.end_s)
+
+    def hold(self, seconds: float) -> Performance:
+        return self.set_aus(self.pose, transition_s=0.0, hold_s=seconds)
+
+    # -- closing ------------------------------------------------------------------------------------
+    def _check_open(self) -> None:
+        if self._closed:
+            raise ControllerError("this Face is closed")
+
+    def close(self, *, ease_s: float = 0.8) -> None:
+        """Ease to neutral, turn torque off, close the port (and the emulator). Safe to call twice."""
+        if self._closed:
+            return
+        try:
+            if self.driver is not None and ease_s > 0:
+                try:
+                    self.neutral(ease_s)
+                except Exception:  # a broken bus must not keep the torque on
+                    pass
+        finally:
+            self._closed = True
+            try:
+                if self.driver is not None:
+                    self.driver.close(torque_off=True)
+                elif self.bus is not None:
+                    self.bus.close()
+            finally:
+                if self.chain is not None:
+                    self.chain.close()
+
+    def __enter__(self) -> Face:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()

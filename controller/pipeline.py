@@ -1,0 +1,189 @@
+"""One control frame through the whole chain: AU frame -> muscle model -> actuator targets -> calibration
+-> goals -> twin gate -> driver.
+
+`Pipeline.step` runs one frame and returns a `FrameTrace` a user can inspect: AUs in, targets, goals,
+verdict and reasons, bytes written, stage timings. Nothing reaches the driver without a gate verdict, and a
+frame whose input is invalid raises before anything is computed or sent.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from calibration import HeadCalibration
+from controller.errors import FrameError
+from controller.frame import AUFrame
+from controller.telemetry import gate_health
+from hardware.driver import Driver
+from hardware.snapshot import ChainSnapshot
+from sim.errors import SimError
+from sim.face_model import FaceModel
+from sim.gate import GateConfig, TwinGate, Verdict
+from sim.head import Head
+
+
+@dataclass(frozen=True)
+class FrameTrace:
+    """What happened to one frame (all dicts are copies; safe to keep)."""
+
+    index: int
+    t_s: float
+    aus: dict[str, float]
+    targets: dict[str, float]  # role -> deg / mm, as the muscle model asked
+    target_clamps: tuple[str, ...]  # reasons: targets outside the calibrated range, clamped into it
+    goals_requested: dict[int, int]  # id -> tick, from the (clamped) targets
+    verdict: str  # accept / clip / reject (clip also when only target clamps fired)
+    checks: tuple[str, ...]
+    reasons: tuple[str, ...]
+    goals_sent: dict[int, int]  # what the gate let through (== what the driver was given)
+    bytes_written: int  # bytes the bus wrote during this frame (0 without a driver)
+    timings_ms: dict[str, float] = field(default_factory=dict)
+    late_s: float = 0.0
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "index": self.index,
+            "t_s": round(self.t_s, 6),
+            "aus": {k: round(v, 4) for k, v in self.aus.items()},
+            "targets": {k: round(v, 3) for k, v in self.targets.items()},
+            "target_clamps": list(self.target_clamps),
+            "goals_requested": {str(k): v for k, v in self.goals_requested.items()},
+            "verdict": self.verdict,
+            "checks": list(self.checks),
+            "reasons": list(self.reasons),
+            "goals_sent": {str(k): v for k, v in self.goals_sent.items()},
+            "bytes_written": self.bytes_written,
+            "timings_ms": {k: round(v, 4) for k, v in self.timings_ms.items()},
+            "late_s": round(self.late_s, 6),
+        }
+
+
+class Pipeline:
+    """The per-frame chain for one head. ``driver`` may be None (offline: the gate still runs).
+
+    ``last_goals_tick`` starts at the calibration's neutral goals, or at the servos' present positions when
+    the caller pins them (`pin_to`), so the first frame is rate-checked against where the head really is.
+    """
+
+    def __init__(
+        self,
+        head: Head,
+        calibration: HeadCalibration,
+        *,
+        driver: Driver | None = None,
+        rate_hz: float = 50.0,
+        gate_config: GateConfig | None = None,
+        face: FaceModel | None = None,
+        gate: TwinGate | None = None,
+        temperature_limits_c: Mapping[int, float] | None = None,
+    ) -> None:
+        self.head = head
+        self.calibration = calibration
+        self.driver = driver
+        self.rate_hz = float(rate_hz)
+        self.face = face or FaceModel(head)
+        self.gate = gate or TwinGate(head, calibration, 1.0 / self.rate_hz, gate_config, face_model=self.face)
+        missing = sorted(set(head.roles) - set(calibration.roles))
+        if missing:
+            raise SimError(f"calibration for head {head.name!r} lacks servo role(s) {missing}")
+        self._servos = [calibration[r] for r in head.roles]
+        self._lo = np.array([s.min_target for s in self._servos])
+        self._hi = np.array([s.max_target for s in self._servos])
+        self.last_goals_tick: dict[int, int] = calibration.neutral_goals()
+        self.temperature_limits_c = dict(temperature_limits_c or {})
+        self._ids = frozenset(s.servo_id for s in self._servos)
+        self.last_snapshot: ChainSnapshot | None = None
+        self._index = 0
+
+    # -- state ------------------------------------------------------------------------------------
+    def pin_to(self, goals_tick: Mapping[int, int]) -> None:
+        """Take ``goals_tick`` (e.g. present positions after torque-on) as the last safe command."""
+        known = {s.servo_id for s in self._servos}
+        unknown = sorted(set(goals_tick) - known)
+        if unknown:
+            raise SimError(f"pin_to: servo id(s) {unknown} are not in head {self.head.name!r}")
+        self.last_goals_tick = {**self.last_goals_tick, **{int(k): int(v) for k, v in goals_tick.items()}}
+
+    # -- one frame --------------------------------------------------------------------------------
+    def targets_for(self, aus: Mapping[str, float]) -> dict[str, float]:
+        """Actuator targets (role -> deg/mm) the muscle model asks for (validates the AUs)."""
+        return dict(self.face.solve(aus).actuator_targets)
+
+    def clamp_targets(self, targets: Mapping[str, float]) -> tuple[dict[str, float], list[str]]:
+        """Targets clamped into each servo's calibrated range, with one reason per clamp."""
+        values = np.array([float(targets.get(s.role, s.neutral_target)) for s in self._servos])
+        if not np.all(np.isfinite(values)):
+            bad = [s.role for s, v in zip(self._servos, values, strict=True) if not np.isfinite(v)]
+            raise FrameError(f"muscle model produced non-finite targets for {bad}")
+        clamped = np.clip(values, self._lo, self._hi)
+        reasons = [
+            f"[target] {s.role}: {v:.2f} {s.unit} outside the calibrated {lo:.2f}..{hi:.2f}, clamped"
+            for s, v, lo, hi, c in zip(self._servos, values, self._lo, self._hi, clamped, strict=True)
+            if abs(v - c) > 1e-6 * max(1.0, hi - lo)
+        ]
+        return {s.role: float(c) for s, c in zip(self._servos, clamped, strict=True)}, reasons
+
+    def step(self, frame: AUFrame | Mapping[str, float], t_s: float | None = None, late_s: float = 0.0) -> FrameTrace:
+        """Run one frame. Raises (FrameError / sim errors) on invalid input, before anything is sent."""
+        timings: dict[str, float] = {}
+        t0 = time.perf_counter()
+        aus = dict(frame.aus) if isinstance(frame, AUFrame) else dict(frame)
+        t = frame.t_s if isinstance(frame, AUFrame) and t_s is None else float(t_s or 0.0)
+        targets = self.targets_for(aus)
+        t1 = time.perf_counter()
+        timings["muscle_ms"] = (t1 - t0) * 1e3
+        clamped, clamp_reasons = self.clamp_targets(targets)
+        requested = self.calibration.targets_to_goals(clamped)
+        t2 = time.perf_counter()
+        timings["calibration_ms"] = (t2 - t1) * 1e3
+        health = (
+            gate_health(self.last_snapshot, self.temperature_limits_c, self._ids)
+            if self.last_snapshot is not None
+            else None
+        )
+        verdict: Verdict = self.gate.check(requested, self.last_goals_tick, health)
+        t3 = time.perf_counter()
+        timings["gate_ms"] = (t3 - t2) * 1e3
+        sent = dict(verdict.goals_tick)
+        written = 0
+        if self.driver is not None:
+            before = self.driver.bus.stats.bytes_written
+            self.last_snapshot = self.driver.cycle(sent)
+            written = self.driver.bus.stats.bytes_written - before
+        t4 = time.perf_counter()
+        timings["bus_ms"] = (t4 - t3) * 1e3
+        timings["total_ms"] = (t4 - t0) * 1e3
+        self.last_goals_tick = sent
+        kind = verdict.kind
+        if kind == "accept" and clamp_reasons:
+            kind = "clip"
+        checks = tuple(dict.fromkeys((["target"] if clamp_reasons else []) + list(verdict.checks)))
+        trace = FrameTrace(
+            index=self._index,
+            t_s=t,
+            aus=aus,
+            targets=dict(targets),
+            target_clamps=tuple(clamp_reasons),
+            goals_requested=dict(requested),
+            verdict=kind,
+            checks=checks,
+            reasons=tuple(clamp_reasons + verdict.reasons()),
+            goals_sent=sent,
+            bytes_written=written,
+            timings_ms=timings,
+            late_s=late_s,
+        )
+        self._index += 1
+        return trace
+
+    def hold(self) -> ChainSnapshot | None:
+        """Re-send the last safe command (e.g. while nothing plays) and refresh telemetry."""
+        if self.driver is None:
+            return None
+        self.last_snapshot = self.driver.cycle(self.last_goals_tick)
+        return self.last_snapshot
