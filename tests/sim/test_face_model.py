@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from sim.errors import ActionUnitValueError, SimError, UnknownActionUnitError
 from sim.expressions import load_library
@@ -291,3 +293,51 @@ def test_twin_missing_roles_sit_at_neutral_and_bad_roles_raise(model: FaceModel)
         model.pose_from_targets({"tail": 1.0})
     with pytest.raises(SimError, match="jaw"):
         model.pose_from_targets({"jaw": float("inf")})
+
+
+_MODEL = None
+
+
+def _shared_model() -> FaceModel:
+    global _MODEL
+    if _MODEL is None:
+        _MODEL = FaceModel(synthetic_human())
+    return _MODEL
+
+
+_HUMAN_AUS = sorted(load_library("human")["fear"].apex()) + ["AU12L", "AU15R", "AU45", "AU5", "AU51", "AU27"]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.dictionaries(st.sampled_from(_HUMAN_AUS), st.floats(0.0, 1.0), max_size=8))
+def test_any_valid_frame_stays_within_every_limit(aus: dict[str, float]) -> None:
+    model = _shared_model()
+    sol = model.solve_detailed(aus)
+    assert all(0.0 <= c <= 1.0 for c in sol.contractions.values())
+    for joint in model.head.joints:
+        assert joint.lower_deg <= sol.pose.joint_deg[joint.name] <= joint.upper_deg
+    for act in model.anchor_actuators:
+        assert act.lower_mm <= sol.pose.actuator_targets[act.role] <= act.upper_mm
+    assert np.all(np.isfinite(sol.pose.skin_offset_mm))
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.sampled_from(_HUMAN_AUS),
+    st.one_of(st.floats(allow_nan=True, allow_infinity=True).filter(lambda x: not 0.0 <= x <= 1.0)),
+)
+def test_any_out_of_range_value_raises_naming_the_au(name: str, value: float) -> None:
+    with pytest.raises(ActionUnitValueError) as info:
+        _shared_model().solve({"AU1": 0.2, name: value})
+    assert name in str(info.value)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(0.0, 1.0), st.floats(0.0, 1.0))
+def test_intensity_scales_the_skin_linearly_below_the_limits(a: float, b: float) -> None:
+    model = _shared_model()
+    # AU15 alone drives one linear muscle per side: the skin is linear in the intensity
+    pa = model.solve({"AU15": a}).skin_offset_mm
+    pb = model.solve({"AU15": b}).skin_offset_mm
+    unit = model.solve({"AU15": 1.0}).skin_offset_mm
+    assert np.allclose(pa, a * unit) and np.allclose(pb, b * unit)

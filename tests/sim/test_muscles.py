@@ -306,3 +306,17 @@ def test_linear_and_sheet_fields_are_linear_in_contraction(c1: float, c2: float,
     mix = field.offsets(t * x + (1 - t) * y)
     assert np.allclose(mix, t * field.offsets(x) + (1 - t) * field.offsets(y), atol=1e-9)
     assert np.allclose(field.offsets(np.zeros(2)), 0.0)
+
+
+def test_field_turns_eyelid_regions_with_their_joint_only() -> None:
+    rng = np.random.default_rng(5)
+    pts = rng.normal(size=(500, 3))
+    pts = pts / np.linalg.norm(pts, axis=1)[:, None] * rng.uniform(11.0, 15.0, size=(500, 1))
+    lid = EyelidMuscle("lid_l", (0.0, 0.0, 0.0), 10.0, "upper_lid_l")
+    field = MuscleField([_ring(), lid], pts)
+    assert field.names == ("o",)  # eyelids are driven by joints, not contractions
+    still = field.offsets(np.zeros(1), {"upper_lid_r": 30.0})
+    moved = field.offsets(np.zeros(1), {"upper_lid_l": 30.0})
+    assert np.allclose(still, 0.0)
+    assert np.abs(moved).max() > 1.0
+    assert np.all(moved[pts[:, 1] < 0] == 0.0)  # only the upper region turns
