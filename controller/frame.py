@@ -70,7 +70,7 @@ def validate_aus(
     out: dict[str, float] = {}
     for raw, value in aus.items():
         field = f"{where}.{raw}" if where else str(raw)
-        name = canonical_au(raw, field=field)
+        name = raw if names is not None and raw in names else canonical_au(raw, field=field)
         if names is not None and name not in names:
             raise FrameError(
                 f"{field}: {name} is not an AU of the {face_type} face; expected one of {_sample(names)}"

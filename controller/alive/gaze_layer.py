@@ -80,6 +80,8 @@ class GazeShift:
 class GazeLayer:
     """Scheduled gaze shifts for one face; a timeline layer (name it "gaze")."""
 
+    uses_below = False
+
     def __init__(self, face_type: FaceType, config: GazeConfig | None = None) -> None:
         self.face_type = face_type
         self.config = config or gaze_config_for(face_type)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
@@ -59,6 +60,7 @@ class IdleLayer:
     config: IdleConfig = field(default_factory=IdleConfig)
     gaze: GazeConfig | None = None  # AU full scales; None = gaze_config_for(face_type)
     busy: Callable[[float], bool] | None = None
+    uses_below: ClassVar[bool] = False
 
     def __post_init__(self) -> None:
         self._scale: GazeConfig = self.gaze if self.gaze is not None else gaze_config_for(self.face_type)

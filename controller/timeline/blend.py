@@ -84,10 +84,12 @@ class BlendPolicy:
         )
 
     def rule_for(self, au: str) -> BlendRule:
-        if au in self.rules:
-            return self.rules[au]
-        base = f"AU{au_number(au)}"
-        return self.rules.get(base, self.default)
+        cache: dict[str, BlendRule] = self.__dict__.setdefault("_rule_cache", {})
+        rule = cache.get(au)
+        if rule is None:
+            rule = self.rules.get(au) or self.rules.get(f"AU{au_number(au)}", self.default)
+            cache[au] = rule
+        return rule
 
     def rank(self, track: str, order: int) -> tuple[int, int]:
         """Sort key: listed tracks by their priority, then unlisted tracks in layer order."""

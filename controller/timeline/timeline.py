@@ -25,7 +25,11 @@ STANDARD_TRACKS: tuple[str, ...] = ("face", "gesture", "speech", "head", "gaze")
 
 
 class Layer(Protocol):
-    """Anything that yields AUs for a time, given the blend of the layers below it."""
+    """Anything that yields AUs for a time, given the blend of the layers below it.
+
+    A layer that ignores ``below`` may say so with a class attribute ``uses_below = False``; the timeline
+    then skips blending before calling it (an optimisation only; it is handed a stale mapping).
+    """
 
     def sample(self, t_s: float, below: Pose) -> Mapping[str, float]: ...
 
@@ -97,12 +101,17 @@ class Timeline:
         """Blended AU intensities at ``t_s`` (no validation; zeros dropped)."""
         contributions: list[tuple[str, Mapping[str, float]]] = []
         below: dict[str, float] = {}
+        fresh = True
         lo, hi = self._range
         for name, layer in self._layers.items():
+            if not fresh and getattr(layer, "uses_below", True):
+                below, fresh = self.blend.blend(contributions, lo, hi), True
             aus = layer.sample(t_s, below)
             if aus:
                 contributions.append((name, aus))
-                below = self.blend.blend(contributions, lo, hi)
+                fresh = False
+        if not fresh:
+            below = self.blend.blend(contributions, lo, hi)
         return {au: v for au, v in below.items() if abs(v) > 1e-12}
 
     def sample(self, t_s: float) -> AUFrame:

@@ -32,6 +32,8 @@ class Placed:
 class Track:
     """Placed clips on one named track (e.g. "face", "gesture", "speech")."""
 
+    uses_below = False
+
     def __init__(self, name: str, initial_pose: Pose | None = None) -> None:
         self.name = name
         self.initial_pose: dict[str, float] = dict(initial_pose or {})

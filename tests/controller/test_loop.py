@@ -156,3 +156,24 @@ def test_real_clock_smoke() -> None:
     stats = loop.run(max_frames=3)
     assert stats.frames == 3 and len(indices) == 3
     assert indices == sorted(set(indices)) and indices[-1] == 2 + stats.missed
+
+
+def test_ctrl_c_stops_cleanly_inside_stop_on_sigint() -> None:
+    import os
+    import signal
+
+    from controller.loop import stop_on_sigint
+
+    clock = FakeClock()
+
+    def callback(tick: Tick) -> None:
+        clock.now += 0.001
+        if tick.index == 3:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    loop = FixedRateLoop(callback, 50.0, clock=clock, sleep=clock.sleep)
+    before = signal.getsignal(signal.SIGINT)
+    with stop_on_sigint(loop):
+        stats = loop.run(max_frames=100)
+    assert 4 <= stats.frames < 100  # stopped within a frame or so of the signal, no KeyboardInterrupt
+    assert signal.getsignal(signal.SIGINT) is before  # handler restored
