@@ -91,3 +91,20 @@ def dog_calibration():  # type: ignore[no-untyped-def]
     from calibration.fileformat import load_calibration
 
     return load_calibration(Path(__file__).resolve().parents[1] / "sim" / "heads" / "dog" / "calibration.json")
+
+
+# ---- head fixtures (heads engineer): the built-in heads, loaded once per process (cached by load_head) ----
+@_pytest.fixture
+def head():  # type: ignore[no-untyped-def]
+    """The built-in humanoid head (`sim.heads.load_head("human")`); treat it as read-only."""
+    from sim.heads import load_head
+
+    return load_head("human")
+
+
+@_pytest.fixture
+def dog_head():  # type: ignore[no-untyped-def]
+    """The built-in dog head (`sim.heads.load_head("dog")`); treat it as read-only."""
+    from sim.heads import load_head
+
+    return load_head("dog")

@@ -37,18 +37,21 @@ MUZZLE_RGBA = (0.93, 0.90, 0.84, 1.0)  # white blaze on the muzzle
 
 # profile tables along z (design coordinates)
 _Z = np.array([-78, -62, -35, -5, 25, 50, 70, 95, 120, 138, 146, 151, 154, 156, 157.0])
-_TOP = np.array([104, 138, 158, 162, 156, 140, 126, 122, 120, 117, 113, 105, 95, 84, 76.0])
+_TOP = np.array([104, 138, 158, 162, 156, 140, 126, 122, 120, 117, 113, 105, 95, 85, 78.0])
 _YC = np.array([96, 92, 88, 85, 82, 79, 78, 78, 78, 78, 78, 78, 78, 78, 78.0])
-_BOT = np.array([86, 58, 42, 36, 40, 50, 56, 60, 62, 64, 67, 70, 73, 75, 76.0])
+_BOT = np.array([86, 58, 42, 36, 40, 50, 56, 60, 62, 64, 67, 70, 73, 76, 78.0])
 _W = np.array([18, 50, 62, 67, 66, 56, 43, 38, 35, 32, 29, 26, 23, 20, 18.0])
 MOUTH_CORNER_Z = 78.0
 
 
 def _stations(n: int) -> F64:
-    """Station z values (design coords): denser towards the muzzle tip."""
-    s = np.linspace(0.0, 1.0, n)
-    warp = 1.0 - (1.0 - s) ** 1.6
-    return np.asarray(np.interp(warp, np.linspace(0, 1, len(_Z)), np.sort(_Z)), dtype=np.float64)
+    """Station z values (design coords): even in arc length of the profile, denser on the muzzle."""
+    zz = np.linspace(_Z[0], _Z[-1], 6000)
+    top, _, bot, w = (np.interp(zz, _Z, t) for t in (_TOP, _YC, _BOT, _W))
+    step = np.hypot(np.diff(zz), np.abs(np.diff(top)) + np.abs(np.diff(bot)) + np.abs(np.diff(w)))
+    dens = 1.0 + 0.8 * mt.smoothstep((zz[1:] - 40.0) / 30.0)
+    s = np.concatenate([[0.0], np.cumsum(step * dens)])
+    return np.asarray(np.interp(np.linspace(0.0, s[-1], n), s, zz), dtype=np.float64)
 
 
 def _ring_params(z: F64) -> tuple[F64, F64, F64, F64]:
@@ -58,9 +61,9 @@ def _ring_params(z: F64) -> tuple[F64, F64, F64, F64]:
 @lru_cache(maxsize=1)
 def _skin() -> tuple[F64, I64, F64]:
     ns, nu = 58, 88  # nu divisible by 4: columns at +-90 deg lie on the mouth line
-    zs = np.unique(np.concatenate([_stations(ns), _Z[-5:]]))
+    zs = _stations(ns)
     top, yc, bot, w = _ring_params(zs)
-    u = np.linspace(-np.pi, np.pi, nu, endpoint=False)  # 0 = top, +pi/2 = head's left (+x)
+    u = (np.arange(nu) - nu // 2) * (2.0 * np.pi / nu)  # 0 = top, +pi/2 = head's left (+x); exactly odd
     su, cu = np.sin(u)[None, :], np.cos(u)[None, :]
     upper = cu >= 0
     e_up, e_lo = 0.62, 0.85
@@ -88,6 +91,7 @@ def _skin() -> tuple[F64, I64, F64]:
     nz = len(zs)
     verts = np.stack([x, y, z], -1).reshape(-1, 3)
     faces = mt.grid_faces(nz, nu, periodic_u=True)[:, ::-1]
+    n_grid = len(faces)
     back = len(verts)
     verts = np.concatenate([verts, [[0.0, 100.0, -82.0]]])
     faces = np.concatenate([faces, mt.fan(np.arange(nu), back)])
@@ -102,8 +106,14 @@ def _skin() -> tuple[F64, I64, F64]:
     ring_of[back] = -1
     lower_col = np.abs(u) > np.pi / 2 + 1e-9
     side_col = np.isclose(np.abs(u), np.pi / 2)
+    # eye openings (projected along z), decided per grid quad so both sides match
+    cen = mt.quad_centres(verts, faces, n_grid)
+    hole = np.zeros(len(faces), dtype=bool)
+    for sx in (1.0, -1.0):
+        r = ((cen[:, 0] - sx * _EYE_L[0]) / _EYE_HOLE[0]) ** 2 + ((cen[:, 1] - _EYE_L[1]) / _EYE_HOLE[1]) ** 2
+        hole |= (r < 1.0) & (cen[:, 2] > 40.0) & (cen[:, 2] < 100.0) & (np.sign(cen[:, 0]) == sx)
     area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    faces = faces[area > 1e-9]
+    faces = faces[(area > 1e-9) & ~hole]
     # vertices on the mouth line: side columns from the corner forward, and the whole last ring
     last = nz - 1
     on_line = ((ring_of >= 0) & side_col[col_of] & (zs[np.clip(ring_of, 0, None)] > MOUTH_CORNER_Z)) | (
@@ -117,13 +127,6 @@ def _skin() -> tuple[F64, I64, F64]:
     ids = np.nonzero(on_line)[0]
     verts, faces, _ = mt.split_vertices(verts, faces, ids, f_low & on_line[faces].any(1))
 
-    # eye openings (projected along z)
-    cen = verts[faces].mean(1)
-    hole = np.zeros(len(faces), dtype=bool)
-    for sx in (1.0, -1.0):
-        r = ((cen[:, 0] - sx * _EYE_L[0]) / _EYE_HOLE[0]) ** 2 + ((cen[:, 1] - _EYE_L[1]) / _EYE_HOLE[1]) ** 2
-        hole |= (r < 1.0) & (cen[:, 2] > 40.0) & (cen[:, 2] < 100.0) & (np.sign(cen[:, 0]) == sx)
-    faces = faces[~hole]
     verts, faces, _ = mt.compact(verts, faces)
 
     col = np.tile(np.array(SKIN_RGBA), (len(verts), 1))
@@ -239,12 +242,12 @@ def jaw() -> tuple[F64, I64]:
 
 
 def tongue_root() -> tuple[F64, I64]:
-    v, f = mt.ellipsoid((0.0, 72.0, 105.0), (13.0, 3.5, 22.0), subdiv=3)
+    v, f = mt.ellipsoid((0.0, 73.5, 100.0), (13.0, 3.2, 20.0), subdiv=3)
     return _out(v, f)
 
 
 def tongue_tip() -> tuple[F64, I64]:
-    v, f = mt.ellipsoid((0.0, 72.5, 133.0), (11.5, 3.0, 11.0), subdiv=3)
+    v, f = mt.ellipsoid((0.0, 73.5, 131.0), (9.0, 2.8, 8.5), subdiv=3)
     return _out(v, f)
 
 
@@ -279,5 +282,5 @@ def ear(side: float) -> tuple[F64, I64]:
 
 
 EAR_BASE_L = tuple(float(v) for v in np.array([40.0, 146.0, -12.0]) + OFFSET)
-TONGUE_ROOT_PIVOT = tuple(float(v) for v in np.array([0.0, 72.0, 84.0]) + OFFSET)
-TONGUE_TIP_PIVOT = tuple(float(v) for v in np.array([0.0, 72.0, 124.0]) + OFFSET)
+TONGUE_ROOT_PIVOT = tuple(float(v) for v in np.array([0.0, 73.5, 80.0]) + OFFSET)
+TONGUE_TIP_PIVOT = tuple(float(v) for v in np.array([0.0, 73.5, 121.0]) + OFFSET)

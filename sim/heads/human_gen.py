@@ -61,7 +61,7 @@ def _rows(nv: int) -> F64:
 
 def _columns(nu: int) -> F64:
     """Azimuth of each column (rad), 0 = front, denser at the front."""
-    s = np.linspace(-1.0, 1.0, nu, endpoint=False)
+    s = (np.arange(nu) - nu // 2) * (2.0 / nu)  # exactly odd about the front column
     k = 1.2
     return np.asarray(np.pi * (s + k * s**3) / (1.0 + k), dtype=np.float64)
 
@@ -125,6 +125,7 @@ def _skin() -> tuple[F64, I64, F64, dict[str, int]]:
     z = z + _face_depth(x, y) * front
     verts = np.stack([x, y, z], -1).reshape(-1, 3)
     faces = mt.grid_faces(nv, nu, periodic_u=True)
+    n_grid = len(faces)
     pole = len(verts)
     verts = np.concatenate([verts, [[0.0, 236.0, -6.0]]])
     faces = np.concatenate([faces, mt.fan((nv - 1) * nu + np.arange(nu), pole)])
@@ -135,7 +136,7 @@ def _skin() -> tuple[F64, I64, F64, dict[str, int]]:
         faces = faces[:, ::-1].copy()
 
     # eye openings: drop faces whose centroid lies in the ellipse, snap the rim onto it
-    cen = verts[faces].mean(1)
+    cen = mt.quad_centres(verts, faces, n_grid)
     hole = np.zeros(len(faces), dtype=bool)
     for sx in (1.0, -1.0):
         ex, ey = sx * EYE_CENTRE_L[0], EYE_CENTRE_L[1]
@@ -162,7 +163,10 @@ def _skin() -> tuple[F64, I64, F64, dict[str, int]]:
 
     verts, faces, _ = mt.compact(verts, faces)
     colours = np.tile(np.array(SKIN_RGBA), (len(verts), 1))
-    for wgt, rgba in ((_lip_weight(verts[:, 0], verts[:, 1]), LIP_RGBA), (_brow_weight(verts[:, 0], verts[:, 1]), BROW_RGBA)):
+    for wgt, rgba in (
+        (_lip_weight(verts[:, 0], verts[:, 1]), LIP_RGBA),
+        (_brow_weight(verts[:, 0], verts[:, 1]), BROW_RGBA),
+    ):
         wgt = wgt * (verts[:, 2] > 30.0)
         colours = colours * (1.0 - wgt[:, None]) + np.array(rgba) * wgt[:, None]
     named = {}
@@ -251,7 +255,9 @@ def jaw() -> tuple[F64, I64]:
     """Lower teeth on a U-shaped mandible, inside the skin."""
     teeth = _teeth(MOUTH_Y - 4.5, 7.0, 79.5)
     t = np.linspace(-1.0, 1.0, 17)
-    spine = np.stack([40.0 * np.sin(t * 1.35), 56.0 + 14.0 * np.abs(t) ** 2, 74.0 - 62.0 * (1 - np.cos(t * 1.35))], 1)
+    spine = np.stack(
+        [40.0 * np.sin(t * 1.35), 56.0 + 14.0 * np.abs(t) ** 2, 74.0 - 62.0 * (1 - np.cos(t * 1.35))], 1
+    )
     bone = mt.tube_along(spine, np.full(len(spine), 5.0), 12)
     return mt.merge(teeth, bone)
 
@@ -260,7 +266,11 @@ def neck() -> tuple[F64, I64]:
     import trimesh
 
     c = trimesh.creation.cylinder(radius=40.0, height=120.0, sections=32)
-    v = np.asarray(c.vertices) @ np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], dtype=np.float64) + [0.0, -28.0, -4.0]
+    v = np.asarray(c.vertices) @ np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], dtype=np.float64) + [
+        0.0,
+        -28.0,
+        -4.0,
+    ]
     return v, np.asarray(c.faces, dtype=np.int64)
 
 

@@ -44,6 +44,20 @@ def grid_faces(nv: int, nu: int, periodic_u: bool) -> I64:
     return np.asarray(tri[order], dtype=np.int64)
 
 
+def quad_centres(vertices: F64, faces: I64, n_grid: int) -> F64:
+    """Per face: the centre of its grid quad (faces 2q and 2q + 1 of ``grid_faces`` share quad q), so
+    decisions taken on it are the same for both triangles and mirror-symmetric; faces past ``n_grid``
+    (fans) use their own centroid."""
+    cen = vertices[faces].mean(1)
+    ids = np.sort(faces[:n_grid].reshape(-1, 6), axis=1)
+    first = np.ones(ids.shape, dtype=bool)
+    first[:, 1:] = ids[:, 1:] != ids[:, :-1]
+    corners = ids[first].reshape(-1, 4)  # the quad's four distinct vertices, whatever the winding
+    q = np.sort(vertices[corners], axis=1).sum(1) / 4.0  # sorted: same summation order for mirror quads
+    cen[:n_grid] = np.repeat(q, 2, axis=0)
+    return np.round(cen, 9)  # summation order differs between mirror quads; keep decisions identical
+
+
 def fan(ring: I64, centre: int, reverse: bool = False) -> I64:
     """Triangles joining a closed ring of vertex ids to one centre vertex."""
     nxt = np.roll(ring, -1)
@@ -67,7 +81,9 @@ def split_vertices(
     return np.concatenate([vertices, vertices[vertex_ids]]), faces, copy_ids
 
 
-def compact(vertices: F64, faces: I64, *extra: NDArray[np.generic]) -> tuple[F64, I64, list[NDArray[np.generic]]]:
+def compact(
+    vertices: F64, faces: I64, *extra: NDArray[np.generic]
+) -> tuple[F64, I64, list[NDArray[np.generic]]]:
     """Drop unreferenced vertices (and the matching rows of ``extra`` per-vertex arrays)."""
     used = np.zeros(len(vertices), dtype=bool)
     used[faces.ravel()] = True
@@ -105,7 +121,9 @@ def shell_from_grids(outer: F64, inner: F64) -> tuple[F64, I64]:
     return verts, np.asarray(np.concatenate([f_out, f_in, side]), dtype=np.int64)
 
 
-def ellipsoid(centre: tuple[float, float, float], semi_mm: tuple[float, float, float], subdiv: int = 3) -> tuple[F64, I64]:
+def ellipsoid(
+    centre: tuple[float, float, float], semi_mm: tuple[float, float, float], subdiv: int = 3
+) -> tuple[F64, I64]:
     """A closed ellipsoid (scaled icosphere), outward normals."""
     import trimesh
 
@@ -115,7 +133,12 @@ def ellipsoid(centre: tuple[float, float, float], semi_mm: tuple[float, float, f
 
 
 def sphere_patch(
-    centre: F64, radius: float, beta_deg: tuple[float, float], psi_deg: tuple[float, float], nb: int, npsi: int
+    centre: F64,
+    radius: float,
+    beta_deg: tuple[float, float],
+    psi_deg: tuple[float, float],
+    nb: int,
+    npsi: int,
 ) -> F64:
     """(nb, npsi, 3) points on a sphere, parameterised about the x axis (eyelid coordinates).
 
@@ -131,7 +154,9 @@ def sphere_patch(
     return np.asarray(centre + radius * np.stack([x, y, z], -1), dtype=np.float64)
 
 
-def cap(centre: F64, radius: float, half_angle_deg: float, n_ring: int = 24, n_rad: int = 5) -> tuple[F64, I64]:
+def cap(
+    centre: F64, radius: float, half_angle_deg: float, n_ring: int = 24, n_rad: int = 5
+) -> tuple[F64, I64]:
     """An open spherical cap around +z (iris, pupil), outward normals."""
     rings = [np.array([[0.0, 0.0, 1.0]])]
     for k in range(1, n_rad + 1):
@@ -188,5 +213,7 @@ def tube_along(points: F64, radius: F64, n_around: int = 16) -> tuple[F64, I64]:
     v = np.concatenate(rings + [points[:1], points[-1:]])
     f = grid_faces(k, n_around, periodic_u=True)
     start, end = len(v) - 2, len(v) - 1
-    f = np.concatenate([f, fan(np.arange(n_around), start), fan((k - 1) * n_around + np.arange(n_around), end, True)])
+    f = np.concatenate(
+        [f, fan(np.arange(n_around), start), fan((k - 1) * n_around + np.arange(n_around), end, True)]
+    )
     return v, np.asarray(f, dtype=np.int64)
