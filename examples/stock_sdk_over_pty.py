@@ -10,6 +10,7 @@ Exit status 0 when every step succeeded and every servo reached its goal.
 
 from __future__ import annotations
 
+# ruff: noqa: T201  (a command-line example: it prints)
 import argparse
 import sys
 import time

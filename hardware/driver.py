@@ -70,8 +70,12 @@ class Driver:
         self.fast_sync_read = fast_sync_read
         self._clock = clock
         self._records: dict[int, ServoRecord] = {
-            s.servo_id: ServoRecord(s, s.model_info, ThermalTrend(self.policy.thermal_window_s),
-                                    s.temperature_limit_c or s.model_info.default_temperature_limit_c)
+            s.servo_id: ServoRecord(
+                s,
+                s.model_info,
+                ThermalTrend(self.policy.thermal_window_s),
+                s.temperature_limit_c or s.model_info.default_temperature_limit_c,
+            )
             for s in check_specs(specs)
         }
         if not self._records:
@@ -137,7 +141,9 @@ class Driver:
         rec.temperature_limit_c = report.limits[Register.TEMPERATURE_LIMIT]
         rec.current_limit = report.limits[Register.CURRENT_LIMIT] if rec.info.reports_current else None
         if rec.derated:  # configuration wrote the spec's profile; keep the derated one
-            self.bus.write(rec.servo_id, Register.PROFILE_VELOCITY, self._reactions.derated_profile_velocity(rec))
+            self.bus.write(
+                rec.servo_id, Register.PROFILE_VELOCITY, self._reactions.derated_profile_velocity(rec)
+            )
         return report
 
     def _pin_and_enable(self, rec: ServoRecord) -> None:
@@ -188,26 +194,38 @@ class Driver:
     def validate_goals(self, goals_tick: Mapping[int, int]) -> dict[int, int]:
         """Every goal an integer tick inside its servo's configured limits, or `GoalRejectedError`."""
         if not isinstance(goals_tick, Mapping):
-            raise GoalRejectedError(None, goals_tick, f"goals must be a mapping servo id -> tick, got {type(goals_tick)}")
+            raise GoalRejectedError(
+                None, goals_tick, f"goals must be a mapping servo id -> tick, got {type(goals_tick)}"
+            )
         out: dict[int, int] = {}
         for sid, goal in goals_tick.items():
             rec = self._records.get(sid) if isinstance(sid, int) and not isinstance(sid, bool) else None
             if rec is None:
-                raise GoalRejectedError(sid, goal, f"goal for unknown servo id {sid!r}; configured: {list(self._records)}")
+                raise GoalRejectedError(
+                    sid, goal, f"goal for unknown servo id {sid!r}; configured: {list(self._records)}"
+                )
             if isinstance(goal, float) and not math.isfinite(goal):
-                raise GoalRejectedError(sid, goal, f"{rec.spec.label}: goal {goal!r} is not finite; nothing sent")
+                raise GoalRejectedError(
+                    sid, goal, f"{rec.spec.label}: goal {goal!r} is not finite; nothing sent"
+                )
             if isinstance(goal, bool):
-                raise GoalRejectedError(sid, goal, f"{rec.spec.label}: goal {goal!r} is a bool, expected int ticks")
+                raise GoalRejectedError(
+                    sid, goal, f"{rec.spec.label}: goal {goal!r} is a bool, expected int ticks"
+                )
             try:
                 tick = operator.index(goal)
             except TypeError:
                 raise GoalRejectedError(
-                    sid, goal, f"{rec.spec.label}: goal {goal!r} is not an integer tick (round it first); nothing sent"
+                    sid,
+                    goal,
+                    f"{rec.spec.label}: goal {goal!r} is not an integer tick (round it first); nothing sent",
                 ) from None
             lo, hi = rec.limits_tick
             if not lo <= tick <= hi:
                 raise GoalRejectedError(
-                    sid, goal, f"{rec.spec.label}: goal {tick} outside its limits {lo}..{hi} ticks; nothing sent"
+                    sid,
+                    goal,
+                    f"{rec.spec.label}: goal {tick} outside its limits {lo}..{hi} ticks; nothing sent",
                 )
             out[sid] = tick
         return out
@@ -215,7 +233,9 @@ class Driver:
     def _guard(self, rec: ServoRecord, tick: int) -> int:
         lo, hi = rec.limits_tick
         if not lo <= tick <= hi:  # the last line of defence before the wire; unreachable by design
-            raise GoalRejectedError(rec.servo_id, tick, f"{rec.spec.label}: refusing to send {tick} outside {lo}..{hi}")
+            raise GoalRejectedError(
+                rec.servo_id, tick, f"{rec.spec.label}: refusing to send {tick} outside {lo}..{hi}"
+            )
         return tick
 
     def _write_goal_single(self, rec: ServoRecord, tick: int) -> None:
@@ -237,7 +257,9 @@ class Driver:
                 self._records[sid].goal_tick = tick
 
     # -- reads with fallback ------------------------------------------------------------------------
-    def _read_group(self, ids: list[int], registers: tuple[Register, ...], fast: bool = False) -> dict[int, dict[Register, int]]:
+    def _read_group(
+        self, ids: list[int], registers: tuple[Register, ...], fast: bool = False
+    ) -> dict[int, dict[Register, int]]:
         """Group read with retries; on failure, read servo by servo to find the silent one."""
         if not ids:
             return {}
@@ -270,15 +292,20 @@ class Driver:
             if rec.failures >= self.policy.missing_after_failures and not rec.missing:
                 rec.missing = True
                 rec.last_probe_s = now
-                self._emit(sid, FaultKind.MISSING,
-                           f"no reply in {rec.failures} cycles: excluded from group reads, re-probed every "
-                           f"{self.policy.reprobe_interval_s:g} s; other servos continue")
+                self._emit(
+                    sid,
+                    FaultKind.MISSING,
+                    f"no reply in {rec.failures} cycles: excluded from group reads, re-probed every "
+                    f"{self.policy.reprobe_interval_s:g} s; other servos continue",
+                )
 
     def _readable(self, now: float) -> list[int]:
         """Ids worth asking: not missing, and not inside the silence after a reboot."""
         return [
-            sid for sid, rec in self._records.items()
-            if not rec.missing and (rec.recover_at_s is None or rec.recover_at_s <= now or rec.reboot_at_s is not None)
+            sid
+            for sid, rec in self._records.items()
+            if not rec.missing
+            and (rec.recover_at_s is None or rec.recover_at_s <= now or rec.reboot_at_s is not None)
         ]
 
     def _read_positions(self, now: float) -> None:
@@ -304,13 +331,16 @@ class Driver:
         for sid, values in got.items():
             rec = self._records[sid]
             if group.name == "status":
-                self._reactions.on_status(rec, values[Register.TORQUE_ENABLE], values[Register.HARDWARE_ERROR_STATUS], now)
+                self._reactions.on_status(
+                    rec, values[Register.TORQUE_ENABLE], values[Register.HARDWARE_ERROR_STATUS], now
+                )
             elif group.name == "motion":
                 rec.apply_motion(values, now)
                 self._reactions.on_motion(rec)
             else:
-                self._reactions.on_thermal(rec, values[Register.PRESENT_INPUT_VOLTAGE],
-                                           values[Register.PRESENT_TEMPERATURE], now)
+                self._reactions.on_thermal(
+                    rec, values[Register.PRESENT_INPUT_VOLTAGE], values[Register.PRESENT_TEMPERATURE], now
+                )
         self._mark_results(ids, got, now)
 
     # -- missing servos, reconnects -----------------------------------------------------------------
@@ -364,8 +394,11 @@ class Driver:
             self._connected = False
             for rec in self._records.values():
                 rec.missing, rec.stale, rec.torque_on = True, True, False
-            self._emit(None, FaultKind.DISCONNECTED,
-                       f"{err}; all servos missing, port re-opened every {self.policy.reconnect_interval_s:g} s")
+            self._emit(
+                None,
+                FaultKind.DISCONNECTED,
+                f"{err}; all servos missing, port re-opened every {self.policy.reconnect_interval_s:g} s",
+            )
 
     def _try_reopen(self, now: float) -> None:
         if now - self._last_reopen_s < self.policy.reconnect_interval_s:

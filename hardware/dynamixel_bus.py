@@ -11,6 +11,7 @@ latency timer, see `hardware.latency`), so two buses in one process do not fight
 
 from __future__ import annotations
 
+import time
 from collections.abc import Mapping, Sequence
 from types import TracebackType
 from typing import Any, Protocol
@@ -30,8 +31,25 @@ from hardware.errors import (
 from hardware.latency import read_latency_timer, sdk_latency_ms, warn_if_high
 from hardware.registers import STATUS_ALERT_BIT, STATUS_ERROR_NAMES, Register, slice_value, span
 
-SDK_BAUDS = (9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 576000, 921600, 1000000, 1152000,
-             2000000, 2500000, 3000000, 3500000, 4000000)
+SDK_BAUDS = (
+    9600,
+    19200,
+    38400,
+    57600,
+    115200,
+    230400,
+    460800,
+    500000,
+    576000,
+    921600,
+    1000000,
+    1152000,
+    2000000,
+    2500000,
+    3000000,
+    3500000,
+    4000000,
+)
 IN_PROCESS_LATENCY_MS = 2.0
 
 
@@ -42,9 +60,26 @@ class ChainLike(Protocol):
 
 
 class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
-    """PortHandler whose reply window uses its own latency constant instead of the SDK's global."""
+    """PortHandler whose reply window uses its own latency constant instead of the SDK's global, and a
+    monotonic clock instead of the SDK's ``time.time()`` (wall-clock steps of several ms were observed on
+    shared machines; each one ended a reply window early and showed up as a spurious timeout/corrupt)."""
 
     latency_timer_ms: float = float(sdk.port_handler.LATENCY_TIMER)
+    packet_timeout: float
+    is_open: bool
+
+    def getCurrentTime(self) -> float:  # noqa: N802 (SDK name); milliseconds, as the SDK expects
+        return time.monotonic() * 1000.0
+
+    def isPacketTimeout(self) -> bool:  # noqa: N802 (SDK name)
+        """The SDK reads, then checks the clock: a thread descheduled between the two (common on a loaded
+        machine) times out with the whole reply already waiting. Close the window only if nothing is."""
+        if self.getTimeSinceStart() > self.packet_timeout:
+            if self.is_open and self.getBytesAvailable() > 0:
+                return False
+            self.packet_timeout = 0
+            return True
+        return False
 
     def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 (SDK name)
         self.packet_start_time = self.getCurrentTime()
@@ -81,7 +116,7 @@ class DynamixelBus:
     """A Protocol 2.0 chain over dynamixel-sdk. Implements `hardware.bus.ServoBus`.
 
     ``latency_timer_ms``: the SDK latency constant for this port (default: from the OS timer for a real
-    USB adapter, 8 ms for a pty, 2 ms in-process). ``warn_latency``: warn (`UsbLatencyWarning`) when an FTDI
+    USB adapter, 16 ms for a pty, 2 ms in-process). ``warn_latency``: warn (`UsbLatencyWarning`) when an FTDI
     adapter still has its 16 ms default.
     """
 
@@ -94,7 +129,9 @@ class DynamixelBus:
         warn_latency: bool = True,
     ) -> None:
         if baud not in SDK_BAUDS:
-            raise HardwareConfigError(f"baud {baud} cannot be opened by dynamixel-sdk; expected one of {SDK_BAUDS}")
+            raise HardwareConfigError(
+                f"baud {baud} cannot be opened by dynamixel-sdk; expected one of {SDK_BAUDS}"
+            )
         self.baud = baud
         self.stats = BusStats()
         self.alerts: set[int] = set()
@@ -107,14 +144,20 @@ class DynamixelBus:
             if warn_latency:
                 warn_if_high(timer)
             self.latency_timer_ms = (
-                float(latency_timer_ms) if latency_timer_ms is not None else float(sdk_latency_ms(timer, _is_pty(port)))
+                float(latency_timer_ms)
+                if latency_timer_ms is not None
+                else float(sdk_latency_ms(timer, _is_pty(port)))
             )
         else:
             if not hasattr(port, "open_serial"):
-                raise HardwareConfigError(f"port must be a path or an emulated chain with open_serial(), got {port!r}")
+                raise HardwareConfigError(
+                    f"port must be a path or an emulated chain with open_serial(), got {port!r}"
+                )
             self._port = _ChainPort(port)
             self.port_name = self._port.port_name
-            self.latency_timer_ms = IN_PROCESS_LATENCY_MS if latency_timer_ms is None else float(latency_timer_ms)
+            self.latency_timer_ms = (
+                IN_PROCESS_LATENCY_MS if latency_timer_ms is None else float(latency_timer_ms)
+            )
         self._port.latency_timer_ms = self.latency_timer_ms
 
     # -- life cycle ---------------------------------------------------------------------------------
@@ -129,7 +172,9 @@ class DynamixelBus:
         try:
             ok = self._port.openPort()
         except (OSError, ValueError) as err:
-            raise BusDisconnectedError(f"cannot open port {self.port_name} at {self.baud} bps: {err}") from err
+            raise BusDisconnectedError(
+                f"cannot open port {self.port_name} at {self.baud} bps: {err}"
+            ) from err
         if not ok:
             raise BusError(f"cannot open port {self.port_name} at {self.baud} bps")
 
@@ -157,7 +202,9 @@ class DynamixelBus:
         self.close()
 
     def __repr__(self) -> str:
-        return f"DynamixelBus({self.port_name!r}, baud={self.baud}, latency_timer_ms={self.latency_timer_ms:g})"
+        return (
+            f"DynamixelBus({self.port_name!r}, baud={self.baud}, latency_timer_ms={self.latency_timer_ms:g})"
+        )
 
     # -- plumbing -----------------------------------------------------------------------------------
     def _call(self, fn: Any, *args: Any) -> Any:
@@ -183,7 +230,9 @@ class DynamixelBus:
             self.stats.corrupt += 1
             raise BusCorruptError(f"{what}: corrupt reply (bad CRC or truncated) from {list(ids)}", ids)
         if comm == sdk.COMM_PORT_BUSY:
-            raise BusError(f"{what}: port {self.port_name} is in use by another caller (one thread owns a bus)", ids)
+            raise BusError(
+                f"{what}: port {self.port_name} is in use by another caller (one thread owns a bus)", ids
+            )
         if comm != sdk.COMM_SUCCESS:
             raise BusError(f"{what}: {self._packet.getTxRxResult(comm)} (code {comm})", ids)
         if err & 0x7F:
@@ -230,7 +279,9 @@ class DynamixelBus:
     def write(self, servo_id: int, register: Register, value: int) -> None:
         check_ids([servo_id])
         data = list(register.encode(value))
-        comm, err = self._call(self._packet.writeTxRx, self._port, servo_id, register.address, register.size, data)
+        comm, err = self._call(
+            self._packet.writeTxRx, self._port, servo_id, register.address, register.size, data
+        )
         self.stats.bytes_written += 12 + register.size
         self._check(comm, err, f"write {register.name}={value} to servo {servo_id}", (servo_id,))
 
@@ -281,7 +332,9 @@ class DynamixelBus:
             block = group.data_dict.get(sid)
             if block is None or len(block) < length:
                 self.stats.corrupt += 1
-                raise BusCorruptError(f"{what}: servo {sid} returned {0 if block is None else len(block)} bytes", ids)
+                raise BusCorruptError(
+                    f"{what}: servo {sid} returned {0 if block is None else len(block)} bytes", ids
+                )
             out[sid] = {r: slice_value(r, start, block) for r in registers}
         return out
 
@@ -316,7 +369,9 @@ class DynamixelBus:
             regs = sorted(writes[sid], key=lambda r: r.address)
             start, length = span(tuple(regs))
             if sum(r.size for r in regs) != length:
-                raise HardwareConfigError(f"bulk write to servo {sid}: registers {[r.name for r in regs]} leave gaps")
+                raise HardwareConfigError(
+                    f"bulk write to servo {sid}: registers {[r.name for r in regs]} leave gaps"
+                )
             data = b"".join(r.encode(writes[sid][r]) for r in regs)
             group.addParam(sid, start, length, list(data))
         if not ids:

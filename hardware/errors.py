@@ -1,14 +1,16 @@
 """Errors of the hardware package. Messages name the servo id, register or port and what was expected."""
 
+from collections.abc import Iterable
+
 
 class HardwareError(Exception):
     """Base of every error raised by servoface's hardware package."""
 
 
 class BusError(HardwareError):
-    """Communication on the bus failed (port, packet, reply). ``servo_ids``: the ids the transaction addressed."""
+    """Communication on the bus failed (port, packet, reply); ``servo_ids``: the ids addressed."""
 
-    def __init__(self, what: str = "", servo_ids: tuple[int, ...] = ()) -> None:
+    def __init__(self, what: str = "", servo_ids: Iterable[int] = ()) -> None:
         self.servo_ids = tuple(servo_ids)
         super().__init__(what)
 
@@ -65,7 +67,9 @@ class ServoConfigMismatch(HardwareConfigError):
         self.field = field
         self.expected = expected
         self.actual = actual
-        super().__init__(f"servo {servo_id}: {field} reads back {actual}, expected {expected} after writing it")
+        super().__init__(
+            f"servo {servo_id}: {field} reads back {actual}, expected {expected} after writing it"
+        )
 
 
 class GoalRejectedError(HardwareConfigError):

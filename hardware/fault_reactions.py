@@ -44,6 +44,9 @@ class FaultReactions:
             pass  # the servo may already have shut down; the status read will tell
         rec.torque_on = False
 
+    def _resume_c(self, rec: ServoRecord) -> float:
+        return rec.temperature_limit_c - self.policy.thermal_resume_margin_c
+
     def derated_profile_velocity(self, rec: ServoRecord) -> int:
         spec = rec.spec
         if spec.drive_mode & DRIVE_MODE_TIME_BASED_PROFILE:
@@ -68,7 +71,9 @@ class FaultReactions:
             rec.reboot_reason = reason
             rec.fault_t_s = now
             if reason in (FaultKind.OVERHEATING, FaultKind.VOLTAGE_LOW):
-                self.request_read("thermal")  # the reboot waits for a temperature/voltage read after the fault
+                self.request_read(
+                    "thermal"
+                )  # the reboot waits for a temperature/voltage read after the fault
 
     # -- telemetry handlers -------------------------------------------------------------------------
     def on_status(self, rec: ServoRecord, torque_enable: int, hw_error: int, now: float) -> None:
@@ -83,29 +88,45 @@ class FaultReactions:
         if new & HardwareErrorBits.OVERLOAD:
             rec.faults.add(FaultKind.OVERLOAD)
             self.schedule_reboot(rec, now, now + self.policy.overload_cooldown_s, FaultKind.OVERLOAD)
-            self.emit(rec.servo_id, FaultKind.OVERLOAD,
-                      f"torque off; reboot after {self.policy.overload_cooldown_s:g} s cool-down, goal re-pinned")
+            self.emit(
+                rec.servo_id,
+                FaultKind.OVERLOAD,
+                f"torque off; reboot after {self.policy.overload_cooldown_s:g} s cool-down, goal re-pinned",
+            )
         if new & HardwareErrorBits.OVERHEATING:
             rec.faults.add(FaultKind.OVERHEATING)
             self.schedule_reboot(rec, now, now, FaultKind.OVERHEATING)  # gated on temperature in service()
-            self.emit(rec.servo_id, FaultKind.OVERHEATING,
-                      f"torque off; reboot once below {rec.temperature_limit_c - self.policy.thermal_resume_margin_c:g} C")
+            self.emit(
+                rec.servo_id,
+                FaultKind.OVERHEATING,
+                f"torque off; reboot once below {self._resume_c(rec):g} C",
+            )
         if new & HardwareErrorBits.INPUT_VOLTAGE:
             rec.faults.add(FaultKind.VOLTAGE_LOW if (rec.voltage_count <= 0) else FaultKind.VOLTAGE_HIGH)
             self.schedule_reboot(rec, now, now, FaultKind.VOLTAGE_LOW)  # gated on voltage in service()
-            self.emit(rec.servo_id, FaultKind.VOLTAGE_LOW,
-                      "input voltage error: torque off; reboot once the supply is back in range")
+            self.emit(
+                rec.servo_id,
+                FaultKind.VOLTAGE_LOW,
+                "input voltage error: torque off; reboot once the supply is back in range",
+            )
         if new & _LATCHING:
             rec.faults.add(FaultKind.HARDWARE_ERROR)
             rec.latched = True
             rec.reboot_at_s = None
-            self.emit(rec.servo_id, FaultKind.HARDWARE_ERROR,
-                      f"{bits!r}: torque off, latched until Driver.clear_fault({rec.servo_id})")
+            self.emit(
+                rec.servo_id,
+                FaultKind.HARDWARE_ERROR,
+                f"{bits!r}: torque off, latched until Driver.clear_fault({rec.servo_id})",
+            )
         if not bits and not torque_enable and rec.torque_on and rec.in_service:
             # torque dropped without an error bit: the servo was reset (brown-out, power cycle)
             rec.torque_on = False
             rec.recover_at_s = now
-            self.emit(rec.servo_id, FaultKind.RECONNECTED, "servo reset (torque found off): re-configure, re-pin goal")
+            self.emit(
+                rec.servo_id,
+                FaultKind.RECONNECTED,
+                "servo reset (torque found off): re-configure, re-pin goal",
+            )
 
     def on_thermal(self, rec: ServoRecord, voltage_raw: int, temperature_c: int, now: float) -> None:
         policy = self.policy
@@ -120,20 +141,34 @@ class FaultReactions:
             rec.faults.add(FaultKind.THERMAL_TORQUE_OFF)
             self._torque_off(rec)
             eta = "now" if rec.seconds_to_limit in (None, 0.0) else f"in {rec.seconds_to_limit:.0f} s"
-            self.emit(rec.servo_id, FaultKind.THERMAL_TORQUE_OFF,
-                      f"{temperature_c} C, limit {limit:g} C {eta}: torque off until below "
-                      f"{limit - policy.thermal_resume_margin_c:g} C")
+            self.emit(
+                rec.servo_id,
+                FaultKind.THERMAL_TORQUE_OFF,
+                f"{temperature_c} C, limit {limit:g} C {eta}: torque off until below "
+                f"{limit - policy.thermal_resume_margin_c:g} C",
+            )
         elif level >= 1 and FaultKind.THERMAL_DERATE not in rec.faults:
             rec.faults.add(FaultKind.THERMAL_DERATE)
             self._set_derate(rec, True)
-            eta = "" if rec.seconds_to_limit is None else f", limit in {rec.seconds_to_limit:.0f} s at this rate"
-            self.emit(rec.servo_id, FaultKind.THERMAL_DERATE,
-                      f"{temperature_c} C{eta}: Profile Velocity lowered to {self.derated_profile_velocity(rec)}")
+            eta = (
+                ""
+                if rec.seconds_to_limit is None
+                else f", limit in {rec.seconds_to_limit:.0f} s at this rate"
+            )
+            self.emit(
+                rec.servo_id,
+                FaultKind.THERMAL_DERATE,
+                f"{temperature_c} C{eta}: Profile Velocity lowered to {self.derated_profile_velocity(rec)}",
+            )
         cool = temperature_c <= limit - policy.thermal_resume_margin_c
         if FaultKind.THERMAL_TORQUE_OFF in rec.faults and cool:
             rec.faults.discard(FaultKind.THERMAL_TORQUE_OFF)
             rec.recover_at_s = now
-        if level == 0 and FaultKind.THERMAL_DERATE in rec.faults and temperature_c <= limit - policy.thermal_margin_c - 2:
+        if (
+            level == 0
+            and FaultKind.THERMAL_DERATE in rec.faults
+            and temperature_c <= limit - policy.thermal_margin_c - 2
+        ):
             rec.faults.discard(FaultKind.THERMAL_DERATE)
             if FaultKind.VOLTAGE_LOW not in rec.faults:
                 self._set_derate(rec, False)
@@ -147,7 +182,10 @@ class FaultReactions:
         state = voltage_state(rec.voltage_v, low, high)
         if state == 0:
             rec.voltage_count = 0
-            if FaultKind.VOLTAGE_LOW in rec.faults and not rec.hardware_error & HardwareErrorBits.INPUT_VOLTAGE:
+            if (
+                FaultKind.VOLTAGE_LOW in rec.faults
+                and not rec.hardware_error & HardwareErrorBits.INPUT_VOLTAGE
+            ):
                 rec.faults.discard(FaultKind.VOLTAGE_LOW)
                 if FaultKind.THERMAL_DERATE not in rec.faults:
                     self._set_derate(rec, False)
@@ -162,13 +200,19 @@ class FaultReactions:
         if state < 0 and FaultKind.VOLTAGE_LOW not in rec.faults:
             rec.faults.add(FaultKind.VOLTAGE_LOW)
             self._set_derate(rec, True)
-            self.emit(rec.servo_id, FaultKind.VOLTAGE_LOW,
-                      f"{rec.voltage_v:.1f} V < {low:g} V: Profile Velocity lowered (less peak current), reported")
+            self.emit(
+                rec.servo_id,
+                FaultKind.VOLTAGE_LOW,
+                f"{rec.voltage_v:.1f} V < {low:g} V: Profile Velocity lowered (less peak current), reported",
+            )
         if state > 0 and FaultKind.VOLTAGE_HIGH not in rec.faults:
             rec.faults.add(FaultKind.VOLTAGE_HIGH)
             self._torque_off(rec)
-            self.emit(rec.servo_id, FaultKind.VOLTAGE_HIGH,
-                      f"{rec.voltage_v:.1f} V > {high:g} V: torque off until back in range")
+            self.emit(
+                rec.servo_id,
+                FaultKind.VOLTAGE_HIGH,
+                f"{rec.voltage_v:.1f} V > {high:g} V: torque off until back in range",
+            )
 
     def on_motion(self, rec: ServoRecord) -> None:
         """Load back-off: each high reading shrinks the goal's reach from present by ``backoff_gain``;
@@ -181,9 +225,13 @@ class FaultReactions:
             rec.backoff_scale *= policy.backoff_gain
             if FaultKind.LOAD_BACKOFF not in rec.faults:
                 rec.faults.add(FaultKind.LOAD_BACKOFF)
-                self.emit(rec.servo_id, FaultKind.LOAD_BACKOFF,
-                          f"load {fraction:+.0%} of limit: goals eased toward present (reach x{policy.backoff_gain:g} "
-                          "per high reading) until the load drops")
+                self.emit(
+                    rec.servo_id,
+                    FaultKind.LOAD_BACKOFF,
+                    f"load {fraction:+.0%} of limit: goals eased toward present "
+                    f"(reach x{policy.backoff_gain:g} "
+                    "per high reading) until the load drops",
+                )
         elif abs(fraction) < 0.5 * policy.load_backoff_fraction and FaultKind.LOAD_BACKOFF in rec.faults:
             rec.backoff_scale = min(1.0, rec.backoff_scale / max(policy.backoff_gain, 1e-3))
             if rec.backoff_scale >= 1.0:
@@ -197,8 +245,10 @@ class FaultReactions:
     def _reboot_condition_met(self, rec: ServoRecord, now: float) -> bool:
         fresh = rec.telemetry_t_s is not None and rec.telemetry_t_s > rec.fault_t_s
         if rec.reboot_reason == FaultKind.OVERHEATING:
-            return fresh and rec.temperature_c is not None and (
-                rec.temperature_c <= rec.temperature_limit_c - self.policy.thermal_resume_margin_c
+            return (
+                fresh
+                and rec.temperature_c is not None
+                and (rec.temperature_c <= rec.temperature_limit_c - self.policy.thermal_resume_margin_c)
             )
         if rec.reboot_reason == FaultKind.VOLTAGE_LOW:
             return fresh and rec.voltage_count == 0 and rec.voltage_v is not None
@@ -214,9 +264,13 @@ class FaultReactions:
                 rec.latched = True
                 rec.reboot_at_s = None
                 rec.faults.add(FaultKind.LATCHED)
-                self.emit(rec.servo_id, FaultKind.LATCHED,
-                          f"{self.policy.max_reboots} reboots within {self.policy.reboot_window_s:g} s: torque stays "
-                          f"off until Driver.clear_fault({rec.servo_id})")
+                self.emit(
+                    rec.servo_id,
+                    FaultKind.LATCHED,
+                    f"{self.policy.max_reboots} reboots within {self.policy.reboot_window_s:g} s: "
+                    "torque stays "
+                    f"off until Driver.clear_fault({rec.servo_id})",
+                )
                 return
             try:
                 self.bus.reboot(rec.servo_id)

@@ -17,6 +17,7 @@ from pathlib import Path
 SYSFS_USB_SERIAL = Path("/sys/bus/usb-serial/devices")
 RECOMMENDED_LATENCY_MS = 1
 SDK_DEFAULT_LATENCY_MS = 16
+PTY_LATENCY_MS = 16  # the far end is a thread or process that must be scheduled (and get the GIL)
 
 
 class UsbLatencyWarning(UserWarning):
@@ -37,7 +38,7 @@ class LatencyTimer:
 
     def advice(self) -> str:
         """How to lower the timer (empty when it is already low or absent)."""
-        if not self.is_high or self.sysfs_path is None:
+        if not self.is_high or self.sysfs_path is None or self.value_ms is None:
             return ""
         tty = self.sysfs_path.parent.name
         return (
@@ -71,9 +72,9 @@ def warn_if_high(timer: LatencyTimer) -> None:
 def sdk_latency_ms(timer: LatencyTimer, is_pty: bool) -> int:
     """The SDK latency constant to use for this port: the OS timer when known (plus 1 ms margin),
 
-    16 ms (the SDK default) for an unknown real device, 8 ms for a pty (another process must be
-    scheduled to answer).
+    16 ms (the SDK default) for an unknown real device and for a pty (another process or thread must be
+    scheduled to answer; on a loaded machine 8 ms proved too short).
     """
     if timer.value_ms is not None:
         return timer.value_ms + 1 if timer.value_ms <= RECOMMENDED_LATENCY_MS else timer.value_ms
-    return 8 if is_pty else SDK_DEFAULT_LATENCY_MS
+    return PTY_LATENCY_MS if is_pty else SDK_DEFAULT_LATENCY_MS

@@ -19,7 +19,7 @@ class Area(Enum):
 
 
 class Register(Enum):
-    """A control-table field: ``(address, size in bytes, signed, area)``; identical on all supported models."""
+    """A control-table field: ``(address, size in bytes, signed, area)``; same on all supported models."""
 
     MODEL_NUMBER = (0, 2, False, Area.READ_ONLY)
     MODEL_INFORMATION = (2, 4, False, Area.READ_ONLY)
@@ -192,13 +192,25 @@ _ALL_MODES = frozenset(OperatingMode)
 _NO_CURRENT = frozenset(
     {OperatingMode.VELOCITY, OperatingMode.POSITION, OperatingMode.EXTENDED_POSITION, OperatingMode.PWM}
 )
-_DEFAULT_SHUTDOWN = HardwareErrorBits.OVERHEATING | HardwareErrorBits.ELECTRICAL_SHOCK | HardwareErrorBits.OVERLOAD
+_DEFAULT_SHUTDOWN = (
+    HardwareErrorBits.OVERHEATING | HardwareErrorBits.ELECTRICAL_SHOCK | HardwareErrorBits.OVERLOAD
+)
 
 MODELS: dict[int, ModelInfo] = {
     m.number: m
     for m in (
-        ModelInfo(1200, "XL330-M288", True, 1.0, _DEFAULT_SHUTDOWN | HardwareErrorBits.INPUT_VOLTAGE, 70,
-                  3.7, 6.0, _ALL_MODES, 4_000_000),
+        ModelInfo(
+            1200,
+            "XL330-M288",
+            True,
+            1.0,
+            _DEFAULT_SHUTDOWN | HardwareErrorBits.INPUT_VOLTAGE,
+            70,
+            3.7,
+            6.0,
+            _ALL_MODES,
+            4_000_000,
+        ),
         ModelInfo(1060, "XL430-W250", False, 0.0, _DEFAULT_SHUTDOWN, 72, 6.5, 12.0, _NO_CURRENT, 4_500_000),
         ModelInfo(1020, "XM430-W350", True, 2.69, _DEFAULT_SHUTDOWN, 80, 10.0, 14.8, _ALL_MODES, 4_500_000),
         ModelInfo(1030, "XM430-W210", True, 2.69, _DEFAULT_SHUTDOWN, 80, 10.0, 14.8, _ALL_MODES, 4_500_000),

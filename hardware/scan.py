@@ -19,8 +19,10 @@ class ScanResult:
     hardware_error: int | None = None  # Hardware Error Status, when it could be read
 
 
-def scan(bus: ServoBus, servo_ids: Iterable[int] | None = None, *, read_errors: bool = True) -> list[ScanResult]:
-    """Ping each of ``servo_ids`` (fast when few are absent), or broadcast-ping when None (~0.8 s at 1 Mbps)."""
+def scan(
+    bus: ServoBus, servo_ids: Iterable[int] | None = None, *, read_errors: bool = True
+) -> list[ScanResult]:
+    """Ping each of ``servo_ids``, or broadcast-ping when None (waits ~0.8 s at 1 Mbps)."""
     found = []
     if servo_ids is None:
         replies = list(bus.broadcast_ping().values())
@@ -39,5 +41,7 @@ def scan(bus: ServoBus, servo_ids: Iterable[int] | None = None, *, read_errors: 
             except (BusTimeoutError, BusCorruptError, ServoStatusError):
                 hw = None
         firmware = reply.firmware_version
-        found.append(ScanResult(reply.servo_id, reply.model_number, model_name(reply.model_number), firmware, hw))
+        found.append(
+            ScanResult(reply.servo_id, reply.model_number, model_name(reply.model_number), firmware, hw)
+        )
     return sorted(found, key=lambda r: r.servo_id)

@@ -69,13 +69,21 @@ class ServoSpec:
     def validate(self) -> None:
         sid = self.servo_id
         if isinstance(sid, bool) or not isinstance(sid, int) or not 0 <= sid <= 252:
-            raise ServoDescriptionError(None, "servo_id", f"servo_id {sid!r} ({self.role}): expected an int 0..252")
+            raise ServoDescriptionError(
+                None, "servo_id", f"servo_id {sid!r} ({self.role}): expected an int 0..252"
+            )
         try:
             info = model_by_name(self.model)
         except KeyError as err:
             raise self._fail("model", f"{self.model!r} is unknown ({err.args[0]})") from err
-        ints = ("min_position_tick", "max_position_tick", "profile_velocity", "profile_acceleration",
-                "return_delay_us", "drive_mode")
+        ints = (
+            "min_position_tick",
+            "max_position_tick",
+            "profile_velocity",
+            "profile_acceleration",
+            "return_delay_us",
+            "drive_mode",
+        )
         for name in ints:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int):
@@ -83,42 +91,69 @@ class ServoSpec:
         try:
             mode = OperatingMode(self.operating_mode)
         except ValueError as err:
-            raise self._fail("operating_mode", f"= {self.operating_mode!r}: expected one of "
-                             f"{[int(m) for m in OperatingMode]}") from err
+            raise self._fail(
+                "operating_mode",
+                f"= {self.operating_mode!r}: expected one of {[int(m) for m in OperatingMode]}",
+            ) from err
         if mode not in info.operating_modes:
             raise self._fail("operating_mode", f"= {mode.name} is not supported by {info.name}")
-        lo, hi = EXTENDED_RANGE_TICK if mode in (OperatingMode.EXTENDED_POSITION,
-                                                 OperatingMode.CURRENT_BASED_POSITION) else POSITION_RANGE_TICK
+        lo, hi = (
+            EXTENDED_RANGE_TICK
+            if mode in (OperatingMode.EXTENDED_POSITION, OperatingMode.CURRENT_BASED_POSITION)
+            else POSITION_RANGE_TICK
+        )
         if not lo <= self.min_position_tick <= self.max_position_tick <= hi:
-            raise self._fail("min_position_tick/max_position_tick",
-                             f"= {self.min_position_tick}..{self.max_position_tick}: expected {lo} <= min <= max <= {hi}")
+            raise self._fail(
+                "min_position_tick/max_position_tick",
+                f"= {self.min_position_tick}..{self.max_position_tick}: expected {lo} <= min <= max <= {hi}",
+            )
         for name in ("profile_velocity", "profile_acceleration"):
             if not 0 <= getattr(self, name) <= 32767:
                 raise self._fail(name, f"= {getattr(self, name)}: expected 0..32767")
-        if self.drive_mode & DRIVE_MODE_TIME_BASED_PROFILE and self.profile_acceleration > self.profile_velocity // 2:
-            raise self._fail("profile_acceleration", f"= {self.profile_acceleration} ms: time-based profile needs "
-                             f"acceleration <= profile_velocity / 2 = {self.profile_velocity // 2}")
+        if (
+            self.drive_mode & DRIVE_MODE_TIME_BASED_PROFILE
+            and self.profile_acceleration > self.profile_velocity // 2
+        ):
+            raise self._fail(
+                "profile_acceleration",
+                f"= {self.profile_acceleration} ms: time-based profile needs "
+                f"acceleration <= profile_velocity / 2 = {self.profile_velocity // 2}",
+            )
         if not 0 <= self.return_delay_us <= 508 or self.return_delay_us % 2:
             raise self._fail("return_delay_us", f"= {self.return_delay_us}: expected an even number 0..508")
         if not 0 <= self.drive_mode <= 0x0D:
-            raise self._fail("drive_mode", f"= {self.drive_mode}: expected bits 0 (reverse), 2 (time-based), 3")
+            raise self._fail(
+                "drive_mode", f"= {self.drive_mode}: expected bits 0 (reverse), 2 (time-based), 3"
+            )
         if self.shutdown is not None and (int(self.shutdown) & ~0x3D or int(self.shutdown) < 0):
-            raise self._fail("shutdown", f"= {self.shutdown!r}: expected HardwareErrorBits (0x01|0x04|0x08|0x10|0x20)")
+            raise self._fail(
+                "shutdown", f"= {self.shutdown!r}: expected HardwareErrorBits (0x01|0x04|0x08|0x10|0x20)"
+            )
         if self.temperature_limit_c is not None and not (
             isinstance(self.temperature_limit_c, int) and 0 <= self.temperature_limit_c <= 100
         ):
             raise self._fail("temperature_limit_c", f"= {self.temperature_limit_c!r}: expected an int 0..100")
         for name in ("min_voltage_v", "max_voltage_v"):
             value = getattr(self, name)
-            if value is not None and not (isinstance(value, int | float) and math.isfinite(value) and 0 < value < 30):
+            if value is not None and not (
+                isinstance(value, int | float) and math.isfinite(value) and 0 < value < 30
+            ):
                 raise self._fail(name, f"= {value!r}: expected volts, 0 < V < 30")
-        if self.min_voltage_v is not None and self.max_voltage_v is not None and self.min_voltage_v >= self.max_voltage_v:
-            raise self._fail("min_voltage_v", f"= {self.min_voltage_v} must be below max_voltage_v = {self.max_voltage_v}")
+        if (
+            self.min_voltage_v is not None
+            and self.max_voltage_v is not None
+            and self.min_voltage_v >= self.max_voltage_v
+        ):
+            raise self._fail(
+                "min_voltage_v", f"= {self.min_voltage_v} must be below max_voltage_v = {self.max_voltage_v}"
+            )
         if self.current_limit is not None:
             if not info.reports_current:
                 raise self._fail("current_limit", f"is not available on {info.name}")
-            if isinstance(self.current_limit, bool) or not isinstance(self.current_limit, int) or not (
-                0 <= self.current_limit <= 2047
+            if (
+                isinstance(self.current_limit, bool)
+                or not isinstance(self.current_limit, int)
+                or not (0 <= self.current_limit <= 2047)
             ):
                 raise self._fail("current_limit", f"= {self.current_limit!r}: expected an int 0..2047")
         for reg, value in self.extra_ram.items():
@@ -136,7 +171,9 @@ class ServoSpec:
             Register.OPERATING_MODE: int(self.operating_mode),
             Register.DRIVE_MODE: self.drive_mode,
             Register.RETURN_DELAY_TIME: self.return_delay_us // 2,
-            Register.SHUTDOWN: int(self.shutdown if self.shutdown is not None else self.model_info.default_shutdown),
+            Register.SHUTDOWN: int(
+                self.shutdown if self.shutdown is not None else self.model_info.default_shutdown
+            ),
         }
         if self.operating_mode == OperatingMode.POSITION:  # the servo ignores the limits in other modes
             out[Register.MIN_POSITION_LIMIT] = self.min_position_tick
@@ -155,7 +192,10 @@ class ServoSpec:
 
     def ram_values(self) -> dict[Register, int]:
         """RAM registers this spec sets (written after the operating mode, which resets the profile)."""
-        out = {Register.PROFILE_ACCELERATION: self.profile_acceleration, Register.PROFILE_VELOCITY: self.profile_velocity}
+        out = {
+            Register.PROFILE_ACCELERATION: self.profile_acceleration,
+            Register.PROFILE_VELOCITY: self.profile_velocity,
+        }
         out.update(self.extra_ram)
         return out
 
@@ -165,19 +205,31 @@ class ServoSpec:
         known = {f for f in cls.__dataclass_fields__ if f != "extra_ram"}
         unknown = sorted(set(data) - known)
         if unknown:
-            raise ServoDescriptionError(data.get("servo_id") if isinstance(data.get("servo_id"), int) else None,
-                                        unknown[0], f"{key_path}: unknown field(s) {unknown}; expected some of {sorted(known)}")
+            raise ServoDescriptionError(
+                data.get("servo_id") if isinstance(data.get("servo_id"), int) else None,
+                unknown[0],
+                f"{key_path}: unknown field(s) {unknown}; expected some of {sorted(known)}",
+            )
         for required in ("servo_id", "model"):
             if required not in data:
-                raise ServoDescriptionError(None, required, f"{key_path}: missing required field {required!r}")
+                raise ServoDescriptionError(
+                    None, required, f"{key_path}: missing required field {required!r}"
+                )
         kwargs = dict(data)
         if "operating_mode" in kwargs and isinstance(kwargs["operating_mode"], str):
             try:
                 kwargs["operating_mode"] = OperatingMode[kwargs["operating_mode"].upper()]
             except KeyError as err:
-                raise ServoDescriptionError(data["servo_id"], "operating_mode",
-                                            f"{key_path}.operating_mode: unknown mode {data['operating_mode']!r}") from err
-        if "shutdown" in kwargs and isinstance(kwargs["shutdown"], int) and not isinstance(kwargs["shutdown"], bool):
+                raise ServoDescriptionError(
+                    data["servo_id"],
+                    "operating_mode",
+                    f"{key_path}.operating_mode: unknown mode {data['operating_mode']!r}",
+                ) from err
+        if (
+            "shutdown" in kwargs
+            and isinstance(kwargs["shutdown"], int)
+            and not isinstance(kwargs["shutdown"], bool)
+        ):
             kwargs["shutdown"] = HardwareErrorBits(kwargs["shutdown"])
         try:
             return cls(**kwargs)
@@ -196,8 +248,11 @@ def check_specs(specs: Iterable[ServoSpec]) -> list[ServoSpec]:
         seen[spec.servo_id] = spec
         if spec.role:
             if spec.role in roles:
-                raise ServoDescriptionError(spec.servo_id, "role",
-                                            f"{spec.label}: role {spec.role!r} already used by servo {roles[spec.role]}")
+                raise ServoDescriptionError(
+                    spec.servo_id,
+                    "role",
+                    f"{spec.label}: role {spec.role!r} already used by servo {roles[spec.role]}",
+                )
             roles[spec.role] = spec.servo_id
     return out
 
@@ -213,8 +268,14 @@ class ConfigReport:
     limits: Mapping[Register, int]  # limits read back (temperature, voltage, current, position)
 
 
-_READBACK = (Register.TEMPERATURE_LIMIT, Register.MAX_VOLTAGE_LIMIT, Register.MIN_VOLTAGE_LIMIT,
-             Register.CURRENT_LIMIT, Register.MAX_POSITION_LIMIT, Register.MIN_POSITION_LIMIT)
+_READBACK = (
+    Register.TEMPERATURE_LIMIT,
+    Register.MAX_VOLTAGE_LIMIT,
+    Register.MIN_VOLTAGE_LIMIT,
+    Register.CURRENT_LIMIT,
+    Register.MAX_POSITION_LIMIT,
+    Register.MIN_POSITION_LIMIT,
+)
 
 
 def configure_servo(bus: ServoBus, spec: ServoSpec) -> ConfigReport:
@@ -243,8 +304,13 @@ def configure_servo(bus: ServoBus, spec: ServoSpec) -> ConfigReport:
     for reg, value in wanted.items():
         if back[reg] != value:
             raise ServoConfigMismatch(spec.servo_id, reg.name, value, back[reg])
-    return ConfigReport(spec.servo_id, reply.model_number, reply.firmware_version, tuple(written),
-                        {r: back[r] for r in _READBACK})
+    return ConfigReport(
+        spec.servo_id,
+        reply.model_number,
+        reply.firmware_version,
+        tuple(written),
+        {r: back[r] for r in _READBACK},
+    )
 
 
 def configure_chain(bus: ServoBus, specs: Sequence[ServoSpec]) -> dict[int, ConfigReport]:

@@ -11,10 +11,17 @@ HELP = "find the servos on a port (a USB adapter, or the pty printed by `servofa
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--port", required=True, help="serial port, e.g. /dev/ttyUSB0, or a pty path")
     parser.add_argument("--baud", type=int, default=1_000_000, help="baud rate (default 1000000)")
-    parser.add_argument("--ids", default=None,
-                        help="ids to ping, e.g. '1-24' or '1,3,7' (default: one broadcast ping, ~0.8 s)")
-    parser.add_argument("--latency-ms", type=float, default=None,
-                        help="SDK latency constant in ms (default: from the OS latency timer)")
+    parser.add_argument(
+        "--ids",
+        default=None,
+        help="ids to ping, e.g. '1-24' or '1,3,7' (default: one broadcast ping, ~0.8 s)",
+    )
+    parser.add_argument(
+        "--latency-ms",
+        type=float,
+        default=None,
+        help="SDK latency constant in ms (default: from the OS latency timer)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -17,10 +17,21 @@ DT_S = 0.01
 def make_driver(
     ids: Sequence[int] = (1, 2, 3, 4), policy: FaultPolicy | None = None, torque: bool = True, **spec_kw: int
 ) -> tuple[ServoChain, Driver]:
-    chain = ServoChain.create(ids=list(ids), model="XL330-M288", baud=1_000_000, wire_time=False, clock="manual")
+    chain = ServoChain.create(
+        ids=list(ids), model="XL330-M288", baud=1_000_000, wire_time=False, clock="manual"
+    )
     bus = open_bus("emulator", chain=chain)
-    specs = [ServoSpec(i, "XL330-M288", role=f"r{i}", min_position_tick=LIMITS.get(i, (1024, 3072))[0],
-                       max_position_tick=LIMITS.get(i, (1024, 3072))[1], **spec_kw) for i in ids]
+    specs = [
+        ServoSpec(
+            i,
+            "XL330-M288",
+            role=f"r{i}",
+            min_position_tick=LIMITS.get(i, (1024, 3072))[0],
+            max_position_tick=LIMITS.get(i, (1024, 3072))[1],
+            **spec_kw,
+        )
+        for i in ids
+    ]
     driver = Driver(bus, specs, policy=policy, clock=chain.clock)
     driver.configure()
     if torque:
@@ -38,7 +49,7 @@ def run(chain: ServoChain, driver: Driver, goals: dict[int, int], seconds: float
 
 
 def assert_goals_within_limits(chain: ServoChain, driver: Driver) -> int:
-    """No Goal Position outside a servo's configured limits ever reached the wire. Returns how many were sent."""
+    """No Goal Position outside a servo's configured limits ever reached the wire; returns how many."""
     writes = chain.goal_writes()
     for t, sid, goal in writes:
         lo, hi = driver.limits_tick(sid)

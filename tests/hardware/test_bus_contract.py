@@ -82,7 +82,12 @@ def test_sync_write_is_one_packet_and_reaches_every_servo(chain_and_bus: tuple[S
     before = len(chain.instructions(SYNC_WRITE))
     bus.sync_write(Register.GOAL_POSITION, {1: 1000, 2: 2000, 3: 3000, 4: 4000})
     assert _arrives(lambda: len(chain.instructions(SYNC_WRITE)) == before + 1)
-    assert sorted((sid, goal) for _, sid, goal in chain.goal_writes()) == [(1, 1000), (2, 2000), (3, 3000), (4, 4000)]
+    assert sorted((sid, goal) for _, sid, goal in chain.goal_writes()) == [
+        (1, 1000),
+        (2, 2000),
+        (3, 3000),
+        (4, 4000),
+    ]
     with pytest.raises(ValueError):  # does not fit: nothing sent
         bus.sync_write(Register.GOAL_POSITION, {1: 5, 2: 2**40})
     bus.ping(1)  # a round trip: anything sent before it has been heard
@@ -95,7 +100,9 @@ def test_sync_read_returns_each_servos_values(chain_and_bus: tuple[ServoChain, S
     for sid in IDS:
         chain.servo(sid).move_by_hand(1000 + 100 * sid)
     got = bus.sync_read(IDS, [Register.PRESENT_POSITION], fast=fast)
-    assert {sid: v[Register.PRESENT_POSITION] for sid, v in got.items()} == {sid: 1000 + 100 * sid for sid in IDS}
+    assert {sid: v[Register.PRESENT_POSITION] for sid, v in got.items()} == {
+        sid: 1000 + 100 * sid for sid in IDS
+    }
     assert chain.instructions(FAST_SYNC_READ if fast else SYNC_READ)
 
 
@@ -140,11 +147,15 @@ def test_alert_bit_is_recorded_not_raised(chain_and_bus: tuple[ServoChain, Servo
 
 def test_bulk_read_and_write(chain_and_bus: tuple[ServoChain, ServoBus]) -> None:
     chain, bus = chain_and_bus
-    bus.bulk_write({1: {Register.PROFILE_ACCELERATION: 5, Register.PROFILE_VELOCITY: 50}, 2: {Register.LED: 1}})
+    bus.bulk_write(
+        {1: {Register.PROFILE_ACCELERATION: 5, Register.PROFILE_VELOCITY: 50}, 2: {Register.LED: 1}}
+    )
     assert _arrives(lambda: bool(chain.instructions(BULK_WRITE)))
     assert chain.servo(1).read_register("PROFILE_VELOCITY") == 50 and chain.servo(2).read_register("LED") == 1
     for fast in (False, True):
-        got = bus.bulk_read({1: [Register.PROFILE_VELOCITY], 2: [Register.LED, Register.STATUS_RETURN_LEVEL]}, fast=fast)
+        got = bus.bulk_read(
+            {1: [Register.PROFILE_VELOCITY], 2: [Register.LED, Register.STATUS_RETURN_LEVEL]}, fast=fast
+        )
         assert got[1][Register.PROFILE_VELOCITY] == 50 and got[2][Register.LED] == 1
     with pytest.raises(HardwareConfigError, match="gaps"):
         bus.bulk_write({1: {Register.LED: 1, Register.PROFILE_VELOCITY: 3}})

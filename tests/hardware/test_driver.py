@@ -11,7 +11,6 @@ import pytest
 from hardware.driver import Driver
 from hardware.driver_thread import DriverThread
 from hardware.errors import DriverThreadError, GoalRejectedError, ServoConfigMismatch
-from hardware.registers import Register
 from hardware.servo_config import ServoSpec, configure_servo
 from tests.hardware.driver_helpers import assert_goals_within_limits, make_driver, run
 
@@ -21,14 +20,21 @@ SYNC_WRITE, SYNC_READ, WRITE = 0x83, 0x82, 0x03
 def test_configure_writes_eeprom_with_torque_off_and_verifies() -> None:
     chain, driver = make_driver(torque=False, return_delay_us=0, profile_velocity=120)
     servo = chain.servo(2)
-    assert servo.read_register("MIN_POSITION_LIMIT") == 1500 and servo.read_register("MAX_POSITION_LIMIT") == 2600
+    assert (
+        servo.read_register("MIN_POSITION_LIMIT") == 1500
+        and servo.read_register("MAX_POSITION_LIMIT") == 2600
+    )
     assert servo.read_register("RETURN_DELAY_TIME") == 0 and servo.read_register("PROFILE_VELOCITY") == 120
     # a servo left with torque on is switched off before EEPROM is touched; unchanged EEPROM is not rewritten
     servo.write_register("TORQUE_ENABLE", 1)
-    report = configure_servo(driver.bus, ServoSpec(2, "XL330-M288", min_position_tick=1500, max_position_tick=2600,
-                                                   profile_velocity=120))
+    report = configure_servo(
+        driver.bus,
+        ServoSpec(2, "XL330-M288", min_position_tick=1500, max_position_tick=2600, profile_velocity=120),
+    )
     assert servo.read_register("TORQUE_ENABLE") == 0
-    assert not [w for w in report.written if w in ("MIN_POSITION_LIMIT", "MAX_POSITION_LIMIT", "RETURN_DELAY_TIME")]
+    assert not [
+        w for w in report.written if w in ("MIN_POSITION_LIMIT", "MAX_POSITION_LIMIT", "RETURN_DELAY_TIME")
+    ]
 
 
 def test_wrong_model_is_a_typed_error_naming_the_servo() -> None:
@@ -148,8 +154,13 @@ def test_driver_thread_runs_cycles_in_the_background() -> None:
 
     chain = ServoChain.create(ids=[1, 2], model="XL330-M288", baud=1_000_000, wire_time=False)
     bus = open_bus("emulator", chain=chain)
-    driver = Driver(bus, [ServoSpec(1, "XL330-M288", min_position_tick=1000, max_position_tick=3000),
-                          ServoSpec(2, "XL330-M288")])
+    driver = Driver(
+        bus,
+        [
+            ServoSpec(1, "XL330-M288", min_position_tick=1000, max_position_tick=3000),
+            ServoSpec(2, "XL330-M288"),
+        ],
+    )
     driver.configure()
     with DriverThread(driver, rate_hz=200) as runner:
         runner.torque_on()

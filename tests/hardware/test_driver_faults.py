@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import pytest
 
-from hardware.registers import Register
 from hardware.snapshot import FaultKind
 from tests.hardware.driver_helpers import assert_goals_within_limits, events_of, make_driver, run
 
@@ -30,7 +29,9 @@ def test_missing_servo_is_marked_others_continue_and_it_is_reconnected() -> None
     n = len(chain.instructions(SYNC_READ))
     run(chain, driver, GOALS, 0.2)
     assert all(3 not in ids for ids in _sync_read_ids(chain, n))  # excluded from group reads
-    assert all(sid != 3 for t, sid, _ in chain.goal_writes() if t > chain.time_s - 0.15)  # and from goal frames
+    assert all(
+        sid != 3 for t, sid, _ in chain.goal_writes() if t > chain.time_s - 0.15
+    )  # and from goal frames
     snaps = run(chain, driver, GOALS, 1.0)
     assert not snaps[-1][3].missing and snaps[-1][3].torque_on
     assert events_of(driver, FaultKind.RECONNECTED, 3)
@@ -42,7 +43,9 @@ def test_missing_servo_is_marked_others_continue_and_it_is_reconnected() -> None
 def test_transient_reply_faults_are_retried_and_counted_not_fatal(kind: str) -> None:
     chain, driver = make_driver()
     run(chain, driver, GOALS, 0.1)
-    chain.faults.inject(2, kind, duration_s=0.005)  # one cycle's worth (the manual clock stands still within it)
+    chain.faults.inject(
+        2, kind, duration_s=0.005
+    )  # one cycle's worth (the manual clock stands still within it)
     snap = driver.cycle(GOALS)
     assert snap[2].stale and not snap[2].missing
     assert not snap[1].stale and snap[1].position_tick == 2500  # read individually after the group failed

@@ -52,8 +52,13 @@ def test_policy_refuses_nonsense() -> None:
         FaultPolicy(overload_cooldown_s=float("nan"))
 
 
-@given(goal=st.integers(0, 4095), present=st.integers(-5000, 9000), gain=st.floats(0, 1),
-       lo=st.integers(0, 2000), width=st.integers(0, 2095))
+@given(
+    goal=st.integers(0, 4095),
+    present=st.integers(-5000, 9000),
+    gain=st.floats(0, 1),
+    lo=st.integers(0, 2000),
+    width=st.integers(0, 2095),
+)
 def test_eased_goal_stays_inside_limits(goal: int, present: int, gain: float, lo: int, width: int) -> None:
     hi = lo + width
     goal = max(lo, min(hi, goal))

@@ -19,7 +19,9 @@ goal_values = st.one_of(
     st.booleans(),
 )
 frames = st.dictionaries(st.sampled_from([1, 2, 3, 4, 5]), goal_values, max_size=5)
-faults = st.sampled_from([None, "no_reply", "corrupt_crc", "overload", "disconnect", "late_reply", "obstacle"])
+faults = st.sampled_from(
+    [None, "no_reply", "corrupt_crc", "overload", "disconnect", "late_reply", "obstacle"]
+)
 
 
 def _valid(frame: dict) -> bool:  # type: ignore[type-arg]

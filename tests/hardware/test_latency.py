@@ -47,7 +47,7 @@ def test_symlinked_port_resolves_to_its_tty(tmp_path: Path) -> None:
 def test_no_timer_for_ptys_and_acm(tmp_path: Path) -> None:
     timer = read_latency_timer("/dev/ttyACM0", sysfs_root=tmp_path)
     assert timer.value_ms is None and not timer.is_high
-    assert sdk_latency_ms(timer, is_pty=True) == 8
+    assert sdk_latency_ms(timer, is_pty=True) == 16
     assert sdk_latency_ms(timer, is_pty=False) == 16
 
 
@@ -60,3 +60,28 @@ def test_bus_uses_its_own_latency_constant_for_the_reply_window() -> None:
     port.setPacketTimeout(100)
     assert port.packet_timeout == pytest.approx(0.01 * 100 + 2 * 3 + 2)
     assert dynamixel_sdk.port_handler.LATENCY_TIMER == 16  # the SDK global is left alone
+
+
+def test_reply_window_runs_on_a_monotonic_clock(monkeypatch: pytest.MonkeyPatch) -> None:
+    import time
+
+    bus = DynamixelBus("/dev/null-not-opened", latency_timer_ms=1, warn_latency=False)
+    port = bus._port
+    port.setPacketTimeout(0)
+    monkeypatch.setattr(time, "time", lambda: 1e12)  # a wall-clock step must not end the window
+    assert not port.isPacketTimeout()
+
+
+def test_reply_window_stays_open_while_bytes_are_waiting() -> None:
+    from hardware.emulator import ServoChain
+
+    chain = ServoChain.create(ids=[1], wire_time=False)
+    bus = DynamixelBus(chain, latency_timer_ms=0)
+    bus.open()
+    port = bus._port
+    port.writePort(bytes.fromhex("FFFFFD0001030001194E"))  # ping id 1 (e-manual CRC)
+    port.setPacketTimeoutMillis(-1.0)  # already expired, as after a long deschedule
+    assert port.getBytesAvailable() > 0 and not port.isPacketTimeout()
+    port.clearPort()
+    assert port.isPacketTimeout()
+    bus.close()

@@ -10,8 +10,16 @@ from hardware.servo_config import ServoSpec, check_specs
 
 
 def test_valid_spec_gives_register_values() -> None:
-    spec = ServoSpec(3, "XL330-M288", role="jaw", min_position_tick=1500, max_position_tick=2600,
-                     profile_velocity=100, return_delay_us=4, temperature_limit_c=65)
+    spec = ServoSpec(
+        3,
+        "XL330-M288",
+        role="jaw",
+        min_position_tick=1500,
+        max_position_tick=2600,
+        profile_velocity=100,
+        return_delay_us=4,
+        temperature_limit_c=65,
+    )
     eeprom = spec.eeprom_values()
     assert eeprom[Register.MIN_POSITION_LIMIT] == 1500 and eeprom[Register.MAX_POSITION_LIMIT] == 2600
     assert eeprom[Register.RETURN_DELAY_TIME] == 2  # 2 us units
@@ -45,8 +53,16 @@ def test_invalid_spec_names_servo_and_field(kwargs: dict[str, object], field: st
 
 
 def test_from_mapping_reports_the_key_path() -> None:
-    spec = ServoSpec.from_mapping({"servo_id": 2, "model": "XM430-W350", "operating_mode": "current_based_position",
-                                   "shutdown": 0x24, "min_position_tick": -4096, "max_position_tick": 8191})
+    spec = ServoSpec.from_mapping(
+        {
+            "servo_id": 2,
+            "model": "XM430-W350",
+            "operating_mode": "current_based_position",
+            "shutdown": 0x24,
+            "min_position_tick": -4096,
+            "max_position_tick": 8191,
+        }
+    )
     assert spec.operating_mode is OperatingMode.CURRENT_BASED_POSITION
     assert spec.shutdown == HardwareErrorBits.OVERLOAD | HardwareErrorBits.OVERHEATING
     assert Register.MIN_POSITION_LIMIT not in spec.eeprom_values()  # ignored by the servo in that mode

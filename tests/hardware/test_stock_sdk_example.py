@@ -15,22 +15,30 @@ ROOT = Path(__file__).resolve().parents[2]
 def test_stock_sdk_script_moves_emulated_servos() -> None:
     emulator = subprocess.Popen(
         [sys.executable, "-m", "controller.cli", "emulate", "--ids", "1-4", "--model", "XL330-M288"],
-        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
     )
     try:
         assert emulator.stdout is not None
         path = emulator.stdout.readline().strip()
-        assert path.startswith("/dev/"), f"emulator printed {path!r}; stderr: {emulator.stderr.read() if emulator.poll() is not None else ''}"
+        assert path.startswith("/dev/"), f"emulator printed {path!r}; exit {emulator.poll()}"
         script = subprocess.run(
             [sys.executable, str(ROOT / "examples" / "stock_sdk_over_pty.py"), path, "--ids", "1,2,3,4"],
-            cwd=ROOT, capture_output=True, text=True, timeout=60,
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=60,
         )
         assert script.returncode == 0, script.stdout + script.stderr
         assert "moved:" in script.stdout and "fast sync read" in script.stdout
         # independently: the emulated servos are where the script sent them (2048 - 300), torque on
         with open_bus("dynamixel", port=path, baud=1_000_000) as bus:
             got = bus.sync_read([1, 2, 3, 4], [Register.PRESENT_POSITION, Register.GOAL_POSITION])
-            assert all(v[Register.PRESENT_POSITION] == 1748 == v[Register.GOAL_POSITION] for v in got.values())
+            assert all(
+                v[Register.PRESENT_POSITION] == 1748 == v[Register.GOAL_POSITION] for v in got.values()
+            )
             assert all(bus.read(sid, Register.TORQUE_ENABLE) == 1 for sid in (1, 2, 3, 4))
     finally:
         emulator.terminate()

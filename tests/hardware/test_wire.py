@@ -9,8 +9,13 @@ from hardware.wire import cycle_budget, fast_sync_read_reply_bytes, status_bytes
 
 @pytest.mark.parametrize(
     ("n", "baud", "sw_sr_ms", "sw_fast_ms"),
-    [(1, 57_600, 8.51, 8.68), (6, 1_000_000, 1.54, 1.20), (12, 4_000_000, 0.70, 0.51), (20, 1_000_000, 4.48, 3.16),
-     (30, 3_000_000, 2.19, 1.52)],
+    [
+        (1, 57_600, 8.51, 8.68),
+        (6, 1_000_000, 1.54, 1.20),
+        (12, 4_000_000, 0.70, 0.51),
+        (20, 1_000_000, 4.48, 3.16),
+        (30, 3_000_000, 2.19, 1.52),
+    ],
 )
 def test_cycle_times_match_the_reference_table(n: int, baud: int, sw_sr_ms: float, sw_fast_ms: float) -> None:
     assert cycle_budget(n, baud).wire_time_s * 1e3 == pytest.approx(sw_sr_ms, abs=0.01)
@@ -23,9 +28,9 @@ def test_return_delay_is_paid_per_status_packet() -> None:
     assert slow.wire_time_s - plain.wire_time_s == pytest.approx(20 * 500e-6)
     fast = cycle_budget(20, 1_000_000, fast=True, return_delay_us=500)
     assert fast.return_delay_s == pytest.approx(500e-6)
-    assert cycle_budget(20, 1_000_000, fast=True, return_delay_us=500, fast_delay_per_block=True).return_delay_s == (
-        pytest.approx(20 * 500e-6)
-    )
+    assert cycle_budget(
+        20, 1_000_000, fast=True, return_delay_us=500, fast_delay_per_block=True
+    ).return_delay_s == (pytest.approx(20 * 500e-6))
 
 
 def test_packet_sizes() -> None:

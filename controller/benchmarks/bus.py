@@ -1,0 +1,169 @@
+"""`servoface bench bus`: sustained sync-write + sync-read cycles against the wire limit.
+
+24 XL330-M288 on the in-process emulator port with wire time on, at 1 Mbps and 4 Mbps, Return Delay Time 0
+(written to every servo before measuring). Per baud: cycles/s with a plain Sync Read and with Fast Sync Read
+of Present Position, each next to the wire limit from `hardware.wire.cycle_budget` (packet sizes, baud,
+return delay). Rates are the best of several short windows (the machine is shared; the median is in the
+note). A last group of figures splits the CPU time of one cycle (no wire time) between dynamixel-sdk, the
+emulator and servoface, to show where the time goes when a ratio misses.
+"""
+
+from __future__ import annotations
+
+import cProfile
+import pstats
+import statistics
+import time
+from collections.abc import Iterator
+
+from controller.benchmarks.figure import Figure
+from hardware.bus import ServoBus, open_bus
+from hardware.driver import Driver
+from hardware.emulator import ServoChain
+from hardware.registers import Register
+from hardware.servo_config import ServoSpec
+from hardware.wire import cycle_budget
+
+N_SERVOS = 24
+BAUDS = (1_000_000, 4_000_000)
+RETURN_DELAY_US = 0
+GOAL_RATIO = 0.9
+
+
+def _chain_and_bus(baud: int, wire_time: bool) -> tuple[ServoChain, ServoBus]:
+    chain = ServoChain.create(ids=range(1, N_SERVOS + 1), model="XL330-M288", baud=baud, wire_time=wire_time)
+    bus = open_bus("emulator", chain=chain, baud=baud)
+    for sid in chain.ids:
+        bus.write(sid, Register.RETURN_DELAY_TIME, RETURN_DELAY_US // 2)
+    return chain, bus
+
+
+def _cycle(bus: ServoBus, ids: list[int], n: int, fast: bool) -> None:
+    bus.sync_write(Register.GOAL_POSITION, {sid: 2048 + (n & 1) for sid in ids})
+    bus.sync_read(ids, (Register.PRESENT_POSITION,), fast=fast)
+
+
+def measure_rate_hz(
+    bus: ServoBus, ids: list[int], fast: bool, windows: int, window_s: float
+) -> tuple[float, float]:
+    """(best, median) cycles per second over ``windows`` windows of ``window_s``."""
+    rates = []
+    n = 0
+    for _ in range(windows):
+        count, t0 = 0, time.perf_counter()
+        while (elapsed := time.perf_counter() - t0) < window_s:
+            _cycle(bus, ids, n, fast)
+            n += 1
+            count += 1
+        rates.append(count / elapsed)
+    return max(rates), statistics.median(rates)
+
+
+def cpu_split_ms(baud: int, fast: bool, cycles: int) -> dict[str, float]:
+    """CPU ms per cycle (no wire time) by who spends it: dynamixel_sdk, emulator, servoface driver, other."""
+    chain, bus = _chain_and_bus(baud, wire_time=False)
+    ids = chain.ids
+    t0 = time.perf_counter()
+    for n in range(cycles):
+        _cycle(bus, ids, n, fast)
+    wall = time.perf_counter() - t0  # unprofiled: cProfile itself inflates Python-heavy code several times
+    profile = cProfile.Profile()
+    profile.enable()
+    for n in range(cycles):
+        _cycle(bus, ids, n, fast)
+    profile.disable()
+    bus.close()
+    split = {"dynamixel_sdk": 0.0, "emulator": 0.0, "servoface": 0.0, "other": 0.0}
+    stats = pstats.Stats(profile).stats  # type: ignore[attr-defined]
+    for (filename, _, _), (_, _, tottime, _, _) in stats.items():
+        key = (
+            "dynamixel_sdk"
+            if "dynamixel_sdk" in filename
+            else "emulator"
+            if "hardware/emulator" in filename
+            else "servoface"
+            if "/hardware/" in filename
+            else "other"
+        )
+        split[key] += tottime
+    total = sum(split.values()) or 1.0
+    return {
+        k: v / total * wall / cycles * 1e3 for k, v in split.items()
+    }  # shares of the unprofiled wall time
+
+
+def run(quick: bool = False) -> Iterator[Figure]:
+    windows, window_s = (3, 0.15) if quick else (8, 0.4)
+    for baud in BAUDS:
+        chain, bus = _chain_and_bus(baud, wire_time=True)
+        ids = chain.ids
+        tag = f"{N_SERVOS} servos @{baud // 1_000_000}M"
+        for fast, label in ((False, "sync write + sync read"), (True, "sync write + fast sync read")):
+            budget = cycle_budget(N_SERVOS, baud, return_delay_us=RETURN_DELAY_US, fast=fast)
+            best, median = measure_rate_hz(bus, ids, fast, windows, window_s)
+            yield Figure(
+                f"{label}, {tag}",
+                best,
+                "cycles/s",
+                limit=budget.limit_hz,
+                goal=GOAL_RATIO,
+                note=f"best of {windows}x{window_s:g}s windows (median {median:.0f}/s); wire limit "
+                f"{budget.bytes_total} B x 10 bit / {baud} bps + RDT {RETURN_DELAY_US} us = "
+                f"{budget.wire_time_s * 1e3:.3f} ms; timeouts {bus.stats.timeouts}, "
+                f"corrupt {bus.stats.corrupt}",
+            )
+        bus.close()
+        chain.close()
+    yield Figure(
+        "return delay time (bench configuration)",
+        RETURN_DELAY_US,
+        "us",
+        better="lower",
+        note="Return Delay Time written to every servo before measuring (factory default 500 us)",
+    )
+    yield from _driver_cycle(quick)
+    cycles = 100 if quick else 400
+    for baud in BAUDS[-1:]:
+        for fast in (False, True):
+            split = cpu_split_ms(baud, fast, cycles)
+            total = sum(split.values())
+            wire_ms = cycle_budget(N_SERVOS, baud, fast=fast).wire_time_s * 1e3
+            detail = ", ".join(f"{k} {v:.3f} ms" for k, v in split.items())
+            yield Figure(
+                f"CPU per cycle, no wire time, {'fast ' if fast else ''}sync read, {N_SERVOS} servos",
+                total,
+                "ms",
+                limit=wire_ms,
+                better="lower",
+                note=f"{detail} (cProfile tottime shares of the unprofiled time); the SDK busy-waits, so "
+                "CPU that does not overlap the wire adds to every cycle",
+            )
+
+
+def _driver_cycle(quick: bool) -> Iterator[Figure]:
+    """A full `Driver.cycle` (sync write + position read + round-robin telemetry + policy) at 1 Mbps."""
+    baud = BAUDS[0]
+    chain, bus = _chain_and_bus(baud, wire_time=True)
+    specs = [ServoSpec(sid, "XL330-M288", return_delay_us=RETURN_DELAY_US) for sid in chain.ids]
+    driver = Driver(bus, specs)
+    driver.configure()
+    driver.torque_on()
+    goals = {sid: 2048 for sid in chain.ids}
+    duration_s = 0.5 if quick else 2.0
+    n, t0 = 0, time.perf_counter()
+    while time.perf_counter() - t0 < duration_s:
+        goals = {sid: 2048 + (n & 1) for sid in chain.ids}
+        driver.cycle(goals)
+        n += 1
+    rate = n / (time.perf_counter() - t0)
+    limit = cycle_budget(N_SERVOS, baud, return_delay_us=RETURN_DELAY_US).limit_hz
+    yield Figure(
+        f"Driver.cycle (incl. telemetry + policy), {N_SERVOS} servos @1M",
+        rate,
+        "cycles/s",
+        limit=limit,
+        note="limit = sync write + sync read only; the driver also reads one slow telemetry group "
+        "on ~1 cycle in 4 (status 10 Hz, motion 10 Hz, thermal 2 Hz at this rate)",
+    )
+    bus.close()
+    chain.close()
