@@ -112,6 +112,8 @@ class AUFrame:
             raise FrameError(f"t_s: expected a finite time in seconds, got {t_s!r}")
         if face_type is not None:
             check_face_type(face_type)
+        elif allowed is not None:
+            raise FrameError("allowed: an allowed AU-name set needs face_type ('human' or 'dog') too")
         clean = validate_aus(aus, face_type, allowed)
         object.__setattr__(self, "t_s", float(t_s))
         object.__setattr__(self, "aus", MappingProxyType(clean))

@@ -17,6 +17,8 @@ errors carry tomllib's line and column. The format (all times in seconds, intens
                              from = pose (optional start pose)
     [[gaze]]                 at_s, look_at_mm = [x, y, z] (head frame: +x head's left, +y up, +z forward)
                              | ahead = true
+    [gaze_setup]             eye_center_mm, neck_pivot_mm, eye_range_yaw_deg, eye_range_pitch_deg,
+                             saccade_s, head_move_s (GazeConfig; AU full scales come from the AU table)
     [blink]                  seed, mean_interval_s, ... (BlinkConfig); enabled = false to switch off
     [idle]                   seed, head_amplitude, ... (IdleConfig); enabled = false to switch off
     [blend]                  default = "max"; priority = [tracks...]; rules = { AU26 = "sum", ... }
@@ -55,7 +57,7 @@ from sim.rig import FaceType
 
 SCRIPTS_DIR = Path(__file__).resolve().parent / "scripts"
 ALIVE_LAYERS = ("gaze", "blink", "idle")
-_TOP = ("script", "poses", "expressions", "play", "gaze", "blink", "idle", "blend")
+_TOP = ("script", "poses", "expressions", "play", "gaze", "gaze_setup", "blink", "idle", "blend")
 _TRACK_RE = re.compile(r"^[a-z][a-z0-9_]*$")
 
 
@@ -134,9 +136,9 @@ class _Builder:
             self.clips[name] = self.expression(name, r.table(spec, f"expressions.{name}"))
         for i, entry in enumerate(r.array(data, "play", "", [])):
             self.play(r.table(entry, f"play[{i}]"), f"play[{i}]")
-        self.gaze(r.array(data, "gaze", "", []))
+        self.gaze(r.array(data, "gaze", "", []), r.table(r.get(data, "gaze_setup", "", {}), "gaze_setup"))
         self.alive(data)
-        end = self.timeline.end_s
+        end = max(self.timeline.end_s, self.gaze_end_s)
         end_s = r.number(head, "end_s", "script", None, lo=0.0, what="an end time in seconds")
         title = r.string(head, "title", "script", Path(r.source).stem)
         return Script(
@@ -327,10 +329,35 @@ class _Builder:
             self.r.fail(path, f"unknown expression {name!r}; expected one of: {known}")
         return self.clips[name]
 
-    def gaze(self, entries: list[Any]) -> None:
+    def gaze(self, entries: list[Any], setup: Mapping[str, Any]) -> None:
+        self.gaze_end_s = 0.0
         if not entries:
             return
-        layer = GazeLayer(self.face, gaze_config_for(self.face))
+        keys = (
+            "eye_center_mm",
+            "neck_pivot_mm",
+            "eye_range_yaw_deg",
+            "eye_range_pitch_deg",
+            "saccade_s",
+            "head_move_s",
+        )
+        self.r.keys(setup, "gaze_setup", keys)
+        values: dict[str, Any] = {}
+        for key in keys:
+            if key.endswith("_mm") and key in setup:
+                raw = self.r.array(setup, key, "gaze_setup")
+                if len(raw) != 3 or not all(
+                    isinstance(c, int | float) and not isinstance(c, bool) for c in raw
+                ):
+                    self.r.fail(f"gaze_setup.{key}", f"expected [x, y, z] in mm (head frame), got {raw!r}")
+                values[key] = tuple(float(c) for c in raw)
+            elif key in setup:
+                values[key] = self.r.number(setup, key, "gaze_setup", lo=1e-6, what="a positive number")
+        try:
+            config = gaze_config_for(self.face, **values)
+        except TimelineError as err:
+            self.r.fail("gaze_setup", str(err), err)
+        layer = GazeLayer(self.face, config)
         self.timeline.add_layer("gaze", layer)
         for i, entry in enumerate(entries):
             path = f"gaze[{i}]"
@@ -351,6 +378,7 @@ class _Builder:
                 layer.look_at(at, target)
             except TimelineError as err:
                 self.r.fail(f"{path}.look_at_mm", str(err), err)
+            self.gaze_end_s = max(self.gaze_end_s, at + config.head_move_s)
 
     def alive(self, data: Mapping[str, Any]) -> None:
         for key, config_cls in (("blink", BlinkConfig), ("idle", IdleConfig)):

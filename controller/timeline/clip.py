@@ -151,16 +151,30 @@ class SequenceClip:
             t += c.duration_s
         return starts
 
+    def start_poses(self, from_pose: Pose) -> list[dict[str, float]]:
+        """The pose each clip starts from, given where the sequence starts (cached per start pose)."""
+        cache: dict[tuple[tuple[str, float], ...], list[dict[str, float]]]
+        cache = self.__dict__.setdefault("_start_cache", {})
+        key = tuple(sorted(from_pose.items()))
+        starts = cache.get(key)
+        if starts is None:
+            starts = [dict(from_pose)]
+            for clip in self.clips[:-1]:
+                starts.append(clip.end_pose(starts[-1]))
+            if len(cache) > 64:
+                cache.clear()
+            cache[key] = starts
+        return starts
+
     def sample(self, t_s: float, from_pose: Pose) -> dict[str, float]:
-        start_pose: Pose = from_pose
+        starts = self.start_poses(from_pose)
         offset = 0.0
+        last = len(self.clips) - 1
         for i, clip in enumerate(self.clips):
-            last = i == len(self.clips) - 1
-            if t_s < offset + clip.duration_s or last:
-                return clip.sample(t_s - offset, start_pose)
-            start_pose = clip.end_pose(start_pose)
+            if t_s < offset + clip.duration_s or i == last:
+                return clip.sample(t_s - offset, starts[i])
             offset += clip.duration_s
-        raise AssertionError("unreachable")  # pragma: no cover
+        return {}  # unreachable: the last clip always answers
 
     def end_pose(self, from_pose: Pose) -> dict[str, float]:
         pose: Pose = from_pose

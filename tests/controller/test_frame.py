@@ -107,3 +107,8 @@ def test_property_a_dog_frame_is_either_valid_or_rejected(aus: dict[str, float])
         assert not ok
     else:
         assert ok and dict(frame.aus) == {k: float(v) for k, v in aus.items()}
+
+
+def test_allowed_set_without_a_face_is_an_error() -> None:
+    with pytest.raises(FrameError, match="allowed: an allowed AU-name set needs face_type"):
+        AUFrame(0.0, {"AU12": 0.1}, allowed=frozenset({"AU12"}))

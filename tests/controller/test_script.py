@@ -231,3 +231,17 @@ def test_library_expressions_play_from_a_script() -> None:
     e = err('[script]\nface = "human"\n[[play]]\nat_s = 0\nlibrary = "glee"\n')
     assert "play[0].library: expression 'glee' is not in the human library; known:" in str(e)
     assert e.line == 5  # type: ignore[attr-defined]
+
+
+def test_gaze_setup_and_end_time_include_gaze_shifts() -> None:
+    text = (
+        '[script]\nface = "human"\n[[gaze]]\nat_s = 2.0\nlook_at_mm = [800, 0, 600]\n'
+        "[gaze_setup]\neye_center_mm = [0, 70, 60]\nhead_move_s = 0.8\n"
+    )
+    s = parse_script(text)
+    assert s.end_s == pytest.approx(2.8)
+    layer = s.timeline.layer("gaze")
+    assert layer.config.eye_center_mm == (0.0, 70.0, 60.0)  # type: ignore[attr-defined]
+    assert s.sample(2.8).get("AU51") > 0
+    e = err(text.replace("head_move_s = 0.8", "head_move_s = 0"))
+    assert "gaze_setup.head_move_s: expected a positive number" in str(e) and e.line == 8  # type: ignore[attr-defined]
