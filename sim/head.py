@@ -67,7 +67,9 @@ class Head:
         try:
             return self.joints[self.joint_index[name]]
         except KeyError:
-            raise KeyError(f"head {self.name!r} has no joint {name!r}; joints: {list(self.joint_names)}") from None
+            raise KeyError(
+                f"head {self.name!r} has no joint {name!r}; joints: {list(self.joint_names)}"
+            ) from None
 
     def part(self, name: str) -> RigidPart:
         for p in self.parts:
@@ -85,7 +87,9 @@ class Head:
         for m in self.muscles:
             if m.name == name:
                 return m
-        raise KeyError(f"head {self.name!r} has no muscle {name!r}; muscles: {[m.name for m in self.muscles]}")
+        raise KeyError(
+            f"head {self.name!r} has no muscle {name!r}; muscles: {[m.name for m in self.muscles]}"
+        )
 
     @cached_property
     def roles(self) -> tuple[str, ...]:

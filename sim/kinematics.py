@@ -193,7 +193,7 @@ def _check_offsets(head: Head, offsets: NDArray[np.float64]) -> NDArray[np.float
 
 
 def posed_skin_vertices(head: Head, pose: HeadPose) -> NDArray[np.float64]:
-    """(n, 3) float: skin vertices for the pose: rest + ``pose.skin_offset_mm``, then linear-blend skinning."""
+    """(n, 3) float: skin vertices: rest + ``pose.skin_offset_mm``, then linear-blend skinning."""
     offsets = _check_offsets(head, pose.skin_offset_mm)
     world = transforms_array(head, pose.joint_deg)
     return linear_blend(head.skin.vertices_mm + offsets, head.skin.weights, skin_transforms(head, world))
@@ -208,7 +208,7 @@ def part_transforms(head: Head, joint_deg: Mapping[str, float] | None) -> dict[s
 
 
 def posed_parts(head: Head, pose: HeadPose) -> list[PosedPart]:
-    """Every rigid part, its mesh moved into place for ``pose`` (new trimesh objects; rest meshes untouched)."""
+    """Every rigid part, its mesh moved into place for ``pose`` (new trimesh objects; rest untouched)."""
     import trimesh
 
     tfs = part_transforms(head, pose.joint_deg)

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.errors import HeadMeshError, HeadProfileError
+from sim.errors import HeadProfileError
 from sim.head import Head
 from sim.heads.binding import BindRule, HalfSpace, bind_weights
 from sim.rig import (
@@ -212,7 +212,7 @@ def _build(r: _Reader, data: dict[str, Any], folder: Path) -> Head:
 
 
 def _data_file(r: _Reader, data: dict[str, Any], name: str, folder: Path) -> Path | None:
-    """``"builtin"`` (or absent) -> None: use the library's table for the face type; else a file that exists."""
+    """``"builtin"`` (or absent) -> None: the library's table for the face type; else an existing file."""
     if name not in data:
         return None
     v = r.string(data, name, "")

@@ -38,7 +38,8 @@ def load_head(name_or_path: str | Path) -> Head:
         path = Path(name_or_path)
         if not path.exists():
             raise HeadProfileError(
-                f"{path}: expected a built-in head name {list(BUILTIN_HEADS)} or a profile folder with head.toml"
+                f"{path}: expected a built-in head name {list(BUILTIN_HEADS)} "
+                "or a profile folder with head.toml"
             )
     file = path / "head.toml" if path.is_dir() else path
     try:

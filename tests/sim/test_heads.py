@@ -33,7 +33,8 @@ HUMAN_MUSCLES = [
 DOG_MUSCLES = [
     "levator_nasolabialis_l", "levator_nasolabialis_r", "zygomaticus_l", "zygomaticus_r", "levator_nasi",
     "nostril_dilator_l", "nostril_dilator_r", "orbicularis_oris", "levator_anguli_oculi_l",
-    "levator_anguli_oculi_r", "frontalis_l", "frontalis_r", "auricularis_rostralis_l", "auricularis_rostralis_r",
+    "levator_anguli_oculi_r", "frontalis_l", "frontalis_r", "auricularis_rostralis_l",
+    "auricularis_rostralis_r",
 ]  # fmt: skip
 HUMAN_JOINTS = [
     "neck_pan", "neck_tilt", "neck_roll", "jaw", "eye_pan_l", "eye_pan_r", "eye_tilt_l", "eye_tilt_r",
@@ -44,8 +45,30 @@ DOG_JOINTS = [
     "eye_tilt_r", "upper_lid_l", "upper_lid_r", "ear_pan_l", "ear_pan_r", "ear_tilt_l", "ear_tilt_r",
     "tongue_extend", "tongue_tip",
 ]  # fmt: skip
-HUMAN_PARTS = ["skull", "neck", "jaw", "eyeball_l", "eyeball_r", "upper_lid_l", "upper_lid_r", "lower_lid_l", "lower_lid_r"]
-DOG_PARTS = ["skull", "neck", "jaw", "eyeball_l", "eyeball_r", "upper_lid_l", "upper_lid_r", "ear_l", "ear_r", "tongue_root", "tongue_tip"]
+HUMAN_PARTS = [
+    "skull",
+    "neck",
+    "jaw",
+    "eyeball_l",
+    "eyeball_r",
+    "upper_lid_l",
+    "upper_lid_r",
+    "lower_lid_l",
+    "lower_lid_r",
+]
+DOG_PARTS = [
+    "skull",
+    "neck",
+    "jaw",
+    "eyeball_l",
+    "eyeball_r",
+    "upper_lid_l",
+    "upper_lid_r",
+    "ear_l",
+    "ear_r",
+    "tongue_root",
+    "tongue_tip",
+]
 
 CONTRACT = {
     "human": (HUMAN_ROLES, HUMAN_MUSCLES, HUMAN_JOINTS, HUMAN_PARTS),
@@ -160,7 +183,7 @@ def test_jaw_region_follows_the_jaw_and_the_mouth_opens(any_head: Head) -> None:
     contact = rest[np.argmin(np.linalg.norm(rest - chin, axis=1))]
     near = np.nonzero(np.linalg.norm(rest - contact, axis=1) < 1e-9)[0]
     assert len(near) == 2, "the mouth line is a slit: two vertices share the lip contact point"
-    assert sorted(np.round(moved[near])) [0] < 0.5 and moved[near].max() > 15.0
+    assert sorted(np.round(moved[near]))[0] < 0.5 and moved[near].max() > 15.0
     lower = near[np.argmax(moved[near])]
     assert opened[lower, 1] < rest[lower, 1] - 10.0
     # the skin above the eyes does not move with the jaw
@@ -179,7 +202,10 @@ def test_lids_cover_the_eye_when_closed() -> None:
     for lid_deg, covered in ((0.0, False), (55.0, True)):
         pose.joint_deg["upper_lid_l"] = lid_deg
         parts = {p.name: p for p in posed_parts(head, pose)}
-        assert _ray_hits(parts["upper_lid_l"].mesh, eye + np.array([0.0, 0.0, 60.0]), np.array([0.0, 0.0, -1.0])) is covered
+        assert (
+            _ray_hits(parts["upper_lid_l"].mesh, eye + np.array([0.0, 0.0, 60.0]), np.array([0.0, 0.0, -1.0]))
+            is covered
+        )
 
 
 def _ray_hits(mesh: object, origin: np.ndarray, direction: np.ndarray) -> bool:
