@@ -97,11 +97,14 @@ class EventTiming:
         if isinstance(self.iterations, bool) or not isinstance(self.iterations, int) or self.iterations < 1:
             raise TimelineError(f"iterations: expected an integer >= 1, got {self.iterations!r}")
 
-    def group(self, number: int) -> str:
+    def group(self, au: str) -> str:
+        """The serialisation key of an AU: its exclusive group, else the AU itself (AU5L and AU5R are
+        independent; a bilateral AU5 waits for both)."""
+        number = au_number(au)
         for i, members in enumerate(self.exclusive):
             if number in members:
                 return f"group{i}"
-        return f"AU{number}"
+        return au
 
     def with_overrides(self, **changes: Any) -> EventTiming:
         return replace(self, **changes)
@@ -183,9 +186,14 @@ def schedule(events: Sequence[Event], timing: EventTiming = EventTiming()) -> li
     prev_onset = -math.inf
     for ev in events:
         onset = 0.0 if not out else prev_onset + timing.spacing_s
-        group = timing.group(ev.number)
-        if group in busy_until:
-            onset = max(onset, busy_until[group] + timing.dwell_s)
+        group = timing.group(ev.au)
+        blocking = [group]
+        if group == ev.au:  # a bilateral AU waits for its sides and a side for the bilateral AU
+            base = f"AU{ev.number}"
+            blocking += [base] if ev.au != base else [f"{base}L", f"{base}R"]
+        for key in blocking:
+            if key in busy_until:
+                onset = max(onset, busy_until[key] + timing.dwell_s)
         if ev.number in PULSE_AUS:
             length = timing.pulse_s
         elif ev.number in CYCLIC_AUS:

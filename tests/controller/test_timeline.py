@@ -285,3 +285,25 @@ def test_library_clip_for_both_faces() -> None:
     assert sorted(firsts, key=firsts.__getitem__)[:3] == ["AU14", "AU4", "AU1"]
     with pytest.raises(TimelineError, match="expression 'glee' is not in the human library"):
         library_clip("human", "glee")
+
+
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(0.0, 5.0),  # start
+            st.floats(0.2, 2.0),  # duration
+            st.dictionaries(st.sampled_from(["AU1", "AU4", "AU12", "AU26"]), st.floats(0, 1), max_size=3),
+            st.floats(0.1, 0.9),  # share of the first movement (> 0: no cut)
+        ),
+        min_size=1,
+        max_size=5,
+    )
+)
+def test_property_a_face_track_never_jumps_at_clip_boundaries(clips: list) -> None:  # type: ignore[type-arg]
+    tl = Timeline("human")
+    for start, duration, pose, share in clips:
+        tl.play(Expression("x", duration, (Movement(pose, share), Movement(pose, 1 - share))).clip(), start)
+    for start, *_ in clips:
+        before, after = tl.sample_aus(start - 1e-7), tl.sample_aus(start)
+        for au in set(before) | set(after):
+            assert abs(before.get(au, 0.0) - after.get(au, 0.0)) < 1e-4, (au, start)

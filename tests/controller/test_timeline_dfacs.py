@@ -5,6 +5,8 @@ from __future__ import annotations
 import itertools
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from controller.errors import TimelineError
 from controller.timeline import EventTiming, Timeline, events_clip, parse_events, recipe_events
@@ -154,3 +156,29 @@ def test_timing_validation() -> None:
         EventTiming(intensity=1.5)
     with pytest.raises(TimelineError, match="repeat: expected an integer >= 1"):
         events_clip(table_recipe("fear"), repeat=0)
+
+
+EVENT_AUS = ["AU1", "AU1L", "AU1R", "AU3", "AU5", "AU7", "AU9", "AU10", "AU11", "AU14"]
+
+
+@given(st.lists(st.tuples(st.sampled_from(EVENT_AUS), st.sampled_from([-1, 1])), min_size=1, max_size=12))
+def test_property_any_event_list_keeps_order_and_never_overlaps_a_joint(
+    events: list[tuple[str, int]],
+) -> None:
+    tokens = [("-" if sign < 0 else "") + au for au, sign in events]
+    placed = schedule(parse_events(tokens))
+    starts = [p.start_s for p in placed]
+    assert all(b > a for a, b in zip(starts, starts[1:], strict=False))  # strictly in the given order
+    for a, b in itertools.combinations(placed, 2):
+        bilateral = a.event.au[-1] not in "LR" or b.event.au[-1] not in "LR"
+        same_au = a.event.number == b.event.number and (a.event.au == b.event.au or bilateral)
+        same_joint = same_au or {a.event.number, b.event.number} <= {9, 10, 11}
+        if same_joint:
+            assert not overlaps((a.start_s, a.end_s), (b.start_s, b.end_s)), (a, b)
+    assert placed[0].start_s == 0.0
+
+
+def test_left_and_right_sides_move_together_but_bilateral_waits() -> None:
+    placed = schedule(parse_events(["AU1L", "AU1R", "AU1"]))
+    assert placed[1].start_s == pytest.approx(0.15)  # the right side does not wait for the left
+    assert placed[2].start_s >= placed[1].end_s  # the bilateral AU waits for both sides
