@@ -130,6 +130,22 @@ def _au_table(face_type: FaceType) -> Any:
         return None
 
 
+def head_au_names(head: Any) -> frozenset[str]:
+    """The AU names a head accepts: its own AU table (``head.au_table_path``, a ``sim.head.Head``) when it
+    has one, else its face type's default set."""
+    path = getattr(head, "au_table_path", None)
+    if path:
+        try:
+            from sim.au import load_au_table
+
+            return frozenset(load_au_table(path).names())
+        except Exception as err:  # noqa: BLE001 - report any table problem as a frame-side error
+            raise FrameError(
+                f"head {getattr(head, 'name', '?')}: cannot read its AU table {path}: {err}"
+            ) from err
+    return default_au_names(getattr(head, "face_type", None))
+
+
 def builtin_au_names(face_type: FaceType) -> frozenset[str]:
     """The built-in sets of this module (facs-human.md §1, dfacs-dog.md §2)."""
     if face_type == "human":

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
 
-from controller.au_names import au_ranges, canonical_au, default_au_names, intensity_range
+from controller.au_names import au_ranges, canonical_au, default_au_names, head_au_names, intensity_range
 from controller.errors import FrameError
 from sim.rig import FaceType
 
@@ -164,6 +164,11 @@ class FrameValidator:
 
     def __post_init__(self) -> None:
         check_face_type(self.face_type)
+
+    @classmethod
+    def for_head(cls, head: Any) -> FrameValidator:
+        """A validator for a loaded head (``sim.head.Head``): its face type and its AU table's names."""
+        return cls(check_face_type(getattr(head, "face_type", None)), head_au_names(head))
 
     @property
     def names(self) -> frozenset[str]:

@@ -112,3 +112,21 @@ def test_property_a_dog_frame_is_either_valid_or_rejected(aus: dict[str, float])
 def test_allowed_set_without_a_face_is_an_error() -> None:
     with pytest.raises(FrameError, match="allowed: an allowed AU-name set needs face_type"):
         AUFrame(0.0, {"AU12": 0.1}, allowed=frozenset({"AU12"}))
+
+
+def test_validator_for_a_head_uses_its_au_table(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from sim.au import au_table_path as table_path
+
+    class BuiltinHead:
+        name, face_type, au_table_path = "human", "human", table_path("human")
+
+    validator = FrameValidator.for_head(BuiltinHead())
+    assert validator.face_type == "human" and "AU12L" in validator.names
+    bad = tmp_path / "au.toml"
+    bad.write_text("not toml [", encoding="utf-8")
+
+    class BrokenHead:
+        name, face_type, au_table_path = "mine", "human", bad
+
+    with pytest.raises(FrameError, match="head mine: cannot read its AU table"):
+        FrameValidator.for_head(BrokenHead())
