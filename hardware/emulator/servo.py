@@ -30,6 +30,7 @@ ACC_UNIT_TICK_S2 = ACCELERATION_UNIT_RPM2 / 3600.0 * TICKS_PER_REV
 POSITION_MODES = (3, 4, 5)
 A_TORQUE, A_GOAL_POS, A_HW_ERR, A_WATCHDOG, A_MODE, A_DRIVE = 64, 116, 70, 98, 11, 10
 IN_POSITION_TICK = 2.0
+THERMAL_DEFER_S = 0.02  # at rest, heat is integrated at most this often (exact: the load is constant)
 
 
 _F = TypeVar("_F", bound=Callable[..., Any])
@@ -87,12 +88,14 @@ class EmulatedServo:
         self._profile = physics.MotionProfile(spec.no_load_speed_tick_s, math.inf)
         self._t = clock()
         self._accel = 0.0
-        self._live_t = math.nan
+        self._live_dirty = True
+        self._thermal_t = self._t
         self._plan_key: tuple[object, ...] = ()
         # (first Indirect Data address, first Indirect Address address, count) per indirect block
         self._indirect: list[tuple[int, int, int]] = _indirect_blocks(spec)
         self._indirect_lo = min((d for d, _, _ in self._indirect), default=1 << 30)
         self._indirect_hi = max((d + n for d, _, n in self._indirect), default=0)
+        self._reports_load = spec.present_kind == "load"
         self._stall_units = spec.stall_current_a * 1000.0 / spec.current_unit_ma
         self._last_rx_s = self._t
         self._watchdog_tripped = False
@@ -160,12 +163,15 @@ class EmulatedServo:
     @property
     def temperature_c(self) -> float:
         self.advance()
+        self._settle_thermal(self._t)
         return self.motor.temperature_c
 
     @temperature_c.setter
     def temperature_c(self, value: float) -> None:
         self.advance()
+        self._settle_thermal(self._t)
         self.motor.temperature_c = float(value)
+        self._live_dirty = True
 
     @property
     def load_fraction(self) -> float:
@@ -197,7 +203,7 @@ class EmulatedServo:
             )
         self.motor.pos = self.motor.target = self._to_shaft(float(present_tick))
         self._plan_key = ()
-        self._live_t = math.nan
+        self._live_dirty = True
         self.motor.vel = 0.0
 
     @_locked
@@ -214,7 +220,7 @@ class EmulatedServo:
     # ----------------------------------------------------------------- power
     def _power_on(self, keep: bytes | None) -> None:
         """Power-up state: RAM defaults; EEPROM from ``keep`` (None = model defaults)."""
-        self._live_t = math.nan
+        self._live_dirty = True
         image = self.table.defaults_image()
         if keep is not None:
             image[:EEPROM_END] = keep[:EEPROM_END]
@@ -386,7 +392,7 @@ class EmulatedServo:
         """Store ``data`` and run side effects of the registers it covers (no checks)."""
         mem = self.mem
         end = address + len(data)
-        self._live_t = math.nan
+        self._live_dirty = True
         old_torque = mem[A_TORQUE]
         old_mode = mem[A_MODE]
         mem[address:end] = data
@@ -477,14 +483,23 @@ class EmulatedServo:
         torque = mem[A_TORQUE] == 1
         mode = mem[A_MODE]
         if torque and mode not in POSITION_MODES:
+            self._settle_thermal(t0)
             self._drive_velocity(t1 - t0)
             self._thermal(t1 - t0, 0.1)
+            self._thermal_t = t1
+            self._live_dirty = True
             return
         if not torque or motor.at_rest:
             load = physics.load_fraction(motor, torque, self.obstacle, 0.0)
-            motor.load = load
-            self._thermal(t1 - t0, load)
+            if load != motor.load:
+                self._settle_thermal(t0)
+                motor.load = load
+                self._live_dirty = True
+            if t1 - self._thermal_t >= THERMAL_DEFER_S:
+                self._settle_thermal(t1)  # constant load at rest: integrating later is exact
             return
+        self._settle_thermal(t0)
+        self._live_dirty = True
         t = t0
         while t < t1:
             dt = min(physics.STEP_S, t1 - t)
@@ -496,9 +511,12 @@ class EmulatedServo:
             self._thermal(dt, load)
             t += dt
             if not mem[A_TORQUE]:
+                motor.load = 0.0
                 break
             if motor.at_rest:
-                self._thermal(t1 - t, physics.load_fraction(motor, True, self.obstacle, 0.0))
+                motor.load = physics.load_fraction(motor, True, self.obstacle, 0.0)
+                self._thermal(t1 - t, motor.load)
+                t = t1
                 break
             if physics.blocked_by(motor, self.obstacle) and t < t1:
                 # stalled: constant load until the end (or until a trip drops torque)
@@ -506,9 +524,21 @@ class EmulatedServo:
                 chunk = min(rest, 0.05)
                 while rest > 0 and mem[A_TORQUE]:
                     self._thermal(chunk, load)
+                    t += chunk
                     rest -= chunk
                     chunk = min(rest, 0.05)
+                if not mem[A_TORQUE]:
+                    motor.load = 0.0
                 break
+        self._thermal_t = min(t, t1)
+
+    def _settle_thermal(self, t_s: float) -> None:
+        """Integrate heat up to ``t_s`` at the present (constant) load."""
+        dt = t_s - self._thermal_t
+        if dt > 0:
+            self._thermal(dt, self.motor.load)
+            self._thermal_t = t_s
+            self._live_dirty = True
 
     def _drive_velocity(self, dt: float) -> None:
         mem = self.mem
@@ -546,6 +576,7 @@ class EmulatedServo:
             self._trip(HW_OVERHEATING)
 
     def _trip(self, bits: int) -> None:
+        self._live_dirty = True
         mem = self.mem
         mem[A_HW_ERR] |= bits
         if bits & mem[63] and mem[A_TORQUE]:
@@ -573,7 +604,7 @@ class EmulatedServo:
     def set_input_voltage(self, volts: float) -> None:
         self.advance()
         self.input_voltage_v = float(volts)
-        self._live_t = math.nan
+        self._live_dirty = True
         if not self._voltage_ok():
             self._trip(HW_INPUT_VOLTAGE)
 
@@ -602,44 +633,70 @@ class EmulatedServo:
 
     def _sync_live(self) -> None:
         """Write the live (read-only) registers 120..146 from the physics state into memory (one pack)."""
-        if self._live_t == self._t:
-            return
-        self._live_t = self._t
         mem = self.mem
+        if not self._live_dirty:
+            _TICK.pack_into(mem, 120, int(self._t * 1000.0) % 32768)  # at rest only the clock moves
+            return
+        self._live_dirty = False
         motor = self.motor
         vel = motor.vel
         rev = mem[A_DRIVE] & 1
-        offset = _i(mem, 20, 4, True)
-        present = (4095.0 - motor.pos if rev else motor.pos) + offset
-        target = (4095.0 - motor.target if rev else motor.target) + offset
-        moving = vel != 0.0
-        in_pos = abs(motor.target - motor.pos) <= IN_POSITION_TICK
-        prof_v = _i(mem, 112, 4)
-        prof = (0x30 if _i(mem, 108, 4) else 0x10) if prof_v else 0
-        load = -motor.load if rev else motor.load
-        if self.spec.present_kind == "load":
-            present_load = round(load * 1000)
+        offset = _I32.unpack_from(mem, 20)[0]
+        prof_a, prof_v = _PROFILE.unpack_from(mem, 108)
+        if rev:
+            present = 4095.0 - motor.pos + offset
+            target = 4095.0 - motor.target + offset
+            load = -motor.load
+            vel = -vel
         else:
-            present_load = round(load * self._stall_units)
-        vel_units = round((-vel if rev else vel) / VEL_UNIT_TICK_S)
-        _LIVE.pack_into(
-            mem,
-            120,
+            present = motor.pos + offset
+            target = motor.target + offset
+            load = motor.load
+        moving = vel != 0.0
+        status = (1 if abs(motor.target - motor.pos) <= IN_POSITION_TICK else 0) | (2 if moving else 0)
+        if prof_v:
+            status |= 0x30 if prof_a else 0x10
+        present_load = load * (1000.0 if self._reports_load else self._stall_units)
+        vel_units = round(vel / VEL_UNIT_TICK_S)
+        values = (
             int(self._t * 1000.0) % 32768,
             1 if moving else 0,
-            (1 if in_pos else 0) | (2 if moving else 0) | prof,
-            _clamp16(round(load * 885)),
-            _clamp16(present_load),
-            _clamp32(vel_units),
-            _clamp32(round(present)),
-            _clamp32(vel_units),
-            _clamp32(round(target)),
-            max(0, min(65535, round(self.input_voltage_v * 10))),
-            max(0, min(255, round(motor.temperature_c))),
+            status,
+            round(load * 885),
+            round(present_load),
+            vel_units,
+            round(present),
+            vel_units,
+            round(target),
+            round(self.input_voltage_v * 10),
+            round(motor.temperature_c),
         )
+        try:
+            _LIVE.pack_into(mem, 120, *values)
+        except struct.error:  # something out of its register's range (runaway test values): saturate
+            _LIVE.pack_into(
+                mem, 120, *(_saturate(v, lo, hi) for v, (lo, hi) in zip(values, _LIVE_RANGES, strict=True))
+            )
 
 
 _LIVE = struct.Struct("<HBBhhiiiiHB")  # Realtime Tick (120) .. Present Temperature (146)
+_TICK = struct.Struct("<H")
+_I32 = struct.Struct("<i")
+_PROFILE = struct.Struct("<II")  # Profile Acceleration (108), Profile Velocity (112)
+_LIVE_RANGES = (
+    [(0, 65535), (0, 255), (0, 255), (-32768, 32767), (-32768, 32767)]
+    + [(-(1 << 31), (1 << 31) - 1)] * 4
+    + [
+        (0, 65535),
+        (0, 255),
+    ]
+)
+
+
+def _saturate(v: int, lo: int, hi: int) -> int:
+    return lo if v < lo else hi if v > hi else v
+
+
 _LIMITS = struct.Struct("<III")  # Velocity Limit (44), Max (48) / Min (52) Position Limit
 _GOALS = struct.Struct("<IIi")  # Profile Acceleration (108), Profile Velocity (112), Goal Position (116)
 
@@ -661,11 +718,3 @@ def _indirect_blocks(spec: ModelSpec) -> list[tuple[int, int, int]]:
         else:
             blocks.append((reg.address, addr_reg.address, 1))
     return blocks
-
-
-def _clamp16(v: int) -> int:
-    return -32768 if v < -32768 else 32767 if v > 32767 else v
-
-
-def _clamp32(v: int) -> int:
-    return -(1 << 31) if v < -(1 << 31) else (1 << 31) - 1 if v > (1 << 31) - 1 else v
