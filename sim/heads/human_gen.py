@@ -116,7 +116,7 @@ def _skin() -> tuple[F64, I64, F64, dict[str, int]]:
     alpha = _columns(nu)
     w, df, db = _upper_profile(rows)
     sa, ca = np.sin(alpha)[None, :], np.cos(alpha)[None, :]
-    e = 0.8  # superellipse exponent (< 1: squarer cross-section)
+    e = 0.9  # superellipse exponent (< 1: squarer cross-section)
     x = w[:, None] * np.sign(sa) * np.abs(sa) ** e
     depth = np.where(ca >= 0, df[:, None], db[:, None])
     z = depth * np.sign(ca) * np.abs(ca) ** e
@@ -229,7 +229,12 @@ def skull() -> tuple[F64, I64]:
 
 
 def mouth_cavity() -> tuple[F64, I64]:
-    return mt.ellipsoid((0.0, 68.0, 48.0), (24.0, 17.0, 22.0), subdiv=3)
+    """A dark cup open towards the lips: what shows between the teeth when the mouth opens."""
+    c = np.array([0.0, 68.0, 78.0])
+    flip = np.array([-1.0, 1.0, -1.0])
+    outer = mt.sphere_patch(np.zeros(3), 1.0, (-89.0, 89.0), (-89.0, 89.0), 18, 18) * flip
+    semi = np.array([28.0, 25.0, 42.0])
+    return _outward(*mt.shell_from_grids(c + outer * (semi + 1.0), c + outer * semi))
 
 
 def _arch(y: float, z_front: float, half_w: float, depth: float, n: int = 15) -> F64:

@@ -169,7 +169,7 @@ def cap(
         base = 1 + (k - 1) * n_ring
         g = grid_faces(2, n_ring, periodic_u=True) + base
         faces.append(g)
-    return v, np.asarray(np.concatenate(faces), dtype=np.int64)
+    return v, np.asarray(np.concatenate(faces)[:, ::-1], dtype=np.int64)
 
 
 def box(lo: tuple[float, float, float], hi: tuple[float, float, float]) -> tuple[F64, I64]:
