@@ -145,5 +145,5 @@ def sequence(
 
 
 def hold(pose: Mapping[str, float], duration_s: float, name: str = "hold") -> ChannelClip:
-    """Jump-free hold: go nowhere for ``duration_s`` (stay at ``pose`` reached instantly)."""
+    """Cut to ``pose`` at once (AUs not in it to 0) and hold it for ``duration_s``."""
     return Expression(name, duration_s, (Movement(pose, 0.0), Movement(pose, 1.0))).clip()
