@@ -91,6 +91,15 @@ class Curve(ABC):
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready parameters, including ``"kind"``."""
 
+    @abstractmethod
+    def pieces(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The curve as polynomial pieces, for evaluating many curves at once (see calibration.bank).
+
+        Returns ``knots`` (n,) ascending targets, ``base`` (n + 1,) and ``coef`` (n + 1, 4): for a target
+        t with ``i = count(knots <= t)``, tick = sum_p coef[i, p] * (t - base[i]) ** p. Piece 0 is the
+        straight continuation below the first knot, piece n the one above the last.
+        """
+
     @property
     def points(self) -> FloatArray:
         """(k, 2) float: the (target, tick) points that define the curve; empty for parametric curves."""
@@ -143,6 +152,10 @@ class LinearCurve(Curve):
     def slope(self, targets: ArrayLike) -> FloatArray:
         return np.full(np.shape(targets), self._gain)
 
+    def pieces(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        coef = np.array([[self.offset_tick, self._gain, 0.0, 0.0]] * 2)
+        return np.zeros(1), np.zeros(2), coef
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "kind": self.kind,
@@ -177,6 +190,18 @@ class _PointCurve(Curve):
         return {"kind": self.kind, "points": self._pts.tolist()}
 
     @abstractmethod
+    def _inner_coef(self) -> FloatArray:
+        """(n - 1, 4) ascending-power coefficients of the pieces between the points."""
+
+    def pieces(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        x, y = self._x, self._y
+        below = [y[0], self._slope_lo, 0.0, 0.0]
+        above = [y[-1], self._slope_hi, 0.0, 0.0]
+        coef = np.vstack([below, self._inner_coef(), above])
+        base = np.concatenate([[x[0]], x[:-1], [x[-1]]])
+        return x.copy(), base, coef
+
+    @abstractmethod
     def _inside(self, targets: FloatArray) -> FloatArray:
         """Forward on targets within [x[0], x[-1]]."""
 
@@ -206,6 +231,11 @@ class PiecewiseLinearCurve(_PointCurve):
 
     def _inside(self, targets: FloatArray) -> FloatArray:
         return np.asarray(np.interp(targets, self._x, self._y), dtype=np.float64)
+
+    def _inner_coef(self) -> FloatArray:
+        slopes = np.diff(self._y) / np.diff(self._x)
+        zeros = np.zeros_like(slopes)
+        return np.stack([self._y[:-1], slopes, zeros, zeros], axis=1)
 
     def inverse(self, ticks: ArrayLike) -> FloatArray:
         k = np.asarray(ticks, dtype=np.float64)
@@ -262,6 +292,9 @@ class PchipCurve(_PointCurve):
 
     def _inside(self, targets: FloatArray) -> FloatArray:
         return np.asarray(self._spline(targets), dtype=np.float64)
+
+    def _inner_coef(self) -> FloatArray:
+        return np.asarray(self._spline.c[::-1].T, dtype=np.float64)  # scipy: highest power first
 
     def inverse(self, ticks: ArrayLike) -> FloatArray:
         k = np.asarray(ticks, dtype=np.float64)

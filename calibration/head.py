@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from calibration.bank import CurveBank
 from calibration.errors import CalibrationError, CurveError, TargetOutOfRangeError, UnknownServoError
 from calibration.servo import ServoCalibration, round_ticks
 
@@ -57,7 +58,14 @@ class HeadCalibration:
             self._by_id[s.servo_id] = s
         self._order = self._solve_order()
         self._roles = tuple(s.role for s in servos)
+        self._ids = tuple(s.servo_id for s in servos)
         self._index = {r: i for i, r in enumerate(self._roles)}
+        self._bank = CurveBank(servos)
+        self._coupled = [j for j, s in enumerate(servos) if s.coupling is not None]
+        self._neutral_tick_row = np.array([[s.neutral_tick for s in servos]], dtype=np.float64)
+        self._neutral_target_row = np.clip(
+            np.array([[s.neutral_target for s in servos]]), self._bank.min_target, self._bank.max_target
+        )
 
     def _solve_order(self) -> list[str]:
         """Roles in an order where every coupled servo comes after its neighbours."""
@@ -93,7 +101,7 @@ class HeadCalibration:
     @property
     def ids(self) -> tuple[int, ...]:
         """Servo ids in the same order as :attr:`roles`."""
-        return tuple(self._by_role[r].servo_id for r in self._roles)
+        return self._ids
 
     @property
     def servos(self) -> tuple[ServoCalibration, ...]:
@@ -149,42 +157,76 @@ class HeadCalibration:
         Coupled servos need their neighbours' ticks: a neighbour not in ``targets`` is taken at its
         neutral tick. All-or-nothing: raises on the first unknown role or refused target.
         """
-        for role in targets:
-            self[role]  # raises UnknownServoError
-        ticks: dict[str, int] = {}
-        for role in self._order:
-            if role not in targets:
-                continue
-            s = self._by_role[role]
-            if s.coupling is None:
-                ticks[role] = s.to_tick(float(targets[role]))
-            else:
-                others = np.array(
-                    [[self._tick_of(n, ticks) for n in s.coupling.neighbours]], dtype=np.float64
-                )
-                ticks[role] = int(self._coupled_ticks(s, np.array([float(targets[role])]), others)[0])
-        return {self._by_role[r].servo_id: ticks[r] for r in targets}
+        row = self._neutral_target_row.copy()
+        cols = [self._column(role) for role in targets]
+        row[0, cols] = [float(v) for v in targets.values()]
+        ticks = self.targets_to_goals_array(row)[0]
+        return {self._ids[j]: int(ticks[j]) for j in cols}
 
     def goals_to_targets(self, goals: Mapping[int, int], *, clip: bool = False) -> dict[str, float]:
         """Id -> goal tick into role -> target; coupled servos use their neighbours' goals (or neutral)."""
-        by_role = {self.by_id(i).role: float(t) for i, t in goals.items()}
-        out: dict[str, float] = {}
-        for role, tick in by_role.items():
+        row = self._neutral_tick_row.copy()
+        cols = [self._index[self.by_id(servo_id).role] for servo_id in goals]
+        row[0, cols] = [float(v) for v in goals.values()]
+        targets = self.goals_to_targets_array(row, clip=clip)[0]
+        return {self._roles[j]: float(targets[j]) for j in cols}
+
+    def _column(self, role: str) -> int:
+        self[role]  # raises UnknownServoError naming the known roles
+        return self._index[role]
+
+    # ---- batch (array) form ------------------------------------------------------------------------
+    def targets_to_goals_array(self, targets: ArrayLike) -> NDArray[np.int64]:
+        """(n, S) targets in :attr:`roles` order -> (n, S) int64 goal ticks in the same column order.
+
+        All-or-nothing: the first non-finite or out-of-range target raises, naming its servo.
+        """
+        t = np.asarray(targets, dtype=np.float64)
+        if t.ndim != 2 or t.shape[1] != len(self._roles):
+            raise CalibrationError(
+                f"head '{self.head}': expected targets of shape (n, {len(self._roles)}) in role order, "
+                f"got {t.shape}"
+            )
+        if not self._coupled:
+            return self._bank.to_ticks(t)
+        plain = t.copy()
+        plain[:, self._coupled] = self._neutral_target_row[0, self._coupled]
+        out = self._bank.to_ticks(plain)
+        for role in self._order:
             s = self._by_role[role]
-            out[role] = s.to_target(tick, clip=clip)
             if s.coupling is not None:
-                own = float(np.clip(tick, s.min_tick, s.max_tick))
-                x = [own] + [by_role.get(n, self._by_role[n].neutral_tick) for n in s.coupling.neighbours]
-                out[role] = float(s.coupling.map.evaluate(np.array(x, dtype=np.float64)))
+                j = self._index[role]
+                others = np.stack([out[:, self._index[n]] for n in s.coupling.neighbours], axis=1)
+                out[:, j] = self._coupled_ticks(s, t[:, j], others.astype(np.float64))
         return out
 
-    def _tick_of(self, role: str, solved: Mapping[str, int]) -> int:
-        return solved[role] if role in solved else self._by_role[role].neutral_tick
+    def goals_to_targets_array(self, goals: ArrayLike, *, clip: bool = False) -> NDArray[np.float64]:
+        """(n, S) goal ticks in :attr:`roles` order -> (n, S) targets (deg/mm).
+
+        Refuses non-finite ticks and, unless ``clip``, ticks outside a servo's limits (naming it).
+        """
+        k = np.asarray(goals, dtype=np.float64)
+        if k.ndim != 2 or k.shape[1] != len(self._roles):
+            raise CalibrationError(
+                f"head '{self.head}': expected goals of shape (n, {len(self._roles)}) in role order, "
+                f"got {k.shape}"
+            )
+        out = self._bank.to_targets(k, clip=clip)
+        for j in self._coupled:
+            s = self.servos[j]
+            if s.coupling is not None:
+                cols = [np.clip(k[:, j], s.min_tick, s.max_tick)] + [
+                    np.clip(k[:, self._index[n]], self._by_role[n].min_tick, self._by_role[n].max_tick)
+                    for n in s.coupling.neighbours
+                ]
+                out[:, j] = s.coupling.map.evaluate(np.stack(cols, axis=1))
+        return out
 
     @staticmethod
     def _coupled_ticks(
         s: ServoCalibration, targets: NDArray[np.float64], others: NDArray[np.float64]
     ) -> NDArray[np.int64]:
+        """Ticks of a coupled servo for its targets, given its neighbours' ticks (rows of ``others``)."""
         if s.coupling is None:  # pragma: no cover - callers check
             return s.to_ticks(targets)
         if not np.all(np.isfinite(targets)):
@@ -205,41 +247,3 @@ class HeadCalibration:
         except CurveError as err:
             raise CurveError(f"servo '{s.role}': {err}") from err
         return np.clip(round_ticks(solved), s.min_tick, s.max_tick)
-
-    # ---- batch (array) form ------------------------------------------------------------------------
-    def targets_to_goals_array(self, targets: ArrayLike) -> NDArray[np.int64]:
-        """(n, S) targets in :attr:`roles` order -> (n, S) int64 goal ticks in the same column order."""
-        t = np.asarray(targets, dtype=np.float64)
-        if t.ndim != 2 or t.shape[1] != len(self._roles):
-            raise CalibrationError(
-                f"head '{self.head}': expected targets of shape (n, {len(self._roles)}) in role order, "
-                f"got {t.shape}"
-            )
-        out = np.empty(t.shape, dtype=np.int64)
-        for role in self._order:
-            j = self._index[role]
-            s = self._by_role[role]
-            if s.coupling is None:
-                out[:, j] = s.to_ticks(t[:, j])
-            else:
-                others = np.stack([out[:, self._index[n]] for n in s.coupling.neighbours], axis=1)
-                out[:, j] = self._coupled_ticks(s, t[:, j], others.astype(np.float64))
-        return out
-
-    def goals_to_targets_array(self, goals: ArrayLike, *, clip: bool = False) -> NDArray[np.float64]:
-        """(n, S) goal ticks in :attr:`roles` order -> (n, S) targets (deg/mm)."""
-        k = np.asarray(goals, dtype=np.float64)
-        if k.ndim != 2 or k.shape[1] != len(self._roles):
-            raise CalibrationError(
-                f"head '{self.head}': expected goals of shape (n, {len(self._roles)}) in role order, "
-                f"got {k.shape}"
-            )
-        out = np.empty(k.shape, dtype=np.float64)
-        for j, s in enumerate(self.servos):
-            out[:, j] = s.to_targets(k[:, j], clip=clip)
-            if s.coupling is not None:
-                cols = [np.clip(k[:, j], s.min_tick, s.max_tick)] + [
-                    k[:, self._index[n]] for n in s.coupling.neighbours
-                ]
-                out[:, j] = s.coupling.map.evaluate(np.stack(cols, axis=1))
-        return out

@@ -2,8 +2,11 @@
 
 ``to_tick`` rounds to the nearest integer tick and refuses non-finite or out-of-range targets with a
 :class:`TargetOutOfRangeError` naming the role. Target limits default to the inverse of the tick limits;
-they may be given explicitly (the head's actuator range), in which case they must map inside the tick
-limits after rounding.
+they may be given explicitly (the head's actuator range). Fitted calibrations round the tick limits
+INWARD (every tick inside the limits maps to a target inside the target limits, so goal -> target ->
+goal is the identity); a target at the very end of the range may then round one tick outside, and
+``to_tick`` clips it to the limit, so explicit target limits may reach less than one tick past the tick
+limits.
 """
 
 from __future__ import annotations
@@ -93,11 +96,12 @@ class ServoCalibration:
         elif np.isnan(lo) or np.isnan(hi) or not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
             raise CalibrationError(f"{who}: target limits {lo!r}..{hi!r} must be finite with min < max")
         else:
-            at = round_ticks(self.curve.forward(np.array([lo, hi])))
-            if np.any(at < self.min_tick) or np.any(at > self.max_tick):
+            at = self.curve.forward(np.array([lo, hi]))
+            if np.any(at <= self.min_tick - 1) or np.any(at >= self.max_tick + 1):
                 raise CalibrationError(
-                    f"{who}: target limits {lo:g}..{hi:g} {self.unit} map to ticks {at.tolist()}, "
-                    f"outside the tick limits {self.min_tick}..{self.max_tick}"
+                    f"{who}: target limits {lo:g}..{hi:g} {self.unit} map to ticks "
+                    f"{[round(float(a), 2) for a in at]}, more than a tick outside the tick limits "
+                    f"{self.min_tick}..{self.max_tick}"
                 )
         object.__setattr__(self, "min_target", float(lo))
         object.__setattr__(self, "max_target", float(hi))
