@@ -26,9 +26,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sim.au.mapping import AUMapping
+from sim.au.mapping import AUMapping, canonical_au_name, check_au
 from sim.au.table import AUTable, load_au_table
-from sim.errors import HeadProfileError, PoseError
+from sim.errors import HeadProfileError, PoseError, UnknownActionUnitError
 from sim.muscles import EyelidMuscle, LinearMuscle, Muscle, SheetMuscle, SphincterMuscle, muscle_from_mapping
 from sim.muscles.field import MuscleField
 from sim.muscles.fit import AnchorFit
@@ -115,6 +115,23 @@ class FaceModel:
             [a.radius_mm for a in self.anchor_actuators],
         )
         self.roles: tuple[str, ...] = tuple(a.role for a in actuators)
+
+    # --- the AU vocabulary of this head -----------------------------------------------------------------
+
+    @property
+    def au_names(self) -> frozenset[str]:
+        """Every AU name ``solve`` accepts (AU12, AU12L, AU12R, ...)."""
+        return self.mapping.table.names()
+
+    def au_range(self, name: str) -> tuple[float, float]:
+        """The allowed intensity interval of one AU name (UnknownActionUnitError if unknown)."""
+        table = self.mapping.table
+        number, side = canonical_au_name(name)
+        entry = table.entries.get(number)
+        if entry is None or (side and not entry.sided):
+            check_au(table, name, 0.0)  # raises the typed error naming the AU
+            raise UnknownActionUnitError(f"{name}: not in the {table.face_type} AU table")  # pragma: no cover
+        return entry.range
 
     # --- forward: AUs -> pose ---------------------------------------------------------------------------
 

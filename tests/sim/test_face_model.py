@@ -341,3 +341,28 @@ def test_intensity_scales_the_skin_linearly_below_the_limits(a: float, b: float)
     pb = model.solve({"AU15": b}).skin_offset_mm
     unit = model.solve({"AU15": 1.0}).skin_offset_mm
     assert np.allclose(pa, a * unit) and np.allclose(pb, b * unit)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.data())
+def test_twin_meets_any_in_range_anchor_targets_exactly(data: st.DataObject) -> None:
+    model = _shared_model()
+    targets = {
+        act.role: data.draw(st.floats(act.lower_mm, act.upper_mm), label=act.role)
+        for act in model.anchor_actuators
+    }
+    twin = model.pose_from_targets(targets)
+    assert np.all(np.isfinite(twin.skin_offset_mm))
+    for act in model.anchor_actuators:
+        got = float(np.dot(twin.skin_offset_mm[act.vertex], act.line))
+        assert got == pytest.approx(targets[act.role], abs=1e-6)
+
+
+def test_the_model_exposes_its_au_vocabulary(model: FaceModel) -> None:
+    assert {"AU12", "AU12L", "AU12R", "AU26", "AU51"} <= model.au_names
+    assert "AU26L" not in model.au_names
+    assert model.au_range("au12l") == (0.0, 1.0)
+    with pytest.raises(UnknownActionUnitError, match="AU3"):
+        model.au_range("AU3")
+    with pytest.raises(UnknownActionUnitError, match="AU26L"):
+        model.au_range("AU26L")
