@@ -342,6 +342,10 @@ class ServoChain:
             server.stop()  # type: ignore[attr-defined]
         self._closed = True
 
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
     def __enter__(self) -> ServoChain:
         return self
 

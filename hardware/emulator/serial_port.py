@@ -49,6 +49,8 @@ class EmulatedSerial:
     def _check(self) -> None:
         if not self.is_open:
             raise PortClosedError(f"serial endpoint {self.port} is closed")
+        if self._chain.closed:
+            raise PortClosedError(f"serial endpoint {self.port}: its servo chain was closed")
 
     def write(self, data: bytes | bytearray | list[int]) -> int:
         self._check()

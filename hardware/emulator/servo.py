@@ -151,32 +151,40 @@ class EmulatedServo:
     # ----------------------------------------------------------------- test hooks (bypass the wire)
     @property
     def position_tick(self) -> int:
-        self.advance()
-        return round(self._to_present(self.motor.pos))
+        """Present Position now (ticks)."""
+        with self._lock:
+            self.advance()
+            return round(self._to_present(self.motor.pos))
 
     @property
     def shaft_tick(self) -> float:
         """Physical shaft angle in ticks (differs from Present Position by homing offset and reverse)."""
-        self.advance()
-        return self.motor.pos
+        with self._lock:
+            self.advance()
+            return self.motor.pos
 
     @property
     def temperature_c(self) -> float:
-        self.advance()
-        self._settle_thermal(self._t)
-        return self.motor.temperature_c
+        """Winding temperature now (degC); settable for tests."""
+        with self._lock:
+            self.advance()
+            self._settle_thermal(self._t)
+            return self.motor.temperature_c
 
     @temperature_c.setter
     def temperature_c(self, value: float) -> None:
-        self.advance()
-        self._settle_thermal(self._t)
-        self.motor.temperature_c = float(value)
-        self._live_dirty = True
+        with self._lock:
+            self.advance()
+            self._settle_thermal(self._t)
+            self.motor.temperature_c = float(value)
+            self._live_dirty = True
 
     @property
     def load_fraction(self) -> float:
-        self.advance()
-        return self.motor.load
+        """Signed load as a fraction of stall torque now."""
+        with self._lock:
+            self.advance()
+            return self.motor.load
 
     @_locked
     def read_register(self, key: str | int) -> int:
@@ -236,7 +244,7 @@ class EmulatedServo:
         self._sync_live()
 
     @_locked
-    def reboot(self, silence_s: float) -> None:
+    def reboot(self, silence_s: float = 0.0) -> None:
         """Reboot: RAM back to defaults (torque off, errors cleared unless their cause persists)."""
         self.advance()
         self._power_on(keep=bytes(self.mem[:EEPROM_END]))

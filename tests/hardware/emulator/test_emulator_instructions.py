@@ -280,3 +280,9 @@ def test_id_and_baud_changed_through_test_hooks_are_heard() -> None:
     assert transact(ser, 2, I.PING) == [] and transact(ser, 12, I.PING)[0].id == 12
     chain.servo(1).write_register("Baud Rate", 1)
     assert transact(ser, 1, I.PING) == []
+
+
+def test_control_table_backup_answers() -> None:
+    chain, ser = quick_chain(ids=[1])
+    (st,) = transact(ser, 1, I.CONTROL_TABLE_BACKUP, b"\x01\x43\x54\x52\x4c")
+    assert (st.id, st.error) == (1, OK)

@@ -114,3 +114,13 @@ def test_packet_delivery_hands_over_whole_status_packets() -> None:
     assert ser.in_waiting == 0  # 13 of 14 bytes on the wire: nothing handed over yet
     chain.advance(BYTE_1M + 1e-7)
     assert len(ser.read(100)) == 14
+
+
+def test_closed_chain_closes_its_endpoints() -> None:
+    from hardware.emulator import PortClosedError
+
+    chain = ServoChain.create(ids=[1], wire_time=False)
+    ser = chain.open_serial()
+    chain.close()
+    with pytest.raises(PortClosedError, match="chain was closed"):
+        ser.read(1)
