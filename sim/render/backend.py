@@ -60,7 +60,9 @@ def import_pyrender() -> Any:
     return pyrender
 
 
-MESH_FRAG = Path(__file__).with_name("shaders") / "mesh.frag"
+SHADERS = Path(__file__).with_name("shaders")
+MESH_FRAG = SHADERS / "mesh.frag"
+MESH_VERT = SHADERS / "mesh.vert"
 
 
 def _shader_cache(pyrender: Any) -> Any:
@@ -75,9 +77,9 @@ def _shader_cache(pyrender: Any) -> Any:
             geometry_shader: str | None = None,
             defines: dict[str, Any] | None = None,
         ) -> Any:
-            if fragment_shader == "mesh.frag":
+            if fragment_shader == "mesh.frag" and vertex_shader == "mesh.vert":
                 # pyrender joins names onto its shader folder; an absolute path survives os.path.join
-                fragment_shader = str(MESH_FRAG)
+                vertex_shader, fragment_shader = str(MESH_VERT), str(MESH_FRAG)
             return super().get_program(vertex_shader, fragment_shader, geometry_shader, defines)
 
     return LeanShaderCache()
@@ -124,6 +126,15 @@ def _fast_renderer_class(pyrender: Any) -> type:
             self._main_cb = self._main_db = None
             self._main_cb_ms = self._main_db_ms = None
             self._main_fb_dims = (None, None)
+
+        def _sorted_mesh_nodes(self, scene: Any) -> list[Any]:
+            # pyrender draws opaque meshes back to front; we draw them by ``draw_order`` (the skin first),
+            # so the parts hidden under the skin fail the depth test early instead of being shaded
+            solid, clear = [], []
+            for node in scene.mesh_nodes:
+                (clear if node.mesh.is_transparent else solid).append(node)
+            solid.sort(key=lambda n: getattr(n.mesh, "draw_order", 0))
+            return solid + clear
 
         def _read_main_framebuffer(self, scene: Any, flags: int) -> tuple[Any, Any]:
             width, height = self._main_fb_dims

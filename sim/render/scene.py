@@ -1,8 +1,8 @@
 """A persistent pyrender scene whose meshes are updated in place between frames.
 
-Rigid meshes become GPU buffers once and then only move (node poses). A deformable mesh (the skin) keeps
-its buffers too: each frame its positions and normals are written into the existing vertex buffer with
-``glBufferSubData`` instead of building a new pyrender mesh. The skin is drawn twice from one position
+Rigid parts are batched by finish into a few primitives moved on the CPU; the skin (deformable) keeps its
+buffers too. Each frame only rewrites vertex buffers in place (`sim.render.buffers`) instead of building
+new pyrender meshes. The skin is drawn twice from one position
 array: outside in its own colour, and the inside (reversed winding) in a dark mouth-cavity colour, so an
 open mouth shows a dark cavity instead of the background.
 """
@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sim.render.buffers import DynamicPrimitive, PartGeometry, RigidBatch
 from sim.render.camera import AMBIENT_RGB, BACKGROUND_RGB, LIGHTS, CameraSetup, light_pose
 from sim.render.materials import (
     MOUTH_CAVITY_RGBA,
@@ -57,8 +58,6 @@ class _Deformable:
     """The skin: one pyrender mesh with an outside and an inside primitive sharing positions.
 
     ``vertex_rgba``: optional (n, 4) sRGB colours per vertex (lips, brows) on the outside.
-    The interleaved vertex buffers (position, normal[, colour]) are kept host-side too, so a frame only
-    rewrites the position and normal columns and uploads the whole buffer in one call.
     """
 
     def __init__(
@@ -74,60 +73,29 @@ class _Deformable:
         self.source_colors = vertex_rgba
         self.faces = np.ascontiguousarray(faces, dtype=np.uint32)
         self.normals = VertexNormals(self.faces, n_vertices)
-        zeros = np.zeros((n_vertices, 3), dtype=np.float32)
-        up = np.tile(np.float32([0, 0, 1]), (n_vertices, 1))
         colors = None
         if vertex_rgba is not None:
             c = np.asarray(vertex_rgba, dtype=np.float64)
             if c.shape != (n_vertices, 4) or not np.all(np.isfinite(c)) or c.min() < 0 or c.max() > 1:
                 raise ValueError(f"skin vertex colours must be ({n_vertices}, 4) in 0..1, got {c.shape}")
             colors = srgb_to_linear_array(c)
-        self.outside = pyrender.Primitive(
-            positions=zeros,
-            normals=up,
-            color_0=colors,
-            indices=self.faces,
-            material=_material(pyrender, name, rgba, vertex_colored=colors is not None),
-        )
-        self.inside = pyrender.Primitive(
-            positions=zeros,
-            normals=-up,
-            indices=self.faces[:, ::-1].copy(),
-            material=_material(pyrender, "cavity", MOUTH_CAVITY_RGBA),
-        )
-        self.mesh = pyrender.Mesh([self.outside, self.inside], name=name)
-        self._out_buf = np.zeros((n_vertices, 6 if colors is None else 10), dtype=np.float32)
-        if colors is not None:
-            self._out_buf[:, 6:] = colors
-        self._in_buf = np.zeros((n_vertices, 6), dtype=np.float32)
-        self._pending = False
+        outside_material = _material(pyrender, name, rgba, vertex_colored=colors is not None)
+        self.outside = DynamicPrimitive(pyrender, self.faces, n_vertices, outside_material, colors)
+        inside_material = _material(pyrender, "cavity", MOUTH_CAVITY_RGBA)
+        self.inside = DynamicPrimitive(pyrender, self.faces[:, ::-1], n_vertices, inside_material)
+        self.mesh = pyrender.Mesh([self.outside.prim, self.inside.prim], name=name)
+        self.mesh.draw_order = -1  # drawn first: it hides most of the rigid parts (early depth test)
 
     def set_vertices(self, vertices: NDArray[np.floating]) -> None:
         v = np.asarray(vertices, dtype=np.float32)
         n = self.normals(v)
-        self.outside.positions = v
-        self.outside.normals = n
-        self.inside.positions = v
-        self.inside.normals = -n
-        self._out_buf[:, :3] = v
-        self._out_buf[:, 3:6] = n
-        self._in_buf[:, :3] = v
-        self._in_buf[:, 3:6] = -n
-        self._pending = True
+        self.outside.set(v, n)
+        self.inside.set(v, -n)
 
     def upload(self) -> None:
         """Write pending vertices into the GL buffers (context must be current)."""
-        if not self._pending:
-            return
-        from OpenGL import GL
-
-        for prim, data in ((self.outside, self._out_buf), (self.inside, self._in_buf)):
-            if not prim._in_context():  # not drawn yet: pyrender uploads positions/normals itself
-                continue
-            GL.glBindBuffer(GL.GL_ARRAY_BUFFER, prim._buffers[0])
-            GL.glBufferSubData(GL.GL_ARRAY_BUFFER, 0, data.nbytes, data)
-        GL.glBindBuffer(GL.GL_ARRAY_BUFFER, 0)
-        self._pending = False
+        self.outside.upload()
+        self.inside.upload()
 
 
 def _same_topology(
@@ -141,6 +109,32 @@ def _same_topology(
     return buffers.source_faces is faces or bool(np.array_equal(buffers.faces, faces))
 
 
+def part_geometry(item: MeshItem, name: str, face_type: str, paint_eyes: bool) -> PartGeometry:
+    """A rigid part's rest geometry with per-vertex linear colours (its colour, own vertex colours, or a
+    painted eye), smooth normals split at sharp edges (a box stays boxy, a sphere smooth)."""
+    mesh = item.mesh
+    colors: NDArray[np.float32] | None = None
+    if getattr(mesh.visual, "kind", None) == "vertex":
+        colors = srgb_to_linear_array(np.asarray(mesh.visual.vertex_colors, dtype=np.float64) / 255.0)
+    elif paint_eyes and name.startswith("eyeball"):
+        if len(mesh.vertices) < 2000:  # fine enough that the iris and pupil are round
+            mesh = mesh.subdivide().subdivide() if len(mesh.vertices) < 600 else mesh.subdivide()
+        colors = eye_vertex_colors(mesh.vertices, face_type)
+    if colors is None:
+        shaded = mesh.smooth_shaded
+        positions, normals, faces = shaded.vertices, shaded.vertex_normals, shaded.faces
+        colors = np.tile(srgb_to_linear(tuple(item.color_rgba)).astype(np.float32), (len(positions), 1))
+    else:
+        positions, normals, faces = mesh.vertices, mesh.vertex_normals, mesh.faces
+    return PartGeometry(
+        name,
+        np.asarray(positions, dtype=np.float64),
+        np.asarray(normals, dtype=np.float64),
+        np.asarray(faces, dtype=np.int64),
+        colors,
+    )
+
+
 class MeshScene:
     """The scene: background, ambient light, camera, camera-fixed key/fill/rim lights, meshes by name."""
 
@@ -149,7 +143,10 @@ class MeshScene:
         self.scene = pyrender.Scene(bg_color=(*BACKGROUND_RGB, 1.0), ambient_light=AMBIENT_RGB)
         self._camera_node: Any = None
         self._light_nodes: list[tuple[Any, tuple[float, float, float]]] = []
-        self._rigid: dict[str, tuple[Any, Any]] = {}  # name -> (source trimesh, node)
+        self._rigid_signature: tuple[tuple[str, int], ...] | None = None
+        self._rigid_meshes: list[Any] = []
+        self._batches: list[tuple[RigidBatch, list[int]]] = []  # batch, indices of its parts in the items
+        self._batch_nodes: dict[int, Any] = {}
         self._deformable: dict[str, tuple[_Deformable, Any]] = {}  # name -> (buffers, node)
         for light in LIGHTS:
             node = self.scene.add(
@@ -172,58 +169,44 @@ class MeshScene:
         self.camera = setup
 
     def set_rigid(self, items: Sequence[MeshItem], face_type: str = "human") -> None:
-        """Show exactly ``items`` (by name, else list index): add new ones, move known ones.
+        """Show exactly ``items`` (by name, else list index). The same parts as last time only move.
 
-        Eyeballs (parts named ``eyeball*`` without vertex colours) get a painted iris and pupil unless
-        the items carry their own iris or pupil parts.
+        Parts are batched by surface finish (see `sim.render.buffers`). Eyeballs (parts named
+        ``eyeball*`` without vertex colours) get a painted iris and pupil unless the items carry their own
+        iris or pupil parts. Open meshes (an iris disc, an ear flap) are drawn from both sides.
         """
-        paint_eyes = not any(("iris" in it.name or "pupil" in it.name) for it in items)
-        wanted: set[str] = set()
-        for i, item in enumerate(items):
-            name = item.name or f"mesh{i}"
-            wanted.add(name)
-            known = self._rigid.get(name)
-            if known is None or known[0] is not item.mesh:
-                if known is not None:
-                    self.scene.remove_node(known[1])
-                mesh = self._rigid_mesh(item, name, face_type, paint_eyes)
-                node = self.scene.add(mesh, name=name, pose=item.transform)
-                self._rigid[name] = (item.mesh, node)
-            else:
-                self.scene.set_pose(known[1], np.asarray(item.transform, dtype=np.float64))
-        for name in [n for n in self._rigid if n not in wanted]:
-            self.scene.remove_node(self._rigid.pop(name)[1])
+        names = [it.name or f"mesh{i}" for i, it in enumerate(items)]
+        signature = tuple((n, id(it.mesh)) for n, it in zip(names, items, strict=True))
+        if signature != self._rigid_signature:
+            self._build_batches(items, names, face_type)
+            self._rigid_signature = signature
+            self._rigid_meshes = [it.mesh for it in items]  # keep them alive: ids stay unique
+        transforms = [np.asarray(it.transform, dtype=np.float64) for it in items]
+        for batch, indices in self._batches:
+            batch.set_transforms([transforms[i] for i in indices])
 
-    def _rigid_mesh(self, item: MeshItem, name: str, face_type: str, paint_eyes: bool) -> Any:
-        pr = self.pyrender
-        mesh = item.mesh
-        colors = None
-        if getattr(mesh.visual, "kind", None) == "vertex":
-            colors = srgb_to_linear_array(np.asarray(mesh.visual.vertex_colors, dtype=np.float64) / 255.0)
-        elif paint_eyes and name.startswith("eyeball"):
-            if len(mesh.vertices) < 2000:  # fine enough that the iris and pupil are round
-                mesh = mesh.subdivide().subdivide() if len(mesh.vertices) < 600 else mesh.subdivide()
-            colors = eye_vertex_colors(mesh.vertices, face_type)
-        if colors is None:
-            shaded = mesh.smooth_shaded  # splits vertices at sharp edges: boxes stay boxy, spheres smooth
-            positions, normals, faces = shaded.vertices, shaded.vertex_normals, shaded.faces
-        else:
-            positions, normals, faces = mesh.vertices, mesh.vertex_normals, mesh.faces
-        prim = pr.Primitive(
-            positions=np.asarray(positions, dtype=np.float32),
-            normals=np.asarray(normals, dtype=np.float32),
-            indices=np.asarray(faces, dtype=np.uint32),
-            color_0=colors,
-            # an open mesh (an iris disc, an ear flap) is drawn from both sides, whatever its winding
-            material=_material(
-                pr,
-                name,
-                item.color_rgba,
-                vertex_colored=colors is not None,
-                double_sided=not mesh.is_watertight,
-            ),
-        )
-        return pr.Mesh([prim], name=name)
+    def _build_batches(self, items: Sequence[MeshItem], names: list[str], face_type: str) -> None:
+        for batch, _ in self._batches:
+            self.scene.remove_node(self._batch_nodes.pop(id(batch)))
+        self._batches = []
+        paint_eyes = not any(("iris" in n or "pupil" in n) for n in names)
+        groups: dict[tuple[Any, ...], list[int]] = {}
+        geometry: list[PartGeometry] = []
+        for i, (item, name) in enumerate(zip(items, names, strict=True)):
+            geometry.append(part_geometry(item, name, face_type, paint_eyes))
+            key = (finish_for(name), not item.mesh.is_watertight, bool(geometry[-1].colors[:, 3].min() < 1.0))
+            groups.setdefault(key, []).append(i)
+        for (finish, double_sided, blend), indices in groups.items():
+            material = self.pyrender.MetallicRoughnessMaterial(
+                baseColorFactor=np.ones(4),
+                metallicFactor=finish.metallic,
+                roughnessFactor=finish.roughness,
+                alphaMode="BLEND" if blend else "OPAQUE",
+                doubleSided=double_sided,
+            )
+            batch = RigidBatch(self.pyrender, [geometry[i] for i in indices], material)
+            self._batch_nodes[id(batch)] = self.scene.add(batch.mesh, pose=np.eye(4))
+            self._batches.append((batch, indices))
 
     def set_deformable(
         self,
@@ -253,5 +236,7 @@ class MeshScene:
 
     def upload(self) -> None:
         """Push changed vertex data to the GPU; call with the GL context current, right before drawing."""
+        for batch, _ in self._batches:
+            batch.upload()
         for buffers, _ in self._deformable.values():
             buffers.upload()
