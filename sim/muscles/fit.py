@@ -6,9 +6,11 @@ pulled along its line, and the twin must show a whole face. Method:
 1. **Muscle fit.** With L (A x M) = the pull of each anchor per unit contraction of each muscle (the
    line of action dotted with the muscle's rest field at the anchor vertex), solve the bounded, lightly
    regularised least squares  min |L c - p|² + μ² |c|²,  lo <= c <= hi  (the AU table's contraction
-   range). The regularised unconstrained solution is precomputed; only when it leaves the bounds does
-   ``scipy.optimize.lsq_linear`` (BVLS) run. The face is then the muscle face of those contractions, so
-   the twin looks like the muscle face (the same kind of deformation, not a blob around each anchor).
+   range). The regularised unconstrained solution is precomputed; when it leaves the bounds, a
+   non-negative least squares on c - lo runs (``scipy.optimize.nnls``, tens of µs), and BVLS
+   (``scipy.optimize.lsq_linear``) only if the upper bound binds too. The face is then the muscle face
+   of those contractions, so the twin looks like the muscle face (the same kind of deformation, not a
+   blob around each anchor).
 2. **Exact anchors.** What the muscles cannot explain (an anchor no muscle pulls along its line, a
    sphincter cap, a contraction bound) is added with a smooth bump per anchor, w(d) = cos(π/2 · d / R)
    within R = the actuator's ``radius_mm`` of the anchor, scaled along the line of action. The bump
@@ -24,7 +26,7 @@ from collections.abc import Sequence
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
-from scipy.optimize import lsq_linear
+from scipy.optimize import lsq_linear, nnls
 
 FloatArray = NDArray[np.float64]
 
@@ -82,6 +84,13 @@ class AnchorFit:
         if np.all(c >= self.low - 1e-12) and np.all(c <= self.high + 1e-12):
             return np.clip(c, self.low, self.high)
         rhs = np.concatenate([p, np.zeros(self._pinv.shape[0])])
+        # c = low + y with y >= 0: non-negative least squares (fast active set); BVLS only when an upper
+        # bound binds as well
+        shifted = rhs - self._stacked @ np.full(self._pinv.shape[0], self.low)
+        y = nnls(self._stacked, shifted)[0]
+        c = self.low + y
+        if np.all(c <= self.high + 1e-9):
+            return np.minimum(c, self.high)
         result = lsq_linear(self._stacked, rhs, bounds=(self.low, self.high), method="bvls")
         return np.asarray(result.x, dtype=np.float64)
 
