@@ -90,7 +90,7 @@ class AnchorFit:
         y = nnls(self._stacked, shifted)[0]
         c = self.low + y
         if np.all(c <= self.high + 1e-9):
-            return np.minimum(c, self.high)
+            return np.asarray(np.minimum(c, self.high), dtype=np.float64)
         result = lsq_linear(self._stacked, rhs, bounds=(self.low, self.high), method="bvls")
         return np.asarray(result.x, dtype=np.float64)
 
