@@ -8,8 +8,6 @@ one missing servo -> a frozen `ChainSnapshot`.
 
 from __future__ import annotations
 
-import math
-import operator
 import threading
 import time
 from collections import deque
@@ -29,6 +27,7 @@ from hardware.errors import (
 )
 from hardware.fault_policy import FaultPolicy, ThermalTrend, eased_goal
 from hardware.fault_reactions import FaultReactions
+from hardware.goal_check import check_goals
 from hardware.registers import Register
 from hardware.servo_config import ConfigReport, ServoSpec, check_specs, configure_servo
 from hardware.servo_record import ServoRecord
@@ -81,6 +80,7 @@ class Driver:
         if not self._records:
             raise HardwareConfigError("Driver needs at least one ServoSpec")
         self.servo_ids: tuple[int, ...] = tuple(self._records)
+        self._specs = {sid: rec.spec for sid, rec in self._records.items()}
         self._groups = [
             _Group("status", STATUS, 1.0 / self.policy.status_hz),
             _Group("motion", MOTION, 1.0 / self.policy.motion_hz),
@@ -127,12 +127,21 @@ class Driver:
     def limits_tick(self, servo_id: int) -> tuple[int, int]:
         return self._records[servo_id].limits_tick
 
-    def configure(self) -> dict[int, ConfigReport]:
-        """Write every spec (EEPROM with torque off, verified by read-back). Torque is left off."""
+    def configure(self, *, allow_missing: bool = False) -> dict[int, ConfigReport]:
+        """Write every spec (EEPROM with torque off, verified by read-back). Torque is left off.
+
+        A servo that does not answer raises `BusTimeoutError` — or, with ``allow_missing``, is marked
+        missing (event ``MISSING``) and configured when it first answers a re-probe ping.
+        """
         self._check_owner()
         reports = {}
         for rec in self._records.values():
-            reports[rec.servo_id] = self._configure_one(rec)
+            try:
+                reports[rec.servo_id] = self._configure_one(rec)
+            except (BusTimeoutError, BusCorruptError):
+                if not allow_missing:
+                    raise
+                self._mark_missing(rec, self._clock(), "did not answer during configure")
         return reports
 
     def _configure_one(self, rec: ServoRecord) -> ConfigReport:
@@ -161,7 +170,10 @@ class Driver:
         for rec in self._select(servo_ids):
             rec.torque_wanted = True
             if not rec.missing and not rec.latched and rec.reboot_at_s is None:
-                self._pin_and_enable(rec)
+                try:
+                    self._pin_and_enable(rec)
+                except (BusTimeoutError, BusCorruptError):  # pinned and enabled when it answers again
+                    self._mark_missing(rec, self._clock(), "did not answer torque-on")
 
     def torque_off(self, servo_ids: Iterable[int] | None = None) -> None:
         self._check_owner()
@@ -193,42 +205,7 @@ class Driver:
     # -- goals --------------------------------------------------------------------------------------
     def validate_goals(self, goals_tick: Mapping[int, int]) -> dict[int, int]:
         """Every goal an integer tick inside its servo's configured limits, or `GoalRejectedError`."""
-        if not isinstance(goals_tick, Mapping):
-            raise GoalRejectedError(
-                None, goals_tick, f"goals must be a mapping servo id -> tick, got {type(goals_tick)}"
-            )
-        out: dict[int, int] = {}
-        for sid, goal in goals_tick.items():
-            rec = self._records.get(sid) if isinstance(sid, int) and not isinstance(sid, bool) else None
-            if rec is None:
-                raise GoalRejectedError(
-                    sid, goal, f"goal for unknown servo id {sid!r}; configured: {list(self._records)}"
-                )
-            if isinstance(goal, float) and not math.isfinite(goal):
-                raise GoalRejectedError(
-                    sid, goal, f"{rec.spec.label}: goal {goal!r} is not finite; nothing sent"
-                )
-            if isinstance(goal, bool):
-                raise GoalRejectedError(
-                    sid, goal, f"{rec.spec.label}: goal {goal!r} is a bool, expected int ticks"
-                )
-            try:
-                tick = operator.index(goal)
-            except TypeError:
-                raise GoalRejectedError(
-                    sid,
-                    goal,
-                    f"{rec.spec.label}: goal {goal!r} is not an integer tick (round it first); nothing sent",
-                ) from None
-            lo, hi = rec.limits_tick
-            if not lo <= tick <= hi:
-                raise GoalRejectedError(
-                    sid,
-                    goal,
-                    f"{rec.spec.label}: goal {tick} outside its limits {lo}..{hi} ticks; nothing sent",
-                )
-            out[sid] = tick
-        return out
+        return check_goals(goals_tick, self._specs)
 
     def _guard(self, rec: ServoRecord, tick: int) -> int:
         lo, hi = rec.limits_tick
@@ -290,14 +267,17 @@ class Driver:
             rec.failures += 1
             rec.stale = True
             if rec.failures >= self.policy.missing_after_failures and not rec.missing:
-                rec.missing = True
-                rec.last_probe_s = now
-                self._emit(
-                    sid,
-                    FaultKind.MISSING,
-                    f"no reply in {rec.failures} cycles: excluded from group reads, re-probed every "
-                    f"{self.policy.reprobe_interval_s:g} s; other servos continue",
-                )
+                self._mark_missing(rec, now, f"no reply in {rec.failures} cycles")
+
+    def _mark_missing(self, rec: ServoRecord, now: float, why: str) -> None:
+        rec.missing, rec.stale, rec.torque_on = True, True, False
+        rec.last_probe_s = now
+        self._emit(
+            rec.servo_id,
+            FaultKind.MISSING,
+            f"{why}: excluded from group reads and goal frames, re-probed every "
+            f"{self.policy.reprobe_interval_s:g} s; other servos continue",
+        )
 
     def _readable(self, now: float) -> list[int]:
         """Ids worth asking: not missing, and not inside the silence after a reboot."""

@@ -274,7 +274,7 @@ class FaultReactions:
                 return
             try:
                 self.bus.reboot(rec.servo_id)
-            except (BusTimeoutError, BusCorruptError):
+            except (BusTimeoutError, BusCorruptError, ServoStatusError):
                 pass  # a rebooting servo may not finish its status packet; recovery verifies
             rec.reboots.append(now)
             rec.reboot_at_s = None

@@ -241,3 +241,30 @@ def test_port_failure_marks_everything_missing_and_reopens() -> None:
     assert snaps[-1].bus_connected and all(s.torque_on and not s.missing for s in snaps[-1])
     assert snaps[-1].positions_tick() == GOALS
     assert_goals_within_limits(chain, driver)
+
+
+def test_servo_missing_at_start_is_configured_when_it_appears() -> None:
+    from hardware.bus import open_bus
+    from hardware.driver import Driver
+    from hardware.emulator import ServoChain
+    from hardware.errors import BusTimeoutError
+    from hardware.servo_config import ServoSpec
+
+    chain = ServoChain.create(ids=[1, 2], model="XL330-M288", wire_time=False, clock="manual")
+    chain.faults.inject(2, "disconnect", duration_s=0.3)
+    specs = [
+        ServoSpec(i, "XL330-M288", min_position_tick=1000, max_position_tick=3000, profile_velocity=99)
+        for i in (1, 2)
+    ]
+    strict = Driver(open_bus("emulator", chain=chain), specs, clock=chain.clock)
+    with pytest.raises(BusTimeoutError):
+        strict.configure()
+    driver = Driver(open_bus("emulator", chain=chain), specs, clock=chain.clock)
+    driver.configure(allow_missing=True)
+    driver.torque_on()
+    snaps = run(chain, driver, {1: 2900, 2: 1100}, 0.2)
+    assert snaps[-1][2].missing and snaps[-1][1].position_tick > 2048  # the other one is on its way
+    snaps = run(chain, driver, {1: 2900, 2: 1100}, 2.0)
+    assert snaps[-1][2].torque_on and snaps[-1][2].position_tick == 1100 and snaps[-1][1].position_tick == 2900
+    assert chain.servo(2).read_register("PROFILE_VELOCITY") == 99 and chain.servo(2).read_register(52) == 1000
+    assert_goals_within_limits(chain, driver)

@@ -41,7 +41,10 @@ def test_broadcast_scan_in_process() -> None:
     chain = ServoChain.create(ids=[3, 4], model="XM430-W350", baud=1_000_000, wire_time=False)
     with open_bus("emulator", chain=chain) as bus:
         found = scan(bus)
-    assert [(r.servo_id, r.model_name, r.hardware_error) for r in found] == [(3, "XM430-W350", 0), (4, "XM430-W350", 0)]
+    assert [(r.servo_id, r.model_name, r.hardware_error) for r in found] == [
+        (3, "XM430-W350", 0),
+        (4, "XM430-W350", 0),
+    ]
 
 
 def test_id_spec_parsing() -> None:
