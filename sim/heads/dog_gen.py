@@ -131,11 +131,11 @@ def _skin() -> tuple[F64, I64, F64]:
 
     col = np.tile(np.array(SKIN_RGBA), (len(verts), 1))
     vx, vy, vz = verts[:, 0], verts[:, 1], verts[:, 2]
-    blaze = mt.smoothstep((vz - 95.0) / 15.0) * mt.smoothstep((12.0 - np.abs(vx)) / 6.0 + (vz - 100.0) / 25.0)
-    nose = mt.smoothstep((vz - 146.0) / 3.0) * mt.smoothstep((vy - 94.0) / 3.0)
-    lips = mt.smoothstep((vz - MOUTH_CORNER_Z + 4.0) / 4.0) * mt.smoothstep(
-        (3.5 - np.abs(vy - np.interp(vz, _Z, _YC))) / 1.5
-    )
+    yc_v = np.interp(vz, _Z, _YC)
+    blaze = mt.smoothstep((9.0 - np.abs(vx)) / 4.0) * mt.smoothstep((vy - yc_v - 22.0) / 6.0)
+    blaze = blaze * mt.smoothstep((vz - 40.0) / 15.0) * mt.smoothstep((140.0 - vz) / 6.0)
+    nose = mt.smoothstep((vz - 141.0) / 3.0) * mt.smoothstep((vy - 91.0) / 2.5)
+    lips = mt.smoothstep((vz - MOUTH_CORNER_Z + 4.0) / 4.0) * mt.smoothstep((3.5 - np.abs(vy - yc_v)) / 1.5)
     for wgt, rgba in ((blaze, MUZZLE_RGBA), (lips, LIP_RGBA), (nose, NOSE_RGBA)):
         col = col * (1.0 - wgt[:, None]) + np.array(rgba) * wgt[:, None]
     return verts + OFFSET, faces, col
@@ -261,14 +261,14 @@ def ear(side: float) -> tuple[F64, I64]:
     nb, nt = 12, 14
     s = np.linspace(0.0, 1.0, nb)[:, None]  # base -> tip
     t = np.linspace(-1.0, 1.0, nt)[None, :]  # across the ear
-    half = 16.0 * (1.0 - s) ** 0.8 + 1.2
-    along = s * 62.0
+    half = 24.0 * (1.0 - s) ** 0.9 + 1.5
+    along = s * 68.0
     across = t * half
-    cup = 5.0 * (1.0 - t**2) * (1.0 - 0.6 * s)
+    cup = 8.0 * (1.0 - t**2) * (1.0 - 0.6 * s)
     base = np.array([40.0, 146.0, -12.0])
     up = np.array([0.35, 0.93, -0.1])
     up /= np.linalg.norm(up)
-    fwd = np.array([0.0, 0.1, 1.0])
+    fwd = np.array([1.0, 0.0, 0.15])  # across the ear: the broad side faces forward
     fwd -= up * (fwd @ up)
     fwd /= np.linalg.norm(fwd)
     out = np.cross(up, fwd)  # faces +x for the left ear
