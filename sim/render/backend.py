@@ -93,6 +93,8 @@ def _fast_renderer_class(pyrender: Any) -> type:
 
     class FastRenderer(base):  # type: ignore[misc, valid-type]
         want_depth = True
+        _main_fb: Any
+        _main_fb_dims: tuple[Any, Any]
 
         def _configure_main_framebuffer(self) -> None:
             dims = (self.viewport_width, self.viewport_height)
@@ -130,7 +132,8 @@ def _fast_renderer_class(pyrender: Any) -> type:
         def _sorted_mesh_nodes(self, scene: Any) -> list[Any]:
             # pyrender draws opaque meshes back to front; we draw them by ``draw_order`` (the skin first),
             # so the parts hidden under the skin fail the depth test early instead of being shaded
-            solid, clear = [], []
+            solid: list[Any] = []
+            clear: list[Any] = []
             for node in scene.mesh_nodes:
                 (clear if node.mesh.is_transparent else solid).append(node)
             solid.sort(key=lambda n: getattr(n.mesh, "draw_order", 0))

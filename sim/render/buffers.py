@@ -38,7 +38,7 @@ class DynamicPrimitive:
     ) -> None:
         self.n_vertices = n_vertices
         self.faces = np.ascontiguousarray(faces, dtype=np.uint32)
-        up = np.tile(np.float32([0.0, 0.0, 1.0]), (n_vertices, 1))
+        up = np.tile(np.array([0.0, 0.0, 1.0], dtype=np.float32), (n_vertices, 1))
         self.prim = pyrender.Primitive(
             positions=np.zeros((n_vertices, 3), np.float32),
             normals=up,

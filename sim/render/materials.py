@@ -98,4 +98,5 @@ def eye_vertex_colors(
     t_iris = np.clip((angle - iris_half_angle_deg) / 4.0 + 0.5, 0.0, 1.0)[:, None]
     colour = (1 - t_pupil) * srgb_to_linear(PUPIL_RGB) + t_pupil * iris
     colour = (1 - t_iris) * colour + t_iris * srgb_to_linear(SCLERA_RGB)
-    return colour.astype(np.float32)
+    out: NDArray[np.float32] = colour.astype(np.float32)
+    return out

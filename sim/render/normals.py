@@ -40,4 +40,5 @@ class VertexNormals:
         bad = length < 1e-12
         n[bad] = (0.0, 0.0, 1.0)
         length[bad] = 1.0
-        return (n / length[:, None]).astype(np.float32)
+        out: NDArray[np.float32] = (n / length[:, None]).astype(np.float32)
+        return out

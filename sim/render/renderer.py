@@ -12,7 +12,7 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from sim.errors import RenderError
 from sim.render.backend import Offscreen
@@ -109,13 +109,14 @@ class HeadRenderer:
             raise RenderError("this HeadRenderer was closed")
 
     # -- camera ------------------------------------------------------------------------------------
-    def frame(self, lo_mm: Sequence[float], hi_mm: Sequence[float], view: str | None = None) -> CameraSetup:
+    def frame(self, lo_mm: ArrayLike, hi_mm: ArrayLike, view: str | None = None) -> CameraSetup:
         """Point the camera at the box [lo_mm, hi_mm] from ``view`` (default: the renderer's view)."""
         view = check_view(view or self.view)
-        key = (tuple(np.round(lo_mm, 3)), tuple(np.round(hi_mm, 3)), view)
+        lo, hi = np.asarray(lo_mm, dtype=np.float64), np.asarray(hi_mm, dtype=np.float64)
+        key = (tuple(np.round(lo, 3)), tuple(np.round(hi, 3)), view)
         setup = self._scene.camera
         if self._framing != key or setup is None:
-            setup = frame_box(np.asarray(lo_mm), np.asarray(hi_mm), view, self.width / self.height)
+            setup = frame_box(lo, hi, view, self.width / self.height)
             self._scene.set_camera(setup, self.width / self.height)
             self._framing = key
         return setup
@@ -133,7 +134,7 @@ class HeadRenderer:
         self,
         items: Sequence[MeshItem | tuple[Any, ...]],
         view: str | None = None,
-        box_mm: tuple[Sequence[float], Sequence[float]] | None = None,
+        box_mm: tuple[ArrayLike, ArrayLike] | None = None,
     ) -> Image:
         """Draw rigid meshes: each item a `MeshItem` or a tuple (trimesh, rgba, transform[, name]).
 
@@ -147,7 +148,7 @@ class HeadRenderer:
         items: Sequence[MeshItem | tuple[Any, ...]],
         skin: tuple[Any, ...] | None = None,
         view: str | None = None,
-        box_mm: tuple[Sequence[float], Sequence[float]] | None = None,
+        box_mm: tuple[ArrayLike, ArrayLike] | None = None,
         depth: bool = False,
         face_type: str = "human",
     ) -> tuple[Image, NDArray[np.float32] | None]:
@@ -186,7 +187,7 @@ class HeadRenderer:
         self,
         items: Sequence[MeshItem | tuple[Any, ...]],
         view: str | None = None,
-        box_mm: tuple[Sequence[float], Sequence[float]] | None = None,
+        box_mm: tuple[ArrayLike, ArrayLike] | None = None,
     ) -> tuple[Image, NDArray[np.float32]]:
         """Like `render_meshes`, plus depth (H, W) float32 in mm along the camera axis (0 = background)."""
         color, depth = self.render_posed(items, None, view, box_mm, depth=True)
