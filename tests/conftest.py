@@ -53,7 +53,9 @@ def servo_specs(request):  # type: ignore[no-untyped-def]
     else:
         chain = request.getfixturevalue("servo_chain")
         ids, model = chain.ids, "XL330-M288"
-    return [ServoSpec(i, model, role=f"servo_{i}", min_position_tick=1024, max_position_tick=3072) for i in ids]
+    return [
+        ServoSpec(i, model, role=f"servo_{i}", min_position_tick=1024, max_position_tick=3072) for i in ids
+    ]
 
 
 @_pytest.fixture
