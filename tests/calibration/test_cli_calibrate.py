@@ -1,0 +1,119 @@
+"""`servoface calibrate`: CSV mode end to end, the interactive mode on an in-process emulator with typed
+keys, and regenerating a built-in file."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from calibration.fileformat import load_calibration
+from controller.cli import main
+
+
+def test_csv_mode_through_the_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rows = ["role,target,tick"]
+    for t in (0.0, 5.0, 12.5, 20.0, 25.0):
+        rows.append(f"jaw,{t},{round(2048 + t * 4096 / 360)}")
+    for t, tick in ((-4.0, 1700), (0.0, 2048), (4.0, 2420), (8.0, 2650), (12.0, 2800)):
+        rows.append(f"lip_corner_l,{t},{tick}")
+    (tmp_path / "m.csv").write_text("\n".join(rows) + "\n")
+    out = tmp_path / "human.json"
+    code = main(
+        [
+            "calibrate",
+            "--head",
+            "human",
+            "--csv",
+            str(tmp_path / "m.csv"),
+            "--roles",
+            "jaw,lip_corner_l",
+            "--out",
+            str(out),
+            "--plot-dir",
+            str(tmp_path / "plots"),
+        ]
+    )
+    text = capsys.readouterr().out
+    assert code == 0, text
+    assert "saved" in text and "EEPROM backstop" in text
+    cal = load_calibration(out)
+    assert len(cal) == 21  # the other servos are kept from the head's calibration file
+    assert cal["lip_corner_l"].to_tick(4.0) == 2420 and cal["lip_corner_l"].curve.kind == "pchip"
+    assert cal["jaw"].curve.kind == "linear"
+    assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == ["jaw.png", "lip_corner_l.png"]
+
+
+def test_cli_reports_bad_csv_with_its_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "m.csv").write_text("jaw,0,2048\njaw,25,two\n")
+    code = main(
+        ["calibrate", "--head", "human", "--csv", str(tmp_path / "m.csv"), "--out", str(tmp_path / "x")]
+    )
+    assert code == 1
+    assert "line 2: tick 'two' is not an integer" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.fixture
+def typed_keys(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[str]]:
+    """Feed input() from a list; each key waits a little so the emulated servo finishes a jog."""
+    keys: list[str] = []
+
+    def fake_input(prompt: str = "") -> str:
+        time.sleep(0.15)
+        if not keys:
+            raise EOFError
+        return keys.pop(0)
+
+    monkeypatch.setattr("builtins.input", fake_input)
+    yield keys
+
+
+def test_interactive_cli_on_the_in_process_emulator(
+    tmp_path: Path, typed_keys: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    up = round(25 * 4096 / 360)  # jaw: 0 deg at 2048 (neutral = lower), 25 deg 284 ticks up
+    typed_keys += ["", f"+{up}", "", "?", "d"]  # capture neutral; jog to 25 deg; capture; help; done
+    out = tmp_path / "jaw.json"
+    code = main(
+        [
+            "calibrate",
+            "--head",
+            "human",
+            "--emulate",
+            "--roles",
+            "jaw",
+            "--points",
+            "0",
+            "--free-points",
+            "--out",
+            str(out),
+        ]
+    )
+    text = capsys.readouterr().out
+    assert code == 0, text
+    jaw = load_calibration(out)["jaw"]
+    assert (jaw.min_tick, jaw.max_tick) == (2048, 2048 + up)
+    assert jaw.to_tick(12.5) == 2048 + round(12.5 * 4096 / 360)
+    assert "keys:" in text
+
+
+def test_abort_saves_nothing(
+    tmp_path: Path, typed_keys: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    typed_keys += ["q"]
+    code = main(
+        ["calibrate", "--head", "human", "--emulate", "--roles", "jaw", "--out", str(tmp_path / "x.json")]
+    )
+    assert code == 1
+    assert "nothing saved" in capsys.readouterr().err
+    assert not (tmp_path / "x.json").exists()
+
+
+def test_builtin_regeneration(tmp_path: Path) -> None:
+    out = tmp_path / "dog.json"
+    assert main(["calibrate", "--head", "dog", "--builtin", "--out", str(out)]) == 0
+    shipped = Path(__file__).resolve().parents[2] / "sim" / "heads" / "dog" / "calibration.json"
+    assert out.read_text() == shipped.read_text()
