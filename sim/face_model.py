@@ -61,10 +61,13 @@ class FaceModel:
     """AUs -> HeadPose (with actuator targets) for one head, and actuator targets -> HeadPose (the twin).
 
     ``au_table``: a table, a file path, or None for the head's ``au_table_path`` (else the built-in table
-    of its face type).
+    of its face type). ``allow_missing``: let a head without some of the table's muscles or joints use
+    it anyway (they are listed in ``self.mapping.missing``); by default that is a HeadProfileError.
     """
 
-    def __init__(self, head: Any, au_table: AUTable | str | Path | None = None) -> None:
+    def __init__(
+        self, head: Any, au_table: AUTable | str | Path | None = None, *, allow_missing: bool = False
+    ) -> None:
         self.head = head
         rest = np.asarray(head.skin.vertices_mm, dtype=np.float64)
         self.n_vertices = int(rest.shape[0])
@@ -81,7 +84,7 @@ class FaceModel:
             )
         joints = _values(head.joints)
         self.joint_names: tuple[str, ...] = tuple(j.name for j in joints)
-        self.mapping = AUMapping(table, self.field.names, self.joint_names)
+        self.mapping = AUMapping(table, self.field.names, self.joint_names, allow_missing)
         self._neutral = np.array([j.neutral_deg for j in joints], dtype=np.float64)
         self._lower = np.array([j.lower_deg for j in joints], dtype=np.float64)
         self._upper = np.array([j.upper_deg for j in joints], dtype=np.float64)
@@ -216,7 +219,8 @@ def benchmark_solve(head_name: str, n_frames: int = 500) -> list[float]:
 
     head = load_head(head_name)
     model = FaceModel(head)
-    apexes = [e.apex() for e in load_library(head.face_type).values()] or [{}]
+    library = load_library(getattr(head, "expressions_path", None) or head.face_type)
+    apexes = [e.apex() for e in library.values()] or [{}]
     frames = []
     for i in range(max(n_frames, 1)):
         scale = 0.5 + 0.5 * math.sin(i * 0.1)

@@ -36,10 +36,23 @@ def canonical_au_name(name: object) -> tuple[int, str]:
 
 
 class AUMapping:
-    """An AU table bound to a head's muscle order and joint order."""
+    """An AU table bound to a head's muscle order and joint order.
 
-    def __init__(self, table: AUTable, muscle_names: Sequence[str], joint_names: Sequence[str]) -> None:
+    A muscle or joint the table names but the head lacks is an error (HeadProfileError naming the AU),
+    unless ``allow_missing``: then it is skipped and listed in ``missing`` (a smaller head reusing a
+    built-in table: its AUs still validate, the parts it lacks just do not move).
+    """
+
+    def __init__(
+        self,
+        table: AUTable,
+        muscle_names: Sequence[str],
+        joint_names: Sequence[str],
+        allow_missing: bool = False,
+    ) -> None:
         self.table = table
+        self.allow_missing = allow_missing
+        self.missing: set[str] = set()
         self.muscle_names = tuple(muscle_names)
         self.joint_names = tuple(joint_names)
         m_index = {n: i for i, n in enumerate(self.muscle_names)}
@@ -82,6 +95,9 @@ class AUMapping:
                     name, share = template.replace("{side}", side.lower()), 1.0
                 else:
                     name, share = template, (0.5 if side else 1.0)
+                if name not in index and self.allow_missing:
+                    self.missing.add(name)
+                    continue
                 if name not in index:
                     raise HeadProfileError(
                         f"{where}: {kind} {name!r} is not in the head (known {kind}s: {sorted(index)})"

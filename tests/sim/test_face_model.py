@@ -15,7 +15,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sim.errors import ActionUnitValueError, SimError, UnknownActionUnitError
+from sim.errors import ActionUnitValueError, HeadProfileError, SimError, UnknownActionUnitError
 from sim.expressions import load_library
 from sim.face_model import FaceModel
 from sim.muscles import LinearMuscle, SphincterMuscle
@@ -366,3 +366,15 @@ def test_the_model_exposes_its_au_vocabulary(model: FaceModel) -> None:
         model.au_range("AU3")
     with pytest.raises(UnknownActionUnitError, match="AU26L"):
         model.au_range("AU26L")
+
+
+def test_a_smaller_head_may_reuse_the_table_when_allowed() -> None:
+    head = synthetic_human(8.0)
+    keep = tuple(m for m in head.muscles if not m.name.startswith(("risorius", "buccinator")))
+    small = SimpleNamespace(**{**vars(head), "muscles": keep})
+    with pytest.raises(HeadProfileError, match="(buccinator|risorius)_l.* is not in the head"):
+        FaceModel(small)
+    model = FaceModel(small, allow_missing=True)
+    assert {"risorius_l", "risorius_r", "buccinator_l", "buccinator_r"} == model.mapping.missing
+    assert np.allclose(model.solve({"AU20": 1.0}).skin_offset_mm, 0.0)  # validated, moves nothing here
+    assert np.abs(model.solve({"AU12": 1.0}).skin_offset_mm).max() > 1.0
