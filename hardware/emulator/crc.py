@@ -7,6 +7,7 @@ tests compare against.
 
 from __future__ import annotations
 
+import struct
 import sys
 from array import array
 
@@ -48,18 +49,26 @@ _T16: list[int] = _word_table()
 _SWAP = sys.byteorder == "little"
 
 
+_WORDS = struct.Struct(">H")
+_SHORT = 48  # below this many bytes, unpacking words one by one beats building an array
+
+
 def crc16(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
     """CRC-16 (0x8005) of ``data``, continuing from ``crc`` (0 for a fresh packet)."""
     n = len(data)
     even = n & ~1
+    t16 = _T16
     if even:
-        words = array("H")
-        words.frombytes(bytes(data[:even]))
-        if _SWAP:
-            words.byteswap()
-        t16 = _T16
-        for w in words:
-            crc = t16[crc ^ w]
+        if n < _SHORT:
+            for (w,) in _WORDS.iter_unpack(data[:even]):
+                crc = t16[crc ^ w]
+        else:
+            words = array("H")
+            words.frombytes(bytes(data[:even]))
+            if _SWAP:
+                words.byteswap()
+            for w in words:
+                crc = t16[crc ^ w]
     if n & 1:
         crc = ((crc << 8) & 0xFFFF) ^ _T8[(crc >> 8) ^ data[n - 1]]
     return crc

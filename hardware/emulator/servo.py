@@ -360,8 +360,10 @@ class EmulatedServo:
         if a == A_GOAL_POS:
             if self._watchdog_tripped:
                 return ErrorNumber.DATA_RANGE
-            if self.operating_mode == 3 and not (_i(mem, 52, 4) <= value <= _i(mem, 48, 4)):
-                return ErrorNumber.DATA_LIMIT
+            if mem[A_MODE] == 3:
+                _, max_pos, min_pos = _LIMITS.unpack_from(mem, 44)
+                if not min_pos <= value <= max_pos:
+                    return ErrorNumber.DATA_LIMIT
         elif a == 104:
             if self._watchdog_tripped:
                 return ErrorNumber.DATA_RANGE
@@ -433,25 +435,16 @@ class EmulatedServo:
         prof_a, prof_v, goal = _GOALS.unpack_from(mem, 108)
         mode = mem[A_MODE]
         drive = mem[A_DRIVE]
-        key = (
-            goal,
-            prof_a,
-            prof_v,
-            mode,
-            drive,
-            v_limit_reg,
-            max_pos,
-            min_pos,
-            self.input_voltage_v,
-            _i(mem, 20, 4, True),
-        )
+        offset = _I32.unpack_from(mem, 20)[0]
+        key = (goal, prof_a, prof_v, mode, drive, v_limit_reg, max_pos, min_pos, self.input_voltage_v, offset)
         if key == self._plan_key and not drive & 0x04:
             return  # same goal and profile again (typical of a periodic sync write): nothing to re-plan
         self._plan_key = key
         if mode == 3:
             goal = min(max(goal, min_pos), max_pos)
         if mode in POSITION_MODES:
-            motor.target = self._to_shaft(goal)
+            raw = goal - offset
+            motor.target = 4095.0 - raw if drive & 1 else float(raw)
         v_cap = self.spec.no_load_speed_tick_s * max(0.0, self.input_voltage_v / self.spec.nominal_voltage_v)
         v_limit = v_limit_reg * VEL_UNIT_TICK_S
         if v_limit > 0:
