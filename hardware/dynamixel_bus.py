@@ -245,12 +245,19 @@ class DynamixelBus:
 
     # -- single-servo instructions ------------------------------------------------------------------
     def ping(self, servo_id: int) -> PingReply:
-        """Ping one servo: model number and firmware version (one Ping plus one 1-byte Read)."""
+        """Ping one servo: model number and firmware version, from its one status packet.
+
+        (The SDK's ``ping()`` drops the firmware byte, so the same packet goes through ``txRxPacket``.)
+        """
         check_ids([servo_id])
-        model, comm, err = self._call(self._packet.ping, self._port, servo_id)
+        txpacket = [0] * 10
+        txpacket[4], txpacket[5], txpacket[6], txpacket[7] = servo_id, 3, 0, sdk.INST_PING
+        rx, comm, err = self._call(self._packet.txRxPacket, self._port, txpacket)
         self._check(comm, err, f"ping {servo_id}", (servo_id,))
-        firmware = self.read(servo_id, Register.FIRMWARE_VERSION)
-        return PingReply(servo_id, int(model), firmware)
+        if rx is None or len(rx) < 14:
+            self.stats.corrupt += 1
+            raise BusCorruptError(f"ping {servo_id}: short status packet", (servo_id,))
+        return PingReply(servo_id, rx[9] | rx[10] << 8, rx[11])
 
     def broadcast_ping(self) -> dict[int, PingReply]:
         """Every servo on the chain. Waits the SDK's full fixed window (~0.8 s at 1 Mbps): start-up only."""

@@ -194,3 +194,15 @@ def test_factory_rejects_unknown_interfaces_and_bauds() -> None:
         open_bus("dynamixel", port="/dev/null", baud=4_500_000)
     with pytest.raises(ValueError, match="chain="):
         open_bus("emulator", port="/dev/ttyUSB0")
+
+
+def test_ping_answers_even_with_status_return_level_zero(chain_and_bus: tuple[ServoChain, ServoBus]) -> None:
+    chain, bus = chain_and_bus
+    bus.write(2, Register.STATUS_RETURN_LEVEL, 0)  # the write itself is still answered (level applies after)
+    reply = bus.ping(2)
+    assert (reply.model_number, reply.firmware_version) == (
+        1200,
+        chain.servo(2).read_register("FIRMWARE_VERSION"),
+    )
+    with pytest.raises(BusTimeoutError):
+        bus.read(2, Register.PRESENT_POSITION)

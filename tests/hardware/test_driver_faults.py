@@ -265,6 +265,8 @@ def test_servo_missing_at_start_is_configured_when_it_appears() -> None:
     snaps = run(chain, driver, {1: 2900, 2: 1100}, 0.2)
     assert snaps[-1][2].missing and snaps[-1][1].position_tick > 2048  # the other one is on its way
     snaps = run(chain, driver, {1: 2900, 2: 1100}, 2.0)
-    assert snaps[-1][2].torque_on and snaps[-1][2].position_tick == 1100 and snaps[-1][1].position_tick == 2900
+    assert (
+        snaps[-1][2].torque_on and snaps[-1][2].position_tick == 1100 and snaps[-1][1].position_tick == 2900
+    )
     assert chain.servo(2).read_register("PROFILE_VELOCITY") == 99 and chain.servo(2).read_register(52) == 1000
     assert_goals_within_limits(chain, driver)
