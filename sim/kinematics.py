@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from sim.errors import PoseError
 from sim.head import Head
-from sim.rig import HeadPose
+from sim.rig import HeadPose, JointActuator
 
 Transform = NDArray[np.float64]  # (4, 4) float
 
@@ -147,7 +147,7 @@ def neutral_pose(head: Head) -> HeadPose:
     """Every joint at its neutral angle, skin at rest, every actuator at its neutral target."""
     targets: dict[str, float] = {}
     for a in head.actuators:
-        targets[a.role] = a.neutral_deg if a.kind == "joint" else a.neutral_mm  # type: ignore[union-attr]
+        targets[a.role] = a.neutral_deg if isinstance(a, JointActuator) else a.neutral_mm
     return HeadPose(
         joint_deg=dict(head.neutral_joint_deg),
         skin_offset_mm=np.zeros_like(head.skin.vertices_mm),
@@ -177,7 +177,8 @@ def linear_blend(
     """Linear-blend skinning: vertices (n, 3), weights (n, K), transforms (K, 4, 4) -> (n, 3)."""
     blended = weights @ transforms[:, :3, :].reshape(len(transforms), 12)  # (n, 12)
     m = blended.reshape(-1, 3, 4)
-    return np.einsum("nab,nb->na", m[:, :, :3], vertices_mm) + m[:, :, 3]
+    out: NDArray[np.float64] = np.einsum("nab,nb->na", m[:, :, :3], vertices_mm) + m[:, :, 3]
+    return out
 
 
 def _check_offsets(head: Head, offsets: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -216,8 +217,9 @@ def posed_parts(head: Head, pose: HeadPose) -> list[PosedPart]:
     for part in head.parts:
         tf = tfs[part.name]
         verts = np.asarray(part.mesh.vertices) @ tf[:3, :3].T + tf[:3, 3]
-        mesh = trimesh.Trimesh(vertices=verts, faces=np.asarray(part.mesh.faces), process=False)
-        if part.mesh.visual.kind == "vertex":
-            mesh.visual.vertex_colors = np.asarray(part.mesh.visual.vertex_colors)
+        mesh: Any = trimesh.Trimesh(vertices=verts, faces=np.asarray(part.mesh.faces), process=False)
+        visual: Any = getattr(part.mesh, "visual", None)
+        if visual is not None and visual.kind == "vertex":
+            mesh.visual.vertex_colors = np.asarray(visual.vertex_colors)
         out.append(PosedPart(part.name, mesh, part.color_rgba, tf, part.collides))
     return out

@@ -254,10 +254,10 @@ def _joints(r: _Reader, data: dict[str, Any]) -> tuple[Joint, ...]:
         progress = [j for j in pending if j.parent is None or j.parent in placed]
         if not progress:
             raise r.fail(f"{keys[pending[0].name]}.parent", "a joint tree (no cycles)", pending[0].parent)
-        for j in progress:
-            ordered.append(j)
-            placed.add(j.name)
-        pending = [j for j in pending if j.name not in placed]
+        for jt in progress:
+            ordered.append(jt)
+            placed.add(jt.name)
+        pending = [jt for jt in pending if jt.name not in placed]
     return tuple(ordered)
 
 
@@ -502,13 +502,18 @@ def _actuators(
                     raise r.fail(f"{key}.anchor", f"an anchor named in [anchors] {sorted(anchors)}", an)
                 vertex = anchors[an]
             else:
-                vertex = a.get("vertex")
-                if isinstance(vertex, bool) or not isinstance(vertex, int) or not 0 <= vertex < n_vert:
+                raw_vertex = a.get("vertex")
+                if (
+                    isinstance(raw_vertex, bool)
+                    or not isinstance(raw_vertex, int)
+                    or not 0 <= raw_vertex < n_vert
+                ):
                     raise r.fail(
                         f"{key}.vertex",
                         f"a skin vertex index in 0..{n_vert - 1} (or anchor = <name>)",
-                        vertex,
+                        raw_vertex,
                     )
+                vertex = raw_vertex
             lo, hi = r.interval(a, "range_mm", key)
             neutral = r.number(a, "neutral_mm", key, float(np.clip(0.0, lo, hi)))
             if not lo <= neutral <= hi:

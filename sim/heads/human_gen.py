@@ -169,7 +169,7 @@ def _skin() -> tuple[F64, I64, F64, dict[str, int]]:
     ):
         wgt = wgt * (verts[:, 2] > 30.0)
         colours = colours * (1.0 - wgt[:, None]) + np.array(rgba) * wgt[:, None]
-    named = {}
+    named: dict[str, int] = {}
     return verts, faces, colours, named
 
 

@@ -14,7 +14,7 @@ I64 = NDArray[np.int64]
 
 def smoothstep(x: F64 | float) -> F64:
     """0 below 0, 1 above 1, C1-smooth in between."""
-    t = np.clip(x, 0.0, 1.0)
+    t = np.clip(np.asarray(x, dtype=np.float64), 0.0, 1.0)
     return np.asarray(t * t * (3.0 - 2.0 * t), dtype=np.float64)
 
 
@@ -30,8 +30,9 @@ def grid_faces(nv: int, nu: int, periodic_u: bool) -> I64:
     normals point outwards (callers flip with ``faces[:, ::-1]`` if needed).
     """
     cols = nu if periodic_u else nu - 1
-    j, i = np.meshgrid(np.arange(nv - 1), np.arange(cols), indexing="ij")
-    j, i = j.ravel(), i.ravel()
+    jj, ii = np.meshgrid(np.arange(nv - 1), np.arange(cols), indexing="ij")
+    j = jj.ravel()
+    i = ii.ravel()
     i1 = (i + 1) % nu
     a = j * nu + i
     b = j * nu + i1
@@ -55,7 +56,8 @@ def quad_centres(vertices: F64, faces: I64, n_grid: int) -> F64:
     corners = ids[first].reshape(-1, 4)  # the quad's four distinct vertices, whatever the winding
     q = np.sort(vertices[corners], axis=1).sum(1) / 4.0  # sorted: same summation order for mirror quads
     cen[:n_grid] = np.repeat(q, 2, axis=0)
-    return np.round(cen, 9)  # summation order differs between mirror quads; keep decisions identical
+    out: F64 = np.round(cen, 9)
+    return out  # summation order differs between mirror quads; keep decisions identical
 
 
 def fan(ring: I64, centre: int, reverse: bool = False) -> I64:
