@@ -7,7 +7,7 @@ driver's register enum. ``ControlTable`` indexes registers by name and by addres
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 from hardware.emulator.errors import RegisterError
@@ -35,10 +35,10 @@ class Register:
     def area(self) -> Area:
         return "EEPROM" if self.address < EEPROM_END else "RAM"
 
-    @property
-    def end(self) -> int:
-        """One past the last byte."""
-        return self.address + self.size
+    end: int = field(init=False, repr=False, compare=False)  # one past the last byte
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "end", self.address + self.size)
 
     def decode(self, raw: bytes | bytearray) -> int:
         return int.from_bytes(raw, "little", signed=self.signed)

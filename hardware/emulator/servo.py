@@ -490,8 +490,13 @@ class EmulatedServo:
             self._thermal_t = t1
             self._live_dirty = True
             return
-        if not torque or motor.at_rest:
-            load = physics.load_fraction(motor, torque, self.obstacle, 0.0)
+        if not torque or (motor.vel == 0.0 and motor.pos == motor.target):
+            if not torque:
+                load = 0.0
+            elif self.obstacle is None:
+                load = physics.HOLD_LOAD
+            else:
+                load = physics.load_fraction(motor, torque, self.obstacle, 0.0)
             if load != motor.load:
                 self._settle_thermal(t0)
                 motor.load = load
