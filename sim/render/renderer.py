@@ -61,6 +61,26 @@ def _box_of(items: Iterable[MeshItem]) -> tuple[NDArray[np.float64], NDArray[np.
     return lo, hi
 
 
+def _portrait_crop(
+    lo: NDArray[np.float64], hi: NDArray[np.float64], landmarks: Any
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Crop the framed box to the face when the head names its eyes and chin: from a little below the
+    chin to well above the brows (a portrait), so the expression, not the crown of the skull, fills the
+    image. Heads without those landmarks (the dog: ears matter) are framed whole."""
+    try:
+        eye_y = (float(landmarks["eye_centre_l"][1]) + float(landmarks["eye_centre_r"][1])) / 2.0
+        chin_y = float(landmarks["chin"][1])
+    except (KeyError, TypeError, IndexError):
+        return lo, hi
+    span = eye_y - chin_y
+    if span <= 0:
+        return lo, hi
+    lo, hi = lo.copy(), hi.copy()
+    lo[1] = max(lo[1], chin_y - 0.3 * span)
+    hi[1] = min(hi[1], eye_y + 1.1 * span)
+    return lo, hi
+
+
 def _skin_colors(skin: Any) -> NDArray[np.float64] | None:
     colors = getattr(skin, "vertex_colors_rgba", None)
     return None if colors is None else np.asarray(colors)
@@ -246,6 +266,7 @@ class HeadRenderer:
             if items:
                 plo, phi = _box_of(items)
                 lo, hi = np.minimum(lo, plo), np.maximum(hi, phi)
+            lo, hi = _portrait_crop(lo, hi, getattr(head, "landmarks_mm", {}))
             # keep the head referenced so its id cannot be reused by another object
             self._head_box[key] = (head, lo, hi)
         _, lo, hi = self._head_box[key]
