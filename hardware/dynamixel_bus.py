@@ -51,6 +51,7 @@ SDK_BAUDS = (
     4000000,
 )
 IN_PROCESS_LATENCY_MS = 2.0
+MAX_WINDOW_EXTENSION_MS = 100.0
 
 
 class ChainLike(Protocol):
@@ -73,9 +74,12 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
 
     def isPacketTimeout(self) -> bool:  # noqa: N802 (SDK name)
         """The SDK reads, then checks the clock: a thread descheduled between the two (common on a loaded
-        machine) times out with the whole reply already waiting. Close the window only if nothing is."""
-        if self.getTimeSinceStart() > self.packet_timeout:
-            if self.is_open and self.getBytesAvailable() > 0:
+        machine) times out with the whole reply already waiting. Close the window only if nothing is —
+        and at most ``MAX_WINDOW_EXTENSION_MS`` late, so a chattering line cannot hold it open."""
+        since = self.getTimeSinceStart()
+        if since > self.packet_timeout:
+            late = since - self.packet_timeout < MAX_WINDOW_EXTENSION_MS
+            if late and self.is_open and self.getBytesAvailable() > 0:
                 return False
             self.packet_timeout = 0
             return True

@@ -85,3 +85,17 @@ def test_reply_window_stays_open_while_bytes_are_waiting() -> None:
     port.clearPort()
     assert port.isPacketTimeout()
     bus.close()
+
+
+def test_window_extension_is_bounded() -> None:
+    from hardware.dynamixel_bus import MAX_WINDOW_EXTENSION_MS
+    from hardware.emulator import ServoChain
+
+    chain = ServoChain.create(ids=[1], wire_time=False)
+    bus = DynamixelBus(chain, latency_timer_ms=0)
+    bus.open()
+    port = bus._port
+    port.writePort(bytes.fromhex("FFFFFD0001030001194E"))
+    port.setPacketTimeoutMillis(-(MAX_WINDOW_EXTENSION_MS + 1))  # expired long ago: bytes do not matter now
+    assert port.getBytesAvailable() > 0 and port.isPacketTimeout()
+    bus.close()
