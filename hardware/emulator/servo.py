@@ -1,37 +1,33 @@
-"""One emulated servo: its control-table memory, write rules (error byte) and lazily advanced physics."""
+"""One emulated servo: its control-table memory, the write rules behind the error byte, test hooks, power.
+
+The physics (motion, heat, load, trips, live registers) lives in the base class
+:class:`hardware.emulator.servo_motion.ServoMotion`.
+"""
 
 from __future__ import annotations
 
 import math
-import struct
 import threading
 from collections.abc import Callable
 from functools import wraps
 from typing import Any, TypeVar
 
-from hardware.emulator import physics
 from hardware.emulator.control_table import EEPROM_END, Register
 from hardware.emulator.errors import EmulatorConfigError
-from hardware.emulator.faults import HARDWARE_KINDS, FaultSchedule
-from hardware.emulator.models import (
-    ACCELERATION_UNIT_RPM2,
-    BAUD_CODES,
-    HW_INPUT_VOLTAGE,
-    HW_OVERHEATING,
-    HW_OVERLOAD,
-    TICKS_PER_REV,
-    VELOCITY_UNIT_RPM,
-    ModelSpec,
-)
+from hardware.emulator.faults import FaultSchedule
+from hardware.emulator.indirect import IndirectMap
+from hardware.emulator.models import BAUD_CODES, HW_INPUT_VOLTAGE, TICKS_PER_REV, ModelSpec
 from hardware.emulator.packet import ErrorNumber
-
-VEL_UNIT_TICK_S = VELOCITY_UNIT_RPM / 60.0 * TICKS_PER_REV  # one Present Velocity LSB in ticks/s
-ACC_UNIT_TICK_S2 = ACCELERATION_UNIT_RPM2 / 3600.0 * TICKS_PER_REV
-POSITION_MODES = (3, 4, 5)
-A_TORQUE, A_GOAL_POS, A_HW_ERR, A_WATCHDOG, A_MODE, A_DRIVE = 64, 116, 70, 98, 11, 10
-IN_POSITION_TICK = 2.0
-THERMAL_DEFER_S = 0.02  # at rest, heat is integrated at most this often (exact: the load is constant)
-
+from hardware.emulator.servo_motion import (
+    A_DRIVE,
+    A_GOAL_POS,
+    A_HW_ERR,
+    A_MODE,
+    A_TORQUE,
+    A_WATCHDOG,
+    LIMITS,
+    ServoMotion,
+)
 
 _F = TypeVar("_F", bound=Callable[..., Any])
 
@@ -55,7 +51,7 @@ def _put(mem: bytearray, addr: int, size: int, value: int) -> None:
     mem[addr : addr + size] = (int(value) & ((1 << (8 * size)) - 1)).to_bytes(size, "little")
 
 
-class EmulatedServo:
+class EmulatedServo(ServoMotion):
     """A servo on the emulated chain. Test hooks (``read_register``/``write_register``/``move_by_hand``)
     bypass the wire; the ``wire_*`` methods implement what a packet may do, returning error numbers.
     """
@@ -76,29 +72,14 @@ class EmulatedServo:
         self.table = spec.table
         self._clock = clock
         self._faults = faults
-        self.ambient_c = 25.0
-        self.input_voltage_v = spec.nominal_voltage_v
-        self.obstacle: physics.Obstacle | None = None
         self.registered: tuple[int, bytes] | None = None
         self.silent_until_s = -math.inf
         self.on_change: Callable[[EmulatedServo], None] | None = None  # chain hook: id/baud/silence changed
-        self.powered = True
         self.mem = bytearray()
-        self.motor = physics.MotorState()
-        self._profile = physics.MotionProfile(spec.no_load_speed_tick_s, math.inf)
-        self._t = clock()
-        self._accel = 0.0
-        self._live_dirty = True
-        self._thermal_t = self._t
-        self._plan_key: tuple[object, ...] = ()
-        # (first Indirect Data address, first Indirect Address address, count) per indirect block
-        self._indirect: list[tuple[int, int, int]] = _indirect_blocks(spec)
-        self._indirect_lo = min((d for d, _, _ in self._indirect), default=1 << 30)
-        self._indirect_hi = max((d + n for d, _, n in self._indirect), default=0)
-        self._reports_load = spec.present_kind == "load"
-        self._stall_units = spec.stall_current_a * 1000.0 / spec.current_unit_ma
-        self._last_rx_s = self._t
-        self._watchdog_tripped = False
+        self._init_motion(spec, clock)
+        self._indirect = IndirectMap(spec.table)
+        self._indirect_lo = self._indirect.data_lo
+        self._indirect_hi = self._indirect.data_hi
         self._power_on(keep=None)
         self.mem[7] = uid
         self.mem[8] = baud_code
@@ -289,40 +270,13 @@ class EmulatedServo:
         if address < 147 and end > 120:
             self._sync_live()
         if self._indirect_lo < end and address < self._indirect_hi:
-            return 0, self._read_indirect(address, length)
+            targets = self._indirect.targets(self.mem, address, length)
+            if any(120 <= t < 147 for t in targets):
+                self._sync_live()
+            mem = self.mem
+            size = len(mem)
+            return 0, bytes(mem[t] if t < size else 0 for t in targets)
         return 0, bytes(self.mem[address:end])
-
-    # ----------------------------------------------------------------- indirect addressing
-    def _indirect_target(self, address: int) -> int | None:
-        """The address Indirect Data byte ``address`` stands for (None if it is not an Indirect Data byte)."""
-        for data_start, addr_start, count in self._indirect:
-            if data_start <= address < data_start + count:
-                slot = addr_start + 2 * (address - data_start)
-                return self.mem[slot] | self.mem[slot + 1] << 8
-        return None
-
-    def _read_indirect(self, address: int, length: int) -> bytes:
-        targets = [self._indirect_target(a) for a in range(address, address + length)]
-        if any(t is not None and 120 <= t < 147 for t in targets):
-            self._sync_live()
-        mem = self.mem
-        return bytes(
-            mem[a] if t is None else mem[t]
-            for a, t in zip(range(address, address + length), targets, strict=True)
-        )
-
-    def _indirect_runs(self, address: int, data: bytes) -> list[tuple[int, bytes]]:
-        """Split a write into contiguous runs of real addresses (Indirect Data bytes mapped to targets)."""
-        runs: list[tuple[int, bytearray]] = []
-        for i, byte in enumerate(data):
-            a = address + i
-            t = self._indirect_target(a)
-            real = a if t is None else t
-            if runs and runs[-1][0] + len(runs[-1][1]) == real:
-                runs[-1][1].append(byte)
-            else:
-                runs.append((real, bytearray((byte,))))
-        return [(start, bytes(chunk)) for start, chunk in runs]
 
     # ----------------------------------------------------------------- writes
     def check_write(self, address: int, data: bytes) -> int:
@@ -361,7 +315,7 @@ class EmulatedServo:
             if self._watchdog_tripped:
                 return ErrorNumber.DATA_RANGE
             if mem[A_MODE] == 3:
-                _, max_pos, min_pos = _LIMITS.unpack_from(mem, 44)
+                _, max_pos, min_pos = LIMITS.unpack_from(mem, 44)
                 if not min_pos <= value <= max_pos:
                     return ErrorNumber.DATA_LIMIT
         elif a == 104:
@@ -389,7 +343,7 @@ class EmulatedServo:
 
     def _write_indirect(self, address: int, data: bytes) -> int:
         """A write touching Indirect Data goes to the mapped registers (all checked before any change)."""
-        runs = self._indirect_runs(address, data)
+        runs = self._indirect.runs(self.mem, address, data)
         for start, chunk in runs:
             err = self.check_write(start, chunk)
             if err:
@@ -427,185 +381,7 @@ class EmulatedServo:
         if mem[A_TORQUE] and ((address < 120 and end > 100) or (address < 56 and end > 44)):
             self._start_move()
 
-    def _start_move(self) -> None:
-        """Aim at Goal Position with the current profile registers (re-planned only when they changed)."""
-        mem = self.mem
-        motor = self.motor
-        v_limit_reg, max_pos, min_pos = _LIMITS.unpack_from(mem, 44)
-        prof_a, prof_v, goal = _GOALS.unpack_from(mem, 108)
-        mode = mem[A_MODE]
-        drive = mem[A_DRIVE]
-        offset = _I32.unpack_from(mem, 20)[0]
-        key = (goal, prof_a, prof_v, mode, drive, v_limit_reg, max_pos, min_pos, self.input_voltage_v, offset)
-        if key == self._plan_key and not drive & 0x04:
-            return  # same goal and profile again (typical of a periodic sync write): nothing to re-plan
-        self._plan_key = key
-        if mode == 3:
-            goal = min(max(goal, min_pos), max_pos)
-        if mode in POSITION_MODES:
-            raw = goal - offset
-            motor.target = 4095.0 - raw if drive & 1 else float(raw)
-        v_cap = self.spec.no_load_speed_tick_s * max(0.0, self.input_voltage_v / self.spec.nominal_voltage_v)
-        v_limit = v_limit_reg * VEL_UNIT_TICK_S
-        if v_limit > 0:
-            v_cap = min(v_cap, v_limit)
-        if drive & 0x04:
-            self._profile = physics.time_based_profile(motor.target - motor.pos, prof_v, prof_a, v_cap)
-        else:
-            v = prof_v * VEL_UNIT_TICK_S if prof_v else v_cap
-            a = prof_a * ACC_UNIT_TICK_S2 if prof_a else math.inf
-            self._profile = physics.MotionProfile(min(v, v_cap), a)
-
-    # ----------------------------------------------------------------- physics
-    def heard(self, t_s: float) -> None:
-        """An instruction packet reached this servo at ``t_s`` (feeds the Bus Watchdog)."""
-        if self.mem[A_WATCHDOG]:
-            self.advance(t_s)  # a trip due before this packet must happen first
-        if t_s > self._last_rx_s:
-            self._last_rx_s = t_s
-
-    def advance(self, t_s: float | None = None) -> None:
-        """Bring the physics up to ``t_s`` (default: now)."""
-        t1 = self._clock() if t_s is None else t_s
-        t0 = self._t
-        if t1 <= t0:
-            return
-        self._t = t1
-        if self._faults.has_any(self.uid):
-            self._apply_faults(t0, t1)
-        mem = self.mem
-        motor = self.motor
-        wd = mem[A_WATCHDOG]
-        if 0 < wd < 128 and mem[A_TORQUE] and t1 - self._last_rx_s > wd * 0.02:
-            self._watchdog_tripped = True
-            mem[A_WATCHDOG] = 0xFF
-            motor.target = motor.pos
-            self._plan_key = ()
-        torque = mem[A_TORQUE] == 1
-        mode = mem[A_MODE]
-        if torque and mode not in POSITION_MODES:
-            self._settle_thermal(t0)
-            self._drive_velocity(t1 - t0)
-            self._thermal(t1 - t0, 0.1)
-            self._thermal_t = t1
-            self._live_dirty = True
-            return
-        if not torque or (motor.vel == 0.0 and motor.pos == motor.target):
-            if not torque:
-                load = 0.0
-            elif self.obstacle is None:
-                load = physics.HOLD_LOAD
-            else:
-                load = physics.load_fraction(motor, torque, self.obstacle, 0.0)
-            if load != motor.load:
-                self._settle_thermal(t0)
-                motor.load = load
-                self._live_dirty = True
-            if t1 - self._thermal_t >= THERMAL_DEFER_S:
-                self._settle_thermal(t1)  # constant load at rest: integrating later is exact
-            return
-        self._settle_thermal(t0)
-        self._live_dirty = True
-        t = t0
-        while t < t1:
-            dt = min(physics.STEP_S, t1 - t)
-            v0 = motor.vel
-            physics.step_motion(motor, self._profile, dt, self.obstacle)
-            self._accel = (motor.vel - v0) / dt
-            load = physics.load_fraction(motor, True, self.obstacle, self._accel)
-            motor.load = load
-            self._thermal(dt, load)
-            t += dt
-            if not mem[A_TORQUE]:
-                motor.load = 0.0
-                break
-            if motor.at_rest:
-                motor.load = physics.load_fraction(motor, True, self.obstacle, 0.0)
-                self._thermal(t1 - t, motor.load)
-                t = t1
-                break
-            if physics.blocked_by(motor, self.obstacle) and t < t1:
-                # stalled: constant load until the end (or until a trip drops torque)
-                rest = t1 - t
-                chunk = min(rest, 0.05)
-                while rest > 0 and mem[A_TORQUE]:
-                    self._thermal(chunk, load)
-                    t += chunk
-                    rest -= chunk
-                    chunk = min(rest, 0.05)
-                if not mem[A_TORQUE]:
-                    motor.load = 0.0
-                break
-        self._thermal_t = min(t, t1)
-
-    def _settle_thermal(self, t_s: float) -> None:
-        """Integrate heat up to ``t_s`` at the present (constant) load."""
-        dt = t_s - self._thermal_t
-        if dt > 0:
-            self._thermal(dt, self.motor.load)
-            self._thermal_t = t_s
-            self._live_dirty = True
-
-    def _drive_velocity(self, dt: float) -> None:
-        mem = self.mem
-        mode = mem[A_MODE]
-        v_nl = self.spec.no_load_speed_tick_s
-        if mode == 1:
-            v = _i(mem, 104, 4, True) * VEL_UNIT_TICK_S
-        elif mode == 16:
-            v = _i(mem, 100, 2, True) / 885.0 * v_nl
-        else:
-            limit = max(1, _i(mem, 38, 2))
-            v = max(-1.0, min(1.0, _i(mem, 102, 2, True) / limit)) * v_nl
-        if self.reversed:
-            v = -v
-        if self._watchdog_tripped:
-            v = 0.0
-        new_pos = self.motor.pos + v * dt
-        if self.obstacle is not None and (new_pos - self.obstacle[0]) * self.obstacle[1] < 0:
-            new_pos, v = self.obstacle[0], 0.0
-        self.motor.pos = self.motor.target = new_pos
-        self.motor.vel = v
-
-    def _thermal(self, dt: float, load: float) -> None:
-        if dt <= 0:
-            return
-        motor = self.motor
-        motor.temperature_c = physics.step_thermal(motor.temperature_c, self.ambient_c, load, dt)
-        if abs(load) >= physics.OVERLOAD_LOAD:
-            motor.overload_s += dt
-            if motor.overload_s >= physics.OVERLOAD_TRIP_S:
-                self._trip(HW_OVERLOAD)
-        else:
-            motor.overload_s = 0.0
-        if motor.temperature_c >= self.mem[31]:
-            self._trip(HW_OVERHEATING)
-
-    def _trip(self, bits: int) -> None:
-        self._live_dirty = True
-        mem = self.mem
-        mem[A_HW_ERR] |= bits
-        if bits & mem[63] and mem[A_TORQUE]:
-            mem[A_TORQUE] = 0
-            self.motor.target = self.motor.pos
-            self._plan_key = ()
-            self.motor.vel = 0.0
-            self.motor.load = 0.0
-
-    def _voltage_ok(self) -> bool:
-        decivolts = self.input_voltage_v * 10.0
-        return _i(self.mem, 34, 2) <= decivolts <= _i(self.mem, 32, 2)
-
-    def _recheck_causes(self) -> None:
-        """After power-up: errors whose cause persists come straight back."""
-        if not self._voltage_ok():
-            self._trip(HW_INPUT_VOLTAGE)
-        if self.motor.temperature_c >= self.mem[31]:
-            self._trip(HW_OVERHEATING)
-        for kind, bit in HARDWARE_KINDS.items():
-            if self._faults.active(self.uid, kind, self._t):
-                self._trip(bit)
-
+    # ----------------------------------------------------------------- supply
     @_locked
     def set_input_voltage(self, volts: float) -> None:
         self.advance()
@@ -614,113 +390,9 @@ class EmulatedServo:
         if not self._voltage_ok():
             self._trip(HW_INPUT_VOLTAGE)
 
-    def _apply_faults(self, t0: float, t1: float) -> None:
-        for f in self._faults.overlapping(self.uid, t0, t1):
-            bit = HARDWARE_KINDS.get(f.kind)
-            if bit is not None:
-                self._trip(bit)
-            elif f.kind == "disconnect":
-                if f.start_s <= t1 and self.powered and f.end_s > t1:
-                    self.powered = False
-                    self.mem[A_TORQUE] = 0
-                    self.motor.target = self.motor.pos
-                    self._plan_key = ()
-                    self.motor.vel = 0.0
-                if t0 < f.end_s <= t1:
-                    self.powered = True
-                    self._power_on(keep=bytes(self.mem[:EEPROM_END]))
-
     @_locked
     def present_values(self) -> dict[str, int]:
         """Live register values as the servo would report them now."""
         self.advance()
         self._sync_live()
         return {r.name: r.decode(self.mem[r.address : r.end]) for r in self.table if 120 <= r.address < 148}
-
-    def _sync_live(self) -> None:
-        """Write the live (read-only) registers 120..146 from the physics state into memory (one pack)."""
-        mem = self.mem
-        if not self._live_dirty:
-            _TICK.pack_into(mem, 120, int(self._t * 1000.0) % 32768)  # at rest only the clock moves
-            return
-        self._live_dirty = False
-        motor = self.motor
-        vel = motor.vel
-        rev = mem[A_DRIVE] & 1
-        offset = _I32.unpack_from(mem, 20)[0]
-        prof_a, prof_v = _PROFILE.unpack_from(mem, 108)
-        if rev:
-            present = 4095.0 - motor.pos + offset
-            target = 4095.0 - motor.target + offset
-            load = -motor.load
-            vel = -vel
-        else:
-            present = motor.pos + offset
-            target = motor.target + offset
-            load = motor.load
-        moving = vel != 0.0
-        status = (1 if abs(motor.target - motor.pos) <= IN_POSITION_TICK else 0) | (2 if moving else 0)
-        if prof_v:
-            status |= 0x30 if prof_a else 0x10
-        present_load = load * (1000.0 if self._reports_load else self._stall_units)
-        vel_units = round(vel / VEL_UNIT_TICK_S)
-        values = (
-            int(self._t * 1000.0) % 32768,
-            1 if moving else 0,
-            status,
-            round(load * 885),
-            round(present_load),
-            vel_units,
-            round(present),
-            vel_units,
-            round(target),
-            round(self.input_voltage_v * 10),
-            round(motor.temperature_c),
-        )
-        try:
-            _LIVE.pack_into(mem, 120, *values)
-        except struct.error:  # something out of its register's range (runaway test values): saturate
-            _LIVE.pack_into(
-                mem, 120, *(_saturate(v, lo, hi) for v, (lo, hi) in zip(values, _LIVE_RANGES, strict=True))
-            )
-
-
-_LIVE = struct.Struct("<HBBhhiiiiHB")  # Realtime Tick (120) .. Present Temperature (146)
-_TICK = struct.Struct("<H")
-_I32 = struct.Struct("<i")
-_PROFILE = struct.Struct("<II")  # Profile Acceleration (108), Profile Velocity (112)
-_LIVE_RANGES = (
-    [(0, 65535), (0, 255), (0, 255), (-32768, 32767), (-32768, 32767)]
-    + [(-(1 << 31), (1 << 31) - 1)] * 4
-    + [
-        (0, 65535),
-        (0, 255),
-    ]
-)
-
-
-def _saturate(v: int, lo: int, hi: int) -> int:
-    return lo if v < lo else hi if v > hi else v
-
-
-_LIMITS = struct.Struct("<III")  # Velocity Limit (44), Max (48) / Min (52) Position Limit
-_GOALS = struct.Struct("<IIi")  # Profile Acceleration (108), Profile Velocity (112), Goal Position (116)
-
-
-def _indirect_blocks(spec: ModelSpec) -> list[tuple[int, int, int]]:
-    blocks: list[tuple[int, int, int]] = []
-    for reg in spec.table:
-        if not reg.name.startswith("Indirect Data "):
-            continue
-        n = int(reg.name.rsplit(" ", 1)[1])
-        addr_reg = spec.table.get(f"Indirect Address {n}")
-        if (
-            blocks
-            and blocks[-1][0] + blocks[-1][2] == reg.address
-            and blocks[-1][1] + 2 * blocks[-1][2] == addr_reg.address
-        ):
-            d, a, c = blocks[-1]
-            blocks[-1] = (d, a, c + 1)
-        else:
-            blocks.append((reg.address, addr_reg.address, 1))
-    return blocks

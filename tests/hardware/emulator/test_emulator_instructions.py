@@ -286,3 +286,10 @@ def test_control_table_backup_answers() -> None:
     chain, ser = quick_chain(ids=[1])
     (st,) = transact(ser, 1, I.CONTROL_TABLE_BACKUP, b"\x01\x43\x54\x52\x4c")
     assert (st.id, st.error) == (1, OK)
+
+
+def test_indirect_address_beyond_the_table_reads_zero() -> None:
+    chain, ser = quick_chain(ids=[1])  # XL330: a 228-byte table, Indirect Address accepts up to 661
+    assert transact(ser, 1, I.WRITE, wr(168, 600, 2))[0].error == OK
+    (st,) = transact(ser, 1, I.READ, rd(208, 1))
+    assert (st.error, st.data) == (OK, b"\x00")
