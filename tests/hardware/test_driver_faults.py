@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import pytest
 
+from hardware.registers import Register
 from hardware.snapshot import FaultKind
 from tests.hardware.driver_helpers import assert_goals_within_limits, events_of, make_driver, run
 
@@ -270,3 +271,17 @@ def test_servo_missing_at_start_is_configured_when_it_appears() -> None:
     )
     assert chain.servo(2).read_register("PROFILE_VELOCITY") == 99 and chain.servo(2).read_register(52) == 1000
     assert_goals_within_limits(chain, driver)
+
+
+def test_alert_bit_on_a_single_transaction_triggers_an_immediate_status_read() -> None:
+    from hardware.fault_policy import FaultPolicy
+
+    chain, driver = make_driver(policy=FaultPolicy(status_hz=0.1))  # polling alone would take 10 s
+    run(chain, driver, GOALS, 0.5)  # the first status read is done; the next is 10 s away
+    chain.faults.inject(1, "overload", duration_s=0.01)
+    chain.advance(0.02)
+    driver.bus.read(1, Register.PRESENT_TEMPERATURE)  # any single transaction: its status has the Alert bit
+    assert 1 in driver.bus.alerts
+    snap = driver.cycle(GOALS)
+    assert FaultKind.OVERLOAD in snap[1].faults and any(e.kind is FaultKind.OVERLOAD for e in snap.events)
+    assert not driver.bus.alerts
