@@ -45,10 +45,12 @@ def _cycle(bus: ServoBus, ids: list[int], n: int, fast: bool) -> None:
 
 def measure_rate_hz(
     bus: ServoBus, ids: list[int], fast: bool, windows: int, window_s: float
-) -> tuple[float, float]:
-    """(best, median) cycles per second over ``windows`` windows of ``window_s``."""
+) -> tuple[float, float, float]:
+    """(best, median) cycles per second over ``windows`` windows of ``window_s``, and the share of wall time
+    this process was on a CPU (the SDK busy-waits, so anything well under 1 means other processes took it)."""
     rates = []
     n = 0
+    cpu0, wall0 = time.process_time(), time.perf_counter()
     for _ in range(windows):
         count, t0 = 0, time.perf_counter()
         while (elapsed := time.perf_counter() - t0) < window_s:
@@ -56,7 +58,8 @@ def measure_rate_hz(
             n += 1
             count += 1
         rates.append(count / elapsed)
-    return max(rates), statistics.median(rates)
+    cpu_share = (time.process_time() - cpu0) / (time.perf_counter() - wall0)
+    return max(rates), statistics.median(rates), cpu_share
 
 
 def cpu_split_ms(baud: int, fast: bool, cycles: int) -> dict[str, float]:
@@ -100,7 +103,7 @@ def run(quick: bool = False) -> Iterator[Figure]:
         tag = f"{N_SERVOS} servos @{baud // 1_000_000}M"
         for fast, label in ((False, "sync write + sync read"), (True, "sync write + fast sync read")):
             budget = cycle_budget(N_SERVOS, baud, return_delay_us=RETURN_DELAY_US, fast=fast)
-            best, median = measure_rate_hz(bus, ids, fast, windows, window_s)
+            best, median, cpu_share = measure_rate_hz(bus, ids, fast, windows, window_s)
             yield Figure(
                 f"{label}, {tag}",
                 best,
@@ -110,7 +113,7 @@ def run(quick: bool = False) -> Iterator[Figure]:
                 note=f"best of {windows}x{window_s:g}s windows (median {median:.0f}/s); wire limit "
                 f"{budget.bytes_total} B x 10 bit / {baud} bps + RDT {RETURN_DELAY_US} us = "
                 f"{budget.wire_time_s * 1e3:.3f} ms; timeouts {bus.stats.timeouts}, "
-                f"corrupt {bus.stats.corrupt}",
+                f"corrupt {bus.stats.corrupt}; on-CPU share {cpu_share:.2f} (under 1: the machine was busy)",
             )
         bus.close()
         chain.close()
