@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 from sim.gate.errors import GateConfigError
 from sim.gate.exact import ExactCollider, eroded
 from sim.gate.fk import JointTree
+from sim.gate.proofs import concentric_separation
 from sim.gate.tss_build import BuiltPair, TssParams, build_or_load, relative_joints
 from sim.gate.tss_runtime import TssBroadPhase
 
@@ -85,6 +86,17 @@ class PartCollisions:
             mb = meshes.setdefault(
                 f"{spec.b}@{spec.tolerance_mm}", eroded(parts[spec.b].mesh, spec.tolerance_mm)
             )
+            reason = concentric_separation(
+                tree,
+                parts[spec.a].joint,
+                parts[spec.b].joint,
+                ma,
+                mb,
+                relative_joints(tree, parts[spec.a].joint, parts[spec.b].joint),
+            )
+            if reason is not None:
+                self.skipped.append((spec, reason))
+                continue
             self.specs.append(spec)
             built.append(
                 build_or_load(
@@ -113,7 +125,8 @@ class PartCollisions:
                 keep.append(True)
         self.specs = [s for s, k in zip(self.specs, keep, strict=True) if k]
         self.built = [b for b, k in zip(built, keep, strict=True) if k]
-        self.broad = TssBroadPhase(tree, self.part_joint, self.built)
+        self.always = [b.table.n_tests > params.max_table_tests for b in self.built]
+        self.broad = TssBroadPhase(tree, self.part_joint, self.built, self.always)
         self.pairs_active = [s for s, b in zip(self.specs, self.built, strict=True) if b.table.n_tests > 0]
 
     def _neutral_world(self, rest: FloatArray) -> FloatArray:
@@ -143,8 +156,14 @@ class PartCollisions:
 
     @property
     def n_tests(self) -> int:
+        """Sphere-pair tests per frame (pairs sent straight to the exact test not counted)."""
         return self.broad.n_tests
 
     @property
     def n_all_sphere_pairs(self) -> int:
-        return sum(b.table.n_all_pairs for b in self.built)
+        """All sphere pairs of the pairs the TSS handles (the brute-force count it is compared with)."""
+        return sum(b.table.n_all_pairs for b, a in zip(self.built, self.always, strict=True) if not a)
+
+    @property
+    def exact_always(self) -> list[PairSpec]:
+        return [s for s, a in zip(self.specs, self.always, strict=True) if a]

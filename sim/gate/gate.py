@@ -284,6 +284,11 @@ class TwinGate:
                 break
         return best, best_frac
 
+    def reset(self) -> None:
+        """Forget the previous step (the next check assumes the servos start from rest)."""
+        self._last_sent = None
+        self._last_step = np.zeros(self.table.n, dtype=np.int64)
+
     def _remember(self, verdict: Verdict, last: IntArray) -> Verdict:
         sent = np.array([verdict.goals_tick[sid] for sid in self.table.ids], dtype=np.int64)
         self._last_step = sent - last

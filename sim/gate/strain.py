@@ -103,36 +103,85 @@ class SkinTwin:
         if np.any(self.rest_len <= 0):
             raise GateConfigError("skin has zero-length edges at rest")
         self.rest_normal = self._normals(self.rest)
+        self._split_active()
+
+    def _split_active(self) -> None:
+        """Edges and faces whose shape can change (touched by a pull, blended between joints, or spanning
+        two joints) are measured per frame; the rest keep their neutral values, computed once here."""
+        w = self.weights
+        one_joint = (w > 0).sum(axis=1) == 1
+        pulled = np.abs(self.basis).reshape(-1, 3, self.basis.shape[1]).sum(axis=(1, 2)) > 0
+        joint_of = np.where(one_joint, np.argmax(w, axis=1), -1)
+        soft = ~one_joint | pulled
+        e0, e1 = self.edges[:, 0], self.edges[:, 1]
+        act_e = soft[e0] | soft[e1] | (joint_of[e0] != joint_of[e1])
+        f = self.faces
+        act_f = (
+            soft[f].any(axis=1)
+            | (joint_of[f[:, 0]] != joint_of[f[:, 1]])
+            | (joint_of[f[:, 0]] != joint_of[f[:, 2]])
+        )
+        base_ratio = np.linalg.norm(self.base[e0] - self.base[e1], axis=1) / self.rest_len
+        fixed = ~act_e
+        self._const_max = float(base_ratio[fixed].max()) if fixed.any() else 0.0
+        self._const_min = float(base_ratio[fixed].min()) if fixed.any() else np.inf
+        base_n = self._normals(self.base)
+        self._const_flips = int((np.einsum("fi,fi->f", base_n, self.rest_normal)[~act_f] <= 0.0).sum())
+        verts = np.unique(np.concatenate([self.edges[act_e].ravel(), f[act_f].ravel()]))
+        remap = np.full(len(self.rest), -1, dtype=np.int64)
+        remap[verts] = np.arange(len(verts))
+        self._v = verts
+        self._edges = remap[self.edges[act_e]]
+        self._rest_len = self.rest_len[act_e]
+        self._faces = remap[f[act_f]]
+        self._rest_normal = self.rest_normal[act_f]
+        self._base = self.base[verts]
+        self._basis = self.basis.reshape(-1, 3, self.basis.shape[1])[verts].reshape(-1, self.basis.shape[1])
+        self._w = self._w_used[verts]
+        self._face_w = self._w_used[f[act_f]].mean(axis=1)
+        self.n_active_edges = int(act_e.sum())
+        self.n_active_faces = int(act_f.sum())
 
     def _normals(self, v: FloatArray) -> FloatArray:
         t = v[..., self.faces, :]
         return np.cross(t[..., 1, :] - t[..., 0, :], t[..., 2, :] - t[..., 0, :])
 
-    def _blend(self, world: FloatArray) -> FloatArray:
-        """(..., n, 3, 4) blended skinning matrices."""
+    def _mats(self, world: FloatArray) -> FloatArray:
+        """(..., u, 12) the used joints' (3, 4) transforms, head base last."""
         lead = world.shape[:-3]
         eye = np.broadcast_to(np.eye(4), (*lead, 1, 4, 4))
         mats = np.concatenate([world, eye], axis=-3)[..., self._used, :3, :]
-        return np.einsum("nu,...uij->...nij", self._w_used, mats)
+        return mats.reshape(*lead, len(self._used), 12)
 
-    def posed(self, world: FloatArray, pulls: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """(posed vertices (..., n, 3), blend matrices (..., n, 3, 4)); ``pulls`` (..., k) mm from neutral."""
+    def posed(self, world: FloatArray, pulls: FloatArray) -> FloatArray:
+        """(..., n, 3) every posed skin vertex; ``pulls`` (..., k) mm from neutral."""
         v = self.base + (pulls @ self.basis.T).reshape(*pulls.shape[:-1], -1, 3)
-        m = self._blend(world)
-        return np.einsum("...nij,...nj->...ni", m[..., :3], v) + m[..., 3], m
+        m = (self._w_used @ self._mats(world)).reshape(*v.shape[:-1], 3, 4)
+        return np.einsum("...nij,...nj->...ni", m[..., :3], v) + m[..., 3]
 
     def measure(
         self, world: FloatArray, pulls: FloatArray
     ) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
         """(max stretch (...,), min compression (...,), flipped triangle count (...,))."""
-        v, m = self.posed(world, pulls)
-        ratio = (
-            np.linalg.norm(v[..., self.edges[:, 0], :] - v[..., self.edges[:, 1], :], axis=-1) / self.rest_len
-        )
-        rot = m[..., :3][..., self.faces, :, :].mean(axis=-3)  # (..., f, 3, 3)
-        expect = np.einsum("...fij,fj->...fi", rot, self.rest_normal)
-        flipped = np.einsum("...fi,...fi->...f", self._normals(v), expect) <= 0.0
-        return ratio.max(axis=-1), ratio.min(axis=-1), flipped.sum(axis=-1)
+        mats = self._mats(world)
+        v = self._base + (pulls @ self._basis.T).reshape(*pulls.shape[:-1], -1, 3)
+        m = (self._w @ mats).reshape(*v.shape[:-1], 3, 4)
+        v = np.einsum("...nij,...nj->...ni", m[..., :3], v) + m[..., 3]
+        d = v[..., self._edges[:, 0], :] - v[..., self._edges[:, 1], :]
+        ratio = np.sqrt(np.einsum("...ei,...ei->...e", d, d)) / self._rest_len
+        rot = (self._face_w @ mats).reshape(*v.shape[:-2], -1, 3, 4)[..., :3]
+        expect = np.einsum("...fij,fj->...fi", rot, self._rest_normal)
+        p0 = v[..., self._faces[:, 0], :]
+        u = v[..., self._faces[:, 1], :] - p0
+        w = v[..., self._faces[:, 2], :] - p0
+        ux, uy, uz = u[..., 0], u[..., 1], u[..., 2]
+        wx, wy, wz = w[..., 0], w[..., 1], w[..., 2]
+        dot = (uy * wz - uz * wy) * expect[..., 0] + (uz * wx - ux * wz) * expect[..., 1]
+        dot += (ux * wy - uy * wx) * expect[..., 2]
+        flipped = dot <= 0.0
+        stretch = np.maximum(ratio.max(axis=-1, initial=0.0), self._const_max)
+        comp = np.minimum(ratio.min(axis=-1, initial=np.inf), self._const_min)
+        return stretch, comp, flipped.sum(axis=-1) + self._const_flips
 
 
 def strain_findings(stretch: float, compression: float, flipped: int, limits: StrainLimits) -> list[Finding]:

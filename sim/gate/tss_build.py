@@ -41,6 +41,7 @@ class TssParams:
     max_step_deg: float = 4.0
     max_grid_points: int = 12000
     chunk_elements: int = 4_000_000
+    max_table_tests: int = 4000  # a pair with a larger table skips the spheres: exact test every frame
 
 
 @dataclass(frozen=True)

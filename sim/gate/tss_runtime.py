@@ -23,9 +23,18 @@ class TssBroadPhase:
     """Flags the part pairs whose tabulated spheres overlap (or whose joints left the swept box)."""
 
     def __init__(
-        self, tree: JointTree, part_joint: dict[str, str | None], pairs: Sequence[BuiltPair]
+        self,
+        tree: JointTree,
+        part_joint: dict[str, str | None],
+        pairs: Sequence[BuiltPair],
+        always: Sequence[bool] | None = None,
     ) -> None:
+        """``always[p]``: pair p skips the sphere tests and always goes to the exact test (tables too
+        large to pay off, e.g. a part on the head base against one behind three neck joints)."""
         self.pairs = tuple(pairs)
+        self.always = (
+            np.zeros(len(self.pairs), dtype=bool) if always is None else np.array(always, dtype=bool)
+        )
         n_joints = len(tree.names)
         centres: list[FloatArray] = []
         slot: list[int] = []
@@ -36,6 +45,8 @@ class TssBroadPhase:
         offset = 0
         for p, built in enumerate(self.pairs):
             t = built.table
+            if self.always[p]:
+                continue
             ua, inv_a = np.unique(t.ia, return_inverse=True)
             ub, inv_b = np.unique(t.ib, return_inverse=True)
             ja, jb = part_joint[t.a], part_joint[t.b]
@@ -55,35 +66,85 @@ class TssBroadPhase:
         self.gb = np.concatenate(gb) if gb else np.zeros(0, np.int64)
         self.thr2 = np.concatenate(thr) if thr else np.zeros(0)
         self.pid = np.concatenate(pid) if pid else np.zeros(0, np.int64)
-        # swept boxes: per pair, the joints and their bounds (for the out-of-range fallback)
-        self._box = [
-            (
-                np.array([tree.index[j] for j in b.table.joints], dtype=np.int64),
-                b.table.lower_deg,
-                b.table.upper_deg,
-            )
-            for b in self.pairs
+        # group the spheres by the joint that carries them: one small matmul per group per frame
+        order = np.argsort(self.slot, kind="stable")
+        rank = np.empty_like(order)
+        rank[order] = np.arange(len(order))
+        self.centres_h = self.centres_h[order]
+        self.slot = self.slot[order]
+        self.ga, self.gb = rank[self.ga], rank[self.gb]
+        cuts = np.flatnonzero(np.diff(self.slot)) + 1
+        bounds = np.r_[0, cuts, len(self.slot)].astype(np.int64)
+        self._groups = [
+            (int(self.slot[a]), int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True) if b > a
         ]
+        # swept boxes as (P, J) bounds (+-inf for joints a pair does not sweep), for the fallback
+        self._lo = np.full((len(self.pairs), n_joints), -np.inf)
+        self._hi = np.full((len(self.pairs), n_joints), np.inf)
+        for p, b in enumerate(self.pairs):
+            idx = [tree.index[j] for j in b.table.joints]
+            self._lo[p, idx] = b.table.lower_deg - 1e-9
+            self._hi[p, idx] = b.table.upper_deg + 1e-9
         self.n_tests = int(self.ga.shape[0])
-        counts = np.array([b.table.n_tests for b in self.pairs], dtype=np.int64)
+        counts = np.array(
+            [0 if self.always[p] else b.table.n_tests for p, b in enumerate(self.pairs)], dtype=np.int64
+        )
         self._nonempty = counts > 0
         self._starts = (np.cumsum(counts) - counts)[self._nonempty]
+        # per pair, for the relative-frame evaluation: a's used spheres (homogeneous, a's rest frame),
+        # b's used spheres (b's rest frame), local index pairs and squared reach
+        self._per_pair: list[
+            tuple[int, int, int, FloatArray, FloatArray, NDArray[np.int64], NDArray[np.int64], FloatArray]
+        ] = []
+        for p, built in enumerate(self.pairs):
+            t = built.table
+            if self.always[p] or t.n_tests == 0:
+                continue
+            ua, inv_a = np.unique(t.ia, return_inverse=True)
+            ub, inv_b = np.unique(t.ib, return_inverse=True)
+            ja, jb = part_joint[t.a], part_joint[t.b]
+            r = built.spheres_a.radii_mm[t.ia] + built.spheres_b.radii_mm[t.ib] + t.tolerance_mm
+            self._per_pair.append(
+                (
+                    p,
+                    n_joints if ja is None else tree.index[ja],
+                    n_joints if jb is None else tree.index[jb],
+                    np.c_[built.spheres_a.centres_mm[ua], np.ones(len(ua))],
+                    np.ascontiguousarray(built.spheres_b.centres_mm[ub]),
+                    inv_a.reshape(-1).astype(np.int64),
+                    inv_b.reshape(-1).astype(np.int64),
+                    r * r,
+                )
+            )
 
     def out_of_box(self, angles_deg: FloatArray) -> BoolArray:
         """(..., n_pairs) True where a pair's joints left the swept box (its table is then not valid)."""
-        out = np.zeros((*angles_deg.shape[:-1], self.n_pairs), dtype=bool)
-        for p, (idx, lo, hi) in enumerate(self._box):
-            if len(idx):
-                a = angles_deg[..., idx]
-                out[..., p] = np.any((a < lo - 1e-9) | (a > hi + 1e-9), axis=-1)
+        a = angles_deg[..., None, :]
+        return np.any((a < self._lo) | (a > self._hi), axis=-1)
+
+    def centres(self, world: FloatArray) -> FloatArray:
+        """(..., S, 3) posed centres of the tabulated spheres; ``world`` (..., J, 4, 4)."""
+        lead = world.shape[:-3]
+        out = np.empty((*lead, len(self.slot), 3))
+        n_joints = world.shape[-3]
+        for slot, a, b in self._groups:
+            if slot == n_joints:
+                out[..., a:b, :] = self.centres_h[a:b, :3]
+            else:
+                t = world[..., slot, :3, :]  # (..., 3, 4)
+                out[..., a:b, :] = self.centres_h[a:b] @ np.swapaxes(t, -1, -2)
         return out
 
     def overlaps(self, world: FloatArray) -> BoolArray:
         """(..., n_pairs) True where some tabulated sphere pair overlaps; ``world`` (..., J, 4, 4)."""
+        if int(np.prod(world.shape[:-3], dtype=np.int64)) <= 4:
+            return self._overlaps_flat(world)
+        return self._overlaps_per_pair(world)
+
+    def _overlaps_flat(self, world: FloatArray) -> BoolArray:
+        """Few commands: every table entry in one gather (fewest numpy calls)."""
         lead = world.shape[:-3]
-        eye = np.broadcast_to(np.eye(4), (*lead, 1, 4, 4))
-        transforms = np.concatenate([world, eye], axis=-3)[..., self.slot, :, :]  # (..., S, 4, 4)
-        c = np.einsum("...sij,sj->...si", transforms[..., :3, :], self.centres_h)
+        c = self.centres(world)
         d = c[..., self.ga, :] - c[..., self.gb, :]
         close = np.einsum("...ei,...ei->...e", d, d) <= self.thr2
         out = np.zeros((*lead, self.n_pairs), dtype=bool)
@@ -91,6 +152,30 @@ class TssBroadPhase:
             out[..., self._nonempty] = np.logical_or.reduceat(close, self._starts, axis=-1)
         return out
 
+    def _overlaps_per_pair(self, world: FloatArray) -> BoolArray:
+        """Many commands: each pair in b's rest frame.
+
+        Each pair is evaluated in b's rest frame: only a's tabulated spheres move (by inv(T_b) T_a), b's
+        stay where the table has them, so one small product and one gather per pair.
+        """
+        lead = world.shape[:-3]
+        flat = world.reshape(-1, *world.shape[-3:])
+        k = flat.shape[0]
+        eye = np.broadcast_to(np.eye(4), (k, 4, 4))
+        out = np.zeros((self.n_pairs, k), dtype=bool)
+        for p, sa, sb, xa, yb, ia, ib, thr2 in self._per_pair:
+            ta = eye if sa == world.shape[-3] else flat[:, sa]
+            tb = eye if sb == world.shape[-3] else flat[:, sb]
+            rt = np.swapaxes(tb[:, :3, :3], 1, 2)  # inverse rotation of b
+            rel_r = rt @ ta[:, :3, :3]
+            rel_t = np.einsum("kij,kj->ki", rt, ta[:, :3, 3] - tb[:, :3, 3])
+            rel = np.concatenate([rel_r, rel_t[:, :, None]], axis=2)  # (K, 3, 4)
+            ca = np.tensordot(xa, rel, axes=([1], [2]))  # (na, K, 3)
+            d = ca[ia] - yb[ib][:, None, :]  # (E, K, 3)
+            close = np.einsum("eki,eki->ek", d, d) <= thr2[:, None]
+            out[p] = close.any(axis=0)
+        return out.T.reshape(*lead, self.n_pairs)
+
     def flag(self, world: FloatArray, angles_deg: FloatArray) -> BoolArray:
         """Pairs that need the exact test: overlapping tabulated spheres or outside the swept box."""
-        return self.overlaps(world) | self.out_of_box(angles_deg)
+        return self.overlaps(world) | self.out_of_box(angles_deg) | self.always

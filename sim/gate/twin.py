@@ -68,11 +68,32 @@ class TwinPoser:
         self.target_upper = np.array([_upper(a) for a in self.actuators])
         self.target_neutral = np.array([_neutral(a) for a in self.actuators])
 
+        self._build_lut(servos)
+
+    def _build_lut(self, servos: Any) -> None:
+        """Targets of every integer tick of every uncoupled servo, so inverting the calibration per frame
+        is one gather (exact: the curve evaluated at the same integer ticks)."""
+        span = self.max_tick - self.min_tick + 1
+        self._lut_offset = np.r_[0, np.cumsum(span)[:-1]].astype(np.int64)
+        grid = np.concatenate(
+            [np.arange(lo, hi + 1) for lo, hi in zip(self.min_tick, self.max_tick, strict=True)]
+        )
+        cols = np.repeat(np.arange(len(span)), span)
+        table = np.tile(self.neutral_tick, (len(grid), 1))
+        table[np.arange(len(grid)), cols] = grid
+        full = np.asarray(self.calibration.goals_to_targets_array(table, clip=True), dtype=np.float64)
+        self._lut = full[np.arange(len(grid)), cols]
+        self._coupled = np.array([s.coupling is not None for s in servos], dtype=bool)
+
     def targets(self, ticks: IntArray) -> FloatArray:
         """(k, n) actuator targets (deg / mm) for (k, n) ticks (clipped into the tick limits)."""
-        return np.asarray(
-            self.calibration.goals_to_targets_array(np.atleast_2d(ticks), clip=True), dtype=np.float64
-        )
+        t = np.atleast_2d(ticks)
+        k = np.clip(t, self.min_tick, self.max_tick) - self.min_tick + self._lut_offset
+        out = self._lut[k]
+        if self._coupled.any():
+            full = self.calibration.goals_to_targets_array(t, clip=True)
+            out[:, self._coupled] = np.asarray(full, dtype=np.float64)[:, self._coupled]
+        return out
 
     def joint_angles(self, targets: FloatArray) -> FloatArray:
         """(k, J) joint angles: driven joints from their servo's target, the rest at neutral, all clamped to

@@ -17,6 +17,7 @@ CheckName = Literal[
     "strain",
     "flip",
     "tss_range",
+    "hold",
 ]
 
 
