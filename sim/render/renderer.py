@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from sim.errors import RenderError
 from sim.render.backend import Offscreen
-from sim.render.camera import CameraSetup, check_view, frame_box
+from sim.render.camera import CameraSetup, check_view, default_view, frame_box
 from sim.render.scene import MeshItem, MeshScene
 
 Image = NDArray[np.uint8]  # (H, W, 3)
@@ -92,15 +92,16 @@ def _corners(bounds: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 class HeadRenderer:
-    """Offscreen renderer of a fixed image size (pixels). ``view``: "front", "three-quarter" or "side".
+    """Offscreen renderer of a fixed image size (pixels). ``view``: "front", "three-quarter" or "side";
+    None = per head (`sim.render.camera.default_view`: front for a human face, three-quarter for a dog).
 
     Raises `sim.errors.RenderError` if EGL is unavailable (with an install hint) or a frame fails.
     """
 
-    def __init__(self, width: int = 640, height: int = 480, view: str = "front") -> None:
+    def __init__(self, width: int = 640, height: int = 480, view: str | None = None) -> None:
         check_size(width, height)
         self.width, self.height = width, height
-        self.view = check_view(view)
+        self.view: str | None = None if view is None else check_view(view)
         self._thread = threading.get_ident()
         self._gl = Offscreen(width, height)
         self._scene = MeshScene(self._gl.pyrender)
@@ -131,7 +132,7 @@ class HeadRenderer:
     # -- camera ------------------------------------------------------------------------------------
     def frame(self, lo_mm: ArrayLike, hi_mm: ArrayLike, view: str | None = None) -> CameraSetup:
         """Point the camera at the box [lo_mm, hi_mm] from ``view`` (default: the renderer's view)."""
-        view = check_view(view or self.view)
+        view = check_view(view or self.view or "front")
         lo, hi = np.asarray(lo_mm, dtype=np.float64), np.asarray(hi_mm, dtype=np.float64)
         key = (tuple(np.round(lo, 3)), tuple(np.round(hi, 3)), view)
         setup = self._scene.camera
@@ -231,6 +232,7 @@ class HeadRenderer:
         items = [MeshItem(p.mesh, tuple(p.color_rgba), transforms[p.name], p.name) for p in head.parts]
         skin = head.skin
         posed = (posed_skin_vertices(head, pose), skin.faces, skin.color_rgba, _skin_colors(skin))
+        view = view or self.view or default_view(str(head.face_type))
         return self.render_posed(
             items, posed, view, self.head_box(head), depth=depth, face_type=str(head.face_type)
         )

@@ -74,7 +74,7 @@ def test_depth_is_nearer_at_the_face_than_the_background(
     assert np.all(depth[bg & (depth > 0)] >= 0)  # nothing behind the camera
     assert (depth[~bg] > 0).mean() > 0.98  # every face pixel has a depth
     lo, hi = renderer.head_box(head)
-    cam = renderer.frame(lo, hi)
+    cam = renderer.frame(lo, hi, default_view(head.face_type))  # the view render() used for this head
     dist = np.linalg.norm(cam.pose[:3, 3] - (lo + hi) / 2)
     radius = np.linalg.norm(hi - lo) / 2
     near = depth[depth > 0]
