@@ -43,7 +43,8 @@ class CurveBank:
         self._cols = np.arange(n)
         self.min_target = np.array([s.min_target for s in self.servos])
         self.max_target = np.array([s.max_target for s in self.servos])
-        self._tol = 1e-9 * np.maximum(1.0, self.max_target - self.min_target)
+        self._accept_lo = np.array([s.accept_min_target for s in self.servos])
+        self._accept_hi = np.array([s.accept_max_target for s in self.servos])
         self.min_tick = np.array([s.min_tick for s in self.servos], dtype=np.int64)
         self.max_tick = np.array([s.max_tick for s in self.servos], dtype=np.int64)
         # inverse tables: targets at every integer tick min_tick..max_tick, padded with the last value
@@ -68,7 +69,7 @@ class CurveBank:
     def check_targets(self, targets: ArrayLike) -> FloatArray:
         """(k, S) targets as floats; raises TargetOutOfRangeError for the first non-finite/out-of-range."""
         t = np.asarray(targets, dtype=np.float64)
-        bad = ~(np.isfinite(t) & (t >= self.min_target - self._tol) & (t <= self.max_target + self._tol))
+        bad = ~(np.isfinite(t) & (t >= self._accept_lo) & (t <= self._accept_hi))
         if np.any(bad):
             row, col = np.unravel_index(int(np.argmax(bad)), bad.shape)
             s = self.servos[int(col)]
@@ -77,7 +78,7 @@ class CurveBank:
 
     def to_ticks(self, targets: ArrayLike) -> IntArray:
         """(k, S) targets -> (k, S) int64 goal ticks; all-or-nothing range check first."""
-        t = np.clip(self.check_targets(targets), self.min_target, self.max_target)
+        t = self.check_targets(targets)
         return np.clip(round_ticks(self.forward(t)), self.min_tick, self.max_tick)
 
     def to_targets(self, ticks: ArrayLike, *, clip: bool = False) -> FloatArray:

@@ -72,7 +72,7 @@ def fit_servo(
 ) -> FitReport:
     """Fit a curve of ``curve_kind`` (default by spec kind) through ``points`` and check it.
 
-    Limits: the spec's target range, with tick limits = its ends' ticks rounded inward. Neutral tick:
+    Limits: the spec's target range, with tick limits = the rounded ticks of its ends. Neutral tick:
     ``neutral_tick`` if given (a captured one), else the rounded tick of the spec's neutral target.
     """
     kind = curve_kind or default_curve_kind(spec)
@@ -98,9 +98,7 @@ def check_servo(
             f"(> {RESIDUAL_WARNING_TICK:g}); the servo may not be {kind} - try 'pchip', or re-measure"
         )
     ends = curve.forward(np.array([spec.lower, spec.upper]))
-    # inward: every tick inside the limits maps to a target inside the spec's range
-    tick_lo = int(np.ceil(ends.min() - 1e-6))
-    tick_hi = int(np.floor(ends.max() + 1e-6))
+    tick_lo, tick_hi = (int(t) for t in np.sort(round_ticks(ends)))
     if tick_lo < MIN_POSITION_TICK or tick_hi > MAX_POSITION_TICK:
         raise CalibrationError(
             f"servo '{spec.role}': its range {spec.lower:g}..{spec.upper:g} {spec.unit} maps to ticks "

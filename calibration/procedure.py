@@ -56,6 +56,7 @@ class Prompt:
     target: float | None
     present_tick: int
     text: str
+    suggested_tick: int | None = None  # where an earlier calibration puts ``target`` (a jog hint)
 
 
 @dataclass(frozen=True)
@@ -112,13 +113,15 @@ class ProcedureOptions:
     """``intermediate``: known targets asked for between the ends; ``free_points``: then let the operator
     add points whose target they enter; ``curve_kind``: one kind for all, a per-role mapping, or None
     (linear for joints, pchip for anchors); ``attempts``: re-measures allowed per servo; ``max_jogs``
-    bounds one step's conversation (a safety net against a stuck script)."""
+    bounds one step's conversation (a safety net against a stuck script); ``guide``: an earlier
+    calibration whose ticks are offered as ``Prompt.suggested_tick`` (the CLI's "g" key jogs there)."""
 
     intermediate: int = 3
     free_points: bool = False
     curve_kind: str | Mapping[str, str] | None = None
     attempts: int = 3
     max_jogs: int = 500
+    guide: HeadCalibration | None = None
 
 
 def _kind_for(options: ProcedureOptions, role: str) -> str | None:
@@ -155,6 +158,17 @@ class _Session:
             )
         return tick
 
+    def hint(self, spec: ServoSpec, target: float | None) -> int | None:
+        """The tick an earlier calibration (``options.guide``) gives for ``target``, if it knows the servo."""
+        guide = self.options.guide
+        if guide is None or target is None or spec.role not in guide:
+            return None
+        servo = guide[spec.role]
+        if servo.servo_id != spec.servo_id:
+            return None
+        tick = servo.curve.forward(target)
+        return int(min(max(round(float(tick)), MIN_POSITION_TICK), MAX_POSITION_TICK))
+
     def torque_off(self, spec: ServoSpec) -> None:
         self.access.set_torque(spec.servo_id, False)
         self.torque_on = False
@@ -180,7 +194,9 @@ class _Session:
             }[step]
             present = self.present(spec)
             reply = self.operator.ask(
-                Prompt(spec.role, spec.servo_id, spec.unit, step, target, present, text)
+                Prompt(
+                    spec.role, spec.servo_id, spec.unit, step, target, present, text, self.hint(spec, target)
+                )
             )
             if isinstance(reply, Abort):
                 raise ProcedureAborted(f"calibration aborted by the operator at servo '{spec.role}' ({step})")

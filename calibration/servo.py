@@ -2,11 +2,10 @@
 
 ``to_tick`` rounds to the nearest integer tick and refuses non-finite or out-of-range targets with a
 :class:`TargetOutOfRangeError` naming the role. Target limits default to the inverse of the tick limits;
-they may be given explicitly (the head's actuator range). Fitted calibrations round the tick limits
-INWARD (every tick inside the limits maps to a target inside the target limits, so goal -> target ->
-goal is the identity); a target at the very end of the range may then round one tick outside, and
-``to_tick`` clips it to the limit, so explicit target limits may reach less than one tick past the tick
-limits.
+they may be given explicitly (the head's actuator range), and must then round into the tick limits.
+Accepted targets are the target limits widened by the slack of rounding: every target whose tick rounds
+inside the tick limits (``accept_min_target``..``accept_max_target``, less than a tick's worth wider).
+So every tick inside the limits maps to an accepted target, and goal -> target -> goal is the identity.
 """
 
 from __future__ import annotations
@@ -67,6 +66,9 @@ class ServoCalibration:
     max_target: float = float("nan")
     measured_points: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2)))
     coupling: RbfCoupling | None = None
+    # accepted targets: the limits widened to every target whose tick rounds inside the tick limits
+    accept_min_target: float = field(init=False, repr=False, compare=False, default=float("nan"))
+    accept_max_target: float = field(init=False, repr=False, compare=False, default=float("nan"))
 
     def __post_init__(self) -> None:
         who = f"servo '{self.role}' (id {self.servo_id})"
@@ -97,14 +99,17 @@ class ServoCalibration:
             raise CalibrationError(f"{who}: target limits {lo!r}..{hi!r} must be finite with min < max")
         else:
             at = self.curve.forward(np.array([lo, hi]))
-            if np.any(at <= self.min_tick - 1) or np.any(at >= self.max_tick + 1):
+            if np.any(at < self.min_tick - 0.5 - 1e-6) or np.any(at > self.max_tick + 0.5 + 1e-6):
                 raise CalibrationError(
                     f"{who}: target limits {lo:g}..{hi:g} {self.unit} map to ticks "
-                    f"{[round(float(a), 2) for a in at]}, more than a tick outside the tick limits "
+                    f"{[round(float(a), 2) for a in at]}, which do not round into the tick limits "
                     f"{self.min_tick}..{self.max_tick}"
                 )
         object.__setattr__(self, "min_target", float(lo))
         object.__setattr__(self, "max_target", float(hi))
+        slack = np.sort(self.curve.inverse(np.array([self.min_tick - 0.5, self.max_tick + 0.5])))
+        object.__setattr__(self, "accept_min_target", min(float(lo), float(slack[0])))
+        object.__setattr__(self, "accept_max_target", max(float(hi), float(slack[1])))
         object.__setattr__(self, "measured_points", np.asarray(self.measured_points, dtype=np.float64))
 
     # ---- scalar ---------------------------------------------------------------------------------------
@@ -130,8 +135,7 @@ class ServoCalibration:
     def check_targets(self, targets: ArrayLike) -> NDArray[np.float64]:
         """Targets as a float array; raises TargetOutOfRangeError for the first non-finite or out-of-range."""
         t = np.asarray(targets, dtype=np.float64)
-        tol = 1e-9 * max(1.0, self.max_target - self.min_target)
-        bad = ~(np.isfinite(t) & (t >= self.min_target - tol) & (t <= self.max_target + tol))
+        bad = ~(np.isfinite(t) & (t >= self.accept_min_target) & (t <= self.accept_max_target))
         if np.any(bad):
             value = float(t[np.unravel_index(int(np.argmax(bad)), t.shape)])
             raise TargetOutOfRangeError(self.role, value, self.min_target, self.max_target, self.unit)
@@ -140,7 +144,7 @@ class ServoCalibration:
     def to_ticks(self, targets: ArrayLike) -> NDArray[np.int64]:
         """Goal ticks (int64, same shape) for targets; all-or-nothing: one bad target refuses the batch."""
         t = self.check_targets(targets)
-        ticks = round_ticks(self.curve.forward(np.clip(t, self.min_target, self.max_target)))
+        ticks = round_ticks(self.curve.forward(t))
         return np.clip(ticks, self.min_tick, self.max_tick)
 
     def to_targets(self, ticks: ArrayLike, *, clip: bool = False) -> NDArray[np.float64]:

@@ -26,6 +26,7 @@ HELP = "calibrate a head's servos (interactive on a port/emulator, or from a CSV
 
 KEYS_HELP = """keys: Enter = capture here (at the asked target) | =VALUE = capture, the actuator is at VALUE
       j / k = jog -/+ one step (torque on) | J / K = ten steps | +N / -N = jog N ticks
+      g = jog to where the current calibration file puts the asked target
       d = done (no more points / skip this point) | q = abort (nothing saved) | ? = this help"""
 
 
@@ -180,6 +181,11 @@ class TerminalOperator:
                 except ValueError:
                     print(f"  '{text}': expected =VALUE in {prompt.unit}, e.g. =4.5")
                     continue
+            if text == "g":
+                if prompt.suggested_tick is None:
+                    print("  no earlier calibration of this servo to go by; jog with j/k")
+                    continue
+                return Jog(prompt.suggested_tick - prompt.present_tick)
             if text == "d":
                 return Finish()
             if text == "q":
@@ -223,10 +229,17 @@ def run(args: argparse.Namespace) -> int:
         path = write_builtin(head.name, specs, out, source=builtin_source(head))
         print(f"wrote the built-in calibration of '{head.name}' ({len(specs)} servos) to {path}")
         return 0
-    keep = None
+    keep = guide = None
     existing = head.calibration_path
-    if args.roles and existing is not None and Path(existing).exists():
-        keep = load_calibration(existing)
+    if existing is not None and Path(existing).exists():
+        try:
+            guide = load_calibration(existing)
+        except CalibrationError as err:
+            if args.roles:
+                print(f"servoface calibrate: cannot keep the other servos: {err}", file=sys.stderr)
+                return 1
+            print(f"# ignoring the existing calibration as a guide: {err}")
+        keep = guide if args.roles else None
     try:
         if args.csv is not None:
             result = calibrate_from_csv(
@@ -234,7 +247,7 @@ def run(args: argparse.Namespace) -> int:
             )
         else:
             options = ProcedureOptions(
-                intermediate=args.points, free_points=args.free_points, curve_kind=args.curve
+                intermediate=args.points, free_points=args.free_points, curve_kind=args.curve, guide=guide
             )
             result = _interactive(args, specs, head.name, options, out, keep)
     except ProcedureAborted as err:

@@ -75,7 +75,9 @@ def test_interactive_cli_on_the_in_process_emulator(
     tmp_path: Path, typed_keys: list[str], capsys: pytest.CaptureFixture[str]
 ) -> None:
     up = round(25 * 4096 / 360)  # jaw: 0 deg at 2048 (neutral = lower), 25 deg 284 ticks up
-    typed_keys += ["", f"+{up}", "", "?", "d"]  # capture neutral; jog to 25 deg; capture; help; done
+    # capture neutral; g = go where the shipped calibration puts 25 deg; capture; then a free point:
+    # jog 142 ticks back, type its angle; ? = help; d = done
+    typed_keys += ["", "g", "", "-142", "?", f"={142 * 360 / 4096}", "d"]
     out = tmp_path / "jaw.json"
     code = main(
         [
@@ -97,6 +99,7 @@ def test_interactive_cli_on_the_in_process_emulator(
     jaw = load_calibration(out)["jaw"]
     assert (jaw.min_tick, jaw.max_tick) == (2048, 2048 + up)
     assert jaw.to_tick(12.5) == 2048 + round(12.5 * 4096 / 360)
+    assert sorted(jaw.measured_points[:, 1].tolist()) == [2048, 2048 + 142, 2048 + up]
     assert "keys:" in text
 
 

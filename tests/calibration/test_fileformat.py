@@ -92,7 +92,7 @@ def _mutate(path: str, value: Any) -> dict[str, Any]:
         ("servos.2.curve.points.4", [1.0], "servos[2].curve.points[4]", "expected a list of 2 numbers"),
         ("servos.2.curve.points.2", [float("nan"), 2000.0], "servos[2].curve.points[2][0]", "finite"),
         ("servos.3.limits.min_tick", 9000, "servos[3]", "tick limits"),
-        ("servos.3.limits.min_target", -50.0, "servos[3]", "outside the tick limits"),
+        ("servos.3.limits.min_target", -50.0, "servos[3]", "do not round into the tick limits"),
         ("servos.1.id", 18, "servos[1].id", "id 18 already used by servos[0] ('jaw')"),
         ("servos.1.role", "jaw", "servos[1].role", "role 'jaw' already used by servos[0]"),
         ("servos.0.nuetral_tick", 2048, "servos[0]", "unexpected key(s) ['nuetral_tick']"),

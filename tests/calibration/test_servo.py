@@ -69,14 +69,22 @@ def test_batch_matches_scalar_and_ticks_round_trip_exactly(servo: ServoCalibrati
     assert inside.sum() >= len(all_ticks) - 2
 
 
-@pytest.mark.parametrize("bad", [float("nan"), float("inf"), -float("inf"), 25.01, -15.01, 1e9])
+@pytest.mark.parametrize("bad", [float("nan"), float("inf"), -float("inf"), 55.1, -15.1, 1e9])
 def test_to_tick_refuses_bad_targets_naming_the_role(bad: float) -> None:
-    servo = SERVOS[0]
+    servo = SERVOS[0]  # limits -15..55 deg, under one tick (0.088 deg) of rounding slack
     with pytest.raises(TargetOutOfRangeError, match="'lid'") as info:
-        servo.to_tick(bad if abs(bad) != 25.01 else 55.01)
+        servo.to_tick(bad)
     assert info.value.role == "lid"
     with pytest.raises(TargetOutOfRangeError, match="'lid'"):
-        servo.to_ticks(np.array([0.0, 10.0, bad if bad != 25.01 else 56.0]))
+        servo.to_ticks(np.array([0.0, 10.0, bad]))
+
+
+def test_targets_within_rounding_of_the_limits_are_accepted() -> None:
+    servo = SERVOS[0]
+    assert servo.to_tick(55.04) == servo.min_tick  # reversed servo: rounds onto the limit tick
+    assert 0 < servo.accept_max_target - servo.max_target < 360 / 4096
+    for tick in range(servo.min_tick, servo.max_tick + 1):  # goal -> target -> goal is the identity
+        assert servo.to_tick(servo.to_target(tick)) == tick
 
 
 def test_to_target_refuses_ticks_outside_limits_unless_clipped() -> None:
@@ -108,7 +116,7 @@ def test_limits_neutral_and_eeprom_backstop() -> None:
         ({"neutral_tick": 3000}, "neutral tick 3000 is outside"),
         ({"unit": "rad"}, "unit 'rad'"),
         ({"servo_id": 253}, "id must be"),
-        ({"min_target": 0.0, "max_target": 70.0}, "outside the tick limits"),
+        ({"min_target": 0.0, "max_target": 70.0}, "do not round into the tick limits"),
         ({"min_target": 5.0, "max_target": 1.0}, "min < max"),
     ],
 )
