@@ -23,9 +23,10 @@ from sim.heads.mesh_tools import F64, I64
 OFFSET = np.array([0.0, -70.0, 50.0])
 
 # design coordinates (before OFFSET)
-_EYE_L = np.array([33.0, 118.0, 66.0])
+_EYE_L = np.array([27.0, 118.0, 68.0])
 EYE_RADIUS = 11.0
-_EYE_HOLE = (12.5, 8.0)
+_EYE_HOLE = (12.0, 8.0)  # half-sizes of the skin opening, in the eye's own frame
+EYE_YAW_DEG = 28.0  # the eyes look this far out to the side at rest (dogs' eyes diverge)
 _JAW_PIVOT = np.array([0.0, 84.0, 8.0])
 EYE_CENTRE_L = tuple(float(v) for v in _EYE_L + OFFSET)
 JAW_PIVOT = tuple(float(v) for v in _JAW_PIVOT + OFFSET)
@@ -106,12 +107,13 @@ def _skin() -> tuple[F64, I64, F64]:
     ring_of[back] = -1
     lower_col = np.abs(u) > np.pi / 2 + 1e-9
     side_col = np.isclose(np.abs(u), np.pi / 2)
-    # eye openings (projected along z), decided per grid quad so both sides match
+    # eye openings, in each eye's own frame, decided per grid quad so both sides match
     cen = mt.quad_centres(verts, faces, n_grid)
     hole = np.zeros(len(faces), dtype=bool)
     for sx in (1.0, -1.0):
-        r = ((cen[:, 0] - sx * _EYE_L[0]) / _EYE_HOLE[0]) ** 2 + ((cen[:, 1] - _EYE_L[1]) / _EYE_HOLE[1]) ** 2
-        hole |= (r < 1.0) & (cen[:, 2] > 40.0) & (cen[:, 2] < 100.0) & (np.sign(cen[:, 0]) == sx)
+        local = (cen - _eye(sx)) @ _eye_rot(sx)
+        r = (local[:, 0] / _EYE_HOLE[0]) ** 2 + (local[:, 1] / _EYE_HOLE[1]) ** 2
+        hole |= (r < 1.0) & (local[:, 2] > 0.0) & (local[:, 2] < 30.0)
     area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     faces = faces[(area > 1e-9) & ~hole]
     # vertices on the mouth line: side columns from the corner forward, and the whole last ring
@@ -161,34 +163,46 @@ def _eye(side: float) -> F64:
     return np.array([side * _EYE_L[0], _EYE_L[1], _EYE_L[2]])
 
 
+def _eye_rot(side: float) -> F64:
+    """(3, 3): the eye's own frame (its +z = gaze at rest) in the head frame: a yaw out to its side."""
+    a = np.radians(side * EYE_YAW_DEG)
+    return np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
+
+
+def _in_eye_frame(side: float, v: F64) -> F64:
+    """Points built around the origin looking along +z -> placed at the eye, looking along its gaze."""
+    return np.asarray(v @ _eye_rot(side).T + _eye(side), dtype=np.float64)
+
+
 def eyeball(side: float) -> tuple[F64, I64]:
     return _out(*mt.ellipsoid(tuple(_eye(side)), (EYE_RADIUS,) * 3, subdiv=3))
 
 
 def iris(side: float) -> tuple[F64, I64]:
-    v, f = mt.cap(_eye(side), EYE_RADIUS + 0.12, 34.0, n_ring=28, n_rad=4)
-    return v + OFFSET, f
+    v, f = mt.cap(np.zeros(3), EYE_RADIUS + 0.12, 34.0, n_ring=28, n_rad=4)
+    return _in_eye_frame(side, v) + OFFSET, f
 
 
 def pupil(side: float) -> tuple[F64, I64]:
-    v, f = mt.cap(_eye(side), EYE_RADIUS + 0.25, 16.0, n_ring=20, n_rad=2)
-    return v + OFFSET, f
+    v, f = mt.cap(np.zeros(3), EYE_RADIUS + 0.25, 16.0, n_ring=20, n_rad=2)
+    return _in_eye_frame(side, v) + OFFSET, f
 
 
 def eyelid(side: float, upper: bool = True) -> tuple[F64, I64]:
-    c = _eye(side)
+    """Upper lid shell; it turns about the eye's own x axis (see the lid joints' axes in head.toml)."""
+    o = np.zeros(3)
     beta = (22.0, 125.0) if upper else (-125.0, -28.0)
-    outer = mt.sphere_patch(c, EYE_RADIUS + 2.2, beta, (-84.0, 84.0), 14, 24)
-    inner = mt.sphere_patch(c, EYE_RADIUS + 0.8, beta, (-84.0, 84.0), 14, 24)
-    return _out(*mt.shell_from_grids(outer, inner))
+    outer = mt.sphere_patch(o, EYE_RADIUS + 2.2, beta, (-84.0, 84.0), 14, 24)
+    inner = mt.sphere_patch(o, EYE_RADIUS + 0.8, beta, (-84.0, 84.0), 14, 24)
+    return _out(*mt.shell_from_grids(_in_eye_frame(side, outer), _in_eye_frame(side, inner)))
 
 
 def eye_socket(side: float) -> tuple[F64, I64]:
-    c = _eye(side) - np.array([0.0, 0.0, 1.0])
+    o = np.array([0.0, 0.0, -1.0])
     flip = np.array([-1.0, 1.0, -1.0])
-    outer = c + (mt.sphere_patch(c, EYE_RADIUS + 4.0, (-89.0, 89.0), (-89.0, 89.0), 16, 16) - c) * flip
-    inner = c + (mt.sphere_patch(c, EYE_RADIUS + 3.2, (-89.0, 89.0), (-89.0, 89.0), 16, 16) - c) * flip
-    return _out(*mt.shell_from_grids(outer, inner))
+    outer = o + mt.sphere_patch(np.zeros(3), EYE_RADIUS + 4.0, (-89.0, 89.0), (-89.0, 89.0), 16, 16) * flip
+    inner = o + mt.sphere_patch(np.zeros(3), EYE_RADIUS + 3.2, (-89.0, 89.0), (-89.0, 89.0), 16, 16) * flip
+    return _out(*mt.shell_from_grids(_in_eye_frame(side, outer), _in_eye_frame(side, inner)))
 
 
 def skull() -> tuple[F64, I64]:
@@ -235,19 +249,19 @@ def jaw() -> tuple[F64, I64]:
     teeth = _tooth_row(70.5, False, 146.0, 19.0, 55.0, 9.0)
     t = np.linspace(-1.0, 1.0, 17)
     ang = t * np.pi / 2
-    spine = np.stack([26.0 * np.sin(ang), 66.0 + 12.0 * np.abs(t) ** 2, 144.0 - 120.0 * (1 - np.cos(ang))], 1)
-    bone = mt.tube_along(spine, np.full(len(spine), 4.0), 12)
+    spine = np.stack([24.0 * np.sin(ang), 68.0 + 10.0 * np.abs(t) ** 2, 132.0 - 106.0 * (1 - np.cos(ang))], 1)
+    bone = mt.tube_along(spine, np.full(len(spine), 3.2), 12)
     v, f = mt.merge(teeth, bone)
     return v + OFFSET, f
 
 
 def tongue_root() -> tuple[F64, I64]:
-    v, f = mt.ellipsoid((0.0, 73.5, 100.0), (13.0, 3.2, 20.0), subdiv=3)
+    v, f = mt.ellipsoid((0.0, 74.5, 100.0), (13.0, 3.2, 20.0), subdiv=3)
     return _out(v, f)
 
 
 def tongue_tip() -> tuple[F64, I64]:
-    v, f = mt.ellipsoid((0.0, 73.5, 131.0), (9.0, 2.8, 8.5), subdiv=3)
+    v, f = mt.ellipsoid((0.0, 74.5, 131.0), (9.0, 2.8, 8.5), subdiv=3)
     return _out(v, f)
 
 
@@ -282,5 +296,5 @@ def ear(side: float) -> tuple[F64, I64]:
 
 
 EAR_BASE_L = tuple(float(v) for v in np.array([40.0, 146.0, -12.0]) + OFFSET)
-TONGUE_ROOT_PIVOT = tuple(float(v) for v in np.array([0.0, 73.5, 80.0]) + OFFSET)
-TONGUE_TIP_PIVOT = tuple(float(v) for v in np.array([0.0, 73.5, 121.0]) + OFFSET)
+TONGUE_ROOT_PIVOT = tuple(float(v) for v in np.array([0.0, 74.5, 80.0]) + OFFSET)
+TONGUE_TIP_PIVOT = tuple(float(v) for v in np.array([0.0, 74.5, 121.0]) + OFFSET)

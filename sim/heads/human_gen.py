@@ -76,7 +76,7 @@ def _face_depth(x: F64, y: F64) -> F64:
     dz += 3.0 * g(x, y - 140.0, 9.0, 9.0)  # glabella
     # nose: a ridge that grows from the bridge to the tip, with a rounded underside
     t = np.clip((140.0 - y) / 42.0, 0.0, 1.0)
-    amp = (3.0 + 19.0 * t**1.4) * mt.smoothstep((y - 86.0) / 11.0)
+    amp = (3.0 + 19.0 * t**1.4) * mt.smoothstep((y - 86.0) / 11.0) * mt.smoothstep((148.0 - y) / 10.0)
     sig = 5.5 + 5.0 * t
     dz += amp * np.exp(-0.5 * (x / sig) ** 2)
     dz += 5.0 * g(x, y - 99.0, 7.0, 6.0)  # tip
@@ -230,10 +230,10 @@ def skull() -> tuple[F64, I64]:
 
 def mouth_cavity() -> tuple[F64, I64]:
     """A dark cup open towards the lips: what shows between the teeth when the mouth opens."""
-    c = np.array([0.0, 68.0, 78.0])
+    c = np.array([0.0, 68.0, 75.0])
     flip = np.array([-1.0, 1.0, -1.0])
     outer = mt.sphere_patch(np.zeros(3), 1.0, (-89.0, 89.0), (-89.0, 89.0), 18, 18) * flip
-    semi = np.array([28.0, 25.0, 42.0])
+    semi = np.array([23.0, 22.0, 40.0])
     return _outward(*mt.shell_from_grids(c + outer * (semi + 1.0), c + outer * semi))
 
 
