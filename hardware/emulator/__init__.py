@@ -8,7 +8,7 @@ maps are a second transcription of the e-manual, so one wrong address cannot pas
     path = chain.serve_pty()       # or a pseudo-terminal any program can open
 """
 
-from hardware.emulator.chain import LogEntry, ServoChain
+from hardware.emulator.chain import ServoChain
 from hardware.emulator.clock import ManualClock, RealClock
 from hardware.emulator.control_table import ControlTable, Register
 from hardware.emulator.errors import (
@@ -22,6 +22,7 @@ from hardware.emulator.faults import KINDS as FAULT_KINDS
 from hardware.emulator.faults import Fault, FaultSchedule
 from hardware.emulator.models import MODELS, ModelSpec, get_model
 from hardware.emulator.packet import Instruction, Packet, build_instruction, build_status, parse_packet
+from hardware.emulator.packet_log import LogEntry
 from hardware.emulator.serial_port import EmulatedSerial
 from hardware.emulator.servo import EmulatedServo
 

@@ -11,14 +11,15 @@ from __future__ import annotations
 import threading
 from collections import deque
 from collections.abc import Callable, Iterable
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any
 
 from hardware.emulator.clock import ManualClock, RealClock
 from hardware.emulator.errors import EmulatorConfigError
 from hardware.emulator.faults import FaultSchedule
 from hardware.emulator.instructions import dispatch
 from hardware.emulator.models import ModelSpec, baud_code_for, get_model
-from hardware.emulator.packet import MAX_ID, Instruction, Packet, PacketReceiver
+from hardware.emulator.packet import MAX_ID, Packet, PacketReceiver
+from hardware.emulator.packet_log import LogEntry, register_writes
 from hardware.emulator.servo import EmulatedServo
 
 if TYPE_CHECKING:
@@ -26,16 +27,6 @@ if TYPE_CHECKING:
 
 REBOOT_SILENCE_S = 0.1  # a rebooting servo hears nothing for this long
 GOAL_ADDRESS = 116
-_WRITES = (Instruction.WRITE, Instruction.REG_WRITE)
-
-
-class LogEntry(NamedTuple):
-    """One decoded instruction packet the chain received (CRC valid), at its arrival time."""
-
-    t_s: float
-    id: int
-    instruction: int
-    params: bytes
 
 
 class ServoChain:
@@ -362,36 +353,7 @@ class ServoChain:
     ) -> list[tuple[float, int, int]]:
         """(t_s, servo_id, value) for every write of the whole register at ``address`` (Write, Reg Write,
         Sync Write, Bulk Write), decoded from the log. Broadcast Write is reported with id 254."""
-        out: list[tuple[float, int, int]] = []
-        end = address + size
-
-        def value(chunk: bytes) -> int:
-            return int.from_bytes(chunk, "little", signed=signed)
-
-        for t, pid, inst, p in list(self.log):
-            if inst in _WRITES and len(p) > 2:
-                start = p[0] | p[1] << 8
-                if start <= address and start + len(p) - 2 >= end:
-                    out.append((t, pid, value(p[2 + address - start : 2 + end - start])))
-            elif inst == Instruction.SYNC_WRITE and len(p) >= 4:
-                start = p[0] | p[1] << 8
-                length = p[2] | p[3] << 8
-                if start <= address and start + length >= end and length:
-                    off = 4
-                    while off + 1 + length <= len(p):
-                        out.append((t, p[off], value(p[off + 1 + address - start : off + 1 + end - start])))
-                        off += 1 + length
-            elif inst == Instruction.BULK_WRITE:
-                off = 0
-                while off + 5 <= len(p):
-                    sid = p[off]
-                    start = p[off + 1] | p[off + 2] << 8
-                    length = p[off + 3] | p[off + 4] << 8
-                    data = p[off + 5 : off + 5 + length]
-                    if start <= address and start + length >= end and len(data) == length:
-                        out.append((t, sid, value(data[address - start : end - start])))
-                    off += 5 + length
-        return out
+        return register_writes(list(self.log), address, size, signed=signed)
 
     def goal_writes(self) -> list[tuple[float, int, int]]:
         """(t_s, servo_id, goal_tick) for every Goal Position (116, 4 bytes) sent on the wire."""

@@ -9,63 +9,13 @@ is non-zero.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
-from hardware.emulator.crc import crc16
-from hardware.emulator.packet import (
-    ALERT_BIT,
-    BROADCAST_ID,
-    HEADER,
-    ErrorNumber,
-    Instruction,
-    Packet,
-    build_status,
-    stuff,
-)
+from hardware.emulator.answers import Outcome, Reply, answers, error_byte, servos_with, status
+from hardware.emulator.fast_read import fast_bulk_read, fast_sync_read
+from hardware.emulator.packet import BROADCAST_ID, ErrorNumber, Instruction, Packet, build_status
 from hardware.emulator.servo import EmulatedServo
 
 CLEAR_MULTI_TURN = b"\x01\x44\x58\x4c\x22"
-LEVEL_PING_ONLY, LEVEL_READ = 0, 1
-READS = (
-    Instruction.READ,
-    Instruction.SYNC_READ,
-    Instruction.BULK_READ,
-    Instruction.FAST_SYNC_READ,
-    Instruction.FAST_BULK_READ,
-)
-
-
-@dataclass(slots=True)
-class Reply:
-    """Bytes one servo puts on the wire. ``continues`` marks a block of a fast-read packet that follows the
-    previous block without its own Return Delay Time."""
-
-    servo: EmulatedServo
-    data: bytes
-    continues: bool = False
-
-
-@dataclass(slots=True)
-class Outcome:
-    """Replies in wire order plus deferred actions (applied after the replies are built)."""
-
-    replies: list[Reply]
-    reboot: list[EmulatedServo]
-    reset: list[tuple[EmulatedServo, int]]
-    ids_changed: bool = False
-
-
-def _err(servo: EmulatedServo, number: int) -> int:
-    return number | (ALERT_BIT if servo.hardware_error else 0)
-
-
-def _answers(servo: EmulatedServo, instruction: int) -> bool:
-    level = servo.status_return_level
-    if instruction == Instruction.PING:
-        return True
-    if instruction in READS:
-        return level >= LEVEL_READ
-    return level >= 2
 
 
 def dispatch(
@@ -81,32 +31,19 @@ def dispatch(
     targets = by_id.get(pid, []) if pid != BROADCAST_ID else []
     if not packet.crc_ok:
         for servo in targets:
-            if _answers(servo, inst):
-                out.replies.append(Reply(servo, build_status(servo.id, _err(servo, ErrorNumber.CRC))))
+            if answers(servo, inst):
+                out.replies.append(Reply(servo, build_status(servo.id, error_byte(servo, ErrorNumber.CRC))))
         return out
     handler = _HANDLERS.get(inst)
     if handler is None:
         for servo in targets:
-            if _answers(servo, inst):
-                out.replies.append(Reply(servo, build_status(servo.id, _err(servo, ErrorNumber.INSTRUCTION))))
+            if answers(servo, inst):
+                out.replies.append(
+                    Reply(servo, build_status(servo.id, error_byte(servo, ErrorNumber.INSTRUCTION)))
+                )
         return out
     handler(out, pid, params, listeners, by_id, targets)
     return out
-
-
-def _status(
-    out: Outcome,
-    servo: EmulatedServo,
-    inst: int,
-    number: int,
-    data: bytes = b"",
-    sid: int | None = None,
-    answer: bool | None = None,
-) -> None:
-    if answer if answer is not None else _answers(servo, inst):
-        out.replies.append(
-            Reply(servo, build_status(servo.id if sid is None else sid, _err(servo, number), data))
-        )
 
 
 def _ping(
@@ -120,7 +57,7 @@ def _ping(
     servos = sorted(listeners, key=lambda s: s.id) if pid == BROADCAST_ID else targets
     for servo in servos:
         info = servo.mem[0:2] + servo.mem[6:7]
-        _status(out, servo, Instruction.PING, 0, bytes(info))
+        status(out, servo, Instruction.PING, 0, bytes(info))
 
 
 def _read(
@@ -133,12 +70,12 @@ def _read(
 ) -> None:
     for servo in targets:
         if len(params) != 4:
-            _status(out, servo, Instruction.READ, ErrorNumber.DATA_LENGTH)
+            status(out, servo, Instruction.READ, ErrorNumber.DATA_LENGTH)
             continue
         addr = params[0] | params[1] << 8
         length = params[2] | params[3] << 8
         err, data = servo.read_bytes(addr, length)
-        _status(out, servo, Instruction.READ, err, data)
+        status(out, servo, Instruction.READ, err, data)
 
 
 def _write(
@@ -152,7 +89,7 @@ def _write(
     servos = listeners if pid == BROADCAST_ID else targets
     for servo in servos:
         old_id = servo.id
-        answer = _answers(servo, Instruction.WRITE)  # the reply follows the level before this write
+        answer = answers(servo, Instruction.WRITE)  # the reply follows the level before this write
         if len(params) < 3:
             err = int(ErrorNumber.DATA_LENGTH)
         else:
@@ -161,7 +98,7 @@ def _write(
             if addr <= 8 < addr + len(params) - 2 or addr <= 7 < addr + len(params) - 2:
                 out.ids_changed = True
         if pid != BROADCAST_ID:
-            _status(out, servo, Instruction.WRITE, err, sid=old_id, answer=answer)
+            status(out, servo, Instruction.WRITE, err, sid=old_id, answer=answer)
 
 
 def _reg_write(
@@ -183,7 +120,7 @@ def _reg_write(
                 servo.registered = (addr, bytes(params[2:]))
                 servo.mem[69] = 1
         if pid != BROADCAST_ID:
-            _status(out, servo, Instruction.REG_WRITE, err)
+            status(out, servo, Instruction.REG_WRITE, err)
 
 
 def _action(
@@ -206,7 +143,7 @@ def _action(
             if pending[0] <= 8 and pending[0] + len(pending[1]) > 7:
                 out.ids_changed = True
         if pid != BROADCAST_ID:
-            _status(out, servo, Instruction.ACTION, err)
+            status(out, servo, Instruction.ACTION, err)
 
 
 def _factory_reset(
@@ -225,9 +162,9 @@ def _factory_reset(
         return
     for servo in targets:
         if option not in (0xFF, 0x01, 0x02):
-            _status(out, servo, Instruction.FACTORY_RESET, ErrorNumber.DATA_RANGE)
+            status(out, servo, Instruction.FACTORY_RESET, ErrorNumber.DATA_RANGE)
             continue
-        _status(out, servo, Instruction.FACTORY_RESET, 0)
+        status(out, servo, Instruction.FACTORY_RESET, 0)
         out.reset.append((servo, option))
         out.ids_changed = True
 
@@ -243,7 +180,7 @@ def _reboot(
     servos = listeners if pid == BROADCAST_ID else targets
     for servo in servos:
         if pid != BROADCAST_ID:
-            _status(out, servo, Instruction.REBOOT, 0)
+            status(out, servo, Instruction.REBOOT, 0)
         out.reboot.append(servo)
 
 
@@ -265,7 +202,7 @@ def _clear(
             err = 0
             servo.clear_multi_turn()
         if pid != BROADCAST_ID:
-            _status(out, servo, Instruction.CLEAR, err)
+            status(out, servo, Instruction.CLEAR, err)
 
 
 def _backup(
@@ -277,11 +214,7 @@ def _backup(
     targets: list[EmulatedServo],
 ) -> None:
     for servo in targets:
-        _status(out, servo, Instruction.CONTROL_TABLE_BACKUP, 0)
-
-
-def _first(by_id: dict[int, list[EmulatedServo]], sid: int) -> list[EmulatedServo]:
-    return by_id.get(sid, [])
+        status(out, servo, Instruction.CONTROL_TABLE_BACKUP, 0)
 
 
 def _sync_read(
@@ -297,9 +230,9 @@ def _sync_read(
     addr = params[0] | params[1] << 8
     length = params[2] | params[3] << 8
     for sid in params[4:]:
-        for servo in _first(by_id, sid):
+        for servo in servos_with(by_id, sid):
             err, data = servo.read_bytes(addr, length)
-            _status(out, servo, Instruction.SYNC_READ, err, data)
+            status(out, servo, Instruction.SYNC_READ, err, data)
 
 
 def _bulk_read(
@@ -316,85 +249,9 @@ def _bulk_read(
         sid = params[i]
         addr = params[i + 1] | params[i + 2] << 8
         length = params[i + 3] | params[i + 4] << 8
-        for servo in _first(by_id, sid):
+        for servo in servos_with(by_id, sid):
             err, data = servo.read_bytes(addr, length)
-            _status(out, servo, Instruction.BULK_READ, err, data)
-
-
-def _fast_read(
-    out: Outcome, requests: list[tuple[int, int, int]], by_id: dict[int, list[EmulatedServo]], inst: int
-) -> None:
-    """One combined packet: ``FF FF FD 00 FE LEN 55`` then per device ``ERR ID data CRC``; each block's CRC is
-    the running CRC of the packet so far, so the last one is the packet CRC (reference sheet §5)."""
-    blocks: list[tuple[EmulatedServo | None, bytes]] = []
-    for sid, addr, length in requests:
-        servos = _first(by_id, sid)
-        if not servos:
-            blocks.append((None, bytes(length + 2)))
-            continue
-        servo = servos[0]
-        err, data = servo.read_bytes(addr, length)
-        if len(data) < length:
-            data = data + bytes(length - len(data))
-        blocks.append((servo, bytes((_err(servo, err), servo.id)) + data))
-    lead = blocks[0][0] if blocks else None
-    if lead is None or not _answers(lead, inst):
-        return
-    length_field = 1 + sum(len(b) + 2 for _, b in blocks)
-    head = HEADER + bytes((BROADCAST_ID, length_field & 0xFF, length_field >> 8, 0x55))
-    parts: list[tuple[EmulatedServo | None, bytes]] = []
-    crc = crc16(head)
-    for owner, block in blocks:
-        crc = crc16(block, crc)
-        part = block + bytes((crc & 0xFF, crc >> 8))
-        crc = crc16(part[-2:], crc)
-        parts.append((owner, part))
-    logical = b"".join(p for _, p in parts)
-    if b"\xff\xff\xfd" in bytes((0x55,)) + logical[:-2]:
-        # rare: the body needs byte stuffing; send it as one stuffed packet (the SDK does not unstuff it)
-        body = stuff(bytes((0x55,)) + logical[:-2])
-        packet = HEADER + bytes((BROADCAST_ID, (len(body) + 2) & 0xFF, (len(body) + 2) >> 8)) + body
-        crc = crc16(packet)
-        out.replies.append(Reply(lead, packet + bytes((crc & 0xFF, crc >> 8))))
-        return
-    first = True
-    for owner, part in parts:
-        if owner is None:
-            continue  # absent: its bytes never appear, the host sees a short, corrupt packet
-        out.replies.append(Reply(owner, (head + part) if first else part, continues=not first))
-        first = False
-
-
-def _fast_sync_read(
-    out: Outcome,
-    pid: int,
-    params: bytes,
-    listeners: Sequence[EmulatedServo],
-    by_id: dict[int, list[EmulatedServo]],
-    targets: list[EmulatedServo],
-) -> None:
-    if pid != BROADCAST_ID or len(params) < 5:
-        return
-    addr = params[0] | params[1] << 8
-    length = params[2] | params[3] << 8
-    _fast_read(out, [(sid, addr, length) for sid in params[4:]], by_id, Instruction.FAST_SYNC_READ)
-
-
-def _fast_bulk_read(
-    out: Outcome,
-    pid: int,
-    params: bytes,
-    listeners: Sequence[EmulatedServo],
-    by_id: dict[int, list[EmulatedServo]],
-    targets: list[EmulatedServo],
-) -> None:
-    if pid != BROADCAST_ID or len(params) % 5 or not params:
-        return
-    req = [
-        (params[i], params[i + 1] | params[i + 2] << 8, params[i + 3] | params[i + 4] << 8)
-        for i in range(0, len(params), 5)
-    ]
-    _fast_read(out, req, by_id, Instruction.FAST_BULK_READ)
+            status(out, servo, Instruction.BULK_READ, err, data)
 
 
 def _sync_write(
@@ -413,7 +270,7 @@ def _sync_write(
     if length == 0 or (len(params) - 4) % stride:
         return
     for i in range(4, len(params), stride):
-        for servo in _first(by_id, params[i]):
+        for servo in servos_with(by_id, params[i]):
             servo.wire_write(addr, params[i + 1 : i + stride])
             if addr <= 8 and addr + length > 7:
                 out.ids_changed = True
@@ -439,7 +296,7 @@ def _bulk_write(
         i += 5 + length
         if len(data) != length:
             return
-        for servo in _first(by_id, sid):
+        for servo in servos_with(by_id, sid):
             servo.wire_write(addr, data)
             if addr <= 8 and addr + length > 7:
                 out.ids_changed = True
@@ -457,8 +314,8 @@ _HANDLERS: dict[int, Callable[..., None]] = {
     Instruction.CONTROL_TABLE_BACKUP: _backup,
     Instruction.SYNC_READ: _sync_read,
     Instruction.SYNC_WRITE: _sync_write,
-    Instruction.FAST_SYNC_READ: _fast_sync_read,
+    Instruction.FAST_SYNC_READ: fast_sync_read,
     Instruction.BULK_READ: _bulk_read,
     Instruction.BULK_WRITE: _bulk_write,
-    Instruction.FAST_BULK_READ: _fast_bulk_read,
+    Instruction.FAST_BULK_READ: fast_bulk_read,
 }
