@@ -195,17 +195,24 @@ def test_jaw_region_follows_the_jaw_and_the_mouth_opens(any_head: Head) -> None:
     assert any_head.skin.weights[lower, col] > 0.9
 
 
-def test_lids_cover_the_eye_when_closed() -> None:
-    head = load_head("human")
-    pose = neutral_pose(head)
-    eye = np.asarray(head.landmarks_mm["eye_centre_l"])
-    for lid_deg, covered in ((0.0, False), (55.0, True)):
+def test_lids_cover_the_eye_when_closed(any_head: Head) -> None:
+    pose = neutral_pose(any_head)
+    eye = np.asarray(any_head.landmarks_mm["eye_centre_l"])
+    gaze = np.asarray(any_head.part("pupil_l").mesh.vertices).mean(0) - eye
+    gaze /= np.linalg.norm(gaze)
+    upper = any_head.joint("upper_lid_l").upper_deg
+    for lid_deg, covered in ((0.0, False), (upper, True)):
         pose.joint_deg["upper_lid_l"] = lid_deg
-        parts = {p.name: p for p in posed_parts(head, pose)}
-        assert (
-            _ray_hits(parts["upper_lid_l"].mesh, eye + np.array([0.0, 0.0, 60.0]), np.array([0.0, 0.0, -1.0]))
-            is covered
-        )
+        parts = {p.name: p for p in posed_parts(any_head, pose)}
+        assert _ray_hits(parts["upper_lid_l"].mesh, eye + 60.0 * gaze, -gaze) is covered
+
+
+def test_eyes_and_lids_turn_about_the_eye_centre(any_head: Head) -> None:
+    for side in ("l", "r"):
+        centre = np.asarray(any_head.part(f"eyeball_{side}").mesh.vertices).mean(0)
+        for j in (f"eye_pan_{side}", f"eye_tilt_{side}", f"upper_lid_{side}"):
+            np.testing.assert_allclose(any_head.joint(j).pivot_mm, centre, atol=1e-6)
+        np.testing.assert_allclose(any_head.landmarks_mm[f"eye_centre_{side}"], centre, atol=1e-6)
 
 
 def _ray_hits(mesh: object, origin: np.ndarray, direction: np.ndarray) -> bool:

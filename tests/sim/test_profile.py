@@ -51,6 +51,15 @@ def test_copied_builtin_folder_loads_with_user_meshes(tmp_path: Path) -> None:
     assert len(head.actuators) == 21
 
 
+def test_user_glb_part_mesh_loads(tmp_path: Path) -> None:
+    folder = _copy(tmp_path, "dog")
+    ear = load_head("dog").part("ear_l").mesh.copy()
+    ear.export(folder / "ear_l.glb")
+    _edit(folder, 'mesh = "builtin:dog_ear_l"', 'mesh = "ear_l.glb"')
+    head = load_head(folder)
+    np.testing.assert_allclose(head.part("ear_l").mesh.bounds, ear.bounds, atol=1e-4)
+
+
 def test_load_head_by_file_path_and_unknown_names(tmp_path: Path) -> None:
     folder = _copy(tmp_path, "dog")
     assert load_head(folder / "head.toml").name == "dog"
