@@ -1,6 +1,7 @@
 #version 330 core
 // servoface's replacement for pyrender's PBR mesh.frag: wrapped Lambert + normalised Blinn-Phong per
-// directional light, ambient, optional vertex colours, gamma out. About half the per-pixel cost of the
+// directional light (specular from the key light only: light 0, see sim/render/camera.py LIGHTS), ambient,
+// optional vertex colours, gamma out. About half the per-pixel cost of the
 // GGX shader on llvmpipe, and a softer, more skin-like falloff. Uniform names are pyrender's, so pyrender's
 // renderer sets them unchanged (uniforms it sets that are not used here are ignored by pyrender).
 
@@ -59,7 +60,7 @@ void main()
         float nl_raw = dot(n, l);
         float nl = max((nl_raw + WRAP) / (1.0 + WRAP), 0.0);
         vec3 h = normalize(l + v);
-        float spec = nl_raw > 0.0 ? pow(max(dot(n, h), 0.0), shininess) * spec_scale * nl_raw : 0.0;
+        float spec = (i == 0 && nl_raw > 0.0) ? pow(max(dot(n, h), 0.0), shininess) * spec_scale * nl_raw : 0.0;
         color += directional_lights[i].color * directional_lights[i].intensity * (diffuse * nl + spec);
     }
     color += material.emissive_factor;
