@@ -181,7 +181,7 @@ class ServoChain:
             byte_s = 10.0 / host_baud if self.wire_time and host_baud > 0 else 0.0
             t_rx = max(now, self._tx_free_s) + n * byte_s
             self._tx_free_s = t_rx
-            for packet in self._receiver.feed(data):
+            for packet in self._receiver.feed(data, now):
                 self._handle(packet, t_rx, host_baud)
             return n
 

@@ -140,11 +140,15 @@ class PacketReceiver:
     """Finds packets in a byte stream, as a servo's UART handler does.
 
     ``feed`` returns complete packets; a packet whose CRC fails is returned with ``crc_ok=False`` (the
-    servo answers it with a CRC error if it is addressed). Garbage before a header is discarded.
+    servo answers it with a CRC error if it is addressed). Garbage before a header is discarded. An
+    incomplete packet is abandoned when the line has been idle for ``timeout_s`` (give ``feed`` the time)
+    or when the next write starts with a complete, CRC-valid packet, so line noise cannot deafen the bus.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, timeout_s: float = 0.01) -> None:
         self._buf = bytearray()
+        self.timeout_s = timeout_s
+        self._last_s = -1e300
 
     def clear(self) -> None:
         self._buf.clear()
@@ -153,9 +157,15 @@ class PacketReceiver:
     def pending(self) -> int:
         return len(self._buf)
 
-    def feed(self, data: bytes | bytearray) -> list[Packet]:
+    def feed(self, data: bytes | bytearray, t_s: float | None = None) -> list[Packet]:
         buf = self._buf
-        if not buf and len(data) >= 10 and data[:4] == HEADER and len(data) == 7 + (data[5] | data[6] << 8):
+        if t_s is not None:
+            if buf and t_s - self._last_s > self.timeout_s:
+                buf.clear()  # the rest of that packet never came
+            self._last_s = t_s
+        whole = len(data) >= 10 and data[:4] == HEADER and len(data) == 7 + (data[5] | data[6] << 8)
+        if whole and (not buf or crc16(data[:-2]) == (data[-2] | data[-1] << 8)):
+            buf.clear()
             return [self._decode(bytes(data))]  # fast path: exactly one whole packet
         buf += data
         out: list[Packet] = []
