@@ -293,3 +293,29 @@ def test_indirect_address_beyond_the_table_reads_zero() -> None:
     assert transact(ser, 1, I.WRITE, wr(168, 600, 2))[0].error == OK
     (st,) = transact(ser, 1, I.READ, rd(208, 1))
     assert (st.error, st.data) == (OK, b"\x00")
+
+
+def test_broadcast_reboot_and_reset_are_silent_but_act() -> None:
+    chain, ser = quick_chain(ids=[1, 2])
+    for sid in (1, 2):
+        chain.servo(sid).write_register("LED", 1)
+    assert transact(ser, BROADCAST_ID, I.REBOOT) == []
+    chain.advance(chain.reboot_silence_s + 0.01)
+    assert [chain.servo(s).read_register("LED") for s in (1, 2)] == [0, 0]
+    chain.servo(2).write_register("Return Delay Time", 7)
+    assert transact(ser, BROADCAST_ID, I.FACTORY_RESET, b"\x02") == []
+    assert chain.servo(2).read_register("Return Delay Time") == 250
+    assert [chain.servo(s).id for s in (1, 2)] == [1, 2]
+
+
+def test_bulk_read_skips_absent_ids_and_keeps_order() -> None:
+    chain, ser = quick_chain(ids=[1, 2])
+    params = bytes((2,)) + rd(7, 1) + bytes((5,)) + rd(7, 1) + bytes((1,)) + rd(7, 1)
+    assert [(p.id, p.data) for p in transact(ser, BROADCAST_ID, I.BULK_READ, params)] == [(2, b"\x02"), (1, b"\x01")]
+
+
+def test_unicast_sync_instructions_are_ignored() -> None:
+    chain, ser = quick_chain(ids=[1])
+    assert transact(ser, 1, I.SYNC_READ, rd(132, 4) + b"\x01") == []
+    assert transact(ser, 1, I.SYNC_WRITE, le(65, 2) + le(1, 2) + b"\x01\x01") == []
+    assert chain.servo(1).read_register("LED") == 0

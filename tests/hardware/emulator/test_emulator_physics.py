@@ -235,3 +235,25 @@ def test_live_registers_saturate_instead_of_crashing() -> None:
     assert s.read_register("Present Position") == (1 << 31) - 1
     s.move_by_hand(-1500)
     assert s.read_register("Present Position") == -1500
+
+
+def test_moving_threshold_and_in_position_bits_after_arrival() -> None:
+    chain, s = one("XM430-W350")
+    s.write_register("Torque Enable", 1)
+    s.write_register("Goal Position", 2100)
+    chain.advance(0.001)
+    assert s.read_register("Moving") == 1 and not s.read_register("Moving Status") & 0x01
+    chain.advance(1.0)
+    assert s.read_register("Moving") == 0 and s.read_register("Moving Status") & 0x01
+    assert s.read_register("Position Trajectory") == 2100
+
+
+def test_homing_offset_shifts_present_and_goal_frames() -> None:
+    chain, s = one()
+    s.write_register("Homing Offset", 1000)
+    assert s.read_register("Present Position") == 3048
+    s.write_register("Torque Enable", 1)
+    s.write_register("Goal Position", 3100)
+    chain.advance(1.0)
+    assert s.read_register("Present Position") == 3100
+    assert s.shaft_tick == pytest.approx(2100)
