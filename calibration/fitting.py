@@ -8,6 +8,7 @@ a safe curve is an error.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -164,3 +165,63 @@ def fit_coupling(
             f"{servo.min_tick}..{servo.max_tick} at {where}; expected one tick per pull"
         )
     return RbfCoupling(tuple(neighbours), rbf)
+
+
+COUPLED_SLICE_SAMPLES = 13
+
+
+def fit_coupled_servo(
+    spec: ServoSpec,
+    neighbours: Sequence[str],
+    neighbour_neutral_tick: Sequence[int],
+    inputs: ArrayLike,
+    targets: ArrayLike,
+    *,
+    smoothing: float = 0.0,
+) -> FitReport:
+    """A skin anchor whose pull depends on its own tick and its neighbours' ticks.
+
+    inputs: (k, 1 + d) ticks (own first, then ``neighbours`` in order); targets: (k,) measured pulls.
+    The RBF map is fitted to all rows; the servo's 1-D curve (used when the neighbours are not known, and
+    for its limits) is the map's slice with every neighbour at its neutral tick, stored as a PCHIP spline
+    through 13 samples across the measured own ticks. Both must be strictly monotone in the own tick.
+    """
+    x = np.asarray(inputs, dtype=np.float64)
+    y = np.asarray(targets, dtype=np.float64)
+    rbf = RbfMap.fit(x, y, smoothing=smoothing)
+    if rbf.dims != 1 + len(neighbours) or len(neighbour_neutral_tick) != len(neighbours):
+        raise CalibrationError(
+            f"servo '{spec.role}': coupling inputs have {rbf.dims} columns; expected 1 + {len(neighbours)}"
+        )
+    warnings = []
+    for j, (name, tick) in enumerate(zip(neighbours, neighbour_neutral_tick, strict=True), start=1):
+        lo, hi = x[:, j].min(), x[:, j].max()
+        if not lo <= tick <= hi:
+            warnings.append(
+                f"servo '{spec.role}': neighbour '{name}' was measured at {lo:g}..{hi:g} tick, not around "
+                f"its neutral {tick}; the slice at neutral is extrapolated"
+            )
+    own = np.linspace(x[:, 0].min(), x[:, 0].max(), COUPLED_SLICE_SAMPLES)
+    at_neutral = np.column_stack(
+        [own, np.tile(np.asarray(neighbour_neutral_tick, dtype=np.float64), (len(own), 1))]
+    )
+    pulls = rbf.evaluate(at_neutral)
+    report = fit_servo(spec, np.column_stack([pulls, own]), "pchip")
+    coupling = fit_coupling(report.servo, neighbours, x, y, smoothing=smoothing)
+    neutral_rows = np.all(x[:, 1:] == np.asarray(neighbour_neutral_tick, dtype=np.float64), axis=1)
+    measured = (
+        np.column_stack([y[neutral_rows], x[neutral_rows, 0]]) if neutral_rows.any() else np.zeros((0, 2))
+    )
+    servo = dataclasses.replace(report.servo, coupling=coupling, measured_points=measured)
+    residual = float(np.max(np.abs(rbf.evaluate(x) - y)))
+    return FitReport(
+        servo,
+        report.max_residual_tick,
+        report.warnings
+        + warnings
+        + (
+            [f"servo '{spec.role}': the coupled map misses a measured pull by {residual:.3g} {spec.unit}"]
+            if residual > 1e-6
+            else []
+        ),
+    )

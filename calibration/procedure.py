@@ -23,9 +23,9 @@ from typing import Literal, Protocol
 
 import numpy as np
 
-from calibration.errors import CalibrationError, ProcedureAborted, ProcedureError
+from calibration.errors import CalibrationError, MeasurementCsvError, ProcedureAborted, ProcedureError
 from calibration.fileformat import metadata_now, save_calibration
-from calibration.fitting import FitReport, fit_servo
+from calibration.fitting import FitReport, fit_coupled_servo, fit_servo
 from calibration.head import HeadCalibration
 from calibration.measurements import Measurement, read_measurements_csv
 from calibration.plot import plot_servo
@@ -282,16 +282,20 @@ def calibrate_from_csv(
 ) -> ProcedureResult:
     """Non-interactive mode: fit every servo in ``specs`` from a ``role,target,tick`` CSV.
 
-    A role in ``specs`` with no rows is an error unless ``keep`` has it (then it is carried over).
+    A role in ``specs`` with no rows is an error unless ``keep`` has it (then it is carried over). Rows
+    with ``neighbour=tick`` cells make that servo a coupled anchor (RBF map, see
+    :func:`calibration.fitting.fit_coupled_servo`); its neighbours must be plain servos.
     """
-    rows = read_measurements_csv(csv_path, roles={s.role for s in specs})
+    own = {s.role for s in specs}
+    rows = read_measurements_csv(csv_path, roles=own, neighbour_roles=own | set(keep.roles if keep else ()))
     opts = ProcedureOptions(curve_kind=curve_kind)
     reports: dict[str, FitReport] = {}
     missing = [s.role for s in specs if s.role not in rows and (keep is None or s.role not in keep)]
     if missing:
         raise ProcedureError(f"{csv_path}: no measurements for role(s) {missing}")
+    coupled = [s for s in specs if s.role in rows and rows[s.role][0].neighbours]
     for spec in specs:
-        if spec.role not in rows:
+        if spec.role not in rows or spec in coupled:
             continue
         try:
             reports[spec.role] = fit_servo(
@@ -300,7 +304,39 @@ def calibrate_from_csv(
         except CalibrationError as err:
             lines = ", ".join(str(m.line) for m in rows[spec.role])
             raise type(err)(f"{csv_path} (lines {lines}): {err}") from err
+    for spec in coupled:
+        reports[spec.role] = _fit_coupled_rows(str(csv_path), spec, rows[spec.role], reports, keep)
     return _finish(reports, specs, head, "csv", str(csv_path), plot_dir, out, keep)
+
+
+def _fit_coupled_rows(
+    file: str,
+    spec: ServoSpec,
+    rows: Sequence[Measurement],
+    reports: Mapping[str, FitReport],
+    keep: HeadCalibration | None,
+) -> FitReport:
+    """Fit a coupled anchor from its CSV rows; neighbours must be calibrated (in this file or kept)."""
+    names = [n for n, _ in rows[0].neighbours]
+    neutral: list[int] = []
+    for name in names:
+        if name in reports and reports[name].servo.coupling is None:
+            neutral.append(reports[name].servo.neutral_tick)
+        elif name not in reports and keep is not None and name in keep and keep[name].coupling is None:
+            neutral.append(keep[name].neutral_tick)
+        else:
+            raise MeasurementCsvError(
+                file,
+                rows[0].line,
+                f"role '{spec.role}': neighbour '{name}' must have an uncoupled calibration "
+                "(measure it in this file or keep it from the existing one)",
+            )
+    inputs = [[m.tick] + [t for _, t in m.neighbours] for m in rows]
+    try:
+        return fit_coupled_servo(spec, names, neutral, inputs, [m.target for m in rows])
+    except CalibrationError as err:
+        lines = ", ".join(str(m.line) for m in rows)
+        raise type(err)(f"{file} (lines {lines}): {err}") from err
 
 
 def _finish(

@@ -264,3 +264,41 @@ def _png_size(data: bytes) -> tuple[int, int]:
         pos += 12 + length
     assert len(zlib.decompress(idat)) > width * height
     return width, height
+
+
+def _corner_pull_mm(own_tick: float, depressor_tick: float) -> float:
+    """A mouth corner on a 15 mm crank, dragged down 0.01 mm per tick of its depressor neighbour."""
+    return 15.0 * math.sin(math.radians((own_tick - 2048) * 360 / 4096)) - 0.01 * (depressor_tick - 2048)
+
+
+def test_csv_with_neighbour_columns_fits_a_coupled_anchor(tmp_path: Path) -> None:
+    corner = ServoSpec("lip_corner_l", 12, "XL330-M288", "mm", -4.0, 12.0, 0.0, "anchor", 1)
+    depressor = ServoSpec("lip_depressor_l", 14, "XL330-M288", "mm", 0.0, 9.0, 0.0, "anchor", 1)
+    lines = ["role,target,tick"]
+    for t in np.linspace(0, 9, 5):
+        lines.append(f"lip_depressor_l,{t:.4f},{round(true_tick(depressor, float(t)))}")
+    for own in np.linspace(1850, 2680, 6).round():
+        for dep in (2048, 2200, 2350):
+            lines.append(f"lip_corner_l,{_corner_pull_mm(own, dep):.5f},{int(own)},lip_depressor_l={dep}")
+    (tmp_path / "m.csv").write_text("\n".join(lines) + "\n")
+    result = calibrate_from_csv(tmp_path / "m.csv", [corner, depressor], "coupled", out=tmp_path / "c.json")
+    cal = load_calibration(tmp_path / "c.json")
+    s = cal["lip_corner_l"]
+    assert s.coupling is not None and s.coupling.neighbours == ("lip_depressor_l",)
+    assert s.curve.kind == "pchip" and s.neutral_tick == 2048
+    for pull, dep_mm in ((5.0, 0.0), (5.0, 6.0), (-2.0, 8.0), (10.0, 3.0)):
+        goals = cal.targets_to_goals({"lip_corner_l": pull, "lip_depressor_l": dep_mm})
+        assert _corner_pull_mm(goals[12], goals[14]) == pytest.approx(pull, abs=0.1)  # the physical pull
+    # without the coupling (1-D slice at the neighbour's neutral) the depressor's drag would be missed
+    dep_tick = cal["lip_depressor_l"].to_tick(6.0)
+    assert abs(_corner_pull_mm(s.to_tick(5.0), dep_tick) - 5.0) > 2.0
+    assert result.reports["lip_corner_l"].servo.coupling is not None
+
+    bad = lines[:-1] + ["lip_corner_l,3.0,2100,lip_pucker=2048"]
+    (tmp_path / "bad.csv").write_text("\n".join(bad) + "\n")
+    with pytest.raises(MeasurementCsvError, match="neighbour 'lip_pucker' of 'lip_corner_l' is not another"):
+        calibrate_from_csv(tmp_path / "bad.csv", [corner, depressor], "coupled")
+    bad = lines[:-1] + ["lip_corner_l,3.0,2100"]
+    (tmp_path / "bad.csv").write_text("\n".join(bad) + "\n")
+    with pytest.raises(MeasurementCsvError, match=f"line {len(bad)}: role 'lip_corner_l': neighbours"):
+        calibrate_from_csv(tmp_path / "bad.csv", [corner, depressor], "coupled")
