@@ -179,3 +179,29 @@ def test_driver_thread_runs_cycles_in_the_background() -> None:
     assert not runner.running
     assert all(1000 <= g <= 3000 for _, sid, g in chain.goal_writes() if sid == 1)
     chain.close()
+
+
+def test_driver_thread_reports_errors_to_callers() -> None:
+    import time
+
+    from hardware.bus import open_bus
+    from hardware.emulator import ServoChain
+    from hardware.errors import HardwareError
+
+    chain = ServoChain.create(ids=[1], model="XL330-M288", baud=1_000_000, wire_time=False)
+    driver = Driver(open_bus("emulator", chain=chain), [ServoSpec(1, "XL330-M288")])
+    driver.configure()
+    runner = DriverThread(driver, rate_hz=500).start()
+    try:
+        with pytest.raises(KeyError):
+            runner.call(lambda d: d.clear_fault(99))  # the error of a queued call reaches its caller
+        runner.call(lambda d: d.bus.close())  # a contract violation inside the loop stops the thread
+        deadline = time.monotonic() + 5
+        while runner.running and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert not runner.running and runner.error is not None
+        with pytest.raises(HardwareError, match="driver thread stopped"):
+            runner.submit_goals({1: 2000})
+    finally:
+        runner.stop()
+        chain.close()
