@@ -311,7 +311,10 @@ def test_broadcast_reboot_and_reset_are_silent_but_act() -> None:
 def test_bulk_read_skips_absent_ids_and_keeps_order() -> None:
     chain, ser = quick_chain(ids=[1, 2])
     params = bytes((2,)) + rd(7, 1) + bytes((5,)) + rd(7, 1) + bytes((1,)) + rd(7, 1)
-    assert [(p.id, p.data) for p in transact(ser, BROADCAST_ID, I.BULK_READ, params)] == [(2, b"\x02"), (1, b"\x01")]
+    assert [(p.id, p.data) for p in transact(ser, BROADCAST_ID, I.BULK_READ, params)] == [
+        (2, b"\x02"),
+        (1, b"\x01"),
+    ]
 
 
 def test_unicast_sync_instructions_are_ignored() -> None:
