@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import IntEnum
+from functools import lru_cache
 
 from hardware.emulator.crc import crc16
 from hardware.emulator.errors import PacketError
@@ -92,7 +93,13 @@ def build_instruction(packet_id: int, instruction: int, params: bytes = b"") -> 
 
 def build_status(servo_id: int, error: int, params: bytes = b"") -> bytes:
     """A complete status packet (stuffed, with CRC)."""
-    return _frame(servo_id, bytes((STATUS_INSTRUCTION, error)) + bytes(params))
+    return _cached_status(servo_id, error, bytes(params))
+
+
+@lru_cache(maxsize=8192)
+def _cached_status(servo_id: int, error: int, params: bytes) -> bytes:
+    # a servo at rest answers the same read with the same bytes every cycle: build each packet once
+    return _frame(servo_id, bytes((STATUS_INSTRUCTION, error)) + params)
 
 
 @dataclass(frozen=True, slots=True)
@@ -194,6 +201,12 @@ class PacketReceiver:
 
     @staticmethod
     def _decode(raw: bytes) -> Packet:
-        crc_ok = crc16(raw[:-2]) == (raw[-2] | raw[-1] << 8)
-        body = unstuff(raw[7:-2])
-        return Packet(raw[4], body[0] if body else 0, body[1:], crc_ok)
+        return _decode_packet(raw)
+
+
+@lru_cache(maxsize=1024)
+def _decode_packet(raw: bytes) -> Packet:
+    # hosts repeat identical instructions (the same sync read every cycle): decode and CRC-check each once
+    crc_ok = crc16(raw[:-2]) == (raw[-2] | raw[-1] << 8)
+    body = unstuff(raw[7:-2])
+    return Packet(raw[4], body[0] if body else 0, body[1:], crc_ok)
