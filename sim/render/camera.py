@@ -30,7 +30,7 @@ class Light:
 
 
 # key from the upper left of the camera, a softer fill from the right, a rim from behind and above.
-# The key comes first: the fragment shader gives only light 0 a specular highlight (10% cheaper frames).
+# The key is the brightest: the fragment shader gives only the brightest light a specular highlight.
 LIGHTS: tuple[Light, ...] = (
     Light("key", (0.45, -0.55, -0.70), (1.0, 0.97, 0.92), 3.2),
     Light("fill", (-0.70, -0.15, -0.70), (0.85, 0.90, 1.0), 1.3),

@@ -191,3 +191,12 @@ def test_missing_egl_is_a_render_error_with_an_install_hint(monkeypatch: pytest.
     assert "apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri" in (backend.egl_missing_reason() or "")
     with pytest.raises(RenderError, match="libEGL not found"):
         HeadRenderer(32, 32)
+
+
+def test_the_key_light_is_the_single_brightest() -> None:
+    """The shader gives the specular highlight to the brightest light; it must be the key, uniquely."""
+    from sim.render.camera import LIGHTS
+
+    intensities = sorted((light.intensity for light in LIGHTS), reverse=True)
+    key = next(light for light in LIGHTS if light.name == "key")
+    assert key.intensity == intensities[0] > intensities[1]

@@ -1,6 +1,7 @@
 #version 330 core
 // servoface's replacement for pyrender's PBR mesh.frag: wrapped Lambert + normalised Blinn-Phong per
-// directional light (specular from the key light only: light 0, see sim/render/camera.py LIGHTS), ambient,
+// directional light (specular from the key light only = the brightest; pyrender's light order is a set's
+// order, so the key is found by intensity, see sim/render/camera.py LIGHTS), ambient,
 // optional vertex colours, gamma out. About half the per-pixel cost of the
 // GGX shader on llvmpipe, and a softer, more skin-like falloff. Uniform names are pyrender's, so pyrender's
 // renderer sets them unchanged (uniforms it sets that are not used here are ignored by pyrender).
@@ -55,12 +56,16 @@ void main()
     float spec_scale = 0.04 * (shininess + 8.0) / (8.0 * PI);
     vec3 diffuse = base.rgb / PI;
     vec3 color = base.rgb * ambient_light;
+    int key = 0;
+    for (int i = 1; i < n_directional_lights; i++) {
+        if (directional_lights[i].intensity > directional_lights[key].intensity) key = i;
+    }
     for (int i = 0; i < n_directional_lights; i++) {
         vec3 l = -directional_lights[i].direction;
         float nl_raw = dot(n, l);
         float nl = max((nl_raw + WRAP) / (1.0 + WRAP), 0.0);
         vec3 h = normalize(l + v);
-        float spec = (i == 0 && nl_raw > 0.0) ? pow(max(dot(n, h), 0.0), shininess) * spec_scale * nl_raw : 0.0;
+        float spec = (i == key && nl_raw > 0.0) ? pow(max(dot(n, h), 0.0), shininess) * spec_scale * nl_raw : 0.0;
         color += directional_lights[i].color * directional_lights[i].intensity * (diffuse * nl + spec);
     }
     color += material.emissive_factor;
