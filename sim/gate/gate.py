@@ -27,10 +27,11 @@ from numpy.typing import NDArray
 from sim.gate import limits as lim
 from sim.gate.collision import PairSpec, PartCollisions, auto_pairs
 from sim.gate.coupling import CouplingCheck, CouplingLimit, limits_from_head, travel_share
-from sim.gate.errors import GateInputError
+from sim.gate.errors import GateConfigError, GateInputError
 from sim.gate.fk import JointTree
 from sim.gate.health import HealthPolicy, ServoHealth, derate
-from sim.gate.strain import SkinTwin, StrainLimits, falloff_offsets, pull_basis, strain_findings
+from sim.gate.skin_source import face_model_source, falloff_source
+from sim.gate.strain import SkinTwin, StrainLimits, strain_findings
 from sim.gate.tss_build import TssParams, default_cache_dir
 from sim.gate.twin import TwinPoser
 from sim.gate.verdict import Finding, Verdict
@@ -82,8 +83,10 @@ class TwinGate:
         calibration: Any,
         frame_period_s: float,
         config: GateConfig | None = None,
-        face_model: Any | None = None,
+        face_model: Any = "auto",
     ) -> None:
+        """``face_model``: "auto" (the head's `sim.face_model.FaceModel` when it has muscles, else the
+        falloff skin), a FaceModel, or None (falloff skin: each anchor drags the skin around it)."""
         self.head = head
         self.config = cfg = config or GateConfig()
         self.frame_period_s = float(frame_period_s)
@@ -115,27 +118,28 @@ class TwinGate:
         self._last_step: IntArray = np.zeros(self.table.n, dtype=np.int64)
 
     # ---- set-up ---------------------------------------------------------------------------------------
-    def _build_skin(self, face_model: Any | None) -> SkinTwin:
+    def _build_skin(self, face_model: Any) -> SkinTwin:
+        """The skin source: the face model's twin (default when the head has muscles) or the falloff."""
         anchors = [self.poser.actuators[c] for c in self.poser.anchor_cols]
-        roles = [a.role for a in anchors]
-        neutral = [a.neutral_mm for a in anchors]
-        units = [max(1e-3, min(1.0, (a.upper_mm - a.lower_mm) / 4.0)) for a in anchors]
+        if isinstance(face_model, str) and face_model == "auto":
+            face_model = None
+            if getattr(self.head, "muscles", ()):
+                from sim.face_model import FaceModel
+
+                try:
+                    face_model = FaceModel(self.head)
+                except Exception as err:  # the face model's own errors name the problem
+                    raise GateConfigError(
+                        f"head '{self.head.name}': cannot build its face model for the "
+                        f"twin's skin ({err}); pass face_model=None for the falloff skin"
+                    ) from err
         if face_model is None:
-            neutral_of = dict(zip(roles, neutral, strict=True))
-
-            def offsets(p: Mapping[str, float]) -> FloatArray:
-                return falloff_offsets(self.head.skin, anchors, {r: p[r] - neutral_of[r] for r in roles})
+            self.skin_source = falloff_source(self.head.skin, anchors)
+            self.skin_model = "falloff"
         else:
-            joint_neutral = {a.role: a.neutral_deg for a in self.head.actuators if a.kind == "joint"}
-
-            def offsets(p: Mapping[str, float]) -> FloatArray:
-                return np.asarray(
-                    face_model.pose_from_targets({**joint_neutral, **p}).skin_offset_mm, dtype=np.float64
-                )
-
-        base, basis, err = pull_basis(offsets, roles, neutral, units)
-        self.skin_nonlinearity_mm = err
-        return SkinTwin(self.head.skin, self.tree, base, basis)
+            self.skin_source = face_model_source(face_model, anchors)
+            self.skin_model = "face_model"
+        return SkinTwin(self.head.skin, self.tree, self.skin_source.movable)
 
     # ---- input ----------------------------------------------------------------------------------------
     def neutral_goals(self) -> dict[int, int]:
@@ -192,7 +196,7 @@ class TwinGate:
         out = self.coupling.findings(self._shares(targets)[0])
         if out and stop_early:
             return out
-        stretch, comp, flips = self.skin.measure(world[0], pulls[0])
+        stretch, comp, flips = self.skin.measure(world[0], self.skin_source.offsets(pulls[0]))
         out += strain_findings(float(stretch), float(comp), int(flips), self.config.strain)
         if out and stop_early:
             return out
@@ -207,7 +211,7 @@ class TwinGate:
         """Coupling, strain and broad phase for (k, n) goals, exact test for the broad-phase survivors."""
         targets, angles, world, pulls = self._pose_arrays(goals)
         ok = self.coupling.ok(self._shares(targets))
-        stretch, comp, flips = self.skin.measure(world, pulls)
+        stretch, comp, flips = self.skin.measure(world, self.skin_source.offsets_batch(pulls))
         s = self.config.strain
         ok &= (stretch <= s.max_stretch) & (comp >= s.min_compression) & (flips <= s.max_flipped)
         flags = self.collisions.broad.flag(world, angles)
@@ -319,6 +323,23 @@ class TwinGate:
             limit_ok.all(axis=1), speed_ok.all(axis=1), accel_ok.all(axis=1), coupling_ok, broad
         )
 
+    def audit(self, goals_tick: Mapping[int, int]) -> list[Finding]:
+        """Every state check of one full command without shortcuts: limits, coupling, strain, flips and
+        the exact mesh test on *every* checked pair (no broad phase). Slow; for tests and audits."""
+        vec, bad = self._vector(goals_tick, None, "goals_tick")
+        if bad:
+            raise GateInputError("; ".join(f.message for f in bad))
+        out = [f for f in lim.findings(vec, vec, np.zeros_like(vec), self.table) if f.check == "limit"]
+        targets, _, world, pulls = self._pose_arrays(vec[None, :])
+        out += self.coupling.findings(self._shares(targets)[0])
+        stretch, comp, flips = self.skin.measure(world[0], self.skin_source.offsets(pulls[0]))
+        out += strain_findings(float(stretch), float(comp), int(flips), self.config.strain)
+        out += [
+            Finding("collision", f"parts '{s.a}' and '{s.b}' intersect (exact mesh test)", parts=(s.a, s.b))
+            for s in self.collisions.colliding_exhaustive(world[0])
+        ]
+        return out
+
     # ---- for callers that need the twin's pose ----------------------------------------------------------
     def twin_pose(
         self, goals_tick: Mapping[int, int]
@@ -328,6 +349,6 @@ class TwinGate:
         if bad:
             raise GateInputError("; ".join(f.message for f in bad))
         targets, angles, _, pulls = self._pose_arrays(vec[None, :])
-        offsets = (self.skin.base - self.skin.rest) + (pulls[0] @ self.skin.basis.T).reshape(-1, 3)
+        offsets = self.skin_source.offsets(pulls[0])
         joint_deg = {n: float(a) for n, a in zip(self.tree.names, angles[0], strict=True)}
         return joint_deg, offsets, {r: float(t) for r, t in zip(self.poser.roles, targets[0], strict=True)}

@@ -1,14 +1,12 @@
-"""The twin's skin: pose it cheaply (rest + B @ pulls, then linear-blend skinning) and measure strain.
+"""The twin's skin: pose it (rest + offsets from the anchor pulls, then linear-blend skinning) and
+measure strain, only where the skin can change shape.
 
-``B`` is the anchor-pull deformation basis (3n, n_anchors), precomputed once from the face model (or the
-built-in falloff model when no face model is given), so one frame costs two small matrix products.
 Strain = edge length / rest length on a precomputed edge list; a triangle *flips* when its posed normal
 points against its rest normal carried by the skinning rotation at that triangle.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -31,62 +29,17 @@ class StrainLimits:
     max_flipped: int = 0
 
 
-def falloff_offsets(skin: Any, anchors: Sequence[Any], pulls_mm: Mapping[str, float]) -> FloatArray:
-    """Fallback skin offsets from anchor pulls: each anchor drags the skin near it along its line with a
-    raised-cosine falloff over ``radius_mm`` (used when no face model is given). (n, 3) mm."""
-    v = np.asarray(skin.vertices_mm, dtype=np.float64)
-    out = np.zeros_like(v)
-    for a in anchors:
-        pull = float(pulls_mm.get(a.role, 0.0))
-        if pull == 0.0:
-            continue
-        d = np.linalg.norm(v - v[a.vertex], axis=1) / max(a.radius_mm, 1e-9)
-        w = np.where(d < 1.0, 0.5 * (1.0 + np.cos(np.pi * np.minimum(d, 1.0))), 0.0)
-        out += pull * w[:, None] * np.asarray(a.line, dtype=np.float64)[None, :]
-    return out
-
-
-def pull_basis(
-    offsets: Callable[[Mapping[str, float]], FloatArray],
-    roles: Sequence[str],
-    neutral_mm: Sequence[float],
-    unit_mm: Sequence[float],
-) -> tuple[FloatArray, FloatArray, float]:
-    """(base (n, 3), B (3n, k), nonlinearity) with offsets(pulls) ~ base + B @ (pulls - neutral).
-
-    Columns are finite differences of ``unit_mm`` per anchor; ``nonlinearity`` is the largest error (mm)
-    of the linear model at one mixed test point, so the caller can refuse a face model that is not linear.
-    """
-    neutral = dict(zip(roles, neutral_mm, strict=True))
-    base = np.asarray(offsets(neutral), dtype=np.float64)
-    cols = []
-    for role, unit in zip(roles, unit_mm, strict=True):
-        probe = dict(neutral)
-        probe[role] = neutral[role] + unit
-        cols.append(((np.asarray(offsets(probe)) - base) / unit).reshape(-1))
-    basis = np.stack(cols, axis=1) if cols else np.zeros((base.size, 0))
-    mix = {
-        r: neutral[r] + 0.5 * u * (1 if i % 2 else -1)
-        for i, (r, u) in enumerate(zip(roles, unit_mm, strict=True))
-    }
-    pred = base.reshape(-1) + basis @ np.array([mix[r] - neutral[r] for r in roles])
-    err = float(np.max(np.abs(np.asarray(offsets(mix)).reshape(-1) - pred))) if roles else 0.0
-    return base, basis, err
-
-
 class SkinTwin:
     """Vectorised skin posing and strain for one head."""
 
-    def __init__(self, skin: Any, tree: JointTree, base_offset: FloatArray, basis: FloatArray) -> None:
+    def __init__(self, skin: Any, tree: JointTree, movable: NDArray[np.bool_]) -> None:
+        """``movable`` (n,) marks the vertices the anchor pulls can move (see `skin_source`)."""
         self.rest = np.asarray(skin.vertices_mm, dtype=np.float64)
         self.faces = np.asarray(skin.faces, dtype=np.int64)
         n = self.rest.shape[0]
-        if basis.shape[0] != 3 * n or base_offset.shape != (n, 3):
-            raise GateConfigError(
-                f"skin basis shapes {basis.shape}/{base_offset.shape} do not fit {n} vertices"
-            )
-        self.base = self.rest + base_offset
-        self.basis = basis
+        if movable.shape != (n,):
+            raise GateConfigError(f"movable mask shape {movable.shape} does not fit {n} skin vertices")
+        self.movable = movable
         weights = np.asarray(skin.weights, dtype=np.float64)
         # columns: 0 = head base, j + 1 = skin.joint_names[j]  ->  slot order of JointTree + base last
         slot = [len(tree.names)] + [tree.index[name] for name in skin.joint_names]
@@ -107,26 +60,23 @@ class SkinTwin:
 
     def _split_active(self) -> None:
         """Edges and faces whose shape can change (touched by a pull, blended between joints, or spanning
-        two joints) are measured per frame; the rest keep their neutral values, computed once here."""
+        two joints) are measured per frame; the rest keep their rest shape and are measured once here."""
         w = self.weights
         one_joint = (w > 0).sum(axis=1) == 1
-        pulled = np.abs(self.basis).reshape(-1, 3, self.basis.shape[1]).sum(axis=(1, 2)) > 0
         joint_of = np.where(one_joint, np.argmax(w, axis=1), -1)
-        soft = ~one_joint | pulled
+        soft = ~one_joint | self.movable
         e0, e1 = self.edges[:, 0], self.edges[:, 1]
         act_e = soft[e0] | soft[e1] | (joint_of[e0] != joint_of[e1])
         f = self.faces
-        act_f = (
+        area2 = np.linalg.norm(self.rest_normal, axis=1)
+        act_f = (area2 > 1e-9 * max(float(area2.max(initial=0.0)), 1e-12)) & (
             soft[f].any(axis=1)
             | (joint_of[f[:, 0]] != joint_of[f[:, 1]])
             | (joint_of[f[:, 0]] != joint_of[f[:, 2]])
-        )
-        base_ratio = np.linalg.norm(self.base[e0] - self.base[e1], axis=1) / self.rest_len
-        fixed = ~act_e
-        self._const_max = float(base_ratio[fixed].max()) if fixed.any() else 0.0
-        self._const_min = float(base_ratio[fixed].min()) if fixed.any() else np.inf
-        base_n = self._normals(self.base)
-        self._const_flips = int((np.einsum("fi,fi->f", base_n, self.rest_normal)[~act_f] <= 0.0).sum())
+        )  # degenerate rest triangles have no normal to flip: left out
+        self._const_max = 1.0 if (~act_e).any() else 0.0
+        self._const_min = 1.0 if (~act_e).any() else np.inf
+        self._const_flips = 0
         verts = np.unique(np.concatenate([self.edges[act_e].ravel(), f[act_f].ravel()]))
         remap = np.full(len(self.rest), -1, dtype=np.int64)
         remap[verts] = np.arange(len(verts))
@@ -135,8 +85,7 @@ class SkinTwin:
         self._rest_len = self.rest_len[act_e]
         self._faces = remap[f[act_f]]
         self._rest_normal = self.rest_normal[act_f]
-        self._base = self.base[verts]
-        self._basis = self.basis.reshape(-1, 3, self.basis.shape[1])[verts].reshape(-1, self.basis.shape[1])
+        self._rest_v = self.rest[verts]
         self._w = self._w_used[verts]
         self._face_w = self._w_used[f[act_f]].mean(axis=1)
         self.n_active_edges = int(act_e.sum())
@@ -153,18 +102,18 @@ class SkinTwin:
         mats = np.concatenate([world, eye], axis=-3)[..., self._used, :3, :]
         return mats.reshape(*lead, len(self._used), 12)
 
-    def posed(self, world: FloatArray, pulls: FloatArray) -> FloatArray:
-        """(..., n, 3) every posed skin vertex; ``pulls`` (..., k) mm from neutral."""
-        v = self.base + (pulls @ self.basis.T).reshape(*pulls.shape[:-1], -1, 3)
+    def posed(self, world: FloatArray, offsets: FloatArray) -> FloatArray:
+        """(..., n, 3) every posed skin vertex for (..., n, 3) offsets."""
+        v = self.rest + offsets
         m = (self._w_used @ self._mats(world)).reshape(*v.shape[:-1], 3, 4)
         return np.einsum("...nij,...nj->...ni", m[..., :3], v) + m[..., 3]
 
     def measure(
-        self, world: FloatArray, pulls: FloatArray
+        self, world: FloatArray, offsets: FloatArray
     ) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
-        """(max stretch (...,), min compression (...,), flipped triangle count (...,))."""
+        """(max stretch (...,), min compression (...,), flipped triangles (...,)) for (..., n, 3) offsets."""
         mats = self._mats(world)
-        v = self._base + (pulls @ self._basis.T).reshape(*pulls.shape[:-1], -1, 3)
+        v = self._rest_v + offsets[..., self._v, :]
         m = (self._w @ mats).reshape(*v.shape[:-1], 3, 4)
         v = np.einsum("...nij,...nj->...ni", m[..., :3], v) + m[..., 3]
         d = v[..., self._edges[:, 0], :] - v[..., self._edges[:, 1], :]

@@ -103,8 +103,8 @@ class TwinPoser:
         return np.clip(q, self.tree.lower_deg, self.tree.upper_deg)
 
     def pulls(self, targets: FloatArray) -> FloatArray:
-        """(k, n_anchors) anchor pulls relative to the anchors' neutral (mm)."""
-        return targets[:, self.anchor_cols] - self.anchor_neutral_mm
+        """(k, n_anchors) anchor pulls (mm along each line, absolute like the actuator targets)."""
+        return targets[:, self.anchor_cols]
 
 
 def _lower(a: Any) -> float:

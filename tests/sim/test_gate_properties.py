@@ -36,12 +36,7 @@ def assert_safe(gate: TwinGate, v: Verdict, last: np.ndarray, last_step: np.ndar
     assert np.all(np.abs(step) <= t.max_step_tick), v
     lo, hi = step_bounds(last_step, t)
     assert np.all(step >= lo) and np.all(step <= hi), v
-    targets, _, world, pulls = gate._pose_arrays(sent[None, :])
-    assert gate.collisions.colliding_exhaustive(world[0]) == [], v
-    assert gate.coupling.ok(gate._shares(targets))[0], v
-    stretch, comp, flips = gate.skin.measure(world[0], pulls[0])
-    s = gate.config.strain
-    assert stretch <= s.max_stretch and comp >= s.min_compression and flips <= s.max_flipped, v
+    assert gate.audit(v.goals_tick) == [], v
     if v.kind == "accept":
         assert np.array_equal(sent, req)
     elif v.kind == "reject":

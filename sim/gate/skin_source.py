@@ -1,0 +1,132 @@
+"""Where the twin's skin offsets come from, cheaply per frame.
+
+With the face model (MUSCLES' twin, `FaceModel.pose_from_targets`): the muscle contractions are its
+bounded least-squares fit to the anchor pulls (solved here by the warm-started `box_lsq.BoxLsq`: the
+same unique minimiser as ``fm.fit.contractions``), the skin is its muscle field for those contractions
+(``fm.field.offsets``) plus its smooth anchor bumps for what the muscles leave unexplained
+(``fm.fit.bumps``, linear in the residual, so precomputed as a matrix). That is the face model's own skin
+(tested against ``pose_from_targets``) without its per-call cost.
+Without a face model: a raised-cosine falloff per anchor (linear in the pulls).
+``movable`` marks the vertices any pull can move; the strain check only re-measures around them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sim.gate.box_lsq import BoxLsq
+from sim.gate.errors import GateConfigError
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class SkinSource:
+    """offsets(p) = base + field(c(p)) + Bm @ (p - L @ c(p)) for absolute anchor pulls p (A,) in mm."""
+
+    base: FloatArray  # (n, 3)
+    bumps: FloatArray  # (3n, A)
+    unit_pull: FloatArray  # (A, M)
+    contract: Callable[[FloatArray], FloatArray] | None  # p -> c (M,), None = no muscles
+    field: Callable[[FloatArray], FloatArray] | None  # c -> (n, 3)
+    lower_mm: FloatArray
+    upper_mm: FloatArray
+    movable: BoolArray  # (n,)
+
+    def offsets(self, pulls_mm: FloatArray) -> FloatArray:
+        """(n, 3) skin offsets for one pull vector (A,), clamped to the actuator ranges first."""
+        p = np.clip(pulls_mm, self.lower_mm, self.upper_mm)
+        if self.contract is None or self.field is None:
+            return self.base + (self.bumps @ p).reshape(-1, 3)
+        c = self.contract(p)
+        return self.base + self.field(c) + (self.bumps @ (p - self.unit_pull @ c)).reshape(-1, 3)
+
+    def offsets_batch(self, pulls_mm: FloatArray) -> FloatArray:
+        """(k, n, 3) for (k, A) pulls."""
+        p = np.clip(pulls_mm, self.lower_mm, self.upper_mm)
+        if self.contract is None:
+            return self.base + (p @ self.bumps.T).reshape(p.shape[0], -1, 3)
+        return np.stack([self.offsets(row) for row in p])
+
+
+def _support(flat_cols: FloatArray) -> BoolArray:
+    return np.asarray(np.abs(flat_cols).reshape(-1, 3, flat_cols.shape[-1]).sum(axis=(1, 2)) > 0)
+
+
+def falloff_source(skin: Any, anchors: Sequence[Any]) -> SkinSource:
+    """Each anchor drags the skin within ``radius_mm`` of its vertex along its line (raised cosine)."""
+    v = np.asarray(skin.vertices_mm, dtype=np.float64)
+    cols = []
+    for a in anchors:
+        d = np.linalg.norm(v - v[a.vertex], axis=1) / max(float(a.radius_mm), 1e-9)
+        w = np.where(d < 1.0, 0.5 * (1.0 + np.cos(np.pi * np.minimum(d, 1.0))), 0.0)
+        line = np.asarray(a.line, dtype=np.float64)
+        cols.append((w[:, None] * (line / np.linalg.norm(line))[None, :]).reshape(-1))
+    bumps = np.stack(cols, axis=1) if cols else np.zeros((v.size, 0))
+    neutral = np.array([a.neutral_mm for a in anchors], dtype=np.float64)
+    return SkinSource(
+        base=-(bumps @ neutral).reshape(-1, 3),
+        bumps=bumps,
+        unit_pull=np.zeros((len(anchors), 0)),
+        contract=None,
+        field=None,
+        lower_mm=np.array([a.lower_mm for a in anchors], dtype=np.float64),
+        upper_mm=np.array([a.upper_mm for a in anchors], dtype=np.float64),
+        movable=_support(bumps) if cols else np.zeros(len(v), dtype=bool),
+    )
+
+
+def face_model_source(face_model: Any, anchors: Sequence[Any]) -> SkinSource:
+    """The face model's twin skin (see module docstring)."""
+    fm = face_model
+    if getattr(fm.field, "eyelids", None):
+        raise GateConfigError(
+            "the face model moves skin with joint angles (eyelid muscles); the gate's skin needs offsets "
+            "that depend on the anchor pulls only"
+        )
+    model_roles = [a.role for a in fm.anchor_actuators]
+    if model_roles != [a.role for a in anchors]:
+        raise GateConfigError(
+            f"face model anchors {model_roles} differ from the gate's {[a.role for a in anchors]}"
+        )
+    n = int(fm.n_vertices)
+    n_muscles = len(fm.field.names)
+    n_anchors = len(anchors)
+    bumps = (
+        np.stack(
+            [np.asarray(fm.fit.bumps(np.eye(n_anchors)[a])).reshape(-1) for a in range(n_anchors)], axis=1
+        )
+        if n_anchors
+        else np.zeros((3 * n, 0))
+    )
+    movable = _support(bumps) if n_anchors else np.zeros(n, dtype=bool)
+    low, high = float(fm.fit.low), float(fm.fit.high)
+    for m in range(n_muscles):
+        for value in (low, high, 0.5 * (low + high)):
+            c = np.zeros(n_muscles)
+            c[m] = value
+            movable |= np.abs(np.asarray(fm.field.offsets(c))).sum(axis=1) > 0
+    unit_pull = np.asarray(fm.fit.unit_pull, dtype=np.float64)
+    solver = BoxLsq(np.vstack([unit_pull, float(fm.fit.mu) * np.eye(n_muscles)]), low, high)
+    zeros = np.zeros(n_muscles)
+
+    def contract(p: FloatArray) -> FloatArray:
+        c = solver.solve(np.concatenate([p, zeros]))
+        return np.asarray(fm.fit.contractions(p), dtype=np.float64) if c is None else c
+
+    return SkinSource(
+        base=np.zeros((n, 3)),
+        bumps=bumps,
+        unit_pull=unit_pull,
+        contract=contract,
+        field=lambda c: np.asarray(fm.field.offsets(c), dtype=np.float64),
+        lower_mm=np.array([a.lower_mm for a in anchors], dtype=np.float64),
+        upper_mm=np.array([a.upper_mm for a in anchors], dtype=np.float64),
+        movable=movable,
+    )
