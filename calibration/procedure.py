@@ -74,6 +74,11 @@ class Jog:
 
 
 @dataclass(frozen=True)
+class Relax:
+    """Switch torque off again (after jogging) so the servo can be moved by hand."""
+
+
+@dataclass(frozen=True)
 class Finish:
     """No (more) points for this step: ends the free-point loop, or skips an intermediate point."""
 
@@ -83,7 +88,7 @@ class Abort:
     """Stop the whole procedure; nothing is saved."""
 
 
-Reply = Capture | Jog | Finish | Abort
+Reply = Capture | Jog | Relax | Finish | Abort
 
 
 class Operator(Protocol):
@@ -202,6 +207,9 @@ class _Session:
                 raise ProcedureAborted(f"calibration aborted by the operator at servo '{spec.role}' ({step})")
             if isinstance(reply, Jog):
                 self.jog(spec, reply.delta_tick)
+                continue
+            if isinstance(reply, Relax):
+                self.torque_off(spec)
                 continue
             if isinstance(reply, Finish):
                 if step in ("neutral", "lower", "upper"):

@@ -32,7 +32,7 @@ def round_ticks(ticks: NDArray[np.float64]) -> NDArray[np.int64]:
     return np.floor(ticks + 0.5).astype(np.int64)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RbfCoupling:
     """The pull of a skin anchor as a function of its own tick and its neighbours' ticks.
 
@@ -50,7 +50,7 @@ class RbfCoupling:
             )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # identity equality: curves and arrays have no useful ==
 class ServoCalibration:
     """Calibration of one servo: actuator target (deg or mm) <-> goal tick."""
 

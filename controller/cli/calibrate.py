@@ -26,7 +26,7 @@ HELP = "calibrate a head's servos (interactive on a port/emulator, or from a CSV
 
 KEYS_HELP = """keys: Enter = capture here (at the asked target) | =VALUE = capture, the actuator is at VALUE
       j / k = jog -/+ one step (torque on) | J / K = ten steps | +N / -N = jog N ticks
-      g = jog to where the current calibration file puts the asked target
+      g = jog to where the current calibration file puts the asked target | r = torque off (move by hand)
       d = done (no more points / skip this point) | q = abort (nothing saved) | ? = this help"""
 
 
@@ -147,7 +147,7 @@ class TerminalOperator:
         print(f"  ! {message}")
 
     def ask(self, prompt: Prompt) -> Reply:
-        from calibration.procedure import Abort, Capture, Finish, Jog
+        from calibration.procedure import Abort, Capture, Finish, Jog, Relax
 
         if not self._shown_help:
             print(KEYS_HELP)
@@ -186,6 +186,8 @@ class TerminalOperator:
                     print("  no earlier calibration of this servo to go by; jog with j/k")
                     continue
                 return Jog(prompt.suggested_tick - prompt.present_tick)
+            if text == "r":
+                return Relax()
             if text == "d":
                 return Finish()
             if text == "q":
@@ -206,6 +208,7 @@ def run(args: argparse.Namespace) -> int:
     from calibration.errors import CalibrationError, ProcedureAborted
     from calibration.fileformat import load_calibration
     from calibration.procedure import ProcedureOptions, calibrate_from_csv
+    from hardware.errors import HardwareError
     from sim.heads import load_head
 
     try:
@@ -253,6 +256,9 @@ def run(args: argparse.Namespace) -> int:
     except ProcedureAborted as err:
         print(f"servoface calibrate: {err}; nothing saved", file=sys.stderr)
         return 1
+    except HardwareError as err:
+        print(f"servoface calibrate: bus: {err}; nothing saved", file=sys.stderr)
+        return 1
     except CalibrationError as err:
         print(f"servoface calibrate: {err}", file=sys.stderr)
         return 1
@@ -281,6 +287,7 @@ def _interactive(
     else:
         bus = open_bus("dynamixel", port=args.port, baud=args.baud)
     try:
+        check_servos_answer(bus, specs)
         return run_procedure(
             BusServoAccess(bus),
             TerminalOperator(args.jog_step),
@@ -295,6 +302,29 @@ def _interactive(
         bus.close()
         if chain is not None:
             chain.close()
+
+
+def check_servos_answer(bus: ServoBus, specs: list[ServoSpec]) -> None:
+    """Ping every servo first: fail before touching anything, naming the silent ids and wrong models."""
+    from hardware.errors import BusError, HardwareConfigError
+    from hardware.registers import model_by_name, model_name
+
+    silent, wrong = [], []
+    for s in specs:
+        try:
+            reply = bus.ping(s.servo_id)
+        except BusError:
+            silent.append(f"{s.servo_id} ({s.role})")
+            continue
+        try:
+            expected = model_by_name(s.model).number
+        except KeyError:
+            continue
+        if reply.model_number != expected:
+            wrong.append(f"{s.servo_id} ({s.role}) is a {model_name(reply.model_number)}, not a {s.model}")
+    if silent or wrong:
+        problems = ([f"no answer from id(s) {', '.join(silent)}"] if silent else []) + wrong
+        raise HardwareConfigError(f"on {bus.port_name} at {bus.baud} bps: " + "; ".join(problems))
 
 
 def _report(result: Any) -> None:

@@ -120,3 +120,32 @@ def test_builtin_regeneration(tmp_path: Path) -> None:
     assert main(["calibrate", "--head", "dog", "--builtin", "--out", str(out)]) == 0
     shipped = Path(__file__).resolve().parents[2] / "sim" / "heads" / "dog" / "calibration.json"
     assert out.read_text() == shipped.read_text()
+
+
+def test_port_mode_checks_every_servo_answers_first(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Over a pty (as with 'servoface emulate'): a missing id and a wrong model stop before any write."""
+    from hardware.emulator import ServoChain
+
+    with ServoChain.create(ids=[(18, "XL330-M288"), (20, "XM430-W350")], wire_time=False) as chain:
+        port = chain.serve_pty()
+        code = main(
+            [
+                "calibrate",
+                "--head",
+                "human",
+                "--port",
+                port,
+                "--roles",
+                "jaw,neck_pan,neck_tilt",
+                "--out",
+                str(tmp_path / "x.json"),
+            ]
+        )
+        err = capsys.readouterr().err
+        assert code == 1
+        assert "no answer from id(s) 19 (neck_pan)" in err
+        assert "18 (jaw) is a XL330-M288, not a XL430-W250" in err
+        assert "nothing saved" in err and not (tmp_path / "x.json").exists()
+        assert chain.goal_writes() == [] and not chain.servo(20).torque_on

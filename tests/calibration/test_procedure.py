@@ -25,6 +25,7 @@ from calibration.procedure import (
     Jog,
     ProcedureOptions,
     Prompt,
+    Relax,
     Reply,
     calibrate_from_csv,
     run_procedure,
@@ -135,6 +136,27 @@ def test_jogging_pins_the_goal_before_torque_on(tmp_path: Path) -> None:
     first_torque_on = servos.log.index(("torque", 18, 1))
     assert servos.log[first_torque_on - 1] == ("goal", 18, 2048)  # goal = present, then torque on
     assert load_calibration(tmp_path / "cal.json")["jaw"].to_tick(25.0) == round(2048 + 25 * 4096 / 360)
+
+
+def test_relax_switches_torque_off_after_a_jog() -> None:
+    specs = small_specs()[:1]
+    servos = FakeServos({18: 2048})
+
+    class JogThenHand(ScriptedHand):
+        def ask(self, prompt: Prompt) -> Reply:
+            if prompt.step == "upper" and servos.present[18] == 2048:
+                return Jog(50)
+            if prompt.step == "upper" and servos.torque.get(18):
+                return Relax()
+            return super().ask(prompt)
+
+    result = run_procedure(
+        servos, JogThenHand(servos, specs), specs, "one", options=ProcedureOptions(intermediate=0)
+    )
+    assert ("goal", 18, 2098) in servos.log
+    on = servos.log.index(("torque", 18, 1))
+    assert ("torque", 18, 0) in servos.log[on:]  # relaxed before the hand moved it on
+    assert result.calibration["jaw"].to_tick(25.0) == round(2048 + 25 * 4096 / 360)
 
 
 def test_free_points_are_added_and_abort_saves_nothing(tmp_path: Path) -> None:
