@@ -196,7 +196,7 @@ class MeshScene:
             geometry.append(part_geometry(item, name, face_type, paint_eyes))
             key = (finish_for(name), not item.mesh.is_watertight, bool(geometry[-1].colors[:, 3].min() < 1.0))
             groups.setdefault(key, []).append(i)
-        for (finish, double_sided, blend), indices in groups.items():
+        for order, ((finish, double_sided, blend), indices) in enumerate(groups.items()):
             material = self.pyrender.MetallicRoughnessMaterial(
                 baseColorFactor=np.ones(4),
                 metallicFactor=finish.metallic,
@@ -205,6 +205,9 @@ class MeshScene:
                 doubleSided=double_sided,
             )
             batch = RigidBatch(self.pyrender, [geometry[i] for i in indices], material)
+            # a fixed draw order (pyrender's is a set's): open overlays (iris and pupil discs lying on the
+            # eyeball) before closed parts, so they win depth ties; the same image in every process
+            batch.mesh.draw_order = order if double_sided else 100 + order
             self._batch_nodes[id(batch)] = self.scene.add(batch.mesh, pose=np.eye(4))
             self._batches.append((batch, indices))
 
