@@ -1,0 +1,74 @@
+"""`servoface play EXPR|SCRIPT --head NAME|PATH (--port PORT [--baud B] | --emulate)`."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+HELP = "play an expression or a timeline script on a head, on a real port or on the emulator"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("what", help="an expression name (see `servoface preview --all`) or a script .toml")
+    parser.add_argument("--head", default="human", help="built-in head (human, dog) or a profile folder")
+    where = parser.add_mutually_exclusive_group(required=True)
+    where.add_argument("--port", help="serial port of the chain, e.g. /dev/ttyUSB0 (or a pty from `servoface emulate`)")
+    where.add_argument("--emulate", action="store_true", help="run on an in-process emulated chain")
+    parser.add_argument("--baud", type=int, default=1_000_000, help="bus speed in bps (default 1000000)")
+    parser.add_argument("--rate", type=float, default=50.0, help="control rate in Hz (default 50)")
+    parser.add_argument("--hold", type=float, default=1.5, help="seconds to hold an expression's apex (default 1.5)")
+    parser.add_argument("--calibration", type=Path, help="calibration JSON (default: the one the profile names)")
+    parser.add_argument("--trace", type=Path, help="write every frame's trace as JSON lines to this file")
+
+
+def run(args: argparse.Namespace) -> int:
+    from calibration import CalibrationError
+    from controller.errors import ControllerError
+    from controller.face import Face
+    from hardware.errors import HardwareError
+    from sim.errors import SimError
+
+    if not (0 < args.rate <= 1000):
+        print(f"servoface play: --rate must be within 0..1000 Hz, got {args.rate}", file=sys.stderr)
+        return 2
+    if not (args.hold >= 0):
+        print(f"servoface play: --hold must be >= 0 s, got {args.hold}", file=sys.stderr)
+        return 2
+    is_script = args.what.endswith(".toml") or Path(args.what).is_file()
+    try:
+        face = Face.open(args.head, port=args.port, emulate=args.emulate, baud=args.baud, rate_hz=args.rate,
+                         calibration=args.calibration)
+    except (ControllerError, SimError, CalibrationError, HardwareError, ValueError, OSError) as err:
+        print(f"servoface play: {err}", file=sys.stderr)
+        return 2
+    try:
+        with face:
+            if is_script:
+                perf = face.play(args.what)
+            else:
+                perf = face.express(args.what, hold_s=args.hold)
+    except (ControllerError, SimError, ValueError) as err:
+        print(f"servoface play: {err}", file=sys.stderr)
+        return 2
+    except HardwareError as err:
+        print(f"servoface play: bus failure, torque turned off: {err}", file=sys.stderr)
+        return 1
+    summary = perf.summary()
+    loop = summary.get("loop", {})
+    print(f"{summary['frames']} frames; verdicts {summary['verdicts']}; loop {loop.get('achieved_hz')} Hz "
+          f"(target {args.rate:g}), late {loop.get('late')}, skipped {loop.get('missed')}")
+    reasons: dict[str, int] = {}
+    for trace in perf.traces:
+        for reason in trace.reasons:
+            key = reason.split(":")[0]
+            reasons[key] = reasons.get(key, 0) + 1
+    for reason, count in sorted(reasons.items(), key=lambda kv: -kv[1])[:12]:
+        print(f"  {count:5d} x {reason}")
+    if args.trace is not None:
+        with args.trace.open("w") as fh:
+            for trace in perf.traces:
+                fh.write(json.dumps(trace.as_dict()) + "\n")
+        print(f"trace written to {args.trace}")
+    return 130 if perf.interrupted else 0
