@@ -42,6 +42,8 @@ class HeadCalibration:
         servos: Sequence[ServoCalibration],
         metadata: CalibrationMetadata | None = None,
     ) -> None:
+        if not servos:
+            raise CalibrationError(f"head '{head}': a calibration needs at least one servo")
         self.head = head
         self.metadata = metadata or CalibrationMetadata()
         self._by_role: dict[str, ServoCalibration] = {}

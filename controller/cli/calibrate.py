@@ -68,6 +68,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="curve kind for every servo (default: linear for joints, pchip for anchors)",
     )
     parser.add_argument("--jog-step", type=int, default=10, help="ticks per jog key (default 10)")
+    parser.add_argument(
+        "--mirror",
+        help="derive servos as mirror images instead of measuring them: SRC:DST[,SRC:DST], e.g. "
+        "brow_inner_l:brow_inner_r (DST = SRC reflected about its neutral tick)",
+    )
 
 
 def specs_from_head(head: Any) -> list[ServoSpec]:
@@ -206,7 +211,7 @@ def _default_out(head: Any, name: str) -> Path:
 def run(args: argparse.Namespace) -> int:
     from calibration.builtin import write_builtin
     from calibration.errors import CalibrationError, ProcedureAborted
-    from calibration.fileformat import load_calibration
+    from calibration.fileformat import load_calibration, save_calibration
     from calibration.procedure import ProcedureOptions, calibrate_from_csv
     from hardware.errors import HardwareError
     from sim.heads import load_head
@@ -227,6 +232,12 @@ def run(args: argparse.Namespace) -> int:
             )
             return 2
         specs = [s for s in specs if s.role in wanted]
+    try:
+        mirror = parse_mirror(args.mirror, specs_from_head(head)) if args.mirror else []
+    except ValueError as err:
+        print(f"servoface calibrate: --mirror: {err}", file=sys.stderr)
+        return 2
+    specs = [s for s in specs if s.role not in {dst for _, dst in mirror}]
     out = args.out or _default_out(head, args.head)
     if args.builtin:
         path = write_builtin(head.name, specs, out, source=builtin_source(head))
@@ -246,13 +257,16 @@ def run(args: argparse.Namespace) -> int:
     try:
         if args.csv is not None:
             result = calibrate_from_csv(
-                args.csv, specs, head.name, curve_kind=args.curve, plot_dir=args.plot_dir, out=out, keep=keep
+                args.csv, specs, head.name, curve_kind=args.curve, plot_dir=args.plot_dir, keep=keep
             )
         else:
             options = ProcedureOptions(
                 intermediate=args.points, free_points=args.free_points, curve_kind=args.curve, guide=guide
             )
-            result = _interactive(args, specs, head.name, options, out, keep)
+            result = _interactive(args, specs, head.name, options, keep)
+        if mirror:
+            result.calibration = apply_mirror(result.calibration, mirror, specs_from_head(head))
+        result.saved_to = save_calibration(result.calibration, out)
     except ProcedureAborted as err:
         print(f"servoface calibrate: {err}; nothing saved", file=sys.stderr)
         return 1
@@ -271,7 +285,6 @@ def _interactive(
     specs: list[ServoSpec],
     head_name: str,
     options: ProcedureOptions,
-    out: Path,
     keep: Any,
 ) -> ProcedureResult:
     from calibration.procedure import run_procedure
@@ -295,13 +308,42 @@ def _interactive(
             head_name,
             options=options,
             plot_dir=args.plot_dir,
-            out=out,
             keep=keep,
         )
     finally:
         bus.close()
         if chain is not None:
             chain.close()
+
+
+def parse_mirror(text: str, specs: list[ServoSpec]) -> list[tuple[str, str]]:
+    """``"a_l:a_r,b_l:b_r"`` -> [("a_l", "a_r"), ...]; both roles must be servos of the head."""
+    known = {s.role for s in specs}
+    pairs = []
+    for part in filter(None, (p.strip() for p in text.split(","))):
+        src, sep, dst = (x.strip() for x in part.partition(":"))
+        if not sep or not src or not dst or src == dst:
+            raise ValueError(f"{part!r}: expected SRC:DST with two different roles")
+        for role in (src, dst):
+            if role not in known:
+                raise ValueError(f"unknown role {role!r}; the head has {sorted(known)}")
+        pairs.append((src, dst))
+    if len({d for _, d in pairs}) != len(pairs) or {d for _, d in pairs} & {s for s, _ in pairs}:
+        raise ValueError(f"{text!r}: each DST once, and never also a SRC")
+    return pairs
+
+
+def apply_mirror(cal: Any, pairs: list[tuple[str, str]], specs: list[ServoSpec]) -> Any:
+    """Add/replace each DST servo by the mirror image of its SRC; servos ordered as in the head."""
+    from calibration.head import HeadCalibration
+    from calibration.mirror import mirror_servo
+
+    by_role = {s.role: s for s in cal.servos}
+    spec_of = {s.role: s for s in specs}
+    for src, dst in pairs:
+        by_role[dst] = mirror_servo(cal[src], dst, spec_of[dst].servo_id, spec_of[dst].model)
+    order = [s.role for s in specs if s.role in by_role] + [r for r in by_role if r not in spec_of]
+    return HeadCalibration(cal.head, [by_role[r] for r in order], cal.metadata)
 
 
 def check_servos_answer(bus: ServoBus, specs: list[ServoSpec]) -> None:

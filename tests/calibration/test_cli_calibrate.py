@@ -149,3 +149,32 @@ def test_port_mode_checks_every_servo_answers_first(
         assert "18 (jaw) is a XL330-M288, not a XL430-W250" in err
         assert "nothing saved" in err and not (tmp_path / "x.json").exists()
         assert chain.goal_writes() == [] and not chain.servo(20).torque_on
+
+
+def test_mirror_derives_the_right_side_from_the_left(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rows = [f"brow_inner_l,{t},{tick}" for t, tick in ((-5.0, 1700), (0.0, 2048), (3.0, 2260), (8.0, 2610))]
+    (tmp_path / "m.csv").write_text("\n".join(rows) + "\n")
+    out = tmp_path / "h.json"
+    code = main(
+        [
+            "calibrate",
+            "--head",
+            "human",
+            "--csv",
+            str(tmp_path / "m.csv"),
+            "--roles",
+            "brow_inner_l,brow_inner_r",
+            "--mirror",
+            "brow_inner_l:brow_inner_r",
+            "--out",
+            str(out),
+        ]
+    )
+    assert code == 0, capsys.readouterr().err
+    cal = load_calibration(out)
+    assert cal.roles[:2] == ("brow_inner_l", "brow_inner_r")
+    assert cal["brow_inner_r"].to_tick(3.0) == 2048 - 212 and cal["brow_inner_r"].servo_id == 2
+    assert main(["calibrate", "--head", "human", "--builtin", "--mirror", "jaw:jaw", "--out", str(out)]) == 2
+    assert "two different roles" in capsys.readouterr().err

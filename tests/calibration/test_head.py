@@ -64,6 +64,8 @@ def test_duplicate_roles_and_ids_are_refused() -> None:
         HeadCalibration("x", servos + [dataclasses.replace(servos[0], role="jaw2")])
     with pytest.raises(CalibrationError, match="role 'jaw' appears twice"):
         HeadCalibration("x", servos + [dataclasses.replace(servos[0], servo_id=40)])
+    with pytest.raises(CalibrationError, match="at least one servo"):
+        HeadCalibration("x", [])
 
 
 def _coupled_head() -> HeadCalibration:
