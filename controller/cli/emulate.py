@@ -84,7 +84,11 @@ def run(args: argparse.Namespace) -> int:
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         with chain:
-            path = chain.serve_pty()
+            try:
+                path = chain.serve_pty()
+            except EmulatorError as err:
+                print(f"servoface emulate: {err}", file=sys.stderr)
+                return 1
             print(path, flush=True)
             print(
                 f"# serving {len(args.ids)} x {args.model} at {args.baud} bps"
