@@ -38,6 +38,7 @@ MOTION = (Register.MOVING, Register.PRESENT_CURRENT, Register.PRESENT_VELOCITY) 
 THERMAL = (Register.PRESENT_INPUT_VOLTAGE, Register.PRESENT_TEMPERATURE)  # 144..146
 STATUS = (Register.TORQUE_ENABLE, Register.HARDWARE_ERROR_STATUS)  # 64..70
 _READ_FAILURES = (BusTimeoutError, BusCorruptError, ServoStatusError)
+FAST_READ_GIVE_UP = 3  # cycles of "fast read fails, single reads work" before falling back to Sync Read
 
 
 @dataclass
@@ -94,6 +95,8 @@ class Driver:
         self.events: deque[FaultEvent] = deque(maxlen=1000)
         self._reactions = FaultReactions(bus, self.policy, self._emit, self._recover, self._request_read)
         self._probe_index = 0
+        self._group_failed = False
+        self._fast_failures = 0
         self._last: ChainSnapshot | None = None
 
     # -- ownership ----------------------------------------------------------------------------------
@@ -238,15 +241,15 @@ class Driver:
         self, ids: list[int], registers: tuple[Register, ...], fast: bool = False
     ) -> dict[int, dict[Register, int]]:
         """Group read with retries; on failure, read servo by servo to find the silent one."""
+        self._group_failed = False
         if not ids:
             return {}
         for _ in range(1 + self.policy.retries):
             try:
                 return self.bus.sync_read(ids, registers, fast=fast)
-            except BusTimeoutError:
-                pass
-            except BusCorruptError:
-                pass
+            except (BusTimeoutError, BusCorruptError):
+                continue
+        self._group_failed = True
         out: dict[int, dict[Register, int]] = {}
         for sid in ids:
             for _ in range(1 + self.policy.retries):
@@ -291,11 +294,25 @@ class Driver:
     def _read_positions(self, now: float) -> None:
         ids = self._readable(now)
         got = self._read_group(ids, POSITION, fast=self.fast_sync_read)
+        if self.fast_sync_read and ids:
+            self._check_fast_read_support(self._group_failed and len(got) == len(ids))
         for sid, values in got.items():
             rec = self._records[sid]
             rec.position_tick = values[Register.PRESENT_POSITION]
             rec.position_t_s = now
         self._mark_results(ids, got, now)
+
+    def _check_fast_read_support(self, only_fast_failed: bool) -> None:
+        """Fast Sync Read failing while every single read works means the firmware lacks it: fall back."""
+        self._fast_failures = self._fast_failures + 1 if only_fast_failed else 0
+        if self._fast_failures >= FAST_READ_GIVE_UP:
+            self.fast_sync_read = False
+            self._emit(
+                None,
+                FaultKind.CORRUPT,
+                f"Fast Sync Read failed {self._fast_failures} cycles running while every servo answered "
+                "single reads (firmware without it?): positions now read with plain Sync Read",
+            )
 
     def _read_slow_group(self, now: float) -> None:
         if self.bus.alerts:  # an Alert bit seen on a single transaction: read Hardware Error Status now

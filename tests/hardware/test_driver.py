@@ -205,3 +205,24 @@ def test_driver_thread_reports_errors_to_callers() -> None:
     finally:
         runner.stop()
         chain.close()
+
+
+def test_fast_sync_read_falls_back_when_the_firmware_lacks_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The emulator answers Fast Sync Read on any firmware, so an old firmware's silence is imitated at the
+    bus: every Fast Sync Read fails as on such a chain, while everything else goes over the emulated wire."""
+    from hardware.errors import BusTimeoutError
+
+    chain, driver = make_driver()
+    driver.fast_sync_read = True
+    real_sync_read = driver.bus.sync_read
+
+    def old_firmware(ids, registers, *, fast=False):  # type: ignore[no-untyped-def]
+        if fast:
+            raise BusTimeoutError("fast sync read: no reply", tuple(ids))
+        return real_sync_read(ids, registers, fast=fast)
+
+    monkeypatch.setattr(driver.bus, "sync_read", old_firmware)
+    snaps = run(chain, driver, {1: 2600}, 0.5)
+    assert not driver.fast_sync_read and snaps[-1][1].position_tick == 2600
+    assert not any(s.missing or s.stale for s in snaps[-1])
+    assert any("Fast Sync Read failed" in e.reaction for e in driver.events)
