@@ -41,6 +41,7 @@ class ServoChain:
         clock: Callable[[], float] | str | None = None,
         log_limit: int | None = 1_000_000,
         delivery: str = "byte",
+        goal_limit: str = "reject",
     ) -> None:
         if clock is None or clock == "real":
             self._clock: Callable[[], float] = RealClock()
@@ -59,6 +60,8 @@ class ServoChain:
         # "byte": reply bytes readable one by one as they arrive; "packet": each status packet (or fast-read
         # block) readable whole once its last byte has arrived, like a USB adapter handing over a frame
         self.delivery = delivery
+        if goal_limit not in ("reject", "clamp"):
+            raise EmulatorConfigError(f"goal_limit {goal_limit!r}: expected 'reject' or 'clamp'")
         self.baud = int(baud)
         self.reboot_silence_s = REBOOT_SILENCE_S
         self.log: list[LogEntry] = []
@@ -82,6 +85,7 @@ class ServoChain:
         self._silence_until_s = -1.0
         for servo in self.servos:
             servo.on_change = self._servo_changed
+            servo.clamp_goals = goal_limit == "clamp"
         self._reindex()
         self._receiver = PacketReceiver()
         self._tx_free_s = 0.0  # host -> servos line busy until
@@ -102,12 +106,16 @@ class ServoChain:
         *,
         log_limit: int | None = 1_000_000,
         delivery: str = "byte",
+        goal_limit: str = "reject",
     ) -> ServoChain:
         """A chain of servos: ``ids`` are ints (all of ``model``) or ``(id, model)`` pairs.
 
         ``clock``: None/"real" (monotonic, the SDK's timeouts behave), "manual" (moves only with
         :meth:`advance`) or any callable returning seconds. ``delivery``: "byte" (reply bytes readable as
         each arrives) or "packet" (each status packet readable whole when its last byte arrives).
+        ``goal_limit``: a Goal Position outside Min/Max Position Limit (position mode) gets a Data Limit
+        Error and is not stored ("reject"), or is accepted and the motion clamped to the limit ("clamp");
+        the e-manual leaves this open, so tests can check a driver against both.
         """
         specs: list[tuple[int, ModelSpec]] = []
         for item in ids:
@@ -116,7 +124,15 @@ class ServoChain:
                 specs.append((int(sid), get_model(m)))
             else:
                 specs.append((int(item), get_model(model)))
-        return cls(specs, baud=baud, wire_time=wire_time, clock=clock, log_limit=log_limit, delivery=delivery)
+        return cls(
+            specs,
+            baud=baud,
+            wire_time=wire_time,
+            clock=clock,
+            log_limit=log_limit,
+            delivery=delivery,
+            goal_limit=goal_limit,
+        )
 
     # ----------------------------------------------------------------- clock and servos
     @property

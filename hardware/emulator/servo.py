@@ -73,6 +73,7 @@ class EmulatedServo(ServoMotion):
         self._clock = clock
         self._faults = faults
         self.registered: tuple[int, bytes] | None = None
+        self.clamp_goals = False  # Goal Position beyond the limits: Data Limit Error (False) or clamp (True)
         self.silent_until_s = -math.inf
         self.on_change: Callable[[EmulatedServo], None] | None = None  # chain hook: id/baud/silence changed
         self.mem = bytearray()
@@ -316,7 +317,7 @@ class EmulatedServo(ServoMotion):
                 return ErrorNumber.DATA_RANGE
             if mem[A_MODE] == 3:
                 _, max_pos, min_pos = LIMITS.unpack_from(mem, 44)
-                if not min_pos <= value <= max_pos:
+                if not min_pos <= value <= max_pos and not self.clamp_goals:
                     return ErrorNumber.DATA_LIMIT
         elif a == 104:
             if self._watchdog_tripped:

@@ -322,3 +322,14 @@ def test_unicast_sync_instructions_are_ignored() -> None:
     assert transact(ser, 1, I.SYNC_READ, rd(132, 4) + b"\x01") == []
     assert transact(ser, 1, I.SYNC_WRITE, le(65, 2) + le(1, 2) + b"\x01\x01") == []
     assert chain.servo(1).read_register("LED") == 0
+
+
+def test_goal_limit_policy_clamp() -> None:
+    chain, ser = quick_chain(ids=[1], goal_limit="clamp")
+    servo = chain.servo(1)
+    servo.write_register("Max Position Limit", 3000)
+    servo.write_register("Torque Enable", 1)
+    assert transact(ser, 1, I.WRITE, wr(116, 3500, 4))[0].error == OK
+    chain.advance(2.0)
+    assert servo.read_register("Present Position") == 3000
+    assert chain.goal_writes()[-1][1:] == (1, 3500)  # the log shows what the host sent
