@@ -74,6 +74,13 @@ class Jog:
 
 
 @dataclass(frozen=True)
+class GoTo:
+    """Move the servo to ``tick`` under torque (pins the goal to the present tick first)."""
+
+    tick: int
+
+
+@dataclass(frozen=True)
 class Relax:
     """Switch torque off again (after jogging) so the servo can be moved by hand."""
 
@@ -88,7 +95,7 @@ class Abort:
     """Stop the whole procedure; nothing is saved."""
 
 
-Reply = Capture | Jog | Relax | Finish | Abort
+Reply = Capture | Jog | GoTo | Relax | Finish | Abort
 
 
 class Operator(Protocol):
@@ -153,6 +160,7 @@ class _Session:
         self.operator = operator
         self.options = options
         self.torque_on = False
+        self.goal: int | None = None  # last goal written while torque is on
 
     def present(self, spec: ServoSpec) -> int:
         tick = int(self.access.read_present_tick(spec.servo_id))
@@ -177,15 +185,22 @@ class _Session:
     def torque_off(self, spec: ServoSpec) -> None:
         self.access.set_torque(spec.servo_id, False)
         self.torque_on = False
+        self.goal = None
 
-    def jog(self, spec: ServoSpec, delta: int) -> None:
-        present = self.present(spec)
-        if not self.torque_on:
+    def move_to(self, spec: ServoSpec, tick: int) -> None:
+        """Goal ``tick`` under torque; the first move pins the goal to the present tick, then torque on."""
+        if not self.torque_on or self.goal is None:
+            present = self.present(spec)
             self.access.write_goal_tick(spec.servo_id, present)  # pin first: no jump on torque-on
             self.access.set_torque(spec.servo_id, True)
-            self.torque_on = True
-        goal = min(max(present + int(delta), MIN_POSITION_TICK), MAX_POSITION_TICK)
-        self.access.write_goal_tick(spec.servo_id, goal)
+            self.torque_on, self.goal = True, present
+        self.goal = min(max(int(tick), MIN_POSITION_TICK), MAX_POSITION_TICK)
+        self.access.write_goal_tick(spec.servo_id, self.goal)
+
+    def jog(self, spec: ServoSpec, delta: int) -> None:
+        """Jog from the last goal (not the lagging present position), so quick key presses add up."""
+        base = self.goal if self.torque_on and self.goal is not None else self.present(spec)
+        self.move_to(spec, base + int(delta))
 
     def step(self, spec: ServoSpec, step: Step, target: float | None) -> Measurement | None:
         for _ in range(self.options.max_jogs):
@@ -207,6 +222,9 @@ class _Session:
                 raise ProcedureAborted(f"calibration aborted by the operator at servo '{spec.role}' ({step})")
             if isinstance(reply, Jog):
                 self.jog(spec, reply.delta_tick)
+                continue
+            if isinstance(reply, GoTo):
+                self.move_to(spec, reply.tick)
                 continue
             if isinstance(reply, Relax):
                 self.torque_off(spec)

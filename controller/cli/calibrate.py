@@ -26,7 +26,7 @@ HELP = "calibrate a head's servos (interactive on a port/emulator, or from a CSV
 
 KEYS_HELP = """keys: Enter = capture here (at the asked target) | =VALUE = capture, the actuator is at VALUE
       j / k = jog -/+ one step (torque on) | J / K = ten steps | +N / -N = jog N ticks
-      g = jog to where the current calibration file puts the asked target | r = torque off (move by hand)
+      g = go where the current calibration file puts the asked target | r = torque off (move by hand)
       d = done (no more points / skip this point) | q = abort (nothing saved) | ? = this help"""
 
 
@@ -152,7 +152,7 @@ class TerminalOperator:
         print(f"  ! {message}")
 
     def ask(self, prompt: Prompt) -> Reply:
-        from calibration.procedure import Abort, Capture, Finish, Jog, Relax
+        from calibration.procedure import Abort, Capture, Finish, GoTo, Jog, Relax
 
         if not self._shown_help:
             print(KEYS_HELP)
@@ -190,7 +190,7 @@ class TerminalOperator:
                 if prompt.suggested_tick is None:
                     print("  no earlier calibration of this servo to go by; jog with j/k")
                     continue
-                return Jog(prompt.suggested_tick - prompt.present_tick)
+                return GoTo(prompt.suggested_tick)
             if text == "r":
                 return Relax()
             if text == "d":

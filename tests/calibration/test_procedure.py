@@ -22,6 +22,7 @@ from calibration.procedure import (
     Abort,
     Capture,
     Finish,
+    GoTo,
     Jog,
     ProcedureOptions,
     Prompt,
@@ -157,6 +158,24 @@ def test_relax_switches_torque_off_after_a_jog() -> None:
     on = servos.log.index(("torque", 18, 1))
     assert ("torque", 18, 0) in servos.log[on:]  # relaxed before the hand moved it on
     assert result.calibration["jaw"].to_tick(25.0) == round(2048 + 25 * 4096 / 360)
+
+
+def test_quick_jogs_add_up_from_the_last_goal_and_goto_moves_there() -> None:
+    """The horn lags behind its goal (present stays put): jogs must not restart from the present tick."""
+    specs = small_specs()[:1]
+    servos = FakeServos({18: 2048})
+    script: list[Reply] = [Jog(10), Jog(10), Jog(10), GoTo(2300), Relax()]
+
+    class Lagging(ScriptedHand):
+        def ask(self, prompt: Prompt) -> Reply:
+            if prompt.step == "upper" and script:
+                servos.present[18] = 2048  # has not moved yet
+                return script.pop(0)
+            return super().ask(prompt)
+
+    run_procedure(servos, Lagging(servos, specs), specs, "one", options=ProcedureOptions(intermediate=0))
+    goals = [v for kind, sid, v in servos.log if kind == "goal"]
+    assert goals == [2048, 2058, 2068, 2078, 2300]  # pin, three jogs from the last goal, go-to
 
 
 def test_free_points_are_added_and_abort_saves_nothing(tmp_path: Path) -> None:
