@@ -9,6 +9,7 @@ Driver side, one idea per module (nothing is imported here, so ``import hardware
 - ``latency``        USB latency timer check and advice; ``wire`` wire-time arithmetic of a cycle
 - ``servo_config``   `ServoSpec` descriptions and verified configuration; ``scan`` ping/broadcast scans
 - ``driver``         `Driver.cycle(goals) -> ChainSnapshot`; ``driver_thread`` a background owner thread
-- ``goal_check``, ``fault_policy``, ``fault_reactions``, ``servo_record``, ``snapshot``: its parts
+- its parts: ``driver_reads``, ``goal_check``, ``fault_policy``, ``fault_reactions``, ``servo_record``,
+  ``snapshot``
 - ``emulator/``      the far end of the wire (independent transcription; see its README section)
 """

@@ -12,9 +12,9 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
 
 from hardware.bus import ServoBus
+from hardware.driver_reads import MOTION, READ_FAILURES, STATUS, THERMAL, ChainReads, TelemetryGroup
 from hardware.errors import (
     BusCorruptError,
     BusDisconnectedError,
@@ -23,7 +23,6 @@ from hardware.errors import (
     DriverThreadError,
     GoalRejectedError,
     HardwareConfigError,
-    ServoStatusError,
 )
 from hardware.fault_policy import FaultPolicy, ThermalTrend, eased_goal
 from hardware.fault_reactions import FaultReactions
@@ -33,23 +32,8 @@ from hardware.servo_config import ConfigReport, ServoSpec, check_specs, configur
 from hardware.servo_record import ServoRecord
 from hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind
 
-POSITION = (Register.PRESENT_POSITION,)
-MOTION = (Register.MOVING, Register.PRESENT_CURRENT, Register.PRESENT_VELOCITY)  # 122..131, one block
-THERMAL = (Register.PRESENT_INPUT_VOLTAGE, Register.PRESENT_TEMPERATURE)  # 144..146
-STATUS = (Register.TORQUE_ENABLE, Register.HARDWARE_ERROR_STATUS)  # 64..70
-_READ_FAILURES = (BusTimeoutError, BusCorruptError, ServoStatusError)
-FAST_READ_GIVE_UP = 3  # cycles of "fast read fails, single reads work" before falling back to Sync Read
 
-
-@dataclass
-class _Group:
-    name: str
-    registers: tuple[Register, ...]
-    period_s: float
-    due_s: float = float("-inf")
-
-
-class Driver:
+class Driver(ChainReads):
     """Drives a configured chain. Not thread-safe by design: the thread that first uses it owns it.
 
     ``clock``: seconds, monotonic (tests may pass the emulator's clock). ``fast_sync_read``: read positions
@@ -83,9 +67,9 @@ class Driver:
         self.servo_ids: tuple[int, ...] = tuple(self._records)
         self._specs = {sid: rec.spec for sid, rec in self._records.items()}
         self._groups = [
-            _Group("status", STATUS, 1.0 / self.policy.status_hz),
-            _Group("motion", MOTION, 1.0 / self.policy.motion_hz),
-            _Group("thermal", THERMAL, 1.0 / self.policy.thermal_hz),
+            TelemetryGroup("status", STATUS, 1.0 / self.policy.status_hz),
+            TelemetryGroup("motion", MOTION, 1.0 / self.policy.motion_hz),
+            TelemetryGroup("thermal", THERMAL, 1.0 / self.policy.thermal_hz),
         ]
         self._owner: int | None = threading.get_ident()
         self._connected = True
@@ -237,109 +221,6 @@ class Driver:
                 self._records[sid].goal_tick = tick
 
     # -- reads with fallback ------------------------------------------------------------------------
-    def _read_group(
-        self, ids: list[int], registers: tuple[Register, ...], fast: bool = False
-    ) -> dict[int, dict[Register, int]]:
-        """Group read with retries; on failure, read servo by servo to find the silent one."""
-        self._group_failed = False
-        if not ids:
-            return {}
-        for _ in range(1 + self.policy.retries):
-            try:
-                return self.bus.sync_read(ids, registers, fast=fast)
-            except (BusTimeoutError, BusCorruptError):
-                continue
-        self._group_failed = True
-        out: dict[int, dict[Register, int]] = {}
-        for sid in ids:
-            for _ in range(1 + self.policy.retries):
-                try:
-                    out[sid] = self.bus.read_many(sid, registers)
-                    break
-                except _READ_FAILURES:
-                    continue
-        return out
-
-    def _mark_results(self, ids: list[int], got: Mapping[int, object], now: float) -> None:
-        for sid in ids:
-            rec = self._records[sid]
-            if sid in got:
-                rec.failures = 0
-                rec.stale = False
-                continue
-            rec.failures += 1
-            rec.stale = True
-            if rec.failures >= self.policy.missing_after_failures and not rec.missing:
-                self._mark_missing(rec, now, f"no reply in {rec.failures} cycles")
-
-    def _mark_missing(self, rec: ServoRecord, now: float, why: str) -> None:
-        rec.missing, rec.stale, rec.torque_on = True, True, False
-        rec.last_probe_s = now
-        self._emit(
-            rec.servo_id,
-            FaultKind.MISSING,
-            f"{why}: excluded from group reads and goal frames, re-probed every "
-            f"{self.policy.reprobe_interval_s:g} s; other servos continue",
-        )
-
-    def _readable(self, now: float) -> list[int]:
-        """Ids worth asking: not missing, and not inside the silence after a reboot."""
-        return [
-            sid
-            for sid, rec in self._records.items()
-            if not rec.missing
-            and (rec.recover_at_s is None or rec.recover_at_s <= now or rec.reboot_at_s is not None)
-        ]
-
-    def _read_positions(self, now: float) -> None:
-        ids = self._readable(now)
-        got = self._read_group(ids, POSITION, fast=self.fast_sync_read)
-        if self.fast_sync_read and ids:
-            self._check_fast_read_support(self._group_failed and len(got) == len(ids))
-        for sid, values in got.items():
-            rec = self._records[sid]
-            rec.position_tick = values[Register.PRESENT_POSITION]
-            rec.position_t_s = now
-        self._mark_results(ids, got, now)
-
-    def _check_fast_read_support(self, only_fast_failed: bool) -> None:
-        """Fast Sync Read failing while every single read works means the firmware lacks it: fall back."""
-        self._fast_failures = self._fast_failures + 1 if only_fast_failed else 0
-        if self._fast_failures >= FAST_READ_GIVE_UP:
-            self.fast_sync_read = False
-            self._emit(
-                None,
-                FaultKind.CORRUPT,
-                f"Fast Sync Read failed {self._fast_failures} cycles running while every servo answered "
-                "single reads (firmware without it?): positions now read with plain Sync Read",
-            )
-
-    def _read_slow_group(self, now: float) -> None:
-        if self.bus.alerts:  # an Alert bit seen on a single transaction: read Hardware Error Status now
-            self._groups[0].due_s = float("-inf")
-            self.bus.alerts.clear()
-        due = [g for g in self._groups if g.due_s <= now]
-        if not due:
-            return
-        group = min(due, key=lambda g: g.due_s)
-        group.due_s = now + group.period_s
-        ids = self._readable(now)
-        got = self._read_group(ids, group.registers)
-        for sid, values in got.items():
-            rec = self._records[sid]
-            if group.name == "status":
-                self._reactions.on_status(
-                    rec, values[Register.TORQUE_ENABLE], values[Register.HARDWARE_ERROR_STATUS], now
-                )
-            elif group.name == "motion":
-                rec.apply_motion(values, now)
-                self._reactions.on_motion(rec)
-            else:
-                self._reactions.on_thermal(
-                    rec, values[Register.PRESENT_INPUT_VOLTAGE], values[Register.PRESENT_TEMPERATURE], now
-                )
-        self._mark_results(ids, got, now)
-
     # -- missing servos, reconnects -----------------------------------------------------------------
     def _recover(self, rec: ServoRecord, kind: FaultKind) -> bool:
         """Re-configure a servo that is back (reconnected / rebooted / cooled) and re-pin its goal.
@@ -381,7 +262,7 @@ class Driver:
         rec.last_probe_s = now
         try:
             self.bus.ping(rec.servo_id)
-        except _READ_FAILURES:
+        except READ_FAILURES:
             return
         rec.recover_at_s = None
         self._recover(rec, FaultKind.RECONNECTED)
@@ -410,7 +291,7 @@ class Driver:
             rec.last_probe_s = float("-inf")
             try:
                 self.bus.ping(rec.servo_id)
-            except _READ_FAILURES:
+            except READ_FAILURES:
                 continue
             self._recover(rec, FaultKind.RECONNECTED)
 
