@@ -16,6 +16,7 @@ them (they are only reached through shadow maps, which we never enable).
 
 from __future__ import annotations
 
+import ctypes
 import ctypes.util
 import os
 from pathlib import Path
@@ -88,11 +89,15 @@ def _shader_cache(pyrender: Any) -> Any:
 def _fast_renderer_class(pyrender: Any) -> type:
     """pyrender's Renderer without MSAA and with optional depth read-back (see module docstring)."""
     from OpenGL import GL
+    from pyrender.constants import GLTF, ProgramFlags
+    from pyrender.constants import RenderFlags as RF
 
+    GLTF_TRIANGLES = GLTF.TRIANGLES
     base = pyrender.renderer.Renderer
 
     class FastRenderer(base):  # type: ignore[misc, valid-type]
         want_depth = True
+        lean_forward_pass = True  # False: pyrender's own pass (the tests compare the two pixel for pixel)
         _main_fb: Any
         _main_fb_dims: tuple[Any, Any]
 
@@ -129,6 +134,80 @@ def _fast_renderer_class(pyrender: Any) -> type:
             self._main_cb_ms = self._main_db_ms = None
             self._main_fb_dims = (None, None)
 
+        def _forward_pass(self, scene: Any, flags: int, seg_node_map: Any = None) -> Any:
+            """pyrender's forward pass with its per-draw Python overhead cut: per-frame uniforms (camera,
+            lights) are set once per program per frame, uniform locations are cached, and GL state that
+            never changes here is set once. Anything unusual (segmentation, depth-only, textures, spot or
+            point lights) goes through pyrender's own pass."""
+            nodes = [n for n in self._sorted_mesh_nodes(scene) if n.mesh.is_visible]
+            plain = not (flags & (RF.SEG | RF.DEPTH_ONLY | RF.FLAT | RF.ALL_WIREFRAME | RF.FLIP_WIREFRAME))
+            plain = plain and not scene.spot_light_nodes and not scene.point_light_nodes
+            plain = plain and all(
+                p.material.tex_flags == 0 and not p.material.wireframe and p.mode == GLTF_TRIANGLES
+                for n in nodes
+                for p in n.mesh.primitives
+            )
+            if not plain or not self.lean_forward_pass:
+                return super()._forward_pass(scene, flags, seg_node_map)
+            self._configure_forward_pass_viewport(flags)
+            GL.glClearColor(*scene.bg_color)
+            GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
+            GL.glPolygonMode(GL.GL_FRONT_AND_BACK, GL.GL_FILL)
+            GL.glDisable(GL.GL_PROGRAM_POINT_SIZE)
+            GL.glEnable(GL.GL_BLEND)
+            GL.glCullFace(GL.GL_BACK)
+            view_m, proj_m = self._get_camera_matrices(scene)
+            cam_pos = scene.get_pose(scene.main_camera_node)[:3, 3]
+            lights = []
+            for ln in list(scene.directional_light_nodes)[: self._compute_max_n_lights(flags)[0]]:
+                lights.append((-scene.get_pose(ln)[:3, 2], ln.light.color, float(ln.light.intensity)))
+            ready: set[int] = set()
+            program = None
+            for node in nodes:
+                pose = scene.get_pose(node)
+                for prim in node.mesh.primitives:
+                    program = self._get_primitive_program(prim, flags, ProgramFlags.USE_MATERIAL)
+                    program._bind()
+                    u = _Uniforms.of(program)
+                    if id(program) not in ready:
+                        ready.add(id(program))
+                        u.mat4("V", view_m)
+                        u.mat4("P", proj_m)
+                        u.vec("cam_pos", cam_pos)
+                        u.vec("ambient_light", scene.ambient_light)
+                        u.int("n_directional_lights", len(lights))
+                        for i, (direction, color, intensity) in enumerate(lights):
+                            u.vec(f"directional_lights[{i}].direction", direction)
+                            u.vec(f"directional_lights[{i}].color", color)
+                            u.float(f"directional_lights[{i}].intensity", intensity)
+                    material = prim.material
+                    u.mat4("M", pose)
+                    u.vec("material.emissive_factor", material.emissiveFactor)
+                    u.vec("material.base_color_factor", material.baseColorFactor)
+                    u.float("material.metallic_factor", float(material.metallicFactor))
+                    u.float("material.roughness_factor", float(material.roughnessFactor))
+                    if material.alphaMode == "BLEND":
+                        GL.glBlendFunc(GL.GL_SRC_ALPHA, GL.GL_ONE_MINUS_SRC_ALPHA)
+                    else:
+                        GL.glBlendFunc(GL.GL_ONE, GL.GL_ZERO)
+                    if material.doubleSided:
+                        GL.glDisable(GL.GL_CULL_FACE)
+                    else:
+                        GL.glEnable(GL.GL_CULL_FACE)
+                    prim._bind()
+                    n_instances = 1 if prim.poses is None else len(prim.poses)
+                    if prim.indices is not None:
+                        GL.glDrawElementsInstanced(
+                            prim.mode, prim.indices.size, GL.GL_UNSIGNED_INT, ctypes.c_void_p(0), n_instances
+                        )
+                    else:
+                        GL.glDrawArraysInstanced(prim.mode, 0, len(prim.positions), n_instances)
+                    prim._unbind()
+            if program is not None:
+                program._unbind()
+            GL.glFlush()
+            return self._read_main_framebuffer(scene, flags)
+
         def _sorted_mesh_nodes(self, scene: Any) -> list[Any]:
             # pyrender draws opaque meshes back to front; we draw them by ``draw_order`` (the skin first),
             # so the parts hidden under the skin fail the depth test early instead of being shaded
@@ -156,6 +235,57 @@ def _fast_renderer_class(pyrender: Any) -> type:
             return np.ascontiguousarray(color), depth
 
     return FastRenderer
+
+
+class _Uniforms:
+    """Uniform setters for one shader program with cached locations (pyrender looks each one up per call).
+
+    Names the program does not use (location -1) are skipped, as pyrender does.
+    """
+
+    def __init__(self, program_id: int) -> None:
+        from OpenGL import GL
+
+        self._gl = GL
+        self._id = program_id
+        self._loc: dict[str, int] = {}
+
+    @classmethod
+    def of(cls, program: Any) -> _Uniforms:
+        cached = getattr(program, "_servoface_uniforms", None)
+        if cached is None or cached._id != program._program_id:
+            cached = cls(program._program_id)
+            program._servoface_uniforms = cached
+        return cached
+
+    def _where(self, name: str) -> int:
+        loc = self._loc.get(name)
+        if loc is None:
+            loc = int(self._gl.glGetUniformLocation(self._id, name))
+            self._loc[name] = loc
+        return loc
+
+    def mat4(self, name: str, value: Any) -> None:
+        loc = self._where(name)
+        if loc != -1:
+            self._gl.glUniformMatrix4fv(loc, 1, self._gl.GL_TRUE, np.asarray(value, dtype=np.float32))
+
+    def vec(self, name: str, value: Any) -> None:
+        loc = self._where(name)
+        if loc != -1:
+            v = np.asarray(value, dtype=np.float32).ravel()
+            setter = {2: self._gl.glUniform2fv, 3: self._gl.glUniform3fv, 4: self._gl.glUniform4fv}[len(v)]
+            setter(loc, 1, v)
+
+    def float(self, name: str, value: float) -> None:
+        loc = self._where(name)
+        if loc != -1:
+            self._gl.glUniform1f(loc, value)
+
+    def int(self, name: str, value: int) -> None:
+        loc = self._where(name)
+        if loc != -1:
+            self._gl.glUniform1i(loc, value)
 
 
 def _linear_depth(buf: NDArray[np.float32], znear: float, zfar: float) -> NDArray[np.float32]:

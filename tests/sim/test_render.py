@@ -200,3 +200,19 @@ def test_the_key_light_is_the_single_brightest() -> None:
     intensities = sorted((light.intensity for light in LIGHTS), reverse=True)
     key = next(light for light in LIGHTS if light.name == "key")
     assert key.intensity == intensities[0] > intensities[1]
+
+
+def test_lean_forward_pass_draws_exactly_what_pyrenders_pass_draws(renderer: HeadRenderer) -> None:
+    glass = MeshItem(trimesh.creation.box((150.0, 30.0, 30.0)), (0.9, 0.9, 0.2, 0.5), np.eye(4), "glass")
+    flap = trimesh.Trimesh(BALL.vertices, BALL.faces[BALL.triangles_center[:, 2] > 30.0], process=False)
+    items = [*_face(), glass, MeshItem(flap, (0.3, 0.5, 0.8, 1.0), _translate(0, 0, 20), "open_flap")]
+    skin = (BALL.vertices * 0.5, BALL.faces, SKIN)
+    gl_renderer = renderer._gl._osr._renderer  # the subclassed pyrender Renderer (sim.render.backend)
+    lean, _ = renderer.render_posed(items, skin, box_mm=BOX)
+    gl_renderer.lean_forward_pass = False
+    try:
+        reference, _ = renderer.render_posed(items, skin, box_mm=BOX)
+    finally:
+        gl_renderer.lean_forward_pass = True
+    assert np.array_equal(lean, reference)
+    assert np.abs(lean.astype(int) - renderer.render_meshes(_face(), box_mm=BOX)).mean() > 1  # all were drawn
