@@ -167,7 +167,8 @@ class _Session:
         if not MIN_POSITION_TICK <= tick <= MAX_POSITION_TICK:
             raise ProcedureError(
                 f"servo '{spec.role}' (id {spec.servo_id}) reports position {tick}, outside "
-                f"{MIN_POSITION_TICK}..{MAX_POSITION_TICK}; is it in position control mode?"
+                f"{MIN_POSITION_TICK}..{MAX_POSITION_TICK}: the horn is past the end of its turn (turn it "
+                "back) or the servo is not in position control mode"
             )
         return tick
 
