@@ -8,7 +8,7 @@ rewritten in place (see `sim.render.scene`).
 from __future__ import annotations
 
 import threading
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -240,6 +240,13 @@ class HeadRenderer:
     def render(self, head: Any, pose: Any, view: str | None = None) -> Image:
         """The head (a `sim.head.Head`) in ``pose`` (a `sim.rig.HeadPose`): (H, W, 3) uint8 RGB."""
         return self._draw_head(head, pose, view, depth=False)[0]
+
+    def render_targets(self, head: Any, targets: Mapping[str, float], view: str | None = None) -> Image:
+        """The head posed straight from actuator targets (role -> deg / mm) by the twin's face model
+        (``FaceModel(head).pose_from_targets``, the model built once per head)."""
+        from sim.render.twin import face_model
+
+        return self.render(head, face_model(head).pose_from_targets(targets), view)
 
     def render_with_depth(
         self, head: Any, pose: Any, view: str | None = None

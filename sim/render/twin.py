@@ -30,8 +30,7 @@ def render_targets(
     renderer: HeadRenderer, head: Any, targets: Mapping[str, float], view: str | None = None
 ) -> Image:
     """The head posed straight from actuator targets (role -> deg for joints, mm for skin anchors)."""
-    pose = face_model(head).pose_from_targets(targets)
-    return renderer.render(head, pose, view)
+    return renderer.render_targets(head, targets, view)
 
 
 def render_target_vs_gated(
