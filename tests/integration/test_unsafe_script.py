@@ -1,0 +1,196 @@
+"""An unsafe script through the whole pipeline onto the emulated chain: the gate clips or rejects it with
+reasons naming servo and check, and decoding every byte the emulator received shows no goal outside the
+calibrated limits and no step between consecutive goals of a servo beyond the gate's per-frame cap."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from controller.face import Face
+from controller.performance import Performance
+from controller.script import SCRIPTS_DIR
+from hardware.emulator import ServoChain
+from sim.gate import limits as lim
+
+UNSAFE = SCRIPTS_DIR / "unsafe_pose.toml"
+
+# Stronger than the shipped one: full antagonists and full head turns that flip side every 40 ms (two
+# frames), so every frame asks for far more than a servo can travel, and against its last direction.
+FLIP_FLOP = """
+[script]
+face = "human"
+title = "integration: flip-flop between extremes every two frames"
+end_s = 0.6
+
+[poses]
+left = { AU12L = 1.0, AU15R = 1.0, AU27 = 1.0, AU51 = 1.0, AU53 = 1.0, AU1 = 1.0, AU2 = 1.0, AU61 = 1.0 }
+right = { AU12R = 1.0, AU15L = 1.0, AU43 = 1.0, AU52 = 1.0, AU54 = 1.0, AU4 = 1.0, AU62 = 1.0, AU24 = 1.0 }
+
+[expressions.flip]
+keyframes = [
+  { t_s = 0.0, pose = "left" }, { t_s = 0.04, pose = "left" }, { t_s = 0.041, pose = "right" },
+  { t_s = 0.08, pose = "right" }, { t_s = 0.081, pose = "left" }, { t_s = 0.12, pose = "left" },
+  { t_s = 0.121, pose = "right" }, { t_s = 0.16, pose = "right" }, { t_s = 0.161, pose = "left" },
+  { t_s = 0.2, pose = "left" }, { t_s = 0.201, pose = "right" }, { t_s = 0.24, pose = "right" },
+]
+
+[[play]]
+at_s = 0.0
+expression = "flip"
+
+[[play]]
+at_s = 0.3
+expression = "flip"
+
+[blink]
+enabled = false
+
+[idle]
+enabled = false
+"""
+
+
+@dataclass
+class Played:
+    face: Face
+    chain: ServoChain
+    unsafe: Performance
+    flip_flop: Performance
+
+
+@pytest.fixture(scope="module")
+def played(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Played]:
+    face = Face.open("human", emulate=True, wire_time=False)
+    try:
+        unsafe = face.play(UNSAFE)
+        script = tmp_path_factory.mktemp("unsafe") / "flip_flop.toml"
+        script.write_text(FLIP_FLOP)
+        flip_flop = face.play(script)
+        yield Played(face, face.chain, unsafe, flip_flop)
+    finally:
+        face.close(ease_s=0.0)
+
+
+def _check_wire(face: Face, chain: ServoChain) -> int:
+    """Every Goal Position write the emulator decoded: inside the calibration's limits, each step from the
+    same servo's previous goal within the gate's per-frame cap, and each change of step within the gate's
+    acceleration bound (`sim.gate.limits.step_bounds`). Returns how many goals were checked."""
+    table = face.pipeline.gate.table
+    cal = face.pipeline.calibration
+    index = table.index()
+    writes = chain.goal_writes()
+    assert writes, "no goal reached the bus"
+    last: dict[int, int] = {}
+    last_step = np.zeros(table.n, dtype=np.int64)
+    for t_s, sid, tick in writes:
+        assert sid in index, f"goal for servo {sid}, which the head does not have"
+        i = index[sid]
+        servo = cal.by_id(sid)
+        where = f"t={t_s:.3f}s servo {sid} '{servo.role}'"
+        assert servo.min_tick <= tick <= servo.max_tick, (
+            f"{where}: goal {tick} outside {servo.min_tick}..{servo.max_tick}"
+        )
+        if sid in last:
+            step = tick - last[sid]
+            cap = int(table.max_step_tick[i])
+            assert abs(step) <= cap, f"{where}: step {step} beyond the cap {cap} tick/frame"
+            lo, hi = lim.step_bounds(last_step, table)
+            assert lo[i] <= step <= hi[i], (
+                f"{where}: step {step} after {last_step[i]} outside {lo[i]}..{hi[i]}"
+            )
+            last_step[i] = step
+        last[sid] = tick
+    return len(writes)
+
+
+def test_the_gate_table_is_the_calibrations(played: Played) -> None:
+    table = played.face.pipeline.gate.table
+    cal = played.face.pipeline.calibration
+    for i, sid in enumerate(table.ids):
+        assert (int(table.min_tick[i]), int(table.max_tick[i])) == (
+            cal.by_id(sid).min_tick,
+            cal.by_id(sid).max_tick,
+        )
+        assert 1 <= int(table.max_step_tick[i]) < cal.by_id(sid).max_tick - cal.by_id(sid).min_tick
+
+
+@pytest.mark.parametrize("which", ["unsafe", "flip_flop"])
+def test_unsafe_frames_are_clipped_with_reasons(played: Played, which: str) -> None:
+    perf: Performance = getattr(played, which)
+    bad = perf.clipped()
+    assert len(bad) >= 3, perf.summary()
+    assert all(t.verdict in ("clip", "reject") for t in bad)
+    checks = {c for t in bad for c in t.checks}
+    assert {"speed"} & checks or {"accel"} & checks, checks
+    ids = played.face.pipeline.gate.table.ids
+    for t in bad:
+        assert t.reasons and t.checks
+        assert t.goals_sent != t.goals_requested
+        # every reason names its check, and a per-servo check names the servo by id and role
+        for reason in t.reasons:
+            check = reason[1 : reason.index("]")]
+            assert check in t.checks, reason
+            if check in ("limit", "speed", "accel"):
+                assert any(f"servo {sid} '" in reason for sid in ids), reason
+
+
+def test_no_goal_on_the_wire_breaks_limits_or_rate_caps(played: Played) -> None:
+    n = _check_wire(played.face, played.chain)
+    frames = len(played.unsafe.traces) + len(played.flip_flop.traces)
+    assert n >= frames * len(played.face.head.actuators)  # one sync write of every servo per frame
+
+
+def test_what_the_gate_sent_is_what_the_wire_carried(played: Played) -> None:
+    writes = played.chain.goal_writes()
+    n_servos = len(played.face.head.actuators)
+    last_frame = {sid: tick for _, sid, tick in writes[-n_servos:]}
+    assert last_frame == played.flip_flop.traces[-1].goals_sent == played.face.pipeline.last_goals_tick
+
+
+AU_NAMES = [
+    "AU1",
+    "AU2",
+    "AU4",
+    "AU5",
+    "AU6",
+    "AU9",
+    "AU12L",
+    "AU12R",
+    "AU15",
+    "AU20",
+    "AU26",
+    "AU27",
+    "AU43",
+    "AU51",
+    "AU52",
+    "AU53",
+    "AU54",
+    "AU61",
+    "AU62",
+]
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    frames=st.lists(
+        st.dictionaries(st.sampled_from(AU_NAMES), st.floats(0.0, 1.0), max_size=6), min_size=2, max_size=5
+    )
+)
+def test_any_sequence_of_au_frames_stays_safe_on_the_wire(
+    played: Played, frames: list[dict[str, float]]
+) -> None:
+    """Property: whatever valid AU frames come in, back to back (no easing), the wire stays safe."""
+    face = played.face
+    chain = played.chain
+    before = len(chain.goal_writes())
+    for aus in frames:
+        trace = face.pipeline.step(aus)
+        assert trace.verdict in ("accept", "clip", "reject")
+    assert len(chain.goal_writes()) == before + len(frames) * len(face.head.actuators)
+    _check_wire(face, chain)
