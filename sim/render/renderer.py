@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -258,23 +259,30 @@ class HeadRenderer:
         return color, depth
 
     def head_box(self, head: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The box the camera frames for ``head``: its skin and parts (not the neck) at the neutral pose."""
+        """The box the camera frames for ``head``: its skin and parts (not the neck) at the neutral pose and
+        with the jaw fully open (so a yawn stays in the picture), cropped to a portrait for a human face."""
         key = id(head)
         if key not in self._head_box:
             from sim.kinematics import neutral_pose, part_transforms, posed_skin_vertices
 
-            pose = neutral_pose(head)
-            transforms = part_transforms(head, pose.joint_deg)
-            items = [
-                MeshItem(p.mesh, tuple(p.color_rgba), transforms[p.name], p.name)
-                for p in head.parts
-                if not p.name.startswith("neck")
-            ]
-            v = np.asarray(posed_skin_vertices(head, pose))
-            lo, hi = v.min(axis=0), v.max(axis=0)
-            if items:
-                plo, phi = _box_of(items)
-                lo, hi = np.minimum(lo, plo), np.maximum(hi, phi)
+            rest = neutral_pose(head)
+            poses = [rest]
+            jaw = next((j for j in head.joints if j.name == "jaw"), None)
+            if jaw is not None:
+                poses.append(replace(rest, joint_deg={**rest.joint_deg, "jaw": float(jaw.upper_deg)}))
+            lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+            for pose in poses:
+                transforms = part_transforms(head, pose.joint_deg)
+                items = [
+                    MeshItem(p.mesh, tuple(p.color_rgba), transforms[p.name], p.name)
+                    for p in head.parts
+                    if not p.name.startswith("neck")
+                ]
+                v = np.asarray(posed_skin_vertices(head, pose))
+                lo, hi = np.minimum(lo, v.min(axis=0)), np.maximum(hi, v.max(axis=0))
+                if items:
+                    plo, phi = _box_of(items)
+                    lo, hi = np.minimum(lo, plo), np.maximum(hi, phi)
             lo, hi = _portrait_crop(lo, hi, getattr(head, "landmarks_mm", {}))
             # keep the head referenced so its id cannot be reused by another object
             self._head_box[key] = (head, lo, hi)
