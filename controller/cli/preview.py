@@ -94,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
     except (HeadProfileError, FileNotFoundError, KeyError, ValueError) as err:
         return _fail(f"--head {args.head!r}: {err}")
     try:
-        library = load_library(head.face_type)
+        library = load_library(head.expressions_path or head.face_type)  # a profile may bring its own
         aus = None if args.all else pick_expression(library, args.expression)
     except ExpressionError as err:
         return _fail(str(err))
