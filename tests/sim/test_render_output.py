@@ -76,6 +76,8 @@ def test_gif_is_written_with_every_frame_and_its_timing(tmp_path: Path) -> None:
             im.seek(i)
             durations.append(im.info["duration"])
     assert sum(durations) == 12 * 50
+    decoded = imageio.mimread(str(path))
+    assert abs(int(decoded[-1][15, 20, 0]) - 200) <= 4 and int(decoded[0][15, 20, 0]) <= 4  # shared palette
 
 
 def test_mp4_is_written_and_readable(tmp_path: Path) -> None:
