@@ -72,6 +72,15 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
     def getCurrentTime(self) -> float:  # noqa: N802 (SDK name); milliseconds, as the SDK expects
         return time.monotonic() * 1000.0
 
+    def readPort(self, length: int) -> bytes:  # noqa: N802 (SDK name)
+        """As the SDK's, but an empty read yields the GIL: the SDK waits for replies in a busy loop, which
+        otherwise starves every other Python thread (a pty server, the caller's own threads) for up to the
+        5 ms switch interval per turn."""
+        data: bytes = self.ser.read(length)
+        if not data:
+            time.sleep(0)
+        return data
+
     def isPacketTimeout(self) -> bool:  # noqa: N802 (SDK name)
         """The SDK reads, then checks the clock: a thread descheduled between the two (common on a loaded
         machine) times out with the whole reply already waiting. Close the window only if nothing is —
