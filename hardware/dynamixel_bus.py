@@ -316,7 +316,15 @@ class DynamixelBus:
         ids = check_ids(values)
         if not ids:
             return
-        payload = {sid: list(register.encode(values[sid])) for sid in ids}  # encode all before sending any
+        size, signed = register.size, register.signed
+        lo, hi = register.value_range
+        payload = {}
+        for sid in ids:  # encode all before sending any
+            value = values[sid]
+            if type(value) is int and lo <= value <= hi:  # fast path for the per-frame goal write
+                payload[sid] = list(value.to_bytes(size, "little", signed=signed))
+            else:
+                payload[sid] = list(register.encode(value))  # checks and raises with the register's message
         group = sdk.GroupSyncWrite(self._port, self._packet, register.address, register.size)
         for sid in ids:
             group.addParam(sid, payload[sid])
@@ -347,6 +355,7 @@ class DynamixelBus:
         comm = self._call(group.fastSyncRead if fast else group.txRxPacket)
         what = f"{'fast ' if fast else ''}sync read {[r.name for r in registers]}"
         self._check(comm, 0, what, ids)
+        fields = [(r, r.address - start, r.address - start + r.size, r.signed) for r in registers]
         out: dict[int, dict[Register, int]] = {}
         for sid in ids:
             block = group.data_dict.get(sid)
@@ -355,7 +364,8 @@ class DynamixelBus:
                 raise BusCorruptError(
                     f"{what}: servo {sid} returned {0 if block is None else len(block)} bytes", ids
                 )
-            out[sid] = {r: slice_value(r, start, block) for r in registers}
+            raw = bytes(block)
+            out[sid] = {r: int.from_bytes(raw[a:b], "little", signed=sg) for r, a, b, sg in fields}
         return out
 
     def bulk_read(
