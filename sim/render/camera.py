@@ -69,7 +69,7 @@ def frame_box(
     hi_mm: NDArray[np.floating],
     view: str = "front",
     aspect: float = 4.0 / 3.0,
-    margin: float = 1.08,
+    margin: float = 1.12,
 ) -> CameraSetup:
     """A camera that shows the box [lo_mm, hi_mm] (head frame) whole from ``view``, at image ``aspect``.
 
