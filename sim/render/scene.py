@@ -2,9 +2,9 @@
 
 Rigid parts are batched by finish into a few primitives moved on the CPU; the skin (deformable) keeps its
 buffers too. Each frame only rewrites vertex buffers in place (`sim.render.buffers`) instead of building
-new pyrender meshes. The skin is drawn twice from one position
-array: outside in its own colour, and the inside (reversed winding) in a dark mouth-cavity colour, so an
-open mouth shows a dark cavity instead of the background.
+new pyrender meshes. The skin is drawn twice from one position array: outside in its own colour, and the
+inside (reversed winding) in a dark mouth-cavity colour, so an open mouth shows a dark cavity instead of
+the background.
 """
 
 from __future__ import annotations
@@ -43,6 +43,7 @@ class MeshItem:
 def _material(
     pyrender: Any, name: str, rgba: Sequence[float], vertex_colored: bool = False, double_sided: bool = False
 ) -> Any:
+    """A pyrender material for a surface named ``name`` (finish by name, colour linearised)."""
     finish = finish_for(name)
     base = np.ones(4) if vertex_colored else srgb_to_linear(tuple(rgba))
     return pyrender.MetallicRoughnessMaterial(
