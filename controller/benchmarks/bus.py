@@ -3,9 +3,9 @@
 24 XL330-M288 on the in-process emulator port with wire time on, at 1 Mbps and 4 Mbps, Return Delay Time 0
 (written to every servo before measuring). Per baud: cycles/s with a plain Sync Read and with Fast Sync Read
 of Present Position, each next to the wire limit from `hardware.wire.cycle_budget` (packet sizes, baud,
-return delay). Rates are the best of several short windows (the machine is shared; the median is in the
-note). A last group of figures splits the CPU time of one cycle (no wire time) between dynamixel-sdk, the
-emulator and servoface, to show where the time goes when a ratio misses.
+return delay). Rates are the best of 20 windows of 0.1 s (the machine is shared; the median window, the
+median single cycle and the on-CPU share are in the note). A last group of figures splits the CPU time of
+one cycle (no wire time) between dynamixel-sdk, the emulator and servoface: where the time goes.
 """
 
 from __future__ import annotations
@@ -45,21 +45,27 @@ def _cycle(bus: ServoBus, ids: list[int], n: int, fast: bool) -> None:
 
 def measure_rate_hz(
     bus: ServoBus, ids: list[int], fast: bool, windows: int, window_s: float
-) -> tuple[float, float, float]:
-    """(best, median) cycles per second over ``windows`` windows of ``window_s``, and the share of wall time
-    this process was on a CPU (the SDK busy-waits, so anything well under 1 means other processes took it)."""
+) -> tuple[float, float, float, float]:
+    """Cycles per second: (best window, median window, median single cycle), over ``windows`` windows of
+    ``window_s``; and the share of wall time this process was on a CPU (the SDK busy-waits, so anything
+    well under 1 means other processes had the CPU)."""
     rates = []
+    cycle_s: list[float] = []
     n = 0
     cpu0, wall0 = time.process_time(), time.perf_counter()
     for _ in range(windows):
         count, t0 = 0, time.perf_counter()
+        t_prev = t0
         while (elapsed := time.perf_counter() - t0) < window_s:
             _cycle(bus, ids, n, fast)
+            now = time.perf_counter()
+            cycle_s.append(now - t_prev)
+            t_prev = now
             n += 1
             count += 1
         rates.append(count / elapsed)
     cpu_share = (time.process_time() - cpu0) / (time.perf_counter() - wall0)
-    return max(rates), statistics.median(rates), cpu_share
+    return max(rates), statistics.median(rates), 1.0 / statistics.median(cycle_s), cpu_share
 
 
 def cpu_split_ms(baud: int, fast: bool, cycles: int) -> dict[str, float]:
@@ -96,24 +102,26 @@ def cpu_split_ms(baud: int, fast: bool, cycles: int) -> dict[str, float]:
 
 
 def run(quick: bool = False) -> Iterator[Figure]:
-    windows, window_s = (3, 0.15) if quick else (8, 0.4)
+    windows, window_s = (4, 0.1) if quick else (20, 0.1)
     for baud in BAUDS:
         chain, bus = _chain_and_bus(baud, wire_time=True)
         ids = chain.ids
         tag = f"{N_SERVOS} servos @{baud // 1_000_000}M"
         for fast, label in ((False, "sync write + sync read"), (True, "sync write + fast sync read")):
             budget = cycle_budget(N_SERVOS, baud, return_delay_us=RETURN_DELAY_US, fast=fast)
-            best, median, cpu_share = measure_rate_hz(bus, ids, fast, windows, window_s)
+            best, median, per_cycle, cpu_share = measure_rate_hz(bus, ids, fast, windows, window_s)
             yield Figure(
                 f"{label}, {tag}",
                 best,
                 "cycles/s",
                 limit=budget.limit_hz,
                 goal=GOAL_RATIO,
-                note=f"best of {windows}x{window_s:g}s windows (median {median:.0f}/s); wire limit "
+                note=f"best of {windows}x{window_s:g}s windows (median window {median:.0f}/s, "
+                f"median single cycle {per_cycle:.0f}/s = ratio {per_cycle / budget.limit_hz:.3f}); "
+                "wire limit "
                 f"{budget.bytes_total} B x 10 bit / {baud} bps + RDT {RETURN_DELAY_US} us = "
                 f"{budget.wire_time_s * 1e3:.3f} ms; timeouts {bus.stats.timeouts}, "
-                f"corrupt {bus.stats.corrupt}; on-CPU share {cpu_share:.2f} (under 1: the machine was busy)",
+                f"corrupt {bus.stats.corrupt}; on-CPU share {cpu_share:.2f} (other processes ran the rest)",
             )
         bus.close()
         chain.close()
