@@ -47,8 +47,8 @@ def measure_rate_hz(
     bus: ServoBus, ids: list[int], fast: bool, windows: int, window_s: float
 ) -> tuple[float, float, float, float]:
     """Cycles per second: (best window, median window, median single cycle), over ``windows`` windows of
-    ``window_s``; and the share of wall time this process was on a CPU (the SDK busy-waits, so anything
-    well under 1 means other processes had the CPU)."""
+    ``window_s``; and the share of wall time this process was on a CPU (the bus yields on empty reads, so
+    under 1 means other processes ran meanwhile)."""
     rates = []
     cycle_s: list[float] = []
     n = 0
