@@ -33,18 +33,27 @@ def render_targets(
     return renderer.render_targets(head, targets, view)
 
 
+def _render_either(
+    renderer: HeadRenderer, head: Any, what: Mapping[str, float] | Any, view: str | None
+) -> Image:
+    if isinstance(what, Mapping):
+        return renderer.render_targets(head, what, view)
+    return renderer.render(head, what, view)
+
+
 def render_target_vs_gated(
     renderer: HeadRenderer,
     head: Any,
     target: Mapping[str, float] | Any,
-    gated_targets: Mapping[str, float],
+    gated: Mapping[str, float] | Any,
     labels: Sequence[str] = ("target", "gated"),
     view: str | None = None,
 ) -> Image:
-    """Side by side: the target face (a `HeadPose` or actuator targets) and the gated targets' face."""
-    if isinstance(target, Mapping):
-        left = render_targets(renderer, head, target, view)
-    else:
-        left = renderer.render(head, target, view)
-    right = render_targets(renderer, head, gated_targets, view)
+    """Side by side, labelled: the target face and the gated face.
+
+    Each of ``target`` and ``gated`` is either a `sim.rig.HeadPose` (e.g. ``FaceModel.solve(aus)``) or a
+    mapping of actuator targets (role -> deg / mm), posed through ``FaceModel.pose_from_targets``.
+    """
+    left = _render_either(renderer, head, target, view)
+    right = _render_either(renderer, head, gated, view)
     return render_side_by_side(left, right, labels)
