@@ -265,7 +265,11 @@ def _skin(
     r: _Reader, data: dict[str, Any], folder: Path, jnames: set[str], loader: Any
 ) -> tuple[Skin, str | None]:
     s = r.table(r.req(data, "skin", ""), "skin")
-    r.keys(s, "skin", {"mesh", "joint", "color_rgba", "smooth_iterations", "bind", "scale"})
+    r.keys(
+        s,
+        "skin",
+        {"mesh", "joint", "color_rgba", "smooth_iterations", "slit_corner_blend_mm", "bind", "scale"},
+    )
     joint = s.get("joint") or None
     if joint is not None and joint not in jnames:
         raise r.fail("skin.joint", f"a joint of this head {sorted(jnames)}", joint)
@@ -292,8 +296,11 @@ def _skin(
         for k, h in enumerate(b.get("halfspaces", [])):
             hk = f"{key}.halfspaces[{k}]"
             h = r.table(h, hk)
-            r.keys(h, hk, {"point_mm", "normal"})
-            hs.append(HalfSpace(r.vec3(h, "point_mm", hk), r.vec3(h, "normal", hk, unit=True)))
+            r.keys(h, hk, {"point_mm", "normal", "falloff_mm"})
+            hf = r.number(h, "falloff_mm", hk) if "falloff_mm" in h else None
+            if hf is not None and hf <= 0:
+                raise r.fail(f"{hk}.falloff_mm", "a positive distance", hf)
+            hs.append(HalfSpace(r.vec3(h, "point_mm", hk), r.vec3(h, "normal", hk, unit=True), hf))
         centre = r.vec3(b, "sphere_centre_mm", key) if "sphere_centre_mm" in b else None
         radius = r.number(b, "sphere_radius_mm", key, 0.0)
         if centre is not None and radius <= 0:
@@ -303,7 +310,10 @@ def _skin(
         if fall <= 0 or not 0 <= weight <= 1:
             raise r.fail(key, "falloff_mm > 0 and weight in 0..1", {"falloff_mm": fall, "weight": weight})
         rules.append(BindRule(bj, tuple(hs), centre, radius, fall, weight))
-    names, w = bind_weights(verts, faces, tuple(rules), iters)
+    blend = r.number(s, "slit_corner_blend_mm", "skin", 0.0)
+    if blend < 0:
+        raise r.fail("skin.slit_corner_blend_mm", "a distance >= 0", blend)
+    names, w = bind_weights(verts, faces, tuple(rules), iters, blend)
     if joint is not None:
         names = (joint, *names)
         w = np.concatenate([np.zeros((len(w), 1)), w], axis=1)

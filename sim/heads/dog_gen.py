@@ -71,6 +71,10 @@ def _skin() -> tuple[F64, I64, F64]:
     h = np.where(upper, (top - yc)[:, None], (yc - bot)[:, None])
     e = np.where(upper, e_up, e_lo)
     x = w[:, None] * np.sign(su) * np.abs(su) ** e
+    # towards the tip the rings flatten onto the mouth's front edge: spread their points evenly along it
+    x_even = w[:, None] * np.sign(su) * (1.0 - np.abs(1.0 - 2.0 * np.abs(u)[None, :] / np.pi))
+    even = mt.smoothstep((zs[:, None] - (_Z[-1] - 14.0)) / 14.0)
+    x = (1.0 - even) * x + even * x_even
     y = yc[:, None] + h * np.sign(cu) * np.abs(cu) ** e
     z = np.broadcast_to(zs[:, None], x.shape).copy()
     # Staffy cheeks: bulge the lower sides behind the mouth corner
@@ -114,20 +118,26 @@ def _skin() -> tuple[F64, I64, F64]:
         local = (cen - _eye(sx)) @ _eye_rot(sx)
         r = (local[:, 0] / _EYE_HOLE[0]) ** 2 + (local[:, 1] / _EYE_HOLE[1]) ** 2
         hole |= (r < 1.0) & (local[:, 2] > 0.0) & (local[:, 2] < 30.0)
-    area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    faces = faces[(area > 1e-9) & ~hole]
     # vertices on the mouth line: side columns from the corner forward, and the whole last ring
     last = nz - 1
-    on_line = ((ring_of >= 0) & side_col[col_of] & (zs[np.clip(ring_of, 0, None)] > MOUTH_CORNER_Z)) | (
-        ring_of == last
-    )
+    zr = zs[np.clip(ring_of, 0, None)]
+    on_line = ((ring_of >= 0) & side_col[col_of] & (zr > MOUTH_CORNER_Z)) | (ring_of == last)
     on_line[back] = False
-    # a face is "lower" when its vertices lie in lower columns or on the line (not all upper)
+    # a grid quad is "lower" when all four corners lie in lower columns or on the line (not all on it);
+    # deciding per quad keeps the slit mirror-symmetric whatever the triangle diagonals
     fl = lower_col[col_of[faces]] | on_line[faces]
     f_low = fl.all(1) & ~(ring_of[faces] == -1).any(1) & ~on_line[faces].all(1)
-    # the last ring's upper-half vertices stay with the upper lip; the lower lip gets copies
+    corners = mt.quad_corners(faces, n_grid)
+    ok = lower_col[col_of[corners]] | on_line[corners]
+    quad_low = ok.all(1) & ~on_line[corners].all(1)
+    f_low[:n_grid] = np.repeat(quad_low, 2)
+    f_low &= on_line[faces].any(1)
+    area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    keep = (area > 1e-9) & ~hole
+    faces, f_low = faces[keep], f_low[keep]
+    # the upper lip keeps the line's vertices; the lower lip gets copies
     ids = np.nonzero(on_line)[0]
-    verts, faces, _ = mt.split_vertices(verts, faces, ids, f_low & on_line[faces].any(1))
+    verts, faces, _ = mt.split_vertices(verts, faces, ids, f_low)
 
     verts, faces, _ = mt.compact(verts, faces)
 

@@ -147,7 +147,7 @@ def _skin() -> tuple[F64, I64, F64, dict[str, int]]:
     rim = rim[verts[rim, 2] > 20.0]
     for sx in (1.0, -1.0):
         ex, ey = sx * EYE_CENTRE_L[0], EYE_CENTRE_L[1]
-        sel = rim[np.abs(verts[rim, 0] - ex) < 25.0]
+        sel = rim[(np.abs(verts[rim, 0] - ex) < 25.0) & (np.abs(verts[rim, 1] - ey) < 20.0)]
         u = (verts[sel, 0] - ex) / EYE_HOLE_SEMI[0]
         v = (verts[sel, 1] - ey) / EYE_HOLE_SEMI[1]
         rr = np.hypot(u, v)

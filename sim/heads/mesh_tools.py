@@ -45,15 +45,20 @@ def grid_faces(nv: int, nu: int, periodic_u: bool) -> I64:
     return np.asarray(tri[order], dtype=np.int64)
 
 
+def quad_corners(faces: I64, n_grid: int) -> I64:
+    """(n_grid / 2, 4): the four distinct vertices of each grid quad (faces 2q and 2q + 1), any winding."""
+    ids = np.sort(faces[:n_grid].reshape(-1, 6), axis=1)
+    first = np.ones(ids.shape, dtype=bool)
+    first[:, 1:] = ids[:, 1:] != ids[:, :-1]
+    return np.asarray(ids[first].reshape(-1, 4), dtype=np.int64)
+
+
 def quad_centres(vertices: F64, faces: I64, n_grid: int) -> F64:
     """Per face: the centre of its grid quad (faces 2q and 2q + 1 of ``grid_faces`` share quad q), so
     decisions taken on it are the same for both triangles and mirror-symmetric; faces past ``n_grid``
     (fans) use their own centroid."""
     cen = vertices[faces].mean(1)
-    ids = np.sort(faces[:n_grid].reshape(-1, 6), axis=1)
-    first = np.ones(ids.shape, dtype=bool)
-    first[:, 1:] = ids[:, 1:] != ids[:, :-1]
-    corners = ids[first].reshape(-1, 4)  # the quad's four distinct vertices, whatever the winding
+    corners = quad_corners(faces, n_grid)
     q = np.sort(vertices[corners], axis=1).sum(1) / 4.0  # sorted: same summation order for mirror quads
     cen[:n_grid] = np.repeat(q, 2, axis=0)
     out: F64 = np.round(cen, 9)

