@@ -57,16 +57,20 @@ void main()
     vec3 diffuse = base.rgb / PI;
     vec3 color = base.rgb * ambient_light;
     int key = 0;
-    for (int i = 1; i < n_directional_lights; i++) {
-        if (directional_lights[i].intensity > directional_lights[key].intensity) key = i;
-    }
     for (int i = 0; i < n_directional_lights; i++) {
+        if (directional_lights[i].intensity > directional_lights[key].intensity) key = i;
         vec3 l = -directional_lights[i].direction;
+        float nl = max((dot(n, l) + WRAP) / (1.0 + WRAP), 0.0);
+        color += directional_lights[i].color * directional_lights[i].intensity * diffuse * nl;
+    }
+    if (n_directional_lights > 0) {
+        vec3 l = -directional_lights[key].direction;
         float nl_raw = dot(n, l);
-        float nl = max((nl_raw + WRAP) / (1.0 + WRAP), 0.0);
-        vec3 h = normalize(l + v);
-        float spec = (i == key && nl_raw > 0.0) ? pow(max(dot(n, h), 0.0), shininess) * spec_scale * nl_raw : 0.0;
-        color += directional_lights[i].color * directional_lights[i].intensity * (diffuse * nl + spec);
+        if (nl_raw > 0.0) {
+            vec3 h = normalize(l + v);
+            float spec = pow(max(dot(n, h), 0.0), shininess) * spec_scale * nl_raw;
+            color += directional_lights[key].color * directional_lights[key].intensity * spec;
+        }
     }
     color += material.emissive_factor;
     frag_color = clamp(vec4(pow(color, vec3(1.0 / 2.2)), base.a), 0.0, 1.0);
