@@ -159,7 +159,11 @@ def _fast_renderer_class(pyrender: Any) -> type:
             view_m, proj_m = self._get_camera_matrices(scene)
             cam_pos = scene.get_pose(scene.main_camera_node)[:3, 3]
             lights = []
-            for ln in list(scene.directional_light_nodes)[: self._compute_max_n_lights(flags)[0]]:
+            # a fixed light order (pyrender's is a set's): the same float sums, the same pixels, every run
+            ordered = sorted(
+                scene.directional_light_nodes, key=lambda ln: (str(ln.name), -ln.light.intensity)
+            )
+            for ln in ordered[: self._compute_max_n_lights(flags)[0]]:
                 lights.append((-scene.get_pose(ln)[:3, 2], ln.light.color, float(ln.light.intensity)))
             ready: set[int] = set()
             program = None
