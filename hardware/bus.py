@@ -34,6 +34,18 @@ class PingReply:
     firmware_version: int
 
 
+@dataclass(frozen=True)
+class BusCounters:
+    """A frozen copy of `BusStats` (what a `ChainSnapshot` carries)."""
+
+    transactions: int = 0
+    timeouts: int = 0
+    corrupt: int = 0
+    status_errors: int = 0
+    alerts: int = 0
+    bytes_written: int = 0
+
+
 @dataclass
 class BusStats:
     """Running counters of one bus (plain counters, owned by the bus thread)."""
@@ -45,8 +57,8 @@ class BusStats:
     alerts: int = 0
     bytes_written: int = 0
 
-    def copy(self) -> BusStats:
-        return BusStats(**vars(self))
+    def copy(self) -> BusCounters:
+        return BusCounters(**vars(self))
 
 
 @runtime_checkable

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from enum import Enum
 from types import MappingProxyType
 
-from hardware.bus import BusStats
+from hardware.bus import BusCounters
 from hardware.registers import HardwareErrorBits
 
 
@@ -82,7 +82,7 @@ class ChainSnapshot:
     cycle: int
     servos: Mapping[int, ServoState]
     events: tuple[FaultEvent, ...]
-    stats: BusStats
+    stats: BusCounters
     bus_connected: bool
 
     def __post_init__(self) -> None:

@@ -120,6 +120,8 @@ def test_snapshot_is_frozen() -> None:
         snap[1].position_tick = 5  # type: ignore[misc]
     with pytest.raises(TypeError):
         snap.servos[1] = snap[1]  # type: ignore[index]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        snap.stats.timeouts = 0  # type: ignore[misc]
     assert driver.snapshot() is snap
 
 
