@@ -51,3 +51,15 @@ def test_id_spec_parsing() -> None:
     assert ids_from_spec("1-3, 7") == [1, 2, 3, 7]
     with pytest.raises(ValueError, match="outside 0..252"):
         ids_from_spec("250-260")
+
+
+def test_scan_all_bauds_finds_a_factory_fresh_chain(capsys: pytest.CaptureFixture[str]) -> None:
+    chain = ServoChain.create(ids=[1], model="XL430-W250", baud=57_600, wire_time=False)
+    try:
+        assert main(["scan", "--port", chain.serve_pty(), "--baud", "all", "--ids", "1"]) == 0
+    finally:
+        chain.close()
+    out = capsys.readouterr().out
+    assert "at 57600 bps, ids 1: 1 servo(s)" in out and "XL430-W250" in out
+    with pytest.raises(SystemExit):
+        main(["scan", "--port", "/dev/null", "--baud", "fast"])
