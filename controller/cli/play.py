@@ -27,8 +27,11 @@ def run(args: argparse.Namespace) -> int:
     from calibration import CalibrationError
     from controller.errors import ControllerError
     from controller.face import Face
+    from controller.script import load_script
     from hardware.errors import HardwareError
     from sim.errors import SimError
+    from sim.expressions import load_library
+    from sim.heads import load_head
 
     if not (0 < args.rate <= 1000):
         print(f"servoface play: --rate must be within 0..1000 Hz, got {args.rate}", file=sys.stderr)
@@ -37,8 +40,15 @@ def run(args: argparse.Namespace) -> int:
         print(f"servoface play: --hold must be >= 0 s, got {args.hold}", file=sys.stderr)
         return 2
     is_script = args.what.endswith(".toml") or Path(args.what).is_file()
-    try:
-        face = Face.open(args.head, port=args.port, emulate=args.emulate, baud=args.baud, rate_hz=args.rate,
+    try:  # check what to play before opening the port: a typo must not switch torque on
+        head = load_head(args.head)
+        if is_script:
+            what = load_script(args.what)
+        else:
+            known = load_library(head.expressions_path or head.face_type)
+            if args.what not in known:
+                raise ControllerError(f"unknown expression {args.what!r}; known: {sorted(known)}")
+        face = Face.open(head, port=args.port, emulate=args.emulate, baud=args.baud, rate_hz=args.rate,
                          calibration=args.calibration)
     except (ControllerError, SimError, CalibrationError, HardwareError, ValueError, OSError) as err:
         print(f"servoface play: {err}", file=sys.stderr)
@@ -46,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         with face:
             if is_script:
-                perf = face.play(args.what)
+                perf = face.play(what)
             else:
                 perf = face.express(args.what, hold_s=args.hold)
     except (ControllerError, SimError, ValueError) as err:

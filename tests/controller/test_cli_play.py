@@ -1,0 +1,75 @@
+"""`servoface play` on the emulated chain (in-process) and its argument errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from controller.cli import main
+
+
+def test_play_expression_on_the_emulator(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    trace = tmp_path / "trace.jsonl"
+    status = main(["play", "happiness", "--emulate", "--hold", "0.2", "--trace", str(trace)])
+    out, err = capsys.readouterr()
+    assert status == 0, out + err
+    frames = int(out.split()[0])
+    assert frames >= 10 and "verdicts" in out
+    lines = [json.loads(line) for line in trace.read_text().splitlines()]
+    assert len(lines) == frames
+    assert {line["verdict"] for line in lines} <= {"accept", "clip", "reject"}
+    apex = max(lines, key=lambda d: d["aus"].get("AU12", 0.0))
+    assert apex["aus"]["AU12"] > 0.5 and len(apex["goals_sent"]) == 21
+
+
+def test_play_script_on_the_emulator(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    script = tmp_path / "blink.toml"
+    script.write_text(
+        '[script]\nface = "human"\nend_s = 0.3\n[poses]\nshut = { AU43 = 0.8 }\n'
+        '[expressions.shut]\nduration_s = 0.2\nmovements = [{ pose = "shut", percent = 100 }]\n'
+        '[[play]]\nat_s = 0.0\nexpression = "shut"\n'
+    )
+    assert main(["play", str(script), "--emulate"]) == 0
+    assert "frames" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv, named",
+    [
+        (["play", "happiness"], "--port"),  # neither --port nor --emulate
+        (["play", "happiness", "--emulate", "--port", "/dev/null"], "--port"),
+        (["play", "happiness", "--emulate", "--rate", "0"], "--rate"),
+        (["play", "happiness", "--emulate", "--rate", "fast"], "--rate"),
+        (["play", "happiness", "--emulate", "--hold", "-1"], "--hold"),
+        (["play", "glee", "--emulate"], "glee"),
+        (["play", "happiness", "--emulate", "--head", "no_such_head"], "no_such_head"),
+        (["play", "happiness", "--emulate", "--baud", "1234"], "1234"),
+        (["play", "missing.toml", "--emulate"], "missing.toml"),
+        (["play", "--emulate"], "what"),
+    ],
+)
+def test_bad_arguments_exit_2_with_a_message(
+    argv: list[str], named: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    try:
+        status = main(argv)
+    except SystemExit as exc:  # argparse's own errors
+        status = exc.code
+    err = capsys.readouterr().err
+    assert status == 2, err
+    assert named in err, err
+    assert "Traceback" not in err
+
+
+def test_bench_unknown_suite_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "nosuch"]) == 2
+    assert "nosuch" in capsys.readouterr().err
+
+
+def test_a_typo_is_reported_before_the_port_is_opened(capsys: pytest.CaptureFixture[str]) -> None:
+    # the port does not exist: the error must be about the expression, found before touching any port
+    assert main(["play", "glee", "--port", "/dev/does-not-exist"]) == 2
+    err = capsys.readouterr().err
+    assert "glee" in err and "does-not-exist" not in err
