@@ -186,4 +186,5 @@ class Pipeline:
         if self.driver is None:
             return None
         self.last_snapshot = self.driver.cycle(self.last_goals_tick)
+        self.gate.reset()  # the servos got a zero step: the next frame starts from rest (accel cap)
         return self.last_snapshot
