@@ -179,7 +179,7 @@ BAD_CASES = [
         r"calibraton: expected one of the known keys",
     ),
     ('au_table = "builtin"', 'au_table = "tables/none.toml"', r"au_table: expected an existing file"),
-    ("smooth_iterations = 20", "smooth_iterations = -1", r"skin\.smooth_iterations: expected an integer"),
+    ("smooth_iterations = ", "smooth_iterations = -1  # ", r"skin\.smooth_iterations: expected an integer"),
     (
         'joint = "jaw"\nfalloff_mm',
         'joint = "chin"\nfalloff_mm',
