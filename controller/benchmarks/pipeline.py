@@ -145,6 +145,18 @@ def run(quick: bool = False) -> Iterator[Figure]:
             better="lower",
             note=f"{notes[name]}; median of {len(traces)} frames",
         )
+    for label, kinds in (("accepted", ("accept",)), ("clipped or rejected", ("clip", "reject"))):
+        gate_ms = [t.timings_ms["gate_ms"] for t in traces if t.verdict in kinds]
+        if gate_ms:
+            yield Figure(
+                f"pipeline gate median, {label} frames",
+                _median(gate_ms),
+                "ms",
+                limit=GATE_GOAL_MS,
+                better="lower",
+                note=f"TwinGate.check on the {len(gate_ms)} {label} frames (a failing request is scaled "
+                "back: several candidate commands re-checked)",
+            )
     yield Figure(
         "pipeline open (configure + torque on + gate build)",
         open_s * 1e3,
