@@ -230,33 +230,48 @@ def mouth_cavity() -> tuple[F64, I64]:
     return _out(*mt.ellipsoid((0.0, 74.0, 100.0), (22.0, 11.0, 48.0), subdiv=3))
 
 
-def _arch(y: F64 | float, z_front: float, half_w: float, length: float, n: int) -> F64:
-    t = np.linspace(-1.0, 1.0, n)
-    ang = t * np.pi / 2
-    return np.stack(
-        [half_w * np.sin(ang), np.broadcast_to(y, t.shape), z_front - length * (1 - np.cos(ang))], 1
-    )
+def _mouth_path(inset_mm: float, z_back: float, spacing_mm: float) -> F64:
+    """(k, 2) (x, z) points every ``spacing_mm`` along the mouth line, ``inset_mm`` inside the lips:
+    up the right side, across the front, down the left side (design coordinates)."""
+    z_front = _Z[-1] - inset_mm
+    zs = np.linspace(z_back, z_front, 80)
+    side = np.interp(zs, _Z, _W) - inset_mm
+    x_front = float(side[-1])
+    right = np.stack([-side, zs], 1)
+    front = np.stack([np.linspace(-x_front, x_front, 20)[1:-1], np.full(18, z_front)], 1)
+    left = np.stack([side, zs], 1)[::-1]
+    line = np.concatenate([right, front, left])
+    seg = np.linalg.norm(np.diff(line, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    n = int(s[-1] // spacing_mm) + 1
+    t = np.linspace(0.0, s[-1], n)
+    return np.stack([np.interp(t, s, line[:, 0]), np.interp(t, s, line[:, 1])], 1)
 
 
 def _tooth_row(
-    y_gum: float, down: bool, z_front: float, half_w: float, length: float, canine_mm: float
+    y_gum: float, down: bool, inset_mm: float, canine_mm: float, canine_back_mm: float
 ) -> tuple[F64, I64]:
-    pts = _arch(y_gum, z_front, half_w, length, 19)
+    """Teeth along the mouth line; the two canines stand ``canine_back_mm`` behind the front."""
+    pts = _mouth_path(inset_mm, 100.0, 4.2)
+    z_front = _Z[-1] - inset_mm
     boxes = []
-    for k, p in enumerate(pts):
-        canine = k in (3, 15)
-        hgt = canine_mm if canine else 4.5
-        lo_y, hi_y = (p[1] - hgt, p[1]) if down else (p[1], p[1] + hgt)
-        boxes.append(mt.box((p[0] - 1.8, lo_y, p[2] - 2.0), (p[0] + 1.8, hi_y, p[2] + 2.0)))
+    canines = set()
+    for sx in (1.0, -1.0):
+        on_side = np.nonzero(np.sign(pts[:, 0]) == sx)[0]
+        canines.add(int(on_side[np.argmin(np.abs(pts[on_side, 1] - (z_front - canine_back_mm)))]))
+    for k, (x, z) in enumerate(pts):
+        hgt = canine_mm if k in canines else 4.5
+        lo_y, hi_y = (y_gum - hgt, y_gum) if down else (y_gum, y_gum + hgt)
+        boxes.append(mt.box((x - 1.8, lo_y, z - 1.8), (x + 1.8, hi_y, z + 1.8)))
     return mt.merge(*boxes)
 
 
 def teeth_upper() -> tuple[F64, I64]:
-    return _out(*_tooth_row(82.5, True, 151.0, 24.0, 60.0, 10.0))
+    return _out(*_tooth_row(83.0, True, 4.5, 10.0, 12.0))
 
 
 def jaw() -> tuple[F64, I64]:
-    teeth = _tooth_row(70.5, False, 146.0, 19.0, 55.0, 9.0)
+    teeth = _tooth_row(71.0, False, 9.0, 9.0, 20.0)
     t = np.linspace(-1.0, 1.0, 17)
     ang = t * np.pi / 2
     spine = np.stack([24.0 * np.sin(ang), 68.0 + 10.0 * np.abs(t) ** 2, 132.0 - 106.0 * (1 - np.cos(ang))], 1)
