@@ -1,0 +1,27 @@
+"""Inputs: outside face data -> AU frames. Every source has ``.sample(t_s) -> AUFrame`` so it plugs into
+``controller.performance.play_timeline(pipeline, source, duration_s)``.
+
+Files (a :class:`Recording`): :func:`read_openface_csv`, :func:`read_pyfeat_csv`, :func:`read_jsonl`,
+:func:`read_blendshape_csv`, :func:`read_fap`, or :func:`load_recording` (picks by file).
+Live: :class:`StreamSource` fed by :class:`UdpReceiver`, :class:`TcpReceiver` or :class:`LineReceiver`.
+Mapping: :func:`load_blendshape_map` (ARKit/MediaPipe -> AU prior), :func:`head_pose_aus`, :func:`mirror_aus`.
+"""
+
+from controller.inputs.blendshapes import BlendshapeMap, load_blendshape_map
+from controller.inputs.errors import InputError
+from controller.inputs.face_files import load_recording, read_blendshape_csv, read_jsonl
+from controller.inputs.head_pose import head_pose_aus, matrix_to_ypr_deg
+from controller.inputs.messages import Message, MessageDecoder
+from controller.inputs.openface import read_openface_csv, read_pyfeat_csv
+from controller.inputs.recorded import InputReport, Recording
+from controller.inputs.sides import mirror_aus
+from controller.inputs.smoothing import AUSmoother, OneEuroFilter
+from controller.inputs.stream import StreamSource, StreamStats
+from controller.inputs.transports import LineReceiver, TcpReceiver, UdpReceiver
+
+__all__ = [
+    "AUSmoother", "BlendshapeMap", "InputError", "InputReport", "LineReceiver", "Message", "MessageDecoder",
+    "OneEuroFilter", "Recording", "StreamSource", "StreamStats", "TcpReceiver", "UdpReceiver",
+    "head_pose_aus", "load_blendshape_map", "load_recording", "matrix_to_ypr_deg", "mirror_aus",
+    "read_blendshape_csv", "read_jsonl", "read_openface_csv", "read_pyfeat_csv",
+]

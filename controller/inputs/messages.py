@@ -1,0 +1,119 @@
+"""One message of face data (a JSON object) -> validated AUs. Shared by JSON-lines files and live streams.
+
+A message is one JSON object with these keys (all optional, at least one of aus / blendshapes / head):
+
+    {"t": 1.23,                                   sender time, s (finite; used for order, not for sampling)
+     "aus": {"AU12": 0.5, "AU4L": 0.2},           FACS 0..1 (human) or DFACS -1..1 (dog), the head's names
+     "blendshapes": {"mouthSmileLeft": 0.8},      ARKit / MediaPipe scores 0..1 (human only)
+     "head": {"yaw_deg": 10, "pitch_deg": -5, "roll_deg": 0} or {"matrix": [[...]]}   (human only)
+     "confidence": 0.93}                          tracker confidence 0..1
+
+Unknown keys, unknown names, non-finite or out-of-range values raise :class:`InputError` naming the field
+(e.g. ``aus.AU12``); one bad field rejects the whole message. Explicit ``aus`` override AUs mapped from
+blendshapes or head pose. ``mirror`` swaps sides of everything (controller/inputs/sides.py).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from controller.errors import FrameError
+from controller.frame import FrameValidator, check_face_type
+from controller.inputs.blendshapes import BlendshapeMap, load_blendshape_map
+from controller.inputs.errors import InputError
+from controller.inputs.head_pose import head_pose_aus, parse_head
+from controller.inputs.sides import mirror_aus
+from sim.rig import FaceType
+
+KEYS = frozenset({"t", "aus", "blendshapes", "head", "confidence"})
+MAX_MESSAGE_BYTES = 65_536
+
+
+@dataclass(frozen=True)
+class Message:
+    """A decoded, validated message: sender time (None if not given), AUs (canonical), confidence."""
+
+    t_s: float | None
+    aus: dict[str, float]
+    confidence: float = 1.0
+
+
+class MessageDecoder:
+    """Decode messages for one face. ``allowed``: the head's AU names (None = the face type's default)."""
+
+    def __init__(self, face_type: FaceType = "human", *, allowed: frozenset[str] | None = None,
+                 mirror: bool = False, vergence: bool = False,
+                 blendshape_map: BlendshapeMap | None = None) -> None:
+        self.face_type = check_face_type(face_type)
+        self.validator = FrameValidator(self.face_type, allowed)
+        self.mirror = bool(mirror)
+        self.vergence = bool(vergence)
+        self._bmap = blendshape_map
+
+    @property
+    def blendshape_map(self) -> BlendshapeMap:
+        if self._bmap is None:
+            self._bmap = load_blendshape_map(None, self.validator.allowed)
+        return self._bmap
+
+    def decode_line(self, line: str | bytes, *, where: str = "message") -> Message:
+        """Decode one JSON text (a line or a datagram)."""
+        if len(line) > MAX_MESSAGE_BYTES:
+            raise InputError(f"{where}: {len(line)} bytes, more than the {MAX_MESSAGE_BYTES} allowed")
+        try:
+            text = line.decode("utf-8") if isinstance(line, bytes) else line
+            obj = json.loads(text, parse_constant=_reject_constant)
+        except (UnicodeDecodeError, ValueError) as err:
+            raise InputError(f"{where}: not valid JSON: {err}") from err
+        return self.decode(obj, where=where)
+
+    def decode(self, obj: Any, *, where: str = "message") -> Message:
+        """Decode one parsed JSON object."""
+        if not isinstance(obj, Mapping):
+            raise InputError(f"{where}: expected a JSON object like {{\"aus\": {{\"AU12\": 0.5}}}}, "
+                             f"got {type(obj).__name__}")
+        unknown = set(obj) - KEYS
+        if unknown:
+            raise InputError(f"{where}: unknown key(s) {sorted(unknown)}; expected {sorted(KEYS)}")
+        if not ({"aus", "blendshapes", "head"} & set(obj)):
+            raise InputError(f"{where}: no face data; expected at least one of aus, blendshapes, head")
+        t_s = None
+        if "t" in obj:
+            t_s = _finite(obj["t"], f"{where}.t", "a finite time in seconds")
+        confidence = 1.0
+        if "confidence" in obj:
+            confidence = _finite(obj["confidence"], f"{where}.confidence", "a confidence 0..1")
+            if not 0.0 <= confidence <= 1.0:
+                raise InputError(f"{where}.confidence: {confidence:g} is out of range, expected 0..1")
+        aus: dict[str, float] = {}
+        if ("blendshapes" in obj or "head" in obj) and self.face_type != "human":
+            key = "blendshapes" if "blendshapes" in obj else "head"
+            raise InputError(f"{where}.{key}: blendshapes and head pose map to human AUs only; "
+                             f"send DFACS 'aus' for a {self.face_type} head")
+        if "blendshapes" in obj:
+            aus.update(self.blendshape_map.to_aus(obj["blendshapes"], vergence=self.vergence,
+                                                  where=f"{where}.blendshapes"))
+        if "head" in obj:
+            aus.update(head_pose_aus(*parse_head(obj["head"], field=f"{where}.head")))
+        if "aus" in obj:
+            try:
+                aus.update(self.validator.pose(obj["aus"], where=f"{where}.aus"))
+            except FrameError as err:
+                raise InputError(str(err)) from err
+        if self.mirror:
+            aus = mirror_aus(aus, self.face_type)
+        return Message(t_s, aus, confidence)
+
+
+def _finite(value: Any, field: str, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise InputError(f"{field}: expected {what}, got {value!r}")
+    return float(value)
+
+
+def _reject_constant(name: str) -> float:
+    raise ValueError(f"{name} is not a finite number (JSON has no NaN/Infinity)")

@@ -1,0 +1,162 @@
+"""A live face-data stream as a source: ``StreamSource.sample(t_s) -> AUFrame`` at the control loop's rate.
+
+Receivers (transports.py) run on background threads and hand raw messages (bytes/str) to
+:meth:`StreamSource.feed`, which decodes and validates them (messages.py) and keeps only the LATEST good
+one with its arrival time (a latest-value buffer: a slow loop never works through a backlog, it skips to
+now). A bad message is counted, its error kept (``stats.errors``, the last 20) and dropped: it never
+reaches the pipeline; one bad field rejects that message. A message older than the newest by its own
+``t`` (UDP reordering) is dropped as ``out_of_order``; one below ``min_confidence`` counts as no data.
+
+``sample`` (called by the loop thread) applies, in order:
+
+* dropout policy: if the newest good message is older than ``dropout_ms`` (default 250 ms) on the
+  receiver clock, the stream is in dropout. ``dropout="neutral"`` (default) eases the last AUs linearly to
+  neutral over ``ease_s`` (default 0.5 s); ``"hold"`` keeps them. Before the first message the face is
+  neutral. Each fresh -> dropout transition is counted (``stats.dropouts``).
+* smoothing: a One-Euro filter per AU (smoothing.py; ``smoothing=None`` switches it off).
+
+The clock is injectable (``clock() -> s``; default ``time.monotonic``): arrival stamps and dropout ages use
+it, so tests drive time by hand.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from controller.errors import FrameError
+from controller.frame import AUFrame
+from controller.inputs.errors import InputError
+from controller.inputs.messages import Message, MessageDecoder
+from controller.inputs.smoothing import AUSmoother
+
+Clock = Callable[[], float]
+
+
+@dataclass
+class StreamStats:
+    """Counters of a stream (read them from any thread; they only grow)."""
+
+    messages: int = 0  # raw messages received
+    good: int = 0
+    bad: int = 0
+    out_of_order: int = 0
+    low_confidence: int = 0
+    dropouts: int = 0  # fresh -> dropout transitions seen by sample()
+    samples: int = 0
+    samples_in_dropout: int = 0
+    latency_s_max: float = 0.0  # largest age of the newest message at a sample (outside dropouts)
+    errors: deque[str] = field(default_factory=lambda: deque(maxlen=20))
+
+    def summary(self) -> dict[str, Any]:
+        return {
+            "messages": self.messages, "good": self.good, "bad": self.bad, "out_of_order": self.out_of_order,
+            "low_confidence": self.low_confidence, "dropouts": self.dropouts, "samples": self.samples,
+            "samples_in_dropout": self.samples_in_dropout, "age_max_ms": round(1e3 * self.latency_s_max, 2),
+            "last_errors": list(self.errors)[-5:],
+        }
+
+
+class StreamSource:
+    """Latest-value buffer + dropout policy + smoothing over a message decoder (see the module doc)."""
+
+    def __init__(
+        self,
+        decoder: MessageDecoder | None = None,
+        *,
+        dropout_ms: float = 250.0,
+        dropout: str = "neutral",
+        ease_s: float = 0.5,
+        min_confidence: float = 0.0,
+        smoothing: AUSmoother | None | str = "default",
+        clock: Clock = time.monotonic,
+    ) -> None:
+        if dropout not in ("neutral", "hold"):
+            raise InputError(f"dropout: expected 'neutral' or 'hold', got {dropout!r}")
+        for name, value in (("dropout_ms", dropout_ms), ("ease_s", ease_s)):
+            if isinstance(value, bool) or not isinstance(value, int | float) or not 0 < value < 1e6:
+                raise InputError(f"{name}: expected a positive number, got {value!r}")
+        if not (isinstance(min_confidence, int | float) and 0.0 <= min_confidence <= 1.0):
+            raise InputError(f"min_confidence: expected 0..1, got {min_confidence!r}")
+        self.decoder = decoder or MessageDecoder("human")
+        self.face_type = self.decoder.face_type
+        self.dropout_s = float(dropout_ms) / 1e3
+        self.dropout = dropout
+        self.ease_s = float(ease_s)
+        self.min_confidence = float(min_confidence)
+        self.smoother = AUSmoother() if smoothing == "default" else smoothing
+        if self.smoother is not None and not isinstance(self.smoother, AUSmoother):
+            raise InputError(f"smoothing: expected an AUSmoother, None or 'default', got {smoothing!r}")
+        self.clock = clock
+        self.stats = StreamStats()
+        self._lock = threading.Lock()
+        self._latest: Message | None = None
+        self._latest_arrival_s = 0.0
+        self._in_dropout = True  # nothing received yet
+        self._lo, self._hi = self.decoder.validator.range
+
+    # -- receiver side (any thread) ------------------------------------------------------------------
+    def feed(self, raw: str | bytes, *, where: str = "message") -> bool:
+        """Decode one raw message; True if it became the latest value. Never raises on bad data."""
+        arrival = self.clock()
+        with self._lock:
+            self.stats.messages += 1
+            index = self.stats.messages
+        try:
+            msg = self.decoder.decode_line(raw, where=f"{where} #{index}")
+        except FrameError as err:  # InputError is a FrameError
+            with self._lock:
+                self.stats.bad += 1
+                self.stats.errors.append(str(err))
+            return False
+        return self.offer(msg, arrival)
+
+    def offer(self, msg: Message, arrival_s: float | None = None) -> bool:
+        """Take an already decoded message (e.g. from a recording) as the latest value if it is newer."""
+        arrival = self.clock() if arrival_s is None else arrival_s
+        with self._lock:
+            if msg.confidence < self.min_confidence:
+                self.stats.low_confidence += 1
+                return False
+            latest = self._latest
+            if latest is not None and msg.t_s is not None and latest.t_s is not None and msg.t_s < latest.t_s:
+                self.stats.out_of_order += 1
+                return False
+            self.stats.good += 1
+            self._latest, self._latest_arrival_s = msg, arrival
+            return True
+
+    # -- loop side -------------------------------------------------------------------------------------
+    def target(self) -> tuple[dict[str, float], bool]:
+        """The AUs the stream asks for now (dropout policy applied, not smoothed) and whether in dropout."""
+        now = self.clock()
+        with self._lock:
+            latest, arrival = self._latest, self._latest_arrival_s
+        if latest is None:
+            return {}, True
+        age = now - arrival
+        if age <= self.dropout_s:
+            self.stats.latency_s_max = max(self.stats.latency_s_max, age)
+            return dict(latest.aus), False
+        if self.dropout == "hold":
+            return dict(latest.aus), True
+        k = max(0.0, 1.0 - (age - self.dropout_s) / self.ease_s)
+        return {n: v * k for n, v in latest.aus.items()}, True
+
+    def sample(self, t_s: float) -> AUFrame:
+        """The frame for loop time ``t_s``: latest good AUs, dropout policy, smoothing; always valid."""
+        aus, in_dropout = self.target()
+        self.stats.samples += 1
+        if in_dropout:
+            self.stats.samples_in_dropout += 1
+            if not self._in_dropout and self._latest is not None:
+                self.stats.dropouts += 1
+        self._in_dropout = in_dropout
+        if self.smoother is not None:
+            aus = self.smoother(aus, self.clock())
+        clean = {n: min(self._hi, max(self._lo, v)) for n, v in aus.items()}
+        return AUFrame(t_s, clean, self.face_type, allowed=self.decoder.validator.allowed)
