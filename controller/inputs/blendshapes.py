@@ -56,8 +56,9 @@ class ShapeEntry:
 class BlendshapeMap:
     """The blendshape -> AU prior for one set of allowed human AU names."""
 
-    def __init__(self, entries: Mapping[str, ShapeEntry], allowed: frozenset[str] | None = None,
-                 source: str = "") -> None:
+    def __init__(
+        self, entries: Mapping[str, ShapeEntry], allowed: frozenset[str] | None = None, source: str = ""
+    ) -> None:
         self.entries = dict(entries)
         self.allowed = allowed if allowed is not None else default_au_names("human")
         self.source = source
@@ -84,12 +85,19 @@ class BlendshapeMap:
         sided = f"{term.au}{term.side}"
         return sided if term.side and sided in self.allowed else term.au
 
-    def to_aus(self, shapes: Mapping[str, Any], *, mirror: bool = False, vergence: bool = False,
-               where: str = "blendshapes") -> dict[str, float]:
+    def to_aus(
+        self,
+        shapes: Mapping[str, Any],
+        *,
+        mirror: bool = False,
+        vergence: bool = False,
+        where: str = "blendshapes",
+    ) -> dict[str, float]:
         """Validate ``shapes`` (name -> score 0..1) and map them to AUs (0..1, canonical names)."""
         if not isinstance(shapes, Mapping):
-            raise InputError(f"{where}: expected a mapping of blendshape name -> score 0..1, "
-                             f"got {type(shapes).__name__}")
+            raise InputError(
+                f"{where}: expected a mapping of blendshape name -> score 0..1, got {type(shapes).__name__}"
+            )
         scores: dict[str, float] = {}
         for raw, value in shapes.items():
             field = f"{where}.{raw}"
@@ -140,7 +148,9 @@ def check_score(value: Any, *, field: str) -> float:
     return number
 
 
-def load_blendshape_map(path: str | Path | None = None, allowed: frozenset[str] | None = None) -> BlendshapeMap:
+def load_blendshape_map(
+    path: str | Path | None = None, allowed: frozenset[str] | None = None
+) -> BlendshapeMap:
     """Load a blendshape table (default: the built-in ``blendshapes.toml``)."""
     if path is None and allowed is None:
         return _builtin()
@@ -166,25 +176,31 @@ def _load(path: Path, allowed: frozenset[str] | None) -> BlendshapeMap:
     for name, body in shapes.items():
         key = f"{path}: shapes.{name}"
         if not isinstance(body, dict) or not isinstance(body.get("aus"), list):
-            raise InputError(f"{key}.aus: expected a list of {{ au = \"AUn\", ... }} tables")
+            raise InputError(f'{key}.aus: expected a list of {{ au = "AUn", ... }} tables')
         terms = tuple(_term(t, f"{key}.aus[{i}]") for i, t in enumerate(body["aus"]))
         gaze = body.get("gaze")
-        if gaze is not None and not (isinstance(gaze, list) and len(gaze) == 2 and gaze[0] in ("L", "R")
-                                     and gaze[1] in ("in", "out", "up", "down")):
-            raise InputError(f"{key}.gaze: expected [\"L\"|\"R\", \"in\"|\"out\"|\"up\"|\"down\"], got {gaze!r}")
-        entries[name] = ShapeEntry(name, terms, (gaze[0], gaze[1]) if gaze else None, str(body.get("note", "")))
+        if gaze is not None and not (
+            isinstance(gaze, list)
+            and len(gaze) == 2
+            and gaze[0] in ("L", "R")
+            and gaze[1] in ("in", "out", "up", "down")
+        ):
+            raise InputError(f'{key}.gaze: expected ["L"|"R", "in"|"out"|"up"|"down"], got {gaze!r}')
+        entries[name] = ShapeEntry(
+            name, terms, (gaze[0], gaze[1]) if gaze else None, str(body.get("note", ""))
+        )
     return BlendshapeMap(entries, allowed, str(data.get("source", "")))
 
 
 def _term(raw: Any, key: str) -> ShapeTerm:
     if not isinstance(raw, dict) or not isinstance(raw.get("au"), str):
-        raise InputError(f"{key}: expected {{ au = \"AUn\", side = \"L\"|\"R\", weight, from, to }}")
+        raise InputError(f'{key}: expected {{ au = "AUn", side = "L"|"R", weight, from, to }}')
     unknown = set(raw) - {"au", "side", "weight", "from", "to"}
     if unknown:
         raise InputError(f"{key}: unknown key(s) {sorted(unknown)}")
     side = raw.get("side", "")
     if side not in ("", "L", "R"):
-        raise InputError(f"{key}.side: expected \"L\" or \"R\", got {side!r}")
+        raise InputError(f'{key}.side: expected "L" or "R", got {side!r}')
     nums = {}
     for k, default in (("weight", 1.0), ("from", 0.0), ("to", 1.0)):
         v = raw.get(k, default)

@@ -36,8 +36,10 @@ class CsvTable:
     def require(self, *names: str) -> None:
         missing = [n for n in names if n not in self.columns]
         if missing:
-            raise InputError(f"{self.path}: missing required column(s) {missing}; header has "
-                             f"{', '.join(self.header[:10])}{', ...' if len(self.header) > 10 else ''}")
+            raise InputError(
+                f"{self.path}: missing required column(s) {missing}; header has "
+                f"{', '.join(self.header[:10])}{', ...' if len(self.header) > 10 else ''}"
+            )
 
     def rows(self) -> Iterator[tuple[int, list[str]]]:
         """(1-based line number, cells) for each non-blank data line; a short/long row is an error."""
@@ -47,8 +49,10 @@ class CsvTable:
             if not cells or all(not c.strip() for c in cells):
                 continue
             if len(cells) != len(self.header):
-                raise InputError(f"{self.path}: line {line}: {len(cells)} cells, expected {len(self.header)} "
-                                 f"(one per header column)")
+                raise InputError(
+                    f"{self.path}: line {line}: {len(cells)} cells, expected {len(self.header)} "
+                    f"(one per header column)"
+                )
             yield line, cells
 
     def cell(self, cells: list[str], line: int, column: str) -> str:

@@ -36,9 +36,16 @@ _LLF_IGNORED = frozenset({
 })  # fmt: skip
 
 
-def read_jsonl(path: str | Path, face_type: FaceType = "human", *, mirror: bool = False,
-               min_confidence: float = 0.0, lost: str = "hold", decay_s: float = 0.5,
-               interpolate: bool = True) -> Recording:
+def read_jsonl(
+    path: str | Path,
+    face_type: FaceType = "human",
+    *,
+    mirror: bool = False,
+    min_confidence: float = 0.0,
+    lost: str = "hold",
+    decay_s: float = 0.5,
+    interpolate: bool = True,
+) -> Recording:
     """Read a JSON-lines file of messages (each with ``t``) into a Recording."""
     file = Path(path)
     try:
@@ -54,7 +61,9 @@ def read_jsonl(path: str | Path, face_type: FaceType = "human", *, mirror: bool 
             continue
         msg = decoder.decode_line(line, where=f"{file}: line {number}")
         if msg.t_s is None:
-            raise InputError(f"{file}: line {number}.t: missing; every line of a recording needs a time t (s)")
+            raise InputError(
+                f"{file}: line {number}.t: missing; every line of a recording needs a time t (s)"
+            )
         if msg.t_s < last_t:
             raise InputError(f"{file}: line {number}.t: {msg.t_s:g} s is earlier than the line before")
         last_t = msg.t_s
@@ -75,9 +84,16 @@ def _timecode_s(text: str, fps: float, where: str) -> float:
     return h * 3600 + m * 60 + s + f / fps
 
 
-def read_blendshape_csv(path: str | Path, *, fps: float = 60.0, mirror: bool = False,
-                        min_confidence: float = 0.0, lost: str = "hold", decay_s: float = 0.5,
-                        interpolate: bool = True) -> Recording:
+def read_blendshape_csv(
+    path: str | Path,
+    *,
+    fps: float = 60.0,
+    mirror: bool = False,
+    min_confidence: float = 0.0,
+    lost: str = "hold",
+    decay_s: float = 0.5,
+    interpolate: bool = True,
+) -> Recording:
     """Read a blendshape CSV into a human Recording (see the module doc for the columns)."""
     if not (isinstance(fps, int | float) and 0 < fps <= 10_000):
         raise InputError(f"fps: expected a frame rate 0 < fps <= 10000, got {fps!r}")
@@ -88,8 +104,10 @@ def read_blendshape_csv(path: str | Path, *, fps: float = 60.0, mirror: bool = F
     if time_col is None:
         time_col = next((c for c in ("frame", "Timecode") if c in table.columns), None)
     if time_col is None:
-        raise InputError(f"{table.path}: missing a time column; expected one of "
-                         f"{list(_TIME_COLUMNS) + ['frame', 'Timecode']}")
+        raise InputError(
+            f"{table.path}: missing a time column; expected one of "
+            f"{list(_TIME_COLUMNS) + ['frame', 'Timecode']}"
+        )
     shape_cols: dict[str, str] = {}
     report = InputReport(str(table.path))
     ignored = []
@@ -122,7 +140,7 @@ def read_blendshape_csv(path: str | Path, *, fps: float = 60.0, mirror: bool = F
             for c, v in zip(_POSE_COLUMNS, ypr, strict=True):
                 if abs(v) > 180:
                     raise InputError(f"{table.where(line, c)}: {v:g} deg is outside ±180")
-            aus.update(head_pose_aus(*ypr))
+            aus.update(head_pose_aus(ypr[0], ypr[1], ypr[2]))
         confidence = table.number(cells, line, "confidence") if "confidence" in table.columns else 1.0
         report.rows += 1
         good = confidence >= min_confidence
@@ -133,8 +151,9 @@ def read_blendshape_csv(path: str | Path, *, fps: float = 60.0, mirror: bool = F
     return Recording(frames, "human", interpolate=interpolate, source=str(table.path), report=report)
 
 
-def load_recording(path: str | Path, face_type: FaceType = "human", *, mirror: bool = False,
-                   fps: float | None = None) -> Recording:
+def load_recording(
+    path: str | Path, face_type: FaceType = "human", *, mirror: bool = False, fps: float | None = None
+) -> Recording:
     """Read any supported recorded file, choosing the reader by extension and CSV header."""
     from controller.inputs.openface import read_openface_csv, read_pyfeat_csv
 

@@ -102,20 +102,26 @@ def fap_to_aus(faps: dict[int, float]) -> dict[str, float]:
         cfg = gaze_config_for("human")
         yaw = (faps.get(23, 0.0) + faps.get(24, 0.0)) / 2 * deg / cfg.eye_limit_yaw_deg
         pitch = -(faps.get(25, 0.0) + faps.get(26, 0.0)) / 2 * deg / cfg.eye_limit_pitch_deg
-        out.update({"AU61": _clamp01(yaw), "AU62": _clamp01(-yaw), "AU63": _clamp01(pitch),
-                    "AU64": _clamp01(-pitch)})
+        out.update(
+            {"AU61": _clamp01(yaw), "AU62": _clamp01(-yaw), "AU63": _clamp01(pitch), "AU64": _clamp01(-pitch)}
+        )
     return out
 
 
-def read_fap(path: str | Path, *, mirror: bool = False, fps: float | None = None,
-             interpolate: bool = True) -> Recording:
+def read_fap(
+    path: str | Path, *, mirror: bool = False, fps: float | None = None, interpolate: bool = True
+) -> Recording:
     """Read an MPEG-4 ``.fap`` file into a human Recording (``fps`` overrides the header's)."""
     file = Path(path)
     try:
         raw_lines = file.read_text(encoding="utf-8").splitlines()
     except (OSError, UnicodeDecodeError) as err:
         raise InputError(f"{file}: cannot read: {err}") from err
-    lines = [(i, ln.strip()) for i, ln in enumerate(raw_lines, start=1) if ln.strip() and not ln.lstrip().startswith("#")]
+    lines = [
+        (i, ln.strip())
+        for i, ln in enumerate(raw_lines, start=1)
+        if ln.strip() and not ln.lstrip().startswith("#")
+    ]
     if not lines:
         raise InputError(f"{file}: empty, expected a header '<version> <name> <fps> <n_frames>'")
     line_no, header = lines[0]
@@ -124,7 +130,9 @@ def read_fap(path: str | Path, *, mirror: bool = False, fps: float | None = None
         header_fps = float(parts[2])
         n_frames = int(parts[3])
     except (IndexError, ValueError) as err:
-        raise InputError(f"{file}: line {line_no}: expected '<version> <name> <fps> <n_frames>', got {header!r}") from err
+        raise InputError(
+            f"{file}: line {line_no}: expected '<version> <name> <fps> <n_frames>', got {header!r}"
+        ) from err
     rate = float(fps) if fps is not None else header_fps
     if not (math.isfinite(rate) and 0 < rate <= 10_000):
         raise InputError(f"{file}: line {line_no}: fps {rate!r} is not within 0..10000")
@@ -136,12 +144,16 @@ def read_fap(path: str | Path, *, mirror: bool = False, fps: float | None = None
         (mask_no, mask_text), (val_no, val_text) = body[k], body[k + 1]
         mask = mask_text.split()
         if len(mask) != N_FAPS or any(m not in ("0", "1") for m in mask):
-            raise InputError(f"{file}: line {mask_no}: expected a mask of {N_FAPS} 0/1 values, got {len(mask)} items")
+            raise InputError(
+                f"{file}: line {mask_no}: expected a mask of {N_FAPS} 0/1 values, got {len(mask)} items"
+            )
         present = [n for n, m in enumerate(mask, start=1) if m == "1"]
         values = val_text.split()
         if len(values) != len(present) + 1:
-            raise InputError(f"{file}: line {val_no}: expected the frame number and {len(present)} values "
-                             f"(one per FAP set in the mask), got {len(values)} items")
+            raise InputError(
+                f"{file}: line {val_no}: expected the frame number and {len(present)} values "
+                f"(one per FAP set in the mask), got {len(values)} items"
+            )
         numbers: list[float] = []
         for column, text in enumerate(values, start=1):
             try:

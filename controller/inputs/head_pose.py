@@ -18,6 +18,7 @@ from functools import cache
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from controller.alive.gaze import GazeConfig, gaze_config_for
 from controller.alive.gaze_layer import angles_to_aus
@@ -52,8 +53,8 @@ def matrix_to_ypr_deg(matrix: Any, *, field: str = "head.matrix") -> tuple[float
     return yaw, pitch, roll
 
 
-def ypr_matrix(yaw_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:  # type: ignore[type-arg]
-    """The rotation ``Ry(yaw) Rx(-pitch) Rz(-roll)`` (3x3) of this module's convention (for tests, senders)."""
+def ypr_matrix(yaw_deg: float, pitch_deg: float, roll_deg: float) -> NDArray[np.float64]:
+    """The rotation ``Ry(yaw) Rx(-pitch) Rz(-roll)`` (3x3) of this convention (tests, senders)."""
     a, b, c = math.radians(yaw_deg), math.radians(-pitch_deg), math.radians(-roll_deg)
     ry = np.array([[math.cos(a), 0, math.sin(a)], [0, 1, 0], [-math.sin(a), 0, math.cos(a)]])
     rx = np.array([[1, 0, 0], [0, math.cos(b), -math.sin(b)], [0, math.sin(b), math.cos(b)]])
@@ -61,8 +62,9 @@ def ypr_matrix(yaw_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:
     return ry @ rx @ rz  # type: ignore[no-any-return]
 
 
-def head_pose_aus(yaw_deg: float, pitch_deg: float, roll_deg: float,
-                  config: GazeConfig | None = None) -> dict[str, float]:
+def head_pose_aus(
+    yaw_deg: float, pitch_deg: float, roll_deg: float, config: GazeConfig | None = None
+) -> dict[str, float]:
     """Head AUs 51-56 (0..1) for a head pose in degrees (see the module convention)."""
     cfg = config or _human_config()
     aus = angles_to_aus("human", cfg, head_yaw_deg=yaw_deg, head_pitch_deg=pitch_deg, head_roll_deg=roll_deg)
@@ -73,12 +75,15 @@ def parse_head(head: Any, *, field: str = "head") -> tuple[float, float, float]:
     """(yaw, pitch, roll) degrees from ``{"yaw_deg", "pitch_deg", "roll_deg"}`` (missing = 0) or
     ``{"matrix": [[...]]}``. Unknown keys, non-finite or |angle| > 180 deg raise InputError."""
     if not isinstance(head, Mapping):
-        raise InputError(f"{field}: expected {{\"yaw_deg\", \"pitch_deg\", \"roll_deg\"}} or {{\"matrix\"}}, "
-                         f"got {type(head).__name__}")
+        raise InputError(
+            f'{field}: expected {{"yaw_deg", "pitch_deg", "roll_deg"}} or {{"matrix"}}, '
+            f"got {type(head).__name__}"
+        )
     unknown = set(head) - {"yaw_deg", "pitch_deg", "roll_deg", "matrix"}
     if unknown:
-        raise InputError(f"{field}: unknown key(s) {sorted(unknown)}; expected yaw_deg, pitch_deg, roll_deg "
-                         f"or matrix")
+        raise InputError(
+            f"{field}: unknown key(s) {sorted(unknown)}; expected yaw_deg, pitch_deg, roll_deg or matrix"
+        )
     if "matrix" in head:
         if len(head) > 1:
             raise InputError(f"{field}: give either matrix or yaw_deg/pitch_deg/roll_deg, not both")
@@ -86,10 +91,12 @@ def parse_head(head: Any, *, field: str = "head") -> tuple[float, float, float]:
     out = []
     for key in ("yaw_deg", "pitch_deg", "roll_deg"):
         value = head.get(key, 0.0)
-        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) \
-                or abs(value) > _MAX_ABS_DEG:
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int | float)
+            or not math.isfinite(value)
+            or abs(value) > _MAX_ABS_DEG
+        ):
             raise InputError(f"{field}.{key}: expected a finite angle in degrees within ±180, got {value!r}")
         out.append(float(value))
     return out[0], out[1], out[2]
-
-

@@ -45,9 +45,15 @@ class Message:
 class MessageDecoder:
     """Decode messages for one face. ``allowed``: the head's AU names (None = the face type's default)."""
 
-    def __init__(self, face_type: FaceType = "human", *, allowed: frozenset[str] | None = None,
-                 mirror: bool = False, vergence: bool = False,
-                 blendshape_map: BlendshapeMap | None = None) -> None:
+    def __init__(
+        self,
+        face_type: FaceType = "human",
+        *,
+        allowed: frozenset[str] | None = None,
+        mirror: bool = False,
+        vergence: bool = False,
+        blendshape_map: BlendshapeMap | None = None,
+    ) -> None:
         self.face_type = check_face_type(face_type)
         self.validator = FrameValidator(self.face_type, allowed)
         self.mirror = bool(mirror)
@@ -74,8 +80,9 @@ class MessageDecoder:
     def decode(self, obj: Any, *, where: str = "message") -> Message:
         """Decode one parsed JSON object."""
         if not isinstance(obj, Mapping):
-            raise InputError(f"{where}: expected a JSON object like {{\"aus\": {{\"AU12\": 0.5}}}}, "
-                             f"got {type(obj).__name__}")
+            raise InputError(
+                f'{where}: expected a JSON object like {{"aus": {{"AU12": 0.5}}}}, got {type(obj).__name__}'
+            )
         unknown = set(obj) - KEYS
         if unknown:
             raise InputError(f"{where}: unknown key(s) {sorted(unknown)}; expected {sorted(KEYS)}")
@@ -92,11 +99,16 @@ class MessageDecoder:
         aus: dict[str, float] = {}
         if ("blendshapes" in obj or "head" in obj) and self.face_type != "human":
             key = "blendshapes" if "blendshapes" in obj else "head"
-            raise InputError(f"{where}.{key}: blendshapes and head pose map to human AUs only; "
-                             f"send DFACS 'aus' for a {self.face_type} head")
+            raise InputError(
+                f"{where}.{key}: blendshapes and head pose map to human AUs only; "
+                f"send DFACS 'aus' for a {self.face_type} head"
+            )
         if "blendshapes" in obj:
-            aus.update(self.blendshape_map.to_aus(obj["blendshapes"], vergence=self.vergence,
-                                                  where=f"{where}.blendshapes"))
+            aus.update(
+                self.blendshape_map.to_aus(
+                    obj["blendshapes"], vergence=self.vergence, where=f"{where}.blendshapes"
+                )
+            )
         if "head" in obj:
             aus.update(head_pose_aus(*parse_head(obj["head"], field=f"{where}.head")))
         if "aus" in obj:

@@ -41,8 +41,10 @@ def _au_columns(table: CsvTable, pattern: re.Pattern[str], allowed: frozenset[st
             if name in allowed:
                 out[column] = name
     if not out:
-        raise InputError(f"{table.path}: no AU intensity columns found (expected e.g. "
-                         f"{'AU12_r' if pattern is _OPENFACE_AU else 'AU12'})")
+        raise InputError(
+            f"{table.path}: no AU intensity columns found (expected e.g. "
+            f"{'AU12_r' if pattern is _OPENFACE_AU else 'AU12'})"
+        )
     return out
 
 
@@ -76,8 +78,10 @@ def read_openface_csv(
                 continue
         t_s = table.number(cells, line, "timestamp")
         if t_s < last_t:
-            raise InputError(f"{table.where(line, 'timestamp')}: {t_s:g} s is earlier than the row before "
-                             f"({last_t:g} s); timestamps must not decrease")
+            raise InputError(
+                f"{table.where(line, 'timestamp')}: {t_s:g} s is earlier than the row before "
+                f"({last_t:g} s); timestamps must not decrease"
+            )
         last_t = t_s
         confidence = table.number(cells, line, "confidence")
         success = table.number(cells, line, "success")
@@ -95,15 +99,18 @@ def read_openface_csv(
         good = success == 1.0 and confidence >= min_confidence
         rows.append((t_s, (mirror_aus(aus, "human") if mirror else aus) if good else None))
     if not rows:
-        raise InputError(f"{table.path}: no data rows" + (f" for face_id {wanted}" if wanted is not None else ""))
+        raise InputError(
+            f"{table.path}: no data rows" + (f" for face_id {wanted}" if wanted is not None else "")
+        )
     frames, report.held = frames_with_policy(rows, "human", lost=lost, decay_s=decay_s)
     if skipped_faces:
         report.notes.append(f"{skipped_faces} rows of other faces skipped (read face_id {wanted})")
     if clamped:
         report.notes.append(f"{clamped} intensities slightly outside 0..5 clamped")
     if report.held:
-        report.notes.append(f"{report.held} rows with success=0 or confidence < {min_confidence:g} "
-                            f"filled by policy {lost!r}")
+        report.notes.append(
+            f"{report.held} rows with success=0 or confidence < {min_confidence:g} filled by policy {lost!r}"
+        )
     return Recording(frames, "human", interpolate=interpolate, source=str(table.path), report=report)
 
 
@@ -127,7 +134,9 @@ def read_pyfeat_csv(
     rows: list[tuple[float, dict[str, float] | None]] = []
     for index, (line, cells) in enumerate(table.rows()):
         frame = table.number(cells, line, "frame") if "frame" in table.columns else float(index)
-        score = table.number(cells, line, "FaceScore", allow_empty=True) if "FaceScore" in table.columns else 1.0
+        score = (
+            table.number(cells, line, "FaceScore", allow_empty=True) if "FaceScore" in table.columns else 1.0
+        )
         values = {col: table.number(cells, line, col, allow_empty=True) for col in au_cols}
         missing = [c for c, v in values.items() if v != v]
         report.rows += 1

@@ -30,8 +30,15 @@ class InputReport:
 class Recording:
     """Frames with increasing times (0-based), sampled by time."""
 
-    def __init__(self, frames: Sequence[AUFrame], face_type: FaceType, *, interpolate: bool = True,
-                 source: str = "", report: InputReport | None = None) -> None:
+    def __init__(
+        self,
+        frames: Sequence[AUFrame],
+        face_type: FaceType,
+        *,
+        interpolate: bool = True,
+        source: str = "",
+        report: InputReport | None = None,
+    ) -> None:
         if not frames:
             raise InputError(f"{source or 'recording'}: no frames")
         t0 = frames[0].t_s

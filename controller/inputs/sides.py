@@ -14,8 +14,14 @@ from collections.abc import Mapping
 
 from sim.rig import FaceType
 
-_HUMAN_SWAP: dict[str, str] = {"AU51": "AU52", "AU52": "AU51", "AU55": "AU56", "AU56": "AU55",
-                               "AU61": "AU62", "AU62": "AU61"}
+_HUMAN_SWAP: dict[str, str] = {
+    "AU51": "AU52",
+    "AU52": "AU51",
+    "AU55": "AU56",
+    "AU56": "AU55",
+    "AU61": "AU62",
+    "AU62": "AU61",
+}
 _DOG_NEGATE: frozenset[str] = frozenset({"AU8", "AU10", "AU11", "AU12"})
 
 

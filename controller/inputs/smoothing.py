@@ -55,8 +55,13 @@ class AUSmoother:
 
     def __init__(self, min_cutoff_hz: float = 1.5, beta: float = 0.5, d_cutoff_hz: float = 1.0) -> None:
         for name, value in (("min_cutoff_hz", min_cutoff_hz), ("beta", beta), ("d_cutoff_hz", d_cutoff_hz)):
-            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) \
-                    or value < 0 or (name != "beta" and value == 0):
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, int | float)
+                or not math.isfinite(value)
+                or value < 0
+                or (name != "beta" and value == 0)
+            ):
                 raise ValueError(f"smoothing {name}: expected a finite number > 0 (beta >= 0), got {value!r}")
         self.params = (float(min_cutoff_hz), float(beta), float(d_cutoff_hz))
         self._filters: dict[str, OneEuroFilter] = {}

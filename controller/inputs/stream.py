@@ -54,9 +54,15 @@ class StreamStats:
 
     def summary(self) -> dict[str, Any]:
         return {
-            "messages": self.messages, "good": self.good, "bad": self.bad, "out_of_order": self.out_of_order,
-            "low_confidence": self.low_confidence, "dropouts": self.dropouts, "samples": self.samples,
-            "samples_in_dropout": self.samples_in_dropout, "age_max_ms": round(1e3 * self.latency_s_max, 2),
+            "messages": self.messages,
+            "good": self.good,
+            "bad": self.bad,
+            "out_of_order": self.out_of_order,
+            "low_confidence": self.low_confidence,
+            "dropouts": self.dropouts,
+            "samples": self.samples,
+            "samples_in_dropout": self.samples_in_dropout,
+            "age_max_ms": round(1e3 * self.latency_s_max, 2),
             "last_errors": list(self.errors)[-5:],
         }
 
@@ -88,9 +94,9 @@ class StreamSource:
         self.dropout = dropout
         self.ease_s = float(ease_s)
         self.min_confidence = float(min_confidence)
-        self.smoother = AUSmoother() if smoothing == "default" else smoothing
-        if self.smoother is not None and not isinstance(self.smoother, AUSmoother):
+        if smoothing is not None and smoothing != "default" and not isinstance(smoothing, AUSmoother):
             raise InputError(f"smoothing: expected an AUSmoother, None or 'default', got {smoothing!r}")
+        self.smoother: AUSmoother | None = AUSmoother() if isinstance(smoothing, str) else smoothing
         self.clock = clock
         self.stats = StreamStats()
         self._lock = threading.Lock()

@@ -43,8 +43,10 @@ def check_host(host: str, allow_remote: bool) -> None:
     except ValueError as err:
         raise InputError(f"host {host!r}: expected an IP address such as 127.0.0.1") from err
     if not loopback and not allow_remote:
-        raise InputError(f"host {host!r} is not a loopback address; binding it exposes motor control to the "
-                         f"network. Pass allow_remote=True (CLI: --allow-remote) to do so deliberately")
+        raise InputError(
+            f"host {host!r} is not a loopback address; binding it exposes motor control to the "
+            f"network. Pass allow_remote=True (CLI: --allow-remote) to do so deliberately"
+        )
 
 
 class _Receiver:
@@ -76,8 +78,9 @@ class _Receiver:
     def __enter__(self) -> Any:
         return self.start()
 
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
         self.close()
 
 
@@ -86,8 +89,9 @@ class UdpReceiver(_Receiver):
 
     name = "udp"
 
-    def __init__(self, source: StreamSource, host: str = "127.0.0.1", port: int = 9100, *,
-                 allow_remote: bool = False) -> None:
+    def __init__(
+        self, source: StreamSource, host: str = "127.0.0.1", port: int = 9100, *, allow_remote: bool = False
+    ) -> None:
         super().__init__(source)
         check_host(host, allow_remote)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -119,8 +123,9 @@ class TcpReceiver(_Receiver):
 
     name = "tcp"
 
-    def __init__(self, source: StreamSource, host: str = "127.0.0.1", port: int = 9101, *,
-                 allow_remote: bool = False) -> None:
+    def __init__(
+        self, source: StreamSource, host: str = "127.0.0.1", port: int = 9101, *, allow_remote: bool = False
+    ) -> None:
         super().__init__(source)
         check_host(host, allow_remote)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)

@@ -20,9 +20,47 @@ import math
 from pathlib import Path
 
 HERE = Path(__file__).parent
-OPENFACE_AUS = ("01", "02", "04", "05", "06", "07", "09", "10", "12", "14", "15", "17", "20", "23", "25", "26", "45")
-PYFEAT_AUS = ("01", "02", "04", "05", "06", "07", "09", "10", "11", "12", "14", "15", "17", "20", "23", "24",
-              "25", "26", "28", "43")
+OPENFACE_AUS = (
+    "01",
+    "02",
+    "04",
+    "05",
+    "06",
+    "07",
+    "09",
+    "10",
+    "12",
+    "14",
+    "15",
+    "17",
+    "20",
+    "23",
+    "25",
+    "26",
+    "45",
+)
+PYFEAT_AUS = (
+    "01",
+    "02",
+    "04",
+    "05",
+    "06",
+    "07",
+    "09",
+    "10",
+    "11",
+    "12",
+    "14",
+    "15",
+    "17",
+    "20",
+    "23",
+    "24",
+    "25",
+    "26",
+    "28",
+    "43",
+)
 
 
 def bump(t: float, start: float, end: float) -> float:
@@ -73,9 +111,12 @@ def arkit(path: Path) -> None:
         msg = {
             "t": round(t, 4),
             "blendshapes": {
-                "mouthSmileLeft": round(0.9 * s, 4), "mouthSmileRight": round(0.8 * s, 4),
-                "cheekSquintLeft": round(0.5 * s, 4), "cheekSquintRight": round(0.5 * s, 4),
-                "jawOpen": round(0.2 * s, 4), "eyeLookOutRight": round(0.4 * s, 4),
+                "mouthSmileLeft": round(0.9 * s, 4),
+                "mouthSmileRight": round(0.8 * s, 4),
+                "cheekSquintLeft": round(0.5 * s, 4),
+                "cheekSquintRight": round(0.5 * s, 4),
+                "jawOpen": round(0.2 * s, 4),
+                "eyeLookOutRight": round(0.4 * s, 4),
                 "eyeLookInLeft": round(0.4 * s, 4),
             },
             "head": {"yaw_deg": round(15.0 * s, 3), "pitch_deg": round(-5.0 * s, 3), "roll_deg": 0.0},
@@ -91,7 +132,16 @@ def mediapipe(path: Path) -> None:
     for i in range(30):
         t = i / 30.0
         blink = bump(t, 0.4, 0.6)
-        row = [f"{t:.4f}", f"{blink:.3f}", f"{blink:.3f}", "0.100", "0.300", "0.300", "0.050", f"{-10 * t:.2f}"]
+        row = [
+            f"{t:.4f}",
+            f"{blink:.3f}",
+            f"{blink:.3f}",
+            "0.100",
+            "0.300",
+            "0.300",
+            "0.050",
+            f"{-10 * t:.2f}",
+        ]
         lines.append(",".join(row))
     path.write_text("\n".join(lines) + "\n")
 
@@ -99,8 +149,14 @@ def mediapipe(path: Path) -> None:
 def fap(path: Path) -> None:
     # header: "# comment", then "<version> <name> <fps> <n_frames>", then per frame a mask line of 68
     # 0/1 and a line with the values of the set FAPs (MPEG-4 FBA text format, see fap.py)
-    used = {3: "open_jaw", 4: "lower_t_midlip", 12: "raise_l_cornerlip", 13: "raise_r_cornerlip",
-            31: "raise_l_i_eyebrow", 32: "raise_r_i_eyebrow"}
+    used = {
+        3: "open_jaw",
+        4: "lower_t_midlip",
+        12: "raise_l_cornerlip",
+        13: "raise_r_cornerlip",
+        31: "raise_l_i_eyebrow",
+        32: "raise_r_i_eyebrow",
+    }
     lines = ["# servoface sample: jaw open, smile corners, inner brows up", "2.1 greeting 25 25"]
     for i in range(25):
         s = bump(i / 25.0, 0.0, 1.0)
