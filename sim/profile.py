@@ -35,6 +35,7 @@ from sim.rig import (
 )
 
 SCHEMA_VERSION = 1
+ANCHOR_MAX_GAP_MM = 10.0  # an anchor's near_mm must be this close to the skin
 FACE_TYPES = ("human", "dog")
 _TOP_KEYS = {
     "schema_version", "name", "face_type", "description", "calibration", "au_table", "expressions",
@@ -441,7 +442,15 @@ def _anchors(r: _Reader, data: dict[str, Any], verts: np.ndarray) -> dict[str, i
                 idx.append((r.string(a, "mirror", key), int(np.argmin(np.linalg.norm(verts - p, axis=1)))))
         elif "near_mm" in a:
             p = np.asarray(r.vec3(a, "near_mm", key))
-            idx = [(name, int(np.argmin(np.linalg.norm(verts - p, axis=1))))]
+            dist = np.linalg.norm(verts - p, axis=1)
+            if float(dist.min()) > ANCHOR_MAX_GAP_MM:
+                raise r.fail(
+                    f"{key}.near_mm",
+                    f"a point within {ANCHOR_MAX_GAP_MM} mm of the skin (the nearest vertex is "
+                    f"{float(dist.min()):.1f} mm away)",
+                    list(p),
+                )
+            idx = [(name, int(np.argmin(dist)))]
             if "mirror" in a:
                 q = p * np.array([-1.0, 1.0, 1.0])
                 idx.append((r.string(a, "mirror", key), int(np.argmin(np.linalg.norm(verts - q, axis=1)))))

@@ -14,7 +14,18 @@ from sim.head import Head
 BUILTIN_DIR = Path(__file__).resolve().parent
 BUILTIN_HEADS = ("human", "dog")
 
-_CACHE: dict[tuple[str, float], Head] = {}
+_CACHE: dict[tuple[str, tuple[tuple[str, float], ...]], Head] = {}
+
+
+def _stamp(file: Path) -> tuple[tuple[str, float], ...]:
+    """Modification times of the profile and of the files beside it and one folder down (meshes)."""
+    near: list[Path] = []
+    for p in sorted(file.parent.iterdir())[:200]:
+        if p.is_dir():
+            near += [q for q in sorted(p.iterdir())[:200] if q.is_file()]
+        elif p != file:
+            near.append(p)
+    return tuple((str(p), p.stat().st_mtime) for p in [file, *near[:400]])
 
 
 def builtin_profile_dir(name: str) -> Path:
@@ -43,7 +54,7 @@ def load_head(name_or_path: str | Path) -> Head:
             )
     file = path / "head.toml" if path.is_dir() else path
     try:
-        key = (str(file.resolve()), file.stat().st_mtime)
+        key = (str(file.resolve()), _stamp(file))
     except OSError as err:
         raise HeadProfileError(f"{file}: expected a head profile file (head.toml): {err}") from err
     head = _CACHE.get(key)

@@ -171,6 +171,11 @@ BAD_CASES = [
         'name = "corrugator_r"',
         r"muscle\[\d+\]\.name: expected a muscle name not used before",
     ),
+    (
+        "brow_outer_l = { near_mm = [42.0, 146.0, 78.0]",
+        "brow_outer_l = { near_mm = [42.0, 146.0, 178.0]",
+        r"anchors\.brow_outer_l\.near_mm: expected a point within 10\.0 mm of the skin",
+    ),
     ('face_type = "human"', 'face_type = "cat"', r"face_type: expected one of \['human', 'dog'\]"),
     ("schema_version = 1", "schema_version = 2", r"schema_version: expected 1"),
     (
@@ -220,6 +225,24 @@ def test_unreadable_mesh_is_a_mesh_error(tmp_path: Path) -> None:
     _edit(folder, 'mesh = "builtin:human_jaw"', 'mesh = "broken.stl"')
     with pytest.raises(HeadMeshError, match=r"part\[2\]\.mesh"):
         load_profile(folder)
+
+
+def test_editing_a_mesh_reloads_the_profile(tmp_path: Path) -> None:
+    folder = _copy(tmp_path)
+    jaw = load_head("human").part("jaw").mesh.copy()
+    jaw.export(folder / "jaw.stl")
+    _edit(folder, 'mesh = "builtin:human_jaw"', 'mesh = "jaw.stl"')
+    first = load_head(folder)
+    assert load_head(folder) is first  # cached
+    jaw.apply_translation((0.0, 0.0, 5.0))
+    jaw.export(folder / "jaw.stl")
+    import os
+
+    st = (folder / "jaw.stl").stat()
+    os.utime(folder / "jaw.stl", ns=(st.st_atime_ns, st.st_mtime_ns + 10_000_000))
+    second = load_head(folder)
+    assert second is not first
+    assert np.isclose(second.part("jaw").mesh.bounds[1][2], first.part("jaw").mesh.bounds[1][2] + 5.0)
 
 
 def test_invalid_toml_names_the_file(tmp_path: Path) -> None:
