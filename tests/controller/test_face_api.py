@@ -118,3 +118,29 @@ def test_closed_face_refuses_and_torque_is_off() -> None:
     f.close()  # twice is fine
     with pytest.raises(ControllerError, match="closed"):
         f.set_aus({"AU12": 0.3})
+
+
+def test_open_on_a_missing_port_names_it() -> None:
+    from hardware.errors import HardwareError
+
+    with pytest.raises(HardwareError, match="/dev/does-not-exist"):
+        Face.open("human", port="/dev/does-not-exist")
+
+
+def test_open_with_a_servo_missing_names_it_and_switches_no_torque_on() -> None:
+    from controller.face import head_calibration
+    from controller.head_servos import servo_specs
+    from hardware.errors import HardwareError
+    from sim.heads import load_head
+
+    head = load_head("human")
+    specs = [s for s in servo_specs(head, head_calibration(head)) if s.servo_id != 9]
+    chain = ServoChain.create([(s.servo_id, s.model) for s in specs], baud=1_000_000, wire_time=False)
+    try:
+        with pytest.raises(HardwareError) as err:
+            Face.open(head, port=chain.serve_pty())
+        assert "[9]" in str(err.value)  # names the missing servo
+        assert all(not chain.servo(sid).torque_on for sid in chain.ids)
+        assert chain.goal_writes() == []
+    finally:
+        chain.close()
