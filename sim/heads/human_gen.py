@@ -28,6 +28,7 @@ JAW_PIVOT = (0.0, 100.0, 5.0)
 SKIN_RGBA = (0.87, 0.69, 0.58, 1.0)
 LIP_RGBA = (0.72, 0.38, 0.38, 1.0)
 BROW_RGBA = (0.33, 0.23, 0.17, 1.0)
+NOSTRIL_RGBA = (0.35, 0.18, 0.15, 1.0)
 
 
 def _upper_profile(y: F64) -> tuple[F64, F64, F64]:
@@ -81,6 +82,7 @@ def _face_depth(x: F64, y: F64) -> F64:
     dz += amp * np.exp(-0.5 * (x / sig) ** 2)
     dz += 5.0 * g(x, y - 99.0, 7.0, 6.0)  # tip
     dz += 7.0 * g(ax - 12.5, y - 93.0, 5.0, 5.0)  # alae
+    dz -= 4.0 * g(ax - 7.0, y - 89.5, 2.6, 1.8)  # nostrils
     dz += 4.0 * g(ax - 44.0, y - 106.0, 15.0, 12.0)  # cheekbones
     dz += 2.5 * g(ax - 28.0, y - 84.0, 9.0, 10.0)  # nasolabial fold
     dz += 2.5 * g(x, y - 84.0, 5.0, 4.0)  # philtrum
@@ -163,7 +165,9 @@ def _skin() -> tuple[F64, I64, F64, dict[str, int]]:
 
     verts, faces, _ = mt.compact(verts, faces)
     colours = np.tile(np.array(SKIN_RGBA), (len(verts), 1))
+    nostril = 0.85 * mt.gauss2(np.abs(verts[:, 0]) - 7.0, verts[:, 1] - 89.5, 2.4, 1.6)
     for wgt, rgba in (
+        (nostril, NOSTRIL_RGBA),
         (_lip_weight(verts[:, 0], verts[:, 1]), LIP_RGBA),
         (_brow_weight(verts[:, 0], verts[:, 1]), BROW_RGBA),
     ):
