@@ -153,3 +153,21 @@ def test_linear_blend_matches_a_loop() -> None:
         [sum(w[i, k] * (tfs[k] @ np.append(v[i], 1.0))[:3] for k in range(3)) for i in range(20)]
     )
     np.testing.assert_allclose(linear_blend(v, w, tfs), expected, atol=1e-12)
+
+
+def test_clamp_to_limits_reports_the_reachable_angles(head: Head) -> None:
+    from sim.kinematics import clamp_to_limits
+
+    assert clamp_to_limits(head, {"jaw": 90.0, "eye_pan_l": -10.0}) == {"jaw": 25.0, "eye_pan_l": -10.0}
+
+
+def test_head_lookups_name_what_exists(head: Head) -> None:
+    assert head.joint("jaw").parent == "neck_roll"
+    assert head.actuator("jaw").servo.id == 18
+    assert head.servo_ids["lip_corner_l"] == 12
+    with pytest.raises(KeyError, match="joints"):
+        head.joint("tail")
+    with pytest.raises(KeyError, match="roles"):
+        head.actuator("tail")
+    with pytest.raises(KeyError, match="parts"):
+        head.part("tail")
