@@ -17,6 +17,7 @@ from types import ModuleType
 COMMANDS: dict[str, str] = {
     "demo": "controller.cli.demo",
     "play": "controller.cli.play",
+    "stream": "controller.cli.stream",
     "preview": "controller.cli.preview",
     "check": "controller.cli.check",
     "calibrate": "controller.cli.calibrate",

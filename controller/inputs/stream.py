@@ -12,7 +12,7 @@ reaches the pipeline; one bad field rejects that message. A message older than t
 * dropout policy: if the newest good message is older than ``dropout_ms`` (default 250 ms) on the
   receiver clock, the stream is in dropout. ``dropout="neutral"`` (default) eases the last AUs linearly to
   neutral over ``ease_s`` (default 0.5 s); ``"hold"`` keeps them. Before the first message the face is
-  neutral. Each fresh -> dropout transition is counted (``stats.dropouts``).
+  neutral. Each newest message that goes stale counts one dropout (``stats.dropouts``).
 * smoothing: a One-Euro filter per AU (smoothing.py; ``smoothing=None`` switches it off).
 
 The clock is injectable (``clock() -> s``; default ``time.monotonic``): arrival stamps and dropout ages use
@@ -46,7 +46,7 @@ class StreamStats:
     bad: int = 0
     out_of_order: int = 0
     low_confidence: int = 0
-    dropouts: int = 0  # fresh -> dropout transitions seen by sample()
+    dropouts: int = 0  # newest messages seen going stale by sample()
     samples: int = 0
     samples_in_dropout: int = 0
     latency_s_max: float = 0.0  # largest age of the newest message at a sample (outside dropouts)
@@ -102,7 +102,7 @@ class StreamSource:
         self._lock = threading.Lock()
         self._latest: Message | None = None
         self._latest_arrival_s = 0.0
-        self._in_dropout = True  # nothing received yet
+        self._dropped: Message | None = None  # the latest message whose going stale was counted
         self._lo, self._hi = self.decoder.validator.range
 
     # -- receiver side (any thread) ------------------------------------------------------------------
@@ -159,9 +159,10 @@ class StreamSource:
         self.stats.samples += 1
         if in_dropout:
             self.stats.samples_in_dropout += 1
-            if not self._in_dropout and self._latest is not None:
+            latest = self._latest
+            if latest is not None and latest is not self._dropped:
                 self.stats.dropouts += 1
-        self._in_dropout = in_dropout
+                self._dropped = latest
         if self.smoother is not None:
             aus = self.smoother(aus, self.clock())
         clean = {n: min(self._hi, max(self._lo, v)) for n, v in aus.items()}

@@ -58,8 +58,10 @@ def test_each_blendshape_maps_to_the_sheets_aus(shape: str) -> None:
 
 def test_jaw_open_ramps_are_monotone_and_reach_full_open() -> None:
     bmap = load_blendshape_map()
-    jaw = [4 * a.get("AU25", 0) + 15 * a.get("AU26", 0) + 25 * a.get("AU27", 0)
-           for a in (bmap.to_aus({"jawOpen": x}) for x in np.linspace(0, 1, 21))]
+    jaw = [
+        4 * a.get("AU25", 0) + 15 * a.get("AU26", 0) + 25 * a.get("AU27", 0)
+        for a in (bmap.to_aus({"jawOpen": x}) for x in np.linspace(0, 1, 21))
+    ]
     assert all(b >= a for a, b in zip(jaw, jaw[1:], strict=False))
     assert jaw[0] == 0.0 and jaw[-1] == pytest.approx(25.0, abs=0.01)
 
@@ -75,7 +77,9 @@ def test_eye_look_subject_right_is_out_right_plus_in_left() -> None:
 
 def test_mirror_swaps_sides_and_lateral_head_eye_actions() -> None:
     bmap = load_blendshape_map()
-    plain = bmap.to_aus({"mouthSmileLeft": 0.7, "browDownRight": 0.3, "eyeLookOutLeft": 0.8, "browInnerUp": 0.2})
+    plain = bmap.to_aus(
+        {"mouthSmileLeft": 0.7, "browDownRight": 0.3, "eyeLookOutLeft": 0.8, "browInnerUp": 0.2}
+    )
     mirrored = bmap.to_aus(
         {"mouthSmileLeft": 0.7, "browDownRight": 0.3, "eyeLookOutLeft": 0.8, "browInnerUp": 0.2}, mirror=True
     )

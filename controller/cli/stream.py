@@ -1,0 +1,170 @@
+"""`servoface stream --head NAME (--emulate | --port P) (--udp [HOST:]PORT | --tcp [HOST:]PORT | --stdin)`.
+
+Follows a live stream of face data (one JSON object per datagram or line: ``{"t": 1.2, "aus": {...}}``,
+``{"blendshapes": {...}, "head": {...}}``; see controller/inputs/messages.py) through the full pipeline
+and prints what happened: frames, messages, bad messages, dropouts, verdicts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+HELP = "follow a live face-data stream (UDP, TCP or stdin JSON) on a head, on a real port or the emulator"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--head", default="human", help="built-in head (human, dog) or a profile folder")
+    where = parser.add_mutually_exclusive_group(required=True)
+    where.add_argument("--port", help="serial port of the chain, e.g. /dev/ttyUSB0")
+    where.add_argument("--emulate", action="store_true", help="run on an in-process emulated chain")
+    src = parser.add_mutually_exclusive_group(required=True)
+    src.add_argument("--udp", metavar="[HOST:]PORT", help="JSON datagrams, e.g. 127.0.0.1:9100")
+    src.add_argument("--tcp", metavar="[HOST:]PORT", help="a TCP server, one JSON object per line")
+    src.add_argument("--stdin", action="store_true", help="one JSON object per line on standard input")
+    parser.add_argument("--allow-remote", action="store_true", help="allow binding a non-loopback address")
+    parser.add_argument(
+        "--duration", type=float, help="seconds to follow (default: until Ctrl-C / end of stdin)"
+    )
+    parser.add_argument("--mirror", action="store_true", help="imitate a person facing the robot (swap L/R)")
+    parser.add_argument("--vergence", action="store_true", help="map eye look differences to AU65/66")
+    parser.add_argument(
+        "--dropout-ms", type=float, default=250.0, help="no data for this long = dropout (250)"
+    )
+    parser.add_argument(
+        "--dropout",
+        choices=("neutral", "hold"),
+        default="neutral",
+        help="in a dropout ease to neutral (default) or hold the last AUs",
+    )
+    parser.add_argument(
+        "--ease", type=float, default=0.5, help="seconds to ease to neutral in a dropout (0.5)"
+    )
+    parser.add_argument(
+        "--min-confidence", type=float, default=0.0, help="ignore messages below this confidence"
+    )
+    parser.add_argument("--no-smoothing", action="store_true", help="switch the One-Euro filter off")
+    parser.add_argument("--min-cutoff", type=float, default=1.5, help="One-Euro cutoff at rest, Hz (1.5)")
+    parser.add_argument("--beta", type=float, default=0.5, help="One-Euro speed coefficient (0.5)")
+    parser.add_argument("--baud", type=int, default=1_000_000, help="bus speed in bps (default 1000000)")
+    parser.add_argument("--rate", type=float, default=50.0, help="control rate in Hz (default 50)")
+    parser.add_argument(
+        "--calibration", type=Path, help="calibration JSON (default: the one the profile names)"
+    )
+    parser.add_argument("--trace", type=Path, help="write every frame's trace as JSON lines to this file")
+
+
+def _fail(message: str) -> int:
+    print(f"servoface stream: {message}", file=sys.stderr)
+    return 2
+
+
+def run(args: argparse.Namespace) -> int:
+    from calibration import CalibrationError
+    from controller.errors import ControllerError
+    from controller.face import Face
+    from controller.frame import FrameValidator
+    from controller.inputs import LineReceiver, MessageDecoder, StreamSource, TcpReceiver, UdpReceiver
+    from controller.inputs.follow import follow
+    from controller.inputs.smoothing import AUSmoother
+    from controller.inputs.transports import parse_address
+    from hardware.errors import HardwareError
+    from sim.errors import SimError
+    from sim.heads import load_head
+
+    if not (0 < args.rate <= 1000):
+        return _fail(f"--rate must be within 0..1000 Hz, got {args.rate}")
+    if args.duration is not None and not (0 < args.duration < 1e7):
+        return _fail(f"--duration must be a positive number of seconds, got {args.duration}")
+    if not 0.0 <= args.min_confidence <= 1.0:
+        return _fail(f"--min-confidence must be within 0..1, got {args.min_confidence}")
+    receiver: UdpReceiver | TcpReceiver | LineReceiver | None = None
+    try:  # everything that can fail on bad arguments happens before the port opens (torque stays off)
+        head = load_head(args.head)
+        validator = FrameValidator.for_head(head)
+        decoder = MessageDecoder(
+            head.face_type, allowed=validator.allowed, mirror=args.mirror, vergence=args.vergence
+        )
+        smoothing = None if args.no_smoothing else AUSmoother(args.min_cutoff, args.beta)
+        source = StreamSource(
+            decoder,
+            dropout_ms=args.dropout_ms,
+            dropout=args.dropout,
+            ease_s=args.ease,
+            min_confidence=args.min_confidence,
+            smoothing=smoothing,
+        )
+        if args.udp is not None:
+            host, port = parse_address(args.udp)
+            receiver = UdpReceiver(source, host, port, allow_remote=args.allow_remote)
+            where = f"udp {host}:{receiver.address[1]}"
+        elif args.tcp is not None:
+            host, port = parse_address(args.tcp)
+            receiver = TcpReceiver(source, host, port, allow_remote=args.allow_remote)
+            where = f"tcp {host}:{receiver.address[1]}"
+        else:
+            receiver = LineReceiver(source, sys.stdin)
+            where = "stdin"
+        face = Face.open(
+            head,
+            port=args.port,
+            emulate=args.emulate,
+            baud=args.baud,
+            rate_hz=args.rate,
+            calibration=args.calibration,
+        )
+    except (ControllerError, SimError, CalibrationError, HardwareError, ValueError, OSError) as err:
+        if receiver is not None:
+            receiver.close()
+        return _fail(str(err))
+    print(
+        f"following {where} on head {head.name!r} ({head.face_type}) at {args.rate:g} Hz; Ctrl-C stops",
+        file=sys.stderr,
+    )
+
+    def stdin_done() -> bool:  # end of stdin and the face has eased out: nothing more will come
+        if not isinstance(receiver, LineReceiver) or not receiver.eof.is_set():
+            return False
+        aus, in_dropout = source.target()
+        return in_dropout and (args.dropout == "hold" or all(v == 0.0 for v in aus.values()))
+
+    try:
+        with face, receiver:
+            perf = follow(
+                face.pipeline,
+                source,
+                args.duration,
+                on_frame=face.traces.append,
+                until=stdin_done,
+                keep_traces=True,
+                stop_on_interrupt=True,
+            )
+    except (ControllerError, SimError, ValueError) as err:
+        return _fail(str(err))
+    except HardwareError as err:
+        print(f"servoface stream: bus failure, torque turned off: {err}", file=sys.stderr)
+        return 1
+    summary = perf.summary()
+    loop = summary.get("loop", {})
+    stats = source.stats
+    print(
+        f"{summary['frames']} frames; loop {loop.get('achieved_hz')} Hz (target {args.rate:g}), "
+        f"late {loop.get('late')}, skipped {loop.get('missed')}"
+    )
+    print(
+        f"messages {stats.messages}: good {stats.good}, bad {stats.bad}, out of order {stats.out_of_order}, "
+        f"low confidence {stats.low_confidence}; dropouts {stats.dropouts} "
+        f"({stats.samples_in_dropout} frames in dropout); newest-message age max "
+        f"{1e3 * stats.latency_s_max:.1f} ms"
+    )
+    print(f"verdicts {summary['verdicts']}")
+    for error in list(stats.errors)[-5:]:
+        print(f"  bad: {error}")
+    if args.trace is not None:
+        with args.trace.open("w") as fh:
+            for trace in perf.traces:
+                fh.write(json.dumps(trace.as_dict()) + "\n")
+        print(f"trace written to {args.trace}")
+    return 130 if perf.interrupted else 0
