@@ -11,7 +11,10 @@ HELP = "play an expression or a timeline script on a head, on a real port or on 
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("what", help="an expression name (see `servoface preview --all`) or a script .toml")
+    parser.add_argument("what", nargs="?", help="an expression name (see `servoface preview --all`) or a script .toml")
+    parser.add_argument("--input", type=Path, help="instead of WHAT: a recorded tracker file (OpenFace/py-feat CSV, "
+                        "ARKit/MediaPipe blendshape CSV or JSON lines, MPEG-4 .fap); see README 'Inputs'")
+    parser.add_argument("--mirror", action="store_true", help="with --input: imitate a person facing the robot")
     parser.add_argument("--head", default="human", help="built-in head (human, dog) or a profile folder")
     where = parser.add_mutually_exclusive_group(required=True)
     where.add_argument("--port", help="serial port of the chain, e.g. /dev/ttyUSB0 (or a pty from `servoface emulate`)")
@@ -39,10 +42,19 @@ def run(args: argparse.Namespace) -> int:
     if not (args.hold >= 0):
         print(f"servoface play: --hold must be >= 0 s, got {args.hold}", file=sys.stderr)
         return 2
-    is_script = args.what.endswith(".toml") or Path(args.what).is_file()
+    if (args.what is None) == (args.input is None):
+        print("servoface play: give what to play (an expression or a script .toml) or --input FILE, one of them",
+              file=sys.stderr)
+        return 2
+    recording = None
+    is_script = args.what is not None and (args.what.endswith(".toml") or Path(args.what).is_file())
     try:  # check what to play before opening the port: a typo must not switch torque on
         head = load_head(args.head)
-        if is_script:
+        if args.input is not None:
+            from controller.inputs import load_recording
+
+            recording = load_recording(args.input, head.face_type, mirror=args.mirror)
+        elif is_script:
             what = load_script(args.what)
         else:
             known = load_library(head.expressions_path or head.face_type)
@@ -55,7 +67,12 @@ def run(args: argparse.Namespace) -> int:
         return 2
     try:
         with face:
-            if is_script:
+            if recording is not None:
+                from controller.performance import play_timeline
+
+                perf = play_timeline(face.pipeline, recording, recording.duration_s, on_frame=face.traces.append,
+                                     stop_on_interrupt=True)
+            elif is_script:
                 perf = face.play(what)
             else:
                 perf = face.express(args.what, hold_s=args.hold)

@@ -31,7 +31,7 @@ def test_openface_sample_scales_and_holds_lost_rows() -> None:
     rec = read_openface_csv(SAMPLES / "openface_smile.csv")
     assert len(rec) == 60 and rec.report.held == 5 and rec.duration_s == pytest.approx(59 / 30, abs=1e-3)
     peak = max(f.get("AU12") for f in rec.frames)
-    assert 0.9 < peak <= 1.0  # 5 on OpenFace's scale -> 1
+    assert peak == pytest.approx(0.7, abs=0.03)  # 3.5 on OpenFace's 0..5 scale
     lost = rec.frames[28:33]
     assert all(f.aus == rec.frames[27].aus for f in lost)  # "hold": the last good row
     assert set(rec.frames[10].aus) <= {

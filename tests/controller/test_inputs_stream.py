@@ -302,3 +302,14 @@ def test_cli_stream_needs_a_source() -> None:
     with pytest.raises(SystemExit) as info:
         cli_main(["stream", "--emulate"])
     assert info.value.code == 2
+
+
+def test_cli_play_input_file(capsys: pytest.CaptureFixture[str]) -> None:
+    from tests.controller.test_inputs_files import SAMPLES
+
+    assert cli_main(["play", "--emulate", "--input", str(SAMPLES / "greeting.fap")]) == 0
+    assert "frames; verdicts" in capsys.readouterr().out
+    assert cli_main(["play", "happiness", "--emulate", "--input", str(SAMPLES / "greeting.fap")]) == 2
+    assert "one of them" in capsys.readouterr().err
+    assert cli_main(["play", "--emulate", "--input", "/nonexistent/rec.csv"]) == 2
+    assert "rec.csv" in capsys.readouterr().err

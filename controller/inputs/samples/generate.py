@@ -79,7 +79,7 @@ def openface(path: Path) -> None:
     for i in range(60):
         t = i / 30.0
         lost = 28 <= i < 33
-        smile = 5.0 * bump(t, 0.2, 1.8)
+        smile = 3.5 * bump(t, 0.2, 1.8)  # a broad smile on OpenFace's 0..5 scale
         r = {n: 0.0 for n in OPENFACE_AUS}
         r["12"], r["06"], r["25"] = smile, 0.6 * smile, 0.3 * smile
         row = [str(i + 1), "0", f"{t:.3f}", "0.20" if lost else "0.98", "0" if lost else "1"]
