@@ -3,8 +3,9 @@
 Receivers (transports.py) run on background threads and hand raw messages (bytes/str) to
 :meth:`StreamSource.feed`, which decodes and validates them (messages.py) and keeps only the LATEST good
 one with its arrival time (a latest-value buffer: a slow loop never works through a backlog, it skips to
-now). A bad message is counted, its error kept (``stats.errors``, the last 20) and dropped: it never
-reaches the pipeline; one bad field rejects that message. A message older than the newest by its own
+now; a receiver that finds several messages waiting decodes only the newest and counts the others as
+``superseded``). A bad message is counted, its error kept (``stats.errors``, the last 20) and dropped:
+it never reaches the pipeline; one bad field rejects that message. A message older than the newest by its own
 ``t`` (UDP reordering) is dropped as ``out_of_order``; one below ``min_confidence`` counts as no data.
 
 ``sample`` (called by the loop thread) applies, in order:
@@ -42,6 +43,7 @@ class StreamStats:
     """Counters of a stream (read them from any thread; they only grow)."""
 
     messages: int = 0  # raw messages received
+    superseded: int = 0  # received but not decoded: a newer one arrived in the same read (no backlog)
     good: int = 0
     bad: int = 0
     out_of_order: int = 0
@@ -120,6 +122,12 @@ class StreamSource:
                 self.stats.errors.append(str(err))
             return False
         return self.offer(msg, arrival)
+
+    def supersede(self, count: int) -> None:
+        """Count ``count`` messages a receiver dropped unread because a newer one was already waiting."""
+        with self._lock:
+            self.stats.messages += count
+            self.stats.superseded += count
 
     def offer(self, msg: Message, arrival_s: float | None = None) -> bool:
         """Take an already decoded message (e.g. from a recording) as the latest value if it is newer."""

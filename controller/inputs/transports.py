@@ -3,8 +3,10 @@ each), a TCP server on localhost (one JSON object per line), or any text stream 
 
 Every receiver binds to 127.0.0.1 by default; another address needs ``allow_remote=True`` (face data from
 the network is an unauthenticated control channel to motors). Lines and datagrams larger than 64 KiB are
-counted as bad. ``start()`` returns at once, ``close()`` stops the thread and the socket (idempotent), and
-each receiver is a context manager. ``address`` is the bound (host, port) (port 0 picks a free one).
+counted as bad. UDP and TCP receivers decode only the newest of the messages waiting at each read and
+count the rest as superseded, so a sender faster than the decoder adds no lag. ``start()`` returns at
+once, ``close()`` stops the thread and the socket (idempotent), and each receiver is a context manager.
+``address`` is the bound (host, port) (port 0 picks a free one).
 """
 
 from __future__ import annotations
@@ -111,6 +113,21 @@ class UdpReceiver(_Receiver):
                 continue
             except OSError:
                 break
+            skipped = 0
+            try:  # drain what else is waiting: only the newest datagram matters (no backlog, no lag)
+                self.sock.setblocking(False)
+                while True:
+                    data, peer = self.sock.recvfrom(MAX_MESSAGE_BYTES + 1)
+                    skipped += 1
+            except (BlockingIOError, InterruptedError):
+                pass
+            except OSError:
+                break
+            finally:
+                if self.sock.fileno() >= 0:
+                    self.sock.settimeout(_POLL_S)
+            if skipped:
+                self.source.supersede(skipped)
             self.source.feed(data, where=f"udp {peer[0]}:{peer[1]}")
 
     def close(self) -> None:
@@ -168,9 +185,11 @@ class TcpReceiver(_Receiver):
                 return
             pending += chunk
             *lines, pending = pending.split(b"\n")
-            for line in lines:
-                if line.strip():
-                    self.source.feed(line, where=where)
+            complete = [line for line in lines if line.strip()]
+            if complete:  # only the newest complete line matters (no backlog, no lag)
+                if len(complete) > 1:
+                    self.source.supersede(len(complete) - 1)
+                self.source.feed(complete[-1], where=where)
             if len(pending) > MAX_MESSAGE_BYTES:
                 self.source.feed(pending, where=where)  # counted as bad (too long); resynchronise
                 pending = b""

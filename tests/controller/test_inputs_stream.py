@@ -166,32 +166,48 @@ def test_udp_loopback_counts_a_malformed_datagram_and_keeps_the_last_good() -> N
         assert rx.address[0] == "127.0.0.1"
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
             datagrams = [
-                {"t": 0.0, "aus": {"AU12": 0.2}},
-                {"t": 0.1, "blendshapes": {"mouthSmileLeft": 0.5}},
-                {"t": 0.2, "aus": {"AU12": 4.0}},  # out of range
-                {"t": 0.3, "aus": {"AU12": 0.6, "AU6": 0.3}},
+                json.dumps({"t": 0.0, "aus": {"AU12": 0.2}}).encode(),
+                json.dumps({"t": 0.1, "blendshapes": {"mouthSmileLeft": 0.5}}).encode(),
+                json.dumps({"t": 0.2, "aus": {"AU12": 4.0}}).encode(),  # out of range
+                json.dumps({"t": 0.3, "aus": {"AU12": 0.6, "AU6": 0.3}}).encode(),
+                b"{broken",
             ]
-            for d in datagrams:
-                tx.sendto(json.dumps(d).encode(), rx.address)
-            tx.sendto(b"{broken", rx.address)
-            assert _wait_for(lambda: src.stats.messages == 5)
+            for k, d in enumerate(datagrams, start=1):  # one at a time: each is decoded, none superseded
+                tx.sendto(d, rx.address)
+                assert _wait_for(lambda k=k: src.stats.messages == k)  # type: ignore[misc]
     assert not rx.running
-    assert src.stats.good == 3 and src.stats.bad == 2
+    assert (src.stats.good, src.stats.bad, src.stats.superseded) == (3, 2, 0)
     assert any("aus.AU12" in e for e in src.stats.errors) and any("JSON" in e for e in src.stats.errors)
     assert dict(src.sample(0.0).aus) == {"AU12": 0.6, "AU6": 0.3}
+
+
+def test_udp_burst_leaves_no_backlog_the_newest_wins() -> None:
+    src = StreamSource(smoothing=None)
+    with UdpReceiver(src, "127.0.0.1", 0) as rx, socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
+        for k in range(100):
+            tx.sendto(json.dumps({"t": k, "aus": {"AU12": k / 100}}).encode(), rx.address)
+        assert _wait_for(lambda: src.sample(0.0).get("AU12") == 0.99)
+    stats = src.stats
+    assert (
+        stats.messages <= 100
+        and stats.good + stats.bad + stats.superseded + stats.out_of_order == stats.messages
+    )
 
 
 def test_tcp_loopback_lines_split_across_packets() -> None:
     src = StreamSource(smoothing=None)
     with TcpReceiver(src, "127.0.0.1", 0) as rx, socket.create_connection(rx.address, timeout=2.0) as conn:
         conn.sendall(b'{"t": 0, "aus": {"AU1": 0.1}}\n{"t": 0.1, "au')
-        time.sleep(0.02)
-        conn.sendall(
-            b's": {"AU1": 0.4}}\nnot json\n\n{"t": 0.2, "aus": {"AU1": 0.5}}'
-        )  # last line: no newline
+        assert _wait_for(lambda: src.stats.messages == 1)
+        conn.sendall(b's": {"AU1": 0.4}}\n')  # the split line completes
+        assert _wait_for(lambda: src.stats.messages == 2)
+        assert src.sample(0).get("AU1") == 0.4
+        conn.sendall(b"not json\n\n")
+        assert _wait_for(lambda: src.stats.messages == 3)
+        conn.sendall(b'{"t": 0.2, "aus": {"AU1": 0.5}}')  # the last line has no newline: taken at close
         conn.shutdown(socket.SHUT_WR)
         assert _wait_for(lambda: src.stats.messages == 4)
-    assert src.stats.good == 3 and src.stats.bad == 1 and src.sample(0).get("AU1") == 0.5
+    assert (src.stats.good, src.stats.bad) == (3, 1) and src.sample(0).get("AU1") == 0.5
 
 
 def test_line_receiver_reads_a_stream_to_its_end() -> None:
