@@ -17,6 +17,7 @@ is done; every frame passes the twin gate. ``face.traces`` keeps the recent fram
 from __future__ import annotations
 
 import math
+import numbers
 from collections import deque
 from collections.abc import Mapping
 from pathlib import Path
@@ -185,10 +186,16 @@ class Face:
 
     def look_at(self, point_mm: tuple[float, float, float], *, transition_s: float = 0.5) -> Performance:
         """Turn eyes and head towards a point (head frame, mm); eyes lead, the neck takes the rest."""
-        if len(point_mm) != 3 or not all(isinstance(v, int | float) and math.isfinite(v) for v in point_mm):
+        try:
+            values = tuple(point_mm)
+        except TypeError:  # not a sequence at all (a bare number, None)
+            values = ()
+        if len(values) != 3 or not all(
+            isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v) for v in values
+        ):
             raise ControllerError(f"look_at: point_mm must be three finite numbers (x, y, z) in mm, got {point_mm!r}")
         cfg = gaze_config_for(self.head.face_type, self.head)
-        gaze = solve_look_at(tuple(float(v) for v in point_mm), cfg)  # type: ignore[arg-type]
+        gaze = solve_look_at(tuple(float(v) for v in values), cfg)  # type: ignore[arg-type]
         gaze_aus = angles_to_aus(self.head.face_type, cfg, gaze.head_yaw_deg, gaze.head_pitch_deg,
                                  gaze.eye_yaw_deg, gaze.eye_pitch_deg)
         keep = _GAZE_AUS if self.head.face_type == "human" else _DOG_GAZE_AUS
