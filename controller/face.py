@@ -28,7 +28,7 @@ from calibration import HeadCalibration, load_calibration
 from controller.alive.gaze import gaze_config_for, solve_look_at
 from controller.alive.gaze_layer import angles_to_aus
 from controller.errors import ControllerError
-from controller.frame import FrameValidator
+from controller.frame import AUFrame, FrameValidator
 from controller.head_servos import servo_specs, temperature_limits_c
 from controller.performance import Performance, play_timeline
 from controller.pipeline import FrameTrace, Pipeline
@@ -54,6 +54,20 @@ def head_calibration(head: Head, calibration: HeadCalibration | str | Path | Non
             f"head {head.name!r} names no calibration file; run `servoface calibrate --head ...` first"
         )
     return load_calibration(path)
+
+
+SETTLE_MAX_S = 2.0  # longest a call keeps walking the servos to its final frame after the timeline ends
+SETTLE_CHUNK_S = 0.1
+
+
+class _Still:
+    """The same AU frame at every time (holding a pose on the loop)."""
+
+    def __init__(self, frame: AUFrame) -> None:
+        self._aus = dict(frame.aus)
+
+    def sample(self, t_s: float) -> AUFrame:
+        return AUFrame(t_s, self._aus)
 
 
 class Face:
@@ -151,7 +165,32 @@ class Face:
         self.t_s += duration_s
         if perf.traces:
             self.pose = dict(perf.traces[-1].aus)
+            self._settle(perf)
         return perf
+
+    def _settle(self, perf: Performance, max_s: float = SETTLE_MAX_S) -> None:
+        """Keep sending the final frame while the gate is still walking the servos towards it.
+
+        A motion faster than the servos' rate caps, or frames skipped on a busy machine, leave the last
+        frame clipped short of its goal; without this the call would return (and `close` turn torque off)
+        with the head somewhere on the way. Stops when the gate passes the frame whole, makes no progress
+        (a pose it refuses), or after ``max_s``.
+        """
+        period_s = 1.0 / self.pipeline.rate_hz
+        final = perf.traces[-1]
+        frame = AUFrame(final.t_s, final.aus)
+        source = _Still(frame)
+        waited = 0.0
+        while not perf.interrupted and waited < max_s:
+            last = perf.traces[-1]
+            previous = perf.traces[-2].goals_sent if len(perf.traces) > 1 else None
+            if last.goals_sent == last.goals_requested or last.goals_sent == previous:
+                return
+            more = play_timeline(self.pipeline, source, SETTLE_CHUNK_S, start_s=final.t_s + period_s,
+                                 on_frame=self.traces.append, keep_traces=True, stop_on_interrupt=True)
+            perf.traces.extend(more.traces)
+            perf.interrupted = more.interrupted
+            waited += SETTLE_CHUNK_S
 
     def set_aus(self, aus: Mapping[str, float], *, transition_s: float = 0.4, hold_s: float = 0.0) -> Performance:
         """Move to the AU pose ``aus`` (AUs not named go to 0) over ``transition_s``, then hold."""

@@ -96,6 +96,22 @@ def test_express_and_neutral(face: Face) -> None:
     )
 
 
+def test_a_motion_faster_than_the_servos_still_arrives(face: Face) -> None:
+    """One frame to turn the head fully: the gate caps every step, and the call keeps walking the servos
+    (each step within the cap) until the frame passes whole; it does not return half way."""
+    p = face.pipeline
+    pan = p.calibration.id_of("neck_pan")
+    cap = int(p.gate.table.max_step_tick[p.gate.table.index()[pan]])
+    perf = face.set_aus({"AU51": 1.0}, transition_s=0.0)
+    last = perf.traces[-1]
+    assert last.goals_sent == last.goals_requested == p.last_goals_tick
+    ticks = [t.goals_sent[pan] for t in perf.traces]
+    assert abs(ticks[-1] - p.calibration.neutral_goals()[pan]) > 3 * cap  # a long way: many capped frames
+    assert all(abs(b - a) <= cap for a, b in zip(ticks, ticks[1:], strict=False))
+    face.neutral(transition_s=0.0)
+    assert p.last_goals_tick[pan] == p.calibration.neutral_goals()[pan]
+
+
 def test_look_at_turns_eyes_to_the_side_of_the_point(face: Face) -> None:
     face.look_at((300.0, 0.0, 600.0), transition_s=0.3)  # to the head's left
     assert face.pose.get("AU61", 0.0) > 0 or face.pose.get("AU51", 0.0) > 0, face.pose
