@@ -159,6 +159,8 @@ class Pipeline:
         timings["bus_ms"] = (t4 - t3) * 1e3
         timings["total_ms"] = (t4 - t0) * 1e3
         self.last_goals_tick = sent
+        if self.driver is not None and self.last_snapshot is not None:
+            self._sync_with_driver(self.last_snapshot)
         kind = verdict.kind
         if kind == "accept" and clamp_reasons:
             kind = "clip"
@@ -180,6 +182,22 @@ class Pipeline:
         )
         self._index += 1
         return trace
+
+    def _sync_with_driver(self, snapshot: ChainSnapshot) -> None:
+        """Take the goal the driver really left on a servo in service as the last command when it differs
+        from what the gate passed: a servo recovered after a fault is re-pinned where it stands, a load
+        back-off eases its goal. The next frame is then rate-checked from there, not from a goal the servo
+        never got (which would let the gate pass a jump far beyond its step cap)."""
+        changed: dict[int, int] = {}
+        for sid in self._ids:
+            state = snapshot.servos.get(sid)
+            if state is None or not state.torque_on or state.goal_tick is None:
+                continue
+            if int(state.goal_tick) != self.last_goals_tick.get(sid):
+                changed[sid] = int(state.goal_tick)
+        if changed:
+            self.last_goals_tick = {**self.last_goals_tick, **changed}
+            self.gate.reset()  # its step memory no longer matches the wire: start from rest
 
     def hold(self) -> ChainSnapshot | None:
         """Re-send the last safe command (e.g. while nothing plays) and refresh telemetry."""
