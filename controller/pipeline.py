@@ -94,6 +94,7 @@ class Pipeline:
         self._servos = [calibration[r] for r in head.roles]
         self._lo = np.array([s.min_target for s in self._servos])
         self._hi = np.array([s.max_target for s in self._servos])
+        self._neutral = [float(s.neutral_target) for s in self._servos]  # a curve inverse each: compute once
         self.last_goals_tick: dict[int, int] = calibration.neutral_goals()
         self.temperature_limits_c = dict(temperature_limits_c or {})
         self._ids = frozenset(s.servo_id for s in self._servos)
@@ -116,7 +117,9 @@ class Pipeline:
 
     def clamp_targets(self, targets: Mapping[str, float]) -> tuple[dict[str, float], list[str]]:
         """Targets clamped into each servo's calibrated range, with one reason per clamp."""
-        values = np.array([float(targets.get(s.role, s.neutral_target)) for s in self._servos])
+        values = np.array(
+            [float(targets.get(s.role, n)) for s, n in zip(self._servos, self._neutral, strict=True)]
+        )
         if not np.all(np.isfinite(values)):
             bad = [s.role for s, v in zip(self._servos, values, strict=True) if not np.isfinite(v)]
             raise FrameError(f"muscle model produced non-finite targets for {bad}")
