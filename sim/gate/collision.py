@@ -114,7 +114,7 @@ class PartCollisions:
         self.exact = ExactCollider(meshes)
         keep = []
         for spec, b in zip(self.specs, built, strict=True):
-            if b.table.n_tests == 0:
+            if b.table.n_tests == 0 and not b.table.exact_only:
                 keep.append(True)  # never close anywhere in its joint space: costs nothing
                 continue
             touching = self._collide(spec, self._neutral_world(rest))
@@ -125,9 +125,13 @@ class PartCollisions:
                 keep.append(True)
         self.specs = [s for s, k in zip(self.specs, keep, strict=True) if k]
         self.built = [b for b, k in zip(built, keep, strict=True) if k]
-        self.always = [b.table.n_tests > params.max_table_tests for b in self.built]
+        self.always = [b.table.exact_only or b.table.n_tests > params.max_table_tests for b in self.built]
         self.broad = TssBroadPhase(tree, self.part_joint, self.built, self.always)
-        self.pairs_active = [s for s, b in zip(self.specs, self.built, strict=True) if b.table.n_tests > 0]
+        self.pairs_active = [
+            s
+            for s, b in zip(self.specs, self.built, strict=True)
+            if b.table.n_tests > 0 or b.table.exact_only
+        ]
 
     def _neutral_world(self, rest: FloatArray) -> FloatArray:
         return self.tree.world(self.tree.neutral_deg[None, :])[0]
@@ -166,4 +170,5 @@ class PartCollisions:
 
     @property
     def exact_always(self) -> list[PairSpec]:
+        """Pairs that skip the sphere tests (no table, or one too large)."""
         return [s for s, a in zip(self.specs, self.always, strict=True) if a]

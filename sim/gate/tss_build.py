@@ -42,6 +42,7 @@ class TssParams:
     max_grid_points: int = 12000
     chunk_elements: int = 4_000_000
     max_table_tests: int = 4000  # a pair with a larger table skips the spheres: exact test every frame
+    max_margin_mm: float = 3.0  # a sweep this coarse (many joints) is not worth a table: exact test
 
 
 @dataclass(frozen=True)
@@ -61,6 +62,7 @@ class PairTable:
     grid_points: int
     tolerance_mm: float
     key: str
+    exact_only: bool = False  # no table: the pair comes close somewhere and goes to the exact test
 
     @property
     def n_tests(self) -> int:
@@ -68,8 +70,8 @@ class PairTable:
 
     @property
     def reduction(self) -> float:
-        """Share of sphere pairs that are never tested (1 - tests / all)."""
-        return 1.0 - self.n_tests / max(self.n_all_pairs, 1)
+        """Share of sphere pairs that are never tested (1 - tests / all); 0 for an exact-only pair."""
+        return 0.0 if self.exact_only else 1.0 - self.n_tests / max(self.n_all_pairs, 1)
 
 
 def default_cache_dir() -> Path:
@@ -162,8 +164,9 @@ def build_pair(
     budget = params.margin_mm / max(len(rel), 1)
     step = np.minimum(np.rad2deg(2.0 * budget / np.maximum(arms, 1e-9)), params.max_step_deg)
     counts = np.maximum(1, np.ceil((hi - lo) / np.maximum(step, 1e-9))).astype(np.int64) + 1
-    while int(np.prod(counts)) > params.max_grid_points:
-        counts = np.maximum(2, np.ceil(counts * 0.85)).astype(np.int64)
+    while float(np.prod(counts.astype(np.float64))) > params.max_grid_points and np.any(counts > 2):
+        i = int(np.argmax(counts))  # coarsen the finest axis first
+        counts[i] = max(2, int(counts[i] * 0.85))
     step = np.where(counts > 1, (hi - lo) / np.maximum(counts - 1, 1), 0.0)
     margin = float(np.sum(arms * np.deg2rad(step) / 2.0))
     axes = [np.linspace(lo[i], hi[i], int(counts[i])) for i in range(len(rel))]
@@ -176,8 +179,22 @@ def build_pair(
     angles[:, rel] = grid
     ja = -1 if part_a.joint is None else tree.index[part_a.joint]
     jb = -1 if part_b.joint is None else tree.index[part_b.joint]
-    hit = _sweep(tree, angles, ja, jb, spheres_a, spheres_b, margin + tolerance_mm, params.chunk_elements)
+    coarse = margin > params.max_margin_mm
+    hit = _sweep(
+        tree,
+        angles,
+        ja,
+        jb,
+        spheres_a,
+        spheres_b,
+        margin + tolerance_mm,
+        params.chunk_elements,
+        balls_only=coarse,
+    )
     ia, ib = np.nonzero(hit)
+    exact_only = bool(coarse and hit.any())
+    if exact_only:
+        ia, ib = ia[:0], ib[:0]
     return PairTable(
         part_a.name,
         part_b.name,
@@ -192,6 +209,7 @@ def build_pair(
         int(grid.shape[0]),
         tolerance_mm,
         key,
+        exact_only,
     )
 
 
@@ -204,6 +222,7 @@ def _sweep(
     sb: SphereSet,
     pad_mm: float,
     chunk: int,
+    balls_only: bool = False,
 ) -> NDArray[np.bool_]:
     """(n_a, n_b) True where spheres i of a and j of b come within r_i + r_j + pad at some grid node.
 
@@ -231,6 +250,9 @@ def _sweep(
         near = np.linalg.norm(ball - cb_ball, axis=1) <= ra_ball + rb_ball + pad_mm
         if not near.any():
             continue
+        if balls_only:  # the parts' bounding balls meet somewhere: that is all the caller asks
+            hit[:] = True
+            return hit
         pts = np.einsum("gij,nj->gni", rel[near], ha)[..., :3].reshape(-1, 3)
         idx_a = np.tile(np.arange(sa.n), int(near.sum()))
         cand = kd.query_ball_point(pts, r=sa.radii_mm[idx_a] + rmax_b + pad_mm, return_sorted=False)
@@ -264,6 +286,7 @@ def _save(path: Path, table: PairTable, sa: SphereSet, sb: SphereSet) -> None:
             grid=table.grid_points,
             tol=table.tolerance_mm,
             key=table.key,
+            exact_only=table.exact_only,
             ca=sa.centres_mm,
             ra=sa.radii_mm,
             cb=sb.centres_mm,
@@ -295,6 +318,7 @@ def _load(path: Path, key: str) -> tuple[PairTable, SphereSet, SphereSet] | None
                 int(z["grid"]),
                 float(z["tol"]),
                 key,
+                bool(z["exact_only"]),
             )
             return table, SphereSet(z["ca"], z["ra"]), SphereSet(z["cb"], z["rb"])
     except (OSError, KeyError, ValueError) as err:
@@ -336,7 +360,8 @@ def build_or_load(
 
 
 def summed_reduction(tables: Sequence[PairTable]) -> float:
-    """1 - (tested sphere pairs) / (all sphere pairs), over every pair."""
-    tests = sum(t.n_tests for t in tables)
-    total = sum(t.n_all_pairs for t in tables)
+    """1 - (tested sphere pairs) / (all sphere pairs), over every pair the spheres handle (exact-only
+    pairs left out: they have no table)."""
+    tests = sum(t.n_tests for t in tables if not t.exact_only)
+    total = sum(t.n_all_pairs for t in tables if not t.exact_only)
     return 1.0 - tests / max(total, 1)

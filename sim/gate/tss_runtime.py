@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sim.gate.fk import JointTree
+from sim.gate.spheres import SphereSet
 from sim.gate.tss_build import BuiltPair
 
 FloatArray = NDArray[np.float64]
@@ -91,6 +92,30 @@ class TssBroadPhase:
         )
         self._nonempty = counts > 0
         self._starts = (np.cumsum(counts) - counts)[self._nonempty]
+        # exact-only pairs still get a cheap gate: the parts' bounding balls (around all their spheres)
+        balls = []
+        for p, built in enumerate(self.pairs):
+            if not self.always[p]:
+                continue
+            t = built.table
+            ja, jb = part_joint[t.a], part_joint[t.b]
+            (ca, ra), (cb, rb) = _ball(built.spheres_a), _ball(built.spheres_b)
+            balls.append(
+                (
+                    p,
+                    n_joints if ja is None else tree.index[ja],
+                    n_joints if jb is None else tree.index[jb],
+                    ca,
+                    cb,
+                    ra + rb + t.tolerance_mm,
+                )
+            )
+        self._always_idx = np.array([b[0] for b in balls], dtype=np.int64)
+        self._ball_slot_a = np.array([b[1] for b in balls], dtype=np.int64)
+        self._ball_slot_b = np.array([b[2] for b in balls], dtype=np.int64)
+        self._ball_a = np.array([np.r_[b[3], 1.0] for b in balls]).reshape(-1, 4)
+        self._ball_b = np.array([np.r_[b[4], 1.0] for b in balls]).reshape(-1, 4)
+        self._ball_reach = np.array([b[5] for b in balls], dtype=np.float64)
         # per pair, for the relative-frame evaluation: a's used spheres (homogeneous, a's rest frame),
         # b's used spheres (b's rest frame), local index pairs and squared reach
         self._per_pair: list[
@@ -178,4 +203,23 @@ class TssBroadPhase:
 
     def flag(self, world: FloatArray, angles_deg: FloatArray) -> BoolArray:
         """Pairs that need the exact test: overlapping tabulated spheres or outside the swept box."""
-        return self.overlaps(world) | self.out_of_box(angles_deg) | self.always
+        return self.overlaps(world) | self.out_of_box(angles_deg) | self.balls_meet(world)
+
+    def balls_meet(self, world: FloatArray) -> BoolArray:
+        """(..., n_pairs) True for exact-only pairs whose bounding balls overlap (False elsewhere)."""
+        lead = world.shape[:-3]
+        out = np.zeros((*lead, self.n_pairs), dtype=bool)
+        if not len(self._always_idx):
+            return out
+        eye = np.broadcast_to(np.eye(4), (*lead, 1, 4, 4))
+        full = np.concatenate([world, eye], axis=-3)
+        ca = np.einsum("...bij,bj->...bi", full[..., self._ball_slot_a, :3, :], self._ball_a)
+        cb = np.einsum("...bij,bj->...bi", full[..., self._ball_slot_b, :3, :], self._ball_b)
+        out[..., self._always_idx] = np.linalg.norm(ca - cb, axis=-1) <= self._ball_reach
+        return out
+
+
+def _ball(spheres: SphereSet) -> tuple[FloatArray, float]:
+    """A ball holding every sphere of a set: (centre (3,), radius)."""
+    c = (spheres.centres_mm.min(axis=0) + spheres.centres_mm.max(axis=0)) / 2.0
+    return c, float(np.max(np.linalg.norm(spheres.centres_mm - c, axis=1) + spheres.radii_mm))

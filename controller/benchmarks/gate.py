@@ -1,0 +1,172 @@
+"""`servoface bench gate`: the twin gate's cost per frame, batch throughput, and the TSS figures.
+
+Figures (human head unless named): median gate time per frame on a stream of small steps (the accept
+path, goal <= 1 ms) and on clipped requests; batched commands per second through ``check_batch``
+(goal >= 10,000); the TSS reduction (share of sphere pairs never tested, goal >= 0.95) and misses over a
+dense random sweep (goal 0); the same for the dog head; the cold TSS build time.
+"""
+
+from __future__ import annotations
+
+import statistics
+import tempfile
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from controller.benchmarks.figure import Figure
+
+
+def _gate(name: str, cache: Path | None) -> Any:
+    from calibration.fileformat import load_calibration
+    from sim.gate import GateConfig, TwinGate
+    from sim.heads import load_head
+
+    head = load_head(name)
+    return TwinGate(head, load_calibration(head.calibration_path), 1 / 60, GateConfig(cache_dir=cache))
+
+
+def _frame_times_ms(gate: Any, frames: int, clip: bool, seed: int = 0) -> list[float]:
+    """Gate time per frame on a random walk from neutral (small steps, or oversized ones to clip)."""
+    rng = np.random.default_rng(seed)
+    t = gate.table
+    last = t.neutral_tick.copy()
+    times = []
+    gate.reset()
+    for _ in range(frames):
+        size = t.max_step_tick * (3 if clip else 0.25)
+        req = np.clip(last + rng.uniform(-1, 1, t.n) * size, t.min_tick, t.max_tick).astype(np.int64)
+        goals = dict(zip(t.ids, req.tolist(), strict=True))
+        prev = dict(zip(t.ids, last.tolist(), strict=True))
+        t0 = time.perf_counter()
+        v = gate.check(goals, prev)
+        times.append((time.perf_counter() - t0) * 1e3)
+        last = np.array([v.goals_tick[i] for i in t.ids])
+    return times
+
+
+def _batch_rate(gate: Any, k: int, repeats: int) -> float:
+    rng = np.random.default_rng(1)
+    t = gate.table
+    goals = (t.neutral_tick + rng.integers(-60, 60, size=(k, t.n))).astype(np.int64)
+    gate.check_batch(goals[:8], t.neutral_tick)
+    best = min(_timed(lambda: gate.check_batch(goals, t.neutral_tick)) for _ in range(repeats))
+    return k / best
+
+
+def _timed(fn: Any) -> float:
+    t0 = time.perf_counter()
+    fn()
+    return time.perf_counter() - t0
+
+
+def _misses(gate: Any, samples: int, seed: int = 3) -> tuple[int, int]:
+    """(missed, found) exact collisions over random poses of every pair's joints."""
+    col = gate.collisions
+    tree = col.tree
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(tree.lower_deg, tree.upper_deg, size=(samples, len(tree.names)))
+    world = tree.world(q)
+    flags = col.broad.flag(world, q)
+    missed = found = 0
+    for k in range(samples):
+        for p, spec in enumerate(col.specs):
+            if col._collide(spec, world[k]):
+                found += 1
+                missed += int(not flags[k, p])
+    return missed, found
+
+
+def run(quick: bool = False) -> Iterator[Figure]:
+    from sim.gate.tss_build import summed_reduction
+
+    frames = 60 if quick else 400
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        human = _gate("human", Path(tmp))
+        build_s = time.perf_counter() - t0
+    yield Figure(
+        "human TSS build, cold (tables + gate)",
+        build_s,
+        "s",
+        better="lower",
+        note=f"{len(human.collisions.specs)} pairs tabulated, {len(human.collisions.skipped)} proven apart",
+    )
+    human = _gate("human", None)  # the user cache: warm after the first run
+    times = _frame_times_ms(human, frames, clip=False)
+    yield Figure(
+        "human gate time per frame (median, small steps)",
+        statistics.median(times),
+        "ms",
+        limit=1.0,
+        goal=1.0,
+        better="lower",
+        note=f"p95 {np.percentile(times, 95):.3f} ms over {frames} frames",
+    )
+    times = _frame_times_ms(human, frames // 2, clip=True)
+    yield Figure(
+        "human gate time per frame (median, clipped requests)",
+        statistics.median(times),
+        "ms",
+        better="lower",
+        note="limits + rate clamps + scale-back search",
+    )
+    rate = _batch_rate(human, 200 if quick else 2000, 2 if quick else 5)
+    yield Figure(
+        "human check_batch commands per second",
+        rate,
+        "cmd/s",
+        limit=10_000.0,
+        goal=10_000.0,
+        note="limits, rates, coupling, TSS broad phase",
+    )
+    tables = [b.table for b in human.collisions.built]
+    yield Figure(
+        "human TSS reduction (sphere pairs avoided)",
+        summed_reduction(tables),
+        "share",
+        limit=0.95,
+        goal=0.95,
+        note=f"{human.collisions.n_tests} tests/frame of {human.collisions.n_all_sphere_pairs};"
+        f" {len(human.collisions.exact_always)} pairs exact-only",
+    )
+    missed, found = _misses(human, 150 if quick else 1500)
+    yield Figure(
+        "human TSS misses (dense random sweep)",
+        float(missed),
+        "collisions",
+        goal=0.0,
+        better="lower",
+        note=f"{found} exact collisions found",
+    )
+    dog = _gate("dog", None)
+    tables = [b.table for b in dog.collisions.built]
+    yield Figure(
+        "dog TSS reduction (sphere pairs avoided)",
+        summed_reduction(tables),
+        "share",
+        limit=0.95,
+        goal=0.95,
+        note=f"{dog.collisions.n_tests} tests/frame",
+    )
+    missed, found = _misses(dog, 150 if quick else 1500)
+    yield Figure(
+        "dog TSS misses (dense random sweep)",
+        float(missed),
+        "collisions",
+        goal=0.0,
+        better="lower",
+        note=f"{found} exact collisions found",
+    )
+    times = _frame_times_ms(dog, frames, clip=False)
+    yield Figure(
+        "dog gate time per frame (median, small steps)",
+        statistics.median(times),
+        "ms",
+        limit=1.0,
+        goal=1.0,
+        better="lower",
+    )
