@@ -24,11 +24,10 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from controller.alive.gaze import gaze_config_for
 from controller.frame import AUFrame
 from controller.inputs.blendshapes import load_blendshape_map
 from controller.inputs.errors import InputError
-from controller.inputs.head_pose import head_pose_aus
+from controller.inputs.head_pose import eye_angles_aus, head_pose_aus
 from controller.inputs.recorded import InputReport, Recording
 from controller.inputs.sides import mirror_aus
 
@@ -99,12 +98,9 @@ def fap_to_aus(faps: dict[int, float]) -> dict[str, float]:
         aus = head_pose_aus(faps.get(49, 0.0) * deg, -faps.get(48, 0.0) * deg, -faps.get(50, 0.0) * deg)
         out.update(aus)
     if {23, 24, 25, 26} & set(faps):
-        cfg = gaze_config_for("human")
-        yaw = (faps.get(23, 0.0) + faps.get(24, 0.0)) / 2 * deg / cfg.eye_limit_yaw_deg
-        pitch = -(faps.get(25, 0.0) + faps.get(26, 0.0)) / 2 * deg / cfg.eye_limit_pitch_deg
-        out.update(
-            {"AU61": _clamp01(yaw), "AU62": _clamp01(-yaw), "AU63": _clamp01(pitch), "AU64": _clamp01(-pitch)}
-        )
+        yaw_deg = (faps.get(23, 0.0) + faps.get(24, 0.0)) / 2 * deg
+        pitch_deg = -(faps.get(25, 0.0) + faps.get(26, 0.0)) / 2 * deg
+        out.update(eye_angles_aus(yaw_deg, pitch_deg))
     return out
 
 

@@ -71,6 +71,14 @@ def head_pose_aus(
     return {k: aus[k] for k in _HEAD_AUS}
 
 
+def eye_angles_aus(yaw_deg: float, pitch_deg: float, config: GazeConfig | None = None) -> dict[str, float]:
+    """Eye AUs 61-64 (0..1) for a gaze direction in degrees (yaw + = the subject's own left, pitch + = up);
+    full scale = the human AU table's eye swing (AU61 = 30 deg, AU63 = 20 deg)."""
+    cfg = config or _human_config()
+    aus = angles_to_aus("human", cfg, eye_yaw_deg=yaw_deg, eye_pitch_deg=pitch_deg)
+    return {k: aus[k] for k in ("AU61", "AU62", "AU63", "AU64")}
+
+
 def parse_head(head: Any, *, field: str = "head") -> tuple[float, float, float]:
     """(yaw, pitch, roll) degrees from ``{"yaw_deg", "pitch_deg", "roll_deg"}`` (missing = 0) or
     ``{"matrix": [[...]]}``. Unknown keys, non-finite or |angle| > 180 deg raise InputError."""

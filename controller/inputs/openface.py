@@ -9,7 +9,13 @@ the lowest id).
 
 Lost tracking: a row with ``success == 0`` or ``confidence < min_confidence`` (default 0.8, the common
 gate) is not trusted; the ``lost`` policy fills it: ``"hold"`` (default) keeps the last good AUs,
-``"neutral"`` eases them to neutral over ``decay_s``. Frames from a file are not smoothed (the samples are
+``"neutral"`` eases them to neutral over ``decay_s``.
+
+Gaze (opt-in, ``gaze=True``): ``gaze_angle_x`` / ``gaze_angle_y`` (rad, both eyes averaged) become AU61-64.
+Per the OpenFace wiki ("Output Format"), looking left to right takes gaze_angle_x from positive to negative
+and looking up to down takes gaze_angle_y from negative to positive; servoface reads + x as the subject's
+own left and + y as down. Head pose (``pose_R*``) is not mapped: its sign convention is not on the
+reference sheet. Frames from a file are not smoothed (the samples are
 the recording); smooth live data with the stream source.
 
 py-feat (§6): columns ``AU01 ... AU43`` (roughly 0..1), optional ``frame`` and ``FaceScore``; py-feat
@@ -19,12 +25,14 @@ a row with some AU cells missing is an error.
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
 from controller.au_names import canonical_au, default_au_names
 from controller.inputs.csv_table import CsvTable
 from controller.inputs.errors import InputError
+from controller.inputs.head_pose import eye_angles_aus
 from controller.inputs.recorded import InputReport, Recording, frames_with_policy
 from controller.inputs.sides import mirror_aus
 
@@ -57,10 +65,13 @@ def read_openface_csv(
     face_id: int | None = None,
     mirror: bool = False,
     interpolate: bool = True,
+    gaze: bool = False,
 ) -> Recording:
     """Read an OpenFace 2.x CSV into a human Recording (see the module doc for the policy)."""
     table = CsvTable(path)
     table.require("timestamp", "confidence", "success")
+    if gaze:
+        table.require("gaze_angle_x", "gaze_angle_y")
     allowed = default_au_names("human")
     au_cols = _au_columns(table, _OPENFACE_AU, allowed)
     report = InputReport(str(table.path))
@@ -95,6 +106,9 @@ def read_openface_csv(
             value = min(1.0, max(0.0, raw / 5.0))
             clamped += value != raw / 5.0
             aus[name] = value
+        if gaze:
+            yaw_rad, down_rad = (table.number(cells, line, c) for c in ("gaze_angle_x", "gaze_angle_y"))
+            aus.update(eye_angles_aus(math.degrees(yaw_rad), -math.degrees(down_rad)))
         report.rows += 1
         good = success == 1.0 and confidence >= min_confidence
         rows.append((t_s, (mirror_aus(aus, "human") if mirror else aus) if good else None))

@@ -167,3 +167,14 @@ def test_load_recording_refuses_unknown_and_dog_csv(tmp_path: Path) -> None:
         load_recording(_write(tmp_path, "x.txt", "hello"))
     with pytest.raises(InputError, match="dog"):
         load_recording(SAMPLES / "openface_smile.csv", "dog")
+
+
+def test_openface_gaze_opt_in(tmp_path: Path) -> None:
+    rec = read_openface_csv(SAMPLES / "openface_smile.csv", gaze=True)
+    first = rec.frames[0]  # gaze_angle_x = 0.05 rad (2.9 deg to the subject's left), y = 0.10 rad (down)
+    assert first.get("AU61") == pytest.approx(2.8648 / 30, abs=1e-3) and first.get("AU62") == 0.0
+    assert first.get("AU64") == pytest.approx(5.7296 / 20, abs=1e-3) and first.get("AU63") == 0.0
+    assert "AU61" not in read_openface_csv(SAMPLES / "openface_smile.csv").frames[0].aus
+    path = _write(tmp_path, "nogaze.csv", "timestamp,confidence,success,AU12_r\n0,1,1,1\n")
+    with pytest.raises(InputError, match="gaze_angle_x"):
+        read_openface_csv(path, gaze=True)

@@ -329,3 +329,14 @@ def test_cli_play_input_file(capsys: pytest.CaptureFixture[str]) -> None:
     assert "one of them" in capsys.readouterr().err
     assert cli_main(["play", "--emulate", "--input", "/nonexistent/rec.csv"]) == 2
     assert "rec.csv" in capsys.readouterr().err
+
+
+def test_dog_stream_passes_dfacs_through_with_signs() -> None:
+    clock = FakeClock()
+    src = StreamSource(MessageDecoder("dog"), smoothing=None, clock=clock)
+    src.feed('{"aus": {"AU7": -0.5, "AU5L": 0.4}}')
+    assert not src.feed('{"blendshapes": {"jawOpen": 0.3}}')
+    frame = src.sample(0.0)
+    assert frame.face_type == "dog" and dict(frame.aus) == {"AU7": -0.5, "AU5L": 0.4}
+    clock.now += 10.0
+    assert src.sample(0.0).get("AU7") == 0.0  # eased to neutral (0) from the negative side too
