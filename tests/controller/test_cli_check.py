@@ -29,6 +29,7 @@ def _table_rows(out: str) -> dict[str, list[str]]:
 def _assert_table(name: str, status: int, out: str, err: str) -> None:
     assert status == 0, out + err
     head = load_head(name)
+    assert head.calibration_path is not None
     cal = load_calibration(head.calibration_path)
     rows = _table_rows(out)
     assert set(rows) == set(head.roles)
@@ -73,6 +74,7 @@ def test_check_unknown_head_fails_with_a_message(capsys: pytest.CaptureFixture[s
 
 def test_check_calibration_missing_a_servo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     head = load_head("human")
+    assert head.calibration_path is not None
     data = json.loads(Path(head.calibration_path).read_text())
     servos = data["servos"]
     if isinstance(servos, dict):

@@ -67,10 +67,11 @@ def test_demo_cli_writes_video_sheet_clip_and_report(
     n_video = report["outputs"]["video_frames"]
     assert n_video >= 10
     total_ms = 0
-    for k in range(gif.n_frames):  # holds may be stored once with their durations added
+    n_stored = int(getattr(gif, "n_frames", 1))
+    for k in range(n_stored):  # holds may be stored once with their durations added
         gif.seek(k)
         total_ms += gif.info["duration"]
-    assert total_ms == pytest.approx(n_video * 50, abs=2 * gif.n_frames)
+    assert total_ms == pytest.approx(n_video * 50, abs=2 * n_stored)
     sheet = np.asarray(Image.open(short_demo / "sheet.png").convert("RGB"))
     assert sheet.std() > 5  # a drawn face, not a blank image
     assert len(report["outputs"]["sheet_expressions"]) >= 10

@@ -53,6 +53,7 @@ def test_play_script_on_the_emulator(tmp_path: Path, capsys: pytest.CaptureFixtu
 def test_bad_arguments_exit_2_with_a_message(
     argv: list[str], named: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    status: int | str | None
     try:
         status = main(argv)
     except SystemExit as exc:  # argparse's own errors
