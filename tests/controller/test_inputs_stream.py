@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import random
 import socket
 import threading
@@ -12,6 +13,8 @@ import time
 from collections.abc import Callable, Iterator
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from controller.cli import main as cli_main
 from controller.face import Face
@@ -340,3 +343,75 @@ def test_dog_stream_passes_dfacs_through_with_signs() -> None:
     assert frame.face_type == "dog" and dict(frame.aus) == {"AU7": -0.5, "AU5L": 0.4}
     clock.now += 10.0
     assert src.sample(0.0).get("AU7") == 0.0  # eased to neutral (0) from the negative side too
+
+
+# -- property: whatever arrives, feed() never raises and sample() is a valid frame ------------------------
+_json_values = st.recursive(
+    st.none()
+    | st.booleans()
+    | st.integers(-10, 10)
+    | st.floats(allow_nan=True, allow_infinity=True)
+    | st.text(max_size=8),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=12), inner, max_size=4),
+    max_leaves=12,
+)
+_names = st.sampled_from(["AU12", "AU12L", "AU4", "AU99", "au1", "mouthSmileLeft", "jawOpen", "smile", ""])
+_messages = st.fixed_dictionaries(
+    {},
+    optional={
+        "t": _json_values,
+        "aus": st.dictionaries(_names, st.floats(-2, 2) | _json_values, max_size=4),
+        "blendshapes": st.dictionaries(_names, st.floats(-0.5, 1.5) | _json_values, max_size=4),
+        "head": st.dictionaries(
+            st.sampled_from(["yaw_deg", "pitch_deg", "matrix", "x"]), _json_values, max_size=3
+        ),
+        "confidence": _json_values,
+    },
+)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.lists(
+        _messages.map(lambda m: json.dumps(m)) | st.text(max_size=40) | st.binary(max_size=40), max_size=6
+    )
+)
+def test_any_input_yields_valid_frames_or_counted_rejects(raw: list[str | bytes]) -> None:
+    clock = FakeClock()
+    src = StreamSource(MessageDecoder("human", mirror=True), clock=clock)
+    for k, item in enumerate(raw):
+        src.feed(item)
+        clock.now += 0.1
+        frame = src.sample(k * 0.1)
+        assert all(0.0 <= v <= 1.0 and math.isfinite(v) for v in frame.aus.values())
+    assert src.stats.good + src.stats.bad + src.stats.out_of_order == len(raw)
+
+
+def test_cli_stream_udp_follows_datagrams(capsys: pytest.CaptureFixture[str]) -> None:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:  # a free loopback port for the CLI
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    stop = threading.Event()
+
+    def send() -> None:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
+            for k in range(200):
+                if stop.is_set():
+                    return
+                tx.sendto(
+                    json.dumps({"t": k / 50, "blendshapes": {"mouthSmileRight": 0.6}}).encode(),
+                    ("127.0.0.1", port),
+                )
+                time.sleep(0.02)
+
+    sender = threading.Thread(target=send, daemon=True)
+    sender.start()
+    try:
+        rc = cli_main(["stream", "--emulate", "--udp", f"127.0.0.1:{port}", "--duration", "0.5", "--mirror"])
+    finally:
+        stop.set()
+        sender.join(2.0)
+    out = capsys.readouterr().out
+    assert rc == 0 and "bad 0" in out
+    good = int(out.split("good ")[1].split(",")[0])
+    assert good > 0
