@@ -163,3 +163,17 @@ def test_the_twin_pose_of_the_last_goals_is_the_calibrations(run: Run) -> None:
 
 def test_torque_is_on_while_the_face_is_open(run: Run) -> None:
     assert all(run.chain.servo(sid).torque_on for sid in run.chain.ids)
+
+
+def test_servo_side_limits_are_the_calibrations_backstop(run: Run) -> None:
+    """Face.open wrote each servo's Min/Max Position Limit (EEPROM, over the pty) from the calibration,
+    a little wider than the gate's limits so the backstop never fights a legal goal."""
+    cal = run.face.pipeline.calibration
+    specs = {s.servo_id: s for s in servo_specs(run.face.head, cal)}
+    for sid in run.chain.ids:
+        servo = run.chain.servo(sid)
+        lo, hi = servo.read_register("Min Position Limit"), servo.read_register("Max Position Limit")
+        c = cal.by_id(sid)
+        assert (lo, hi) == (specs[sid].min_position_tick, specs[sid].max_position_tick)
+        assert lo < c.min_tick <= c.max_tick < hi, (sid, lo, hi, c.min_tick, c.max_tick)
+        assert servo.read_register("Return Delay Time") == specs[sid].return_delay_us // 2
