@@ -7,7 +7,6 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -16,7 +15,7 @@ from controller.face import Face
 from controller.performance import Performance
 from controller.script import SCRIPTS_DIR
 from hardware.emulator import ServoChain
-from sim.gate import limits as lim
+from tests.integration.wire_checks import check_wire
 
 UNSAFE = SCRIPTS_DIR / "unsafe_pose.toml"
 
@@ -77,38 +76,6 @@ def played(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Played]:
         face.close(ease_s=0.0)
 
 
-def _check_wire(face: Face, chain: ServoChain) -> int:
-    """Every Goal Position write the emulator decoded: inside the calibration's limits, each step from the
-    same servo's previous goal within the gate's per-frame cap, and each change of step within the gate's
-    acceleration bound (`sim.gate.limits.step_bounds`). Returns how many goals were checked."""
-    table = face.pipeline.gate.table
-    cal = face.pipeline.calibration
-    index = table.index()
-    writes = chain.goal_writes()
-    assert writes, "no goal reached the bus"
-    last: dict[int, int] = {}
-    last_step = np.zeros(table.n, dtype=np.int64)
-    for t_s, sid, tick in writes:
-        assert sid in index, f"goal for servo {sid}, which the head does not have"
-        i = index[sid]
-        servo = cal.by_id(sid)
-        where = f"t={t_s:.3f}s servo {sid} '{servo.role}'"
-        assert servo.min_tick <= tick <= servo.max_tick, (
-            f"{where}: goal {tick} outside {servo.min_tick}..{servo.max_tick}"
-        )
-        if sid in last:
-            step = tick - last[sid]
-            cap = int(table.max_step_tick[i])
-            assert abs(step) <= cap, f"{where}: step {step} beyond the cap {cap} tick/frame"
-            lo, hi = lim.step_bounds(last_step, table)
-            assert lo[i] <= step <= hi[i], (
-                f"{where}: step {step} after {last_step[i]} outside {lo[i]}..{hi[i]}"
-            )
-            last_step[i] = step
-        last[sid] = tick
-    return len(writes)
-
-
 def test_the_gate_table_is_the_calibrations(played: Played) -> None:
     table = played.face.pipeline.gate.table
     cal = played.face.pipeline.calibration
@@ -141,7 +108,7 @@ def test_unsafe_frames_are_clipped_with_reasons(played: Played, which: str) -> N
 
 
 def test_no_goal_on_the_wire_breaks_limits_or_rate_caps(played: Played) -> None:
-    n = _check_wire(played.face, played.chain)
+    n = check_wire(played.face.pipeline, played.chain)
     frames = len(played.unsafe.traces) + len(played.flip_flop.traces)
     assert n >= frames * len(played.face.head.actuators)  # one sync write of every servo per frame
 
@@ -193,4 +160,4 @@ def test_any_sequence_of_au_frames_stays_safe_on_the_wire(
         trace = face.pipeline.step(aus)
         assert trace.verdict in ("accept", "clip", "reject")
     assert len(chain.goal_writes()) == before + len(frames) * len(face.head.actuators)
-    _check_wire(face, chain)
+    check_wire(face.pipeline, chain)
