@@ -45,6 +45,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--min-confidence", type=float, default=0.0, help="ignore messages below this confidence"
     )
+    parser.add_argument(
+        "--shape-ranges",
+        type=Path,
+        help="per-user blendshape rest/full ranges JSON (controller/inputs/shape_ranges.py)",
+    )
     parser.add_argument("--no-smoothing", action="store_true", help="switch the One-Euro filter off")
     parser.add_argument("--min-cutoff", type=float, default=1.5, help="One-Euro cutoff at rest, Hz (1.5)")
     parser.add_argument("--beta", type=float, default=0.5, help="One-Euro speed coefficient (0.5)")
@@ -84,8 +89,17 @@ def run(args: argparse.Namespace) -> int:
     try:  # everything that can fail on bad arguments happens before the port opens (torque stays off)
         head = load_head(args.head)
         validator = FrameValidator.for_head(head)
+        ranges = None
+        if args.shape_ranges is not None:
+            from controller.inputs import ShapeRanges, load_blendshape_map
+
+            ranges = ShapeRanges.load(args.shape_ranges, load_blendshape_map().names)
         decoder = MessageDecoder(
-            head.face_type, allowed=validator.allowed, mirror=args.mirror, vergence=args.vergence
+            head.face_type,
+            allowed=validator.allowed,
+            mirror=args.mirror,
+            vergence=args.vergence,
+            shape_ranges=ranges,
         )
         smoothing = None if args.no_smoothing else AUSmoother(args.min_cutoff, args.beta)
         source = StreamSource(

@@ -14,6 +14,7 @@ from controller.inputs.head_pose import head_pose_aus, matrix_to_ypr_deg
 from controller.inputs.messages import Message, MessageDecoder
 from controller.inputs.openface import read_openface_csv, read_pyfeat_csv
 from controller.inputs.recorded import InputReport, Recording
+from controller.inputs.shape_ranges import ShapeRanges
 from controller.inputs.sides import mirror_aus
 from controller.inputs.smoothing import AUSmoother, OneEuroFilter
 from controller.inputs.stream import StreamSource, StreamStats
@@ -29,6 +30,7 @@ __all__ = [
     "MessageDecoder",
     "OneEuroFilter",
     "Recording",
+    "ShapeRanges",
     "StreamSource",
     "StreamStats",
     "TcpReceiver",

@@ -26,6 +26,7 @@ from typing import Any
 
 from controller.au_names import default_au_names
 from controller.inputs.errors import InputError
+from controller.inputs.shape_ranges import ShapeRanges
 from controller.inputs.sides import mirror_aus
 
 TABLE_PATH = Path(__file__).with_name("blendshapes.toml")
@@ -91,9 +92,11 @@ class BlendshapeMap:
         *,
         mirror: bool = False,
         vergence: bool = False,
+        ranges: ShapeRanges | None = None,
         where: str = "blendshapes",
     ) -> dict[str, float]:
-        """Validate ``shapes`` (name -> score 0..1) and map them to AUs (0..1, canonical names)."""
+        """Validate ``shapes`` (name -> score 0..1) and map them to AUs (0..1, canonical names); ``ranges``
+        rescales the validated scores per user first (shape_ranges.py)."""
         if not isinstance(shapes, Mapping):
             raise InputError(
                 f"{where}: expected a mapping of blendshape name -> score 0..1, got {type(shapes).__name__}"
@@ -105,6 +108,8 @@ class BlendshapeMap:
             if name in scores:
                 raise InputError(f"{field}: {name} is given twice")
             scores[name] = check_score(value, field=field)
+        if ranges is not None:
+            scores = ranges.apply(scores)
         out: dict[str, float] = {}
         gaze: dict[tuple[str, str], float] = {}
         for name, score in scores.items():

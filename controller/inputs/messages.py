@@ -26,6 +26,7 @@ from controller.frame import FrameValidator, check_face_type
 from controller.inputs.blendshapes import BlendshapeMap, load_blendshape_map
 from controller.inputs.errors import InputError
 from controller.inputs.head_pose import head_pose_aus, parse_head
+from controller.inputs.shape_ranges import ShapeRanges
 from controller.inputs.sides import mirror_aus
 from sim.rig import FaceType
 
@@ -53,12 +54,14 @@ class MessageDecoder:
         mirror: bool = False,
         vergence: bool = False,
         blendshape_map: BlendshapeMap | None = None,
+        shape_ranges: ShapeRanges | None = None,
     ) -> None:
         self.face_type = check_face_type(face_type)
         self.validator = FrameValidator(self.face_type, allowed)
         self.mirror = bool(mirror)
         self.vergence = bool(vergence)
         self._bmap = blendshape_map
+        self.shape_ranges = shape_ranges
 
     @property
     def blendshape_map(self) -> BlendshapeMap:
@@ -106,7 +109,10 @@ class MessageDecoder:
         if "blendshapes" in obj:
             aus.update(
                 self.blendshape_map.to_aus(
-                    obj["blendshapes"], vergence=self.vergence, where=f"{where}.blendshapes"
+                    obj["blendshapes"],
+                    vergence=self.vergence,
+                    ranges=self.shape_ranges,
+                    where=f"{where}.blendshapes",
                 )
             )
         if "head" in obj:

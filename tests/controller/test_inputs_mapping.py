@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -165,3 +166,32 @@ def test_dog_takes_dfacs_aus_but_not_blendshapes() -> None:
 def test_explicit_aus_override_mapped_ones() -> None:
     msg = MessageDecoder().decode({"blendshapes": {"mouthSmileLeft": 0.9}, "aus": {"AU12L": 0.1}})
     assert msg.aus["AU12L"] == 0.1 and not math.isnan(msg.confidence)
+
+
+def test_shape_ranges_rescale_per_user_and_round_trip(tmp_path: Path) -> None:
+    from controller.inputs import ShapeRanges
+
+    # a user whose eyeWide never exceeds 0.06 and whose smile rests at 0.1 (mediapipe #4450)
+    samples = [
+        {"eyeWideLeft": 0.06 * k / 20, "mouthSmileLeft": 0.1 + 0.7 * k / 20, "jawOpen": 0.3}
+        for k in range(21)
+    ]
+    ranges = ShapeRanges.from_samples(samples)
+    assert "jawOpen" not in ranges.ranges  # it never moved
+    bmap = load_blendshape_map()
+    aus = bmap.to_aus({"eyeWideLeft": 0.06, "mouthSmileLeft": 0.1, "jawOpen": 0.3}, ranges=ranges)
+    assert aus["AU5L"] == pytest.approx(1.0) and aus["AU12L"] == 0.0 and aus["AU26"] > 0.3
+    path = tmp_path / "ranges.json"
+    ranges.save(path)
+    loaded = ShapeRanges.load(path, bmap.names)
+    assert loaded.ranges.keys() == ranges.ranges.keys()
+    dec = MessageDecoder(shape_ranges=loaded)
+    rest, full = loaded.ranges["eyeWideLeft"]
+    assert rest == pytest.approx(0.003) and full == pytest.approx(0.06)  # 5th / 99th percentiles
+    assert dec.decode({"blendshapes": {"eyeWideLeft": 0.03}}).aus["AU5L"] == pytest.approx(0.027 / 0.057)
+    path.write_text('{"schema_version": 1, "ranges": {"eyeWideLeft": [0.2, 0.1]}}')
+    with pytest.raises(InputError, match="ranges.eyeWideLeft"):
+        ShapeRanges.load(path)
+    path.write_text('{"schema_version": 1, "ranges": {"eyeWider": [0.0, 0.1]}}')
+    with pytest.raises(InputError, match="ranges.eyeWider"):
+        ShapeRanges.load(path, bmap.names)
