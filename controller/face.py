@@ -30,7 +30,7 @@ from controller.alive.gaze_layer import angles_to_aus
 from controller.errors import ControllerError
 from controller.frame import AUFrame, FrameValidator
 from controller.head_servos import servo_specs, temperature_limits_c
-from controller.performance import Performance, play_timeline
+from controller.performance import Performance, Samples, play_timeline
 from controller.pipeline import FrameTrace, Pipeline
 from controller.script import Script, load_script
 from controller.timeline import ChannelClip, Key, Timeline, min_jerk
@@ -250,6 +250,21 @@ class Face:
                 f"script {loaded.source} is for a {loaded.face_type} face; head {self.head.name!r} is {self.head.face_type}"
             )
         return self._run(loaded, loaded.end_s)
+
+    def follow(self, source: Samples, duration_s: float | None = None) -> Performance:
+        """Follow a live source (``controller.inputs.StreamSource``) or a recording for ``duration_s``
+        (None = until Ctrl-C); the source's dropout policy decides what a gap in the data looks like."""
+        from controller.inputs.follow import follow
+
+        self._check_open()
+        if duration_s is not None and not (isinstance(duration_s, int | float) and 0 < duration_s < math.inf):
+            raise ControllerError(f"follow: duration_s must be a positive number of seconds or None, "
+                                  f"got {duration_s!r}")
+        perf = follow(self.pipeline, source, duration_s, on_frame=self.traces.append, stop_on_interrupt=True)
+        if perf.traces:
+            self.t_s += perf.traces[-1].t_s
+            self.pose = dict(perf.traces[-1].aus)
+        return perf
 
     def hold(self, seconds: float) -> Performance:
         return self.set_aus(self.pose, transition_s=0.0, hold_s=seconds)

@@ -415,3 +415,19 @@ def test_cli_stream_udp_follows_datagrams(capsys: pytest.CaptureFixture[str]) ->
     assert rc == 0 and "bad 0" in out
     good = int(out.split("good ")[1].split(",")[0])
     assert good > 0
+
+
+def test_face_follow_a_recording_and_rejects_bad_duration(face: Face) -> None:
+    from controller.errors import ControllerError
+    from controller.inputs import load_recording
+    from tests.controller.test_inputs_files import SAMPLES
+
+    before = len(face.chain.goal_writes())
+    perf = face.follow(load_recording(SAMPLES / "mediapipe_blink.csv"), 0.3)
+    assert perf.traces and len(face.chain.goal_writes()) > before and _goals_within_limits(face) > 0
+    assert face.pose == dict(perf.traces[-1].aus) and face.pose.get("AU12L", 0.0) > 0.2
+    writes = len(face.chain.goal_writes())
+    for bad in (-1.0, 0.0, float("nan"), "1"):
+        with pytest.raises(ControllerError, match="duration_s"):
+            face.follow(load_recording(SAMPLES / "mediapipe_blink.csv"), bad)  # type: ignore[arg-type]
+    assert len(face.chain.goal_writes()) == writes
