@@ -171,7 +171,7 @@ def run(args: argparse.Namespace) -> int:
         f"messages {stats.messages}: good {stats.good}, bad {stats.bad}, out of order {stats.out_of_order}, "
         f"low confidence {stats.low_confidence}; dropouts {stats.dropouts} "
         f"({stats.samples_in_dropout} frames in dropout); newest-message age max "
-        f"{1e3 * stats.latency_s_max:.1f} ms"
+        f"{1e3 * stats.latency_s_max:.1f} ms (mean {1e3 * stats.age_s.mean:.1f} ms)"
     )
     print(f"verdicts {summary['verdicts']}")
     for error in list(stats.errors)[-5:]:

@@ -34,6 +34,7 @@ from controller.frame import AUFrame
 from controller.inputs.errors import InputError
 from controller.inputs.messages import Message, MessageDecoder
 from controller.inputs.smoothing import AUSmoother
+from controller.loop import RunningStat
 
 Clock = Callable[[], float]
 
@@ -52,6 +53,7 @@ class StreamStats:
     samples: int = 0
     samples_in_dropout: int = 0
     latency_s_max: float = 0.0  # largest age of the newest message at a sample (outside dropouts)
+    age_s: RunningStat = field(default_factory=RunningStat)  # age of the newest message at each fresh sample
     errors: deque[str] = field(default_factory=lambda: deque(maxlen=20))
 
     def summary(self) -> dict[str, Any]:
@@ -64,6 +66,7 @@ class StreamStats:
             "dropouts": self.dropouts,
             "samples": self.samples,
             "samples_in_dropout": self.samples_in_dropout,
+            "age_mean_ms": round(1e3 * self.age_s.mean, 2),
             "age_max_ms": round(1e3 * self.latency_s_max, 2),
             "last_errors": list(self.errors)[-5:],
         }
@@ -155,6 +158,7 @@ class StreamSource:
         age = now - arrival
         if age <= self.dropout_s:
             self.stats.latency_s_max = max(self.stats.latency_s_max, age)
+            self.stats.age_s.add(age)
             return dict(latest.aus), False
         if self.dropout == "hold":
             return dict(latest.aus), True
