@@ -5,8 +5,10 @@ Receivers (transports.py) run on background threads and hand raw messages (bytes
 one with its arrival time (a latest-value buffer: a slow loop never works through a backlog, it skips to
 now; a receiver that finds several messages waiting decodes only the newest and counts the others as
 ``superseded``). A bad message is counted, its error kept (``stats.errors``, the last 20) and dropped:
-it never reaches the pipeline; one bad field rejects that message. A message older than the newest by its own
-``t`` (UDP reordering) is dropped as ``out_of_order``; one below ``min_confidence`` counts as no data.
+it never reaches the pipeline; one bad field rejects that message. A message older than the newest by its
+own ``t`` (UDP reordering) is dropped as ``out_of_order``, unless its ``t`` is more than ``RESTART_S`` (1 s)
+back or the stream is in dropout: then the sender restarted its clock and the message is taken
+(``restarts``); one below ``min_confidence`` counts as no data.
 
 ``sample`` (called by the loop thread) applies, in order:
 
@@ -37,6 +39,7 @@ from controller.inputs.smoothing import AUSmoother
 from controller.loop import RunningStat
 
 Clock = Callable[[], float]
+RESTART_S = 1.0  # a message this much older than the newest (by its t) means the sender restarted
 
 
 @dataclass
@@ -48,6 +51,7 @@ class StreamStats:
     good: int = 0
     bad: int = 0
     out_of_order: int = 0
+    restarts: int = 0  # messages whose t jumped back more than RESTART_S (or after a dropout): accepted
     low_confidence: int = 0
     dropouts: int = 0  # newest messages seen going stale by sample()
     samples: int = 0
@@ -62,6 +66,7 @@ class StreamStats:
             "good": self.good,
             "bad": self.bad,
             "out_of_order": self.out_of_order,
+            "restarts": self.restarts,
             "low_confidence": self.low_confidence,
             "dropouts": self.dropouts,
             "samples": self.samples,
@@ -141,8 +146,11 @@ class StreamSource:
                 return False
             latest = self._latest
             if latest is not None and msg.t_s is not None and latest.t_s is not None and msg.t_s < latest.t_s:
-                self.stats.out_of_order += 1
-                return False
+                stale = arrival - self._latest_arrival_s > self.dropout_s
+                if not stale and latest.t_s - msg.t_s <= RESTART_S:
+                    self.stats.out_of_order += 1
+                    return False
+                self.stats.restarts += 1  # the sender's clock went back: a restarted tracker, not reordering
             self.stats.good += 1
             self._latest, self._latest_arrival_s = msg, arrival
             return True

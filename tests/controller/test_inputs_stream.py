@@ -431,3 +431,15 @@ def test_face_follow_a_recording_and_rejects_bad_duration(face: Face) -> None:
         with pytest.raises(ControllerError, match="duration_s"):
             face.follow(load_recording(SAMPLES / "mediapipe_blink.csv"), bad)  # type: ignore[arg-type]
     assert len(face.chain.goal_writes()) == writes
+
+
+def test_a_restarted_sender_is_followed_not_dropped_as_out_of_order() -> None:
+    clock = FakeClock()
+    src = _source(clock)
+    assert src.feed('{"t": 500.0, "aus": {"AU12": 0.5}}')
+    assert not src.feed('{"t": 499.9, "aus": {"AU12": 0.1}}')  # reordering: dropped
+    assert src.feed('{"t": 0.0, "aus": {"AU12": 0.2}}')  # the tracker restarted its clock
+    assert src.feed('{"t": 0.1, "aus": {"AU12": 0.3}}') and src.sample(0).get("AU12") == 0.3
+    clock.now += 1.0  # after a dropout any message is taken, even slightly older
+    assert src.feed('{"t": 0.05, "aus": {"AU12": 0.4}}')
+    assert (src.stats.out_of_order, src.stats.restarts) == (1, 2)
