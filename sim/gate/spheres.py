@@ -33,8 +33,11 @@ class SphereSet:
         return int(self.radii_mm.shape[0])
 
 
-def cover_spheres(mesh: Any, target_count: int = 160, min_cell_mm: float = 1.0) -> SphereSet:
-    """Bounding spheres of about ``target_count`` surface patches of ``mesh`` (a trimesh.Trimesh)."""
+def cover_spheres(
+    mesh: Any, target_count: int = 160, min_cell_mm: float = 1.0, max_cell_mm: float | None = None
+) -> SphereSet:
+    """Bounding spheres of about ``target_count`` surface patches of ``mesh`` (a trimesh.Trimesh); with
+    ``max_cell_mm`` a large part gets more spheres so none is coarser than that."""
     import trimesh  # heavy import at use
 
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
@@ -43,6 +46,8 @@ def cover_spheres(mesh: Any, target_count: int = 160, min_cell_mm: float = 1.0) 
         raise GateConfigError("cannot cover an empty mesh with spheres")
     area = float(mesh.area)
     cell = max(min_cell_mm, float(np.sqrt(max(area, 1e-9) / max(target_count, 1))))
+    if max_cell_mm is not None:
+        cell = min(cell, max_cell_mm)
     vertices, faces = trimesh.remesh.subdivide_to_size(vertices, faces, max_edge=cell / 2.0, max_iter=12)
     tri = vertices[faces]  # (m, 3, 3)
     keys = np.floor(tri.mean(axis=1) / cell).astype(np.int64)

@@ -22,10 +22,14 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class StrainLimits:
-    """Largest allowed edge stretch and smallest allowed compression (ratios to rest length)."""
+    """Largest allowed edge stretch and smallest allowed compression (ratios to rest length).
 
-    max_stretch: float = 1.6
-    min_compression: float = 0.5
+    Defaults suit a cast silicone skin (Ecoflex-class elongation at break is several times its length;
+    3x is a working limit) and let the built-in expressions through, whose apexes stretch up to ~2.6x
+    and bunch brow skin to ~0.16x. A profile or the caller narrows them for a stiffer skin."""
+
+    max_stretch: float = 3.0
+    min_compression: float = 0.1
     max_flipped: int = 0
 
 
@@ -115,11 +119,12 @@ class SkinTwin:
         mats = self._mats(world)
         v = self._rest_v + offsets[..., self._v, :]
         m = (self._w @ mats).reshape(*v.shape[:-1], 3, 4)
-        v = np.einsum("...nij,...nj->...ni", m[..., :3], v) + m[..., 3]
+        v = (m[..., 0] * v[..., 0:1] + m[..., 1] * v[..., 1:2] + m[..., 2] * v[..., 2:3]) + m[..., 3]
         d = v[..., self._edges[:, 0], :] - v[..., self._edges[:, 1], :]
-        ratio = np.sqrt(np.einsum("...ei,...ei->...e", d, d)) / self._rest_len
-        rot = (self._face_w @ mats).reshape(*v.shape[:-2], -1, 3, 4)[..., :3]
-        expect = np.einsum("...fij,fj->...fi", rot, self._rest_normal)
+        ratio = np.sqrt((d * d).sum(axis=-1)) / self._rest_len
+        rot = (self._face_w @ mats).reshape(*v.shape[:-2], -1, 3, 4)
+        n = self._rest_normal
+        expect = rot[..., 0] * n[:, 0:1] + rot[..., 1] * n[:, 1:2] + rot[..., 2] * n[:, 2:3]
         p0 = v[..., self._faces[:, 0], :]
         u = v[..., self._faces[:, 1], :] - p0
         w = v[..., self._faces[:, 2], :] - p0

@@ -37,6 +37,7 @@ class TssParams:
     """Build parameters: spheres per part, the margin budget (mm) that fixes the sweep step, caps."""
 
     spheres_per_part: int = 160
+    max_cell_mm: float = 4.0  # large parts (a skull) get more spheres so none is coarser than this
     margin_mm: float = 0.6
     max_step_deg: float = 4.0
     max_grid_points: int = 12000
@@ -351,8 +352,8 @@ def build_or_load(
         got = _load(path, key)
         if got is not None:
             return BuiltPair(got[0], got[1], got[2], True)
-    sa = cover_spheres(mesh_a, params.spheres_per_part)
-    sb = cover_spheres(mesh_b, params.spheres_per_part)
+    sa = cover_spheres(mesh_a, params.spheres_per_part, max_cell_mm=params.max_cell_mm)
+    sb = cover_spheres(mesh_b, params.spheres_per_part, max_cell_mm=params.max_cell_mm)
     table = build_pair(tree, part_a, part_b, sa, sb, tolerance_mm, params, key)
     if path is not None:
         _save(path, table, sa, sb)
