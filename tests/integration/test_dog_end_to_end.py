@@ -2,9 +2,9 @@
 included) through muscle model, calibration, gate and driver; the wire stays inside limits and caps, and
 after settling the servos stand on the gate's last goals, whose twin pose is the calibration's.
 
-The gate here runs WITHOUT part collisions (``GateConfig(collision_pairs=())``): the dog's TSS tables take
-more than 15 minutes to build on a fresh machine (the neck/tongue pairs; a known gate issue), so a test
-cannot wait for them. Limits, rate caps, coupling rules, skin strain and health all run."""
+The gate here runs WITHOUT part collisions (``GateConfig(collision_pairs=())``): built from nothing, the
+dog's 55 TSS tables take about 90 s on 2 busy cores (more than the whole suite's budget), so a test cannot
+wait for them on a fresh machine. Limits, rate caps, coupling rules, skin strain and health all run."""
 
 from __future__ import annotations
 
