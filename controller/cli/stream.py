@@ -58,6 +58,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--calibration", type=Path, help="calibration JSON (default: the one the profile names)"
     )
+    parser.add_argument(
+        "--record",
+        type=Path,
+        help="write every accepted message's AUs as JSON lines (replay: play --input FILE)",
+    )
     parser.add_argument("--trace", type=Path, help="write every frame's trace as JSON lines to this file")
 
 
@@ -74,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
     from controller.inputs import LineReceiver, MessageDecoder, StreamSource, TcpReceiver, UdpReceiver
     from controller.inputs.follow import follow
     from controller.inputs.smoothing import AUSmoother
+    from controller.inputs.stream import StreamRecorder
     from controller.inputs.transports import parse_address
     from hardware.errors import HardwareError
     from sim.errors import SimError
@@ -86,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
     if not 0.0 <= args.min_confidence <= 1.0:
         return _fail(f"--min-confidence must be within 0..1, got {args.min_confidence}")
     receiver: UdpReceiver | TcpReceiver | LineReceiver | None = None
+    recorder: StreamRecorder | None = None
     try:  # everything that can fail on bad arguments happens before the port opens (torque stays off)
         head = load_head(args.head)
         validator = FrameValidator.for_head(head)
@@ -102,6 +109,8 @@ def run(args: argparse.Namespace) -> int:
             shape_ranges=ranges,
         )
         smoothing = None if args.no_smoothing else AUSmoother(args.min_cutoff, args.beta)
+        if args.record is not None:
+            recorder = StreamRecorder(args.record)
         source = StreamSource(
             decoder,
             dropout_ms=args.dropout_ms,
@@ -109,6 +118,7 @@ def run(args: argparse.Namespace) -> int:
             ease_s=args.ease,
             min_confidence=args.min_confidence,
             smoothing=smoothing,
+            on_message=recorder,
         )
         if args.udp is not None:
             host, port = parse_address(args.udp)
@@ -132,6 +142,8 @@ def run(args: argparse.Namespace) -> int:
     except (ControllerError, SimError, CalibrationError, HardwareError, ValueError, OSError) as err:
         if receiver is not None:
             receiver.close()
+        if recorder is not None:
+            recorder.close()
         return _fail(str(err))
     print(
         f"following {where} on head {head.name!r} ({head.face_type}) at {args.rate:g} Hz; Ctrl-C stops",
@@ -160,6 +172,9 @@ def run(args: argparse.Namespace) -> int:
     except HardwareError as err:
         print(f"servoface stream: bus failure, torque turned off: {err}", file=sys.stderr)
         return 1
+    finally:
+        if recorder is not None:
+            recorder.close()
     summary = perf.summary()
     loop = summary.get("loop", {})
     stats = source.stats
@@ -176,6 +191,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"verdicts {summary['verdicts']}")
     for error in list(stats.errors)[-5:]:
         print(f"  bad: {error}")
+    if recorder is not None:
+        print(f"{recorder.count} messages recorded to {recorder.path} (replay: servoface play --input FILE)")
     if args.trace is not None:
         with args.trace.open("w") as fh:
             for trace in perf.traces:

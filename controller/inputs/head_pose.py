@@ -68,7 +68,7 @@ def head_pose_aus(
     """Head AUs 51-56 (0..1) for a head pose in degrees (see the module convention)."""
     cfg = config or _human_config()
     aus = angles_to_aus("human", cfg, head_yaw_deg=yaw_deg, head_pitch_deg=pitch_deg, head_roll_deg=roll_deg)
-    return {k: aus[k] for k in _HEAD_AUS}
+    return {k: aus[k] + 0.0 for k in _HEAD_AUS}  # + 0.0: no negative zeros
 
 
 def eye_angles_aus(yaw_deg: float, pitch_deg: float, config: GazeConfig | None = None) -> dict[str, float]:
@@ -76,7 +76,7 @@ def eye_angles_aus(yaw_deg: float, pitch_deg: float, config: GazeConfig | None =
     full scale = the human AU table's eye swing (AU61 = 30 deg, AU63 = 20 deg)."""
     cfg = config or _human_config()
     aus = angles_to_aus("human", cfg, eye_yaw_deg=yaw_deg, eye_pitch_deg=pitch_deg)
-    return {k: aus[k] for k in ("AU61", "AU62", "AU63", "AU64")}
+    return {k: aus[k] + 0.0 for k in ("AU61", "AU62", "AU63", "AU64")}
 
 
 def parse_head(head: Any, *, field: str = "head") -> tuple[float, float, float]:

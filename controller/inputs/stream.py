@@ -18,18 +18,22 @@ back or the stream is in dropout: then the sender restarted its clock and the me
   neutral. Each newest message that goes stale counts one dropout (``stats.dropouts``).
 * smoothing: a One-Euro filter per AU (smoothing.py; ``smoothing=None`` switches it off).
 
-The clock is injectable (``clock() -> s``; default ``time.monotonic``): arrival stamps and dropout ages use
-it, so tests drive time by hand.
+``on_message(msg, arrival_s)`` sees every accepted message (e.g. :class:`StreamRecorder` writes them to a
+JSON-lines file that ``servoface play --input`` replays, timed by arrival). The clock is injectable
+(``clock() -> s``; default ``time.monotonic``): arrival stamps and dropout ages use it, so tests drive
+time by hand.
 """
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from pathlib import Path
+from typing import IO, Any
 
 from controller.errors import FrameError
 from controller.frame import AUFrame
@@ -90,6 +94,7 @@ class StreamSource:
         min_confidence: float = 0.0,
         smoothing: AUSmoother | None | str = "default",
         clock: Clock = time.monotonic,
+        on_message: Callable[[Message, float], None] | None = None,
     ) -> None:
         if dropout not in ("neutral", "hold"):
             raise InputError(f"dropout: expected 'neutral' or 'hold', got {dropout!r}")
@@ -108,6 +113,7 @@ class StreamSource:
             raise InputError(f"smoothing: expected an AUSmoother, None or 'default', got {smoothing!r}")
         self.smoother: AUSmoother | None = AUSmoother() if isinstance(smoothing, str) else smoothing
         self.clock = clock
+        self.on_message = on_message  # called (receiver thread, under the lock) with each accepted message
         self.stats = StreamStats()
         self._lock = threading.Lock()
         self._latest: Message | None = None
@@ -153,6 +159,8 @@ class StreamSource:
                 self.stats.restarts += 1  # the sender's clock went back: a restarted tracker, not reordering
             self.stats.good += 1
             self._latest, self._latest_arrival_s = msg, arrival
+            if self.on_message is not None:
+                self.on_message(msg, arrival)
             return True
 
     # -- loop side -------------------------------------------------------------------------------------
@@ -187,3 +195,34 @@ class StreamSource:
             aus = self.smoother(aus, self.clock())
         clean = {n: min(self._hi, max(self._lo, v)) for n, v in aus.items()}
         return AUFrame(t_s, clean, self.face_type, allowed=self.decoder.validator.allowed)
+
+
+class StreamRecorder:
+    """Writes accepted messages as JSON lines (``{"t": arrival - first arrival, "aus": {...}}``): a recording
+    of what the robot was asked to do, replayable with ``read_jsonl`` / ``servoface play --input``."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        try:
+            self._fh: IO[str] | None = self.path.open("w", encoding="utf-8")
+        except OSError as err:
+            raise InputError(f"{self.path}: cannot write the recording: {err}") from err
+        self._t0: float | None = None
+        self.count = 0
+
+    def __call__(self, msg: Message, arrival_s: float) -> None:
+        if self._fh is None:
+            return
+        if self._t0 is None:
+            self._t0 = arrival_s
+        line = {"t": round(arrival_s - self._t0, 6), "aus": {k: round(v, 6) for k, v in msg.aus.items()}}
+        try:
+            self._fh.write(json.dumps(line) + "\n")
+        except ValueError:  # closed by the main thread while a receiver thread was still delivering
+            return
+        self.count += 1
+
+    def close(self) -> None:
+        if self._fh is not None:
+            self._fh.close()
+            self._fh = None

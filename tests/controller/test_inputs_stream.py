@@ -11,6 +11,7 @@ import socket
 import threading
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
@@ -443,3 +444,23 @@ def test_a_restarted_sender_is_followed_not_dropped_as_out_of_order() -> None:
     clock.now += 1.0  # after a dropout any message is taken, even slightly older
     assert src.feed('{"t": 0.05, "aus": {"AU12": 0.4}}')
     assert (src.stats.out_of_order, src.stats.restarts) == (1, 2)
+
+
+def test_stream_recorder_writes_a_replayable_jsonl(tmp_path: Path) -> None:
+    from controller.inputs import read_jsonl
+    from controller.inputs.stream import StreamRecorder
+
+    clock = FakeClock()
+    recorder = StreamRecorder(tmp_path / "rec.jsonl")
+    src = StreamSource(MessageDecoder("human", mirror=True), smoothing=None, clock=clock, on_message=recorder)
+    for k in range(5):
+        src.feed(json.dumps({"blendshapes": {"mouthSmileLeft": 0.2 * k}, "head": {"yaw_deg": -9.0}}))
+        clock.now += 0.04
+    src.feed('{"aus": {"AU12": 2}}')  # bad: not recorded
+    recorder.close()
+    assert recorder.count == 5
+    rec = read_jsonl(tmp_path / "rec.jsonl")
+    assert rec.duration_s == pytest.approx(0.16) and rec.frames[-1].get("AU12R") == pytest.approx(0.8)
+    assert rec.frames[-1].get("AU51") == pytest.approx(0.2)  # mirrored: subject turned right -> robot left
+    with pytest.raises(InputError, match="cannot write"):
+        StreamRecorder(tmp_path / "no" / "dir" / "rec.jsonl")
