@@ -119,6 +119,7 @@ def run(args: argparse.Namespace) -> int:
             min_confidence=args.min_confidence,
             smoothing=smoothing,
             on_message=recorder,
+            playout_ms=args.playout_ms,
         )
         if args.udp is not None:
             host, port = parse_address(args.udp)

@@ -16,6 +16,9 @@ back or the stream is in dropout: then the sender restarted its clock and the me
   receiver clock, the stream is in dropout. ``dropout="neutral"`` (default) eases the last AUs linearly to
   neutral over ``ease_s`` (default 0.5 s); ``"hold"`` keeps them. Before the first message the face is
   neutral. Each newest message that goes stale counts one dropout (``stats.dropouts``).
+* playout (optional, ``playout_ms`` > 0): the AUs are taken ``playout_ms`` in the past on the arrival
+  clock, interpolated linearly between the two messages around that instant: a fixed extra latency that
+  turns uneven arrival (Wi-Fi jitter, a 30 Hz sender sampled at 50 Hz) into even motion.
 * smoothing: a One-Euro filter per AU (smoothing.py; ``smoothing=None`` switches it off).
 
 ``on_message(msg, arrival_s)`` sees every accepted message (e.g. :class:`StreamRecorder` writes them to a
@@ -95,6 +98,7 @@ class StreamSource:
         smoothing: AUSmoother | None | str = "default",
         clock: Clock = time.monotonic,
         on_message: Callable[[Message, float], None] | None = None,
+        playout_ms: float = 0.0,
     ) -> None:
         if dropout not in ("neutral", "hold"):
             raise InputError(f"dropout: expected 'neutral' or 'hold', got {dropout!r}")
@@ -112,6 +116,14 @@ class StreamSource:
         if smoothing is not None and smoothing != "default" and not isinstance(smoothing, AUSmoother):
             raise InputError(f"smoothing: expected an AUSmoother, None or 'default', got {smoothing!r}")
         self.smoother: AUSmoother | None = AUSmoother() if isinstance(smoothing, str) else smoothing
+        if (
+            isinstance(playout_ms, bool)
+            or not isinstance(playout_ms, int | float)
+            or not 0 <= playout_ms < 1e4
+        ):
+            raise InputError(f"playout_ms: expected 0 <= playout < 10000 ms, got {playout_ms!r}")
+        self.playout_s = float(playout_ms) / 1e3
+        self._history: deque[tuple[float, Message]] = deque(maxlen=16)
         self.clock = clock
         self.on_message = on_message  # called (receiver thread, under the lock) with each accepted message
         self.stats = StreamStats()
@@ -159,6 +171,7 @@ class StreamSource:
                 self.stats.restarts += 1  # the sender's clock went back: a restarted tracker, not reordering
             self.stats.good += 1
             self._latest, self._latest_arrival_s = msg, arrival
+            self._history.append((arrival, msg))
             if self.on_message is not None:
                 self.on_message(msg, arrival)
             return True
@@ -175,11 +188,28 @@ class StreamSource:
         if age <= self.dropout_s:
             self.stats.latency_s_max = max(self.stats.latency_s_max, age)
             self.stats.age_s.add(age)
+            if self.playout_s > 0:
+                return self._played_out(now - self.playout_s), False
             return dict(latest.aus), False
         if self.dropout == "hold":
             return dict(latest.aus), True
         k = max(0.0, 1.0 - (age - self.dropout_s) / self.ease_s)
         return {n: v * k for n, v in latest.aus.items()}, True
+
+    def _played_out(self, when_s: float) -> dict[str, float]:
+        """The AUs at ``when_s`` on the arrival clock, linear between the two messages around it."""
+        with self._lock:
+            history = list(self._history)
+        before = [(a, m) for a, m in history if a <= when_s]
+        after = [(a, m) for a, m in history if a > when_s]
+        if not before:
+            return dict(history[0][1].aus)
+        if not after:
+            return dict(before[-1][1].aus)
+        (a0, m0), (a1, m1) = before[-1], after[0]
+        w = (when_s - a0) / (a1 - a0) if a1 > a0 else 1.0
+        names = set(m0.aus) | set(m1.aus)
+        return {n: (1 - w) * m0.aus.get(n, 0.0) + w * m1.aus.get(n, 0.0) for n in names}
 
     def sample(self, t_s: float) -> AUFrame:
         """The frame for loop time ``t_s``: latest good AUs, dropout policy, smoothing; always valid."""

@@ -464,3 +464,18 @@ def test_stream_recorder_writes_a_replayable_jsonl(tmp_path: Path) -> None:
     assert rec.frames[-1].get("AU51") == pytest.approx(0.2)  # mirrored: subject turned right -> robot left
     with pytest.raises(InputError, match="cannot write"):
         StreamRecorder(tmp_path / "no" / "dir" / "rec.jsonl")
+
+
+def test_playout_interpolates_between_messages_by_arrival() -> None:
+    clock = FakeClock()
+    src = _source(clock, playout_ms=50.0)
+    src.feed('{"aus": {"AU12": 0.0}}')
+    clock.now += 0.1
+    src.feed('{"aus": {"AU12": 1.0}}')
+    assert src.sample(0).get("AU12") == pytest.approx(0.5)  # 50 ms back = halfway between the two
+    clock.now += 0.03
+    assert src.sample(0).get("AU12") == pytest.approx(0.8)
+    clock.now += 0.05
+    assert src.sample(0).get("AU12") == 1.0  # past the newest: the newest
+    with pytest.raises(InputError, match="playout_ms"):
+        _source(clock, playout_ms=-5.0)
