@@ -26,6 +26,8 @@ def _gate(name: str, cache: Path | None) -> Any:
     from sim.heads import load_head
 
     head = load_head(name)
+    if head.calibration_path is None:
+        raise FileNotFoundError(f"head '{name}' has no calibration file")
     return TwinGate(head, load_calibration(head.calibration_path), 1 / 60, GateConfig(cache_dir=cache))
 
 

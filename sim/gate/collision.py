@@ -134,7 +134,7 @@ class PartCollisions:
         ]
 
     def _neutral_world(self, rest: FloatArray) -> FloatArray:
-        return self.tree.world(self.tree.neutral_deg[None, :])[0]
+        return np.asarray(self.tree.world(self.tree.neutral_deg[None, :])[0], dtype=np.float64)
 
     def part_transform(self, name: str, world: FloatArray) -> FloatArray:
         j = self.part_joint[name]

@@ -123,9 +123,11 @@ def limits_from_head(head: Any) -> list[CouplingLimit]:
             raise GateConfigError(
                 f"coupling rule #{i} of head '{getattr(head, 'name', '?')}' has no roles/share: {rule!r}"
             )
-        kind = getattr(rule, "kind", "not_all_past")
-        kind = "sum_at_most" if kind in ("sum_at_most", "sum", "total") else "not_all_past"
-        direction = getattr(rule, "direction", "+")
-        direction = direction if direction in ("+", "-", "any") else "+"
+        raw_kind = getattr(rule, "kind", "not_all_past")
+        kind: Literal["not_all_past", "sum_at_most"] = (
+            "sum_at_most" if raw_kind in ("sum_at_most", "sum", "total") else "not_all_past"
+        )
+        raw_dir = getattr(rule, "direction", "+")
+        direction: Literal["+", "-", "any"] = "-" if raw_dir == "-" else ("any" if raw_dir == "any" else "+")
         out.append(CouplingLimit(name, roles, float(share), kind, direction))
     return out

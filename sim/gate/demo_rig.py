@@ -9,7 +9,7 @@ the attribute names of `sim.head.Head`, so the gate cannot tell it from a loaded
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -131,9 +131,11 @@ def demo_calibration(head: DemoHead | None = None) -> Any:
     servos = []
     for a in head.actuators:
         if a.kind == "joint":
-            scale, lo, hi, unit = 4096.0 / 360.0, a.lower_deg, a.upper_deg, "deg"
+            unit: Literal["deg", "mm"] = "deg"
+            scale, lo, hi = 4096.0 / 360.0, a.lower_deg, a.upper_deg
         else:
-            scale, lo, hi, unit = 20.0, a.lower_mm, a.upper_mm, "mm"
+            unit = "mm"
+            scale, lo, hi = 20.0, a.lower_mm, a.upper_mm
         curve = LinearCurve(2048.0, scale, 1 if a.servo.id % 2 else -1)
         t_lo, t_hi = sorted(float(x) for x in curve.forward(np.array([lo, hi])))
         servos.append(

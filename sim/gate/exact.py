@@ -45,9 +45,8 @@ class ExactCollider:
         from trimesh.collision import mesh_to_BVH
 
         self._fcl = fcl
-        self._objects = {
-            name: fcl.CollisionObject(mesh_to_BVH(mesh), fcl.Transform()) for name, mesh in meshes.items()
-        }
+        bvh = {name: mesh_to_BVH(mesh) for name, mesh in meshes.items()}  # type: ignore[no-untyped-call]
+        self._objects = {name: fcl.CollisionObject(model, fcl.Transform()) for name, model in bvh.items()}
         self._request = fcl.CollisionRequest()
 
     def _place(self, name: str, transform: FloatArray) -> Any:

@@ -320,7 +320,11 @@ class TwinGate:
         coupling_ok = self.coupling.ok(self._shares(targets))
         broad = ~self.collisions.broad.flag(world, angles).any(axis=-1)
         return BatchReport(
-            limit_ok.all(axis=1), speed_ok.all(axis=1), accel_ok.all(axis=1), coupling_ok, broad
+            np.asarray(limit_ok.all(axis=1)),
+            np.asarray(speed_ok.all(axis=1)),
+            np.asarray(accel_ok.all(axis=1)),
+            coupling_ok,
+            np.asarray(broad),
         )
 
     def audit(self, goals_tick: Mapping[int, int]) -> list[Finding]:

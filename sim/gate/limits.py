@@ -128,7 +128,7 @@ def clamp(goals: IntArray, last: IntArray, last_step: IntArray, table: ServoTabl
     step = np.clip(goals - last, lo, hi)
     step = np.clip(step, table.min_tick - last, table.max_tick - last)
     step = np.clip(step, lo, hi)
-    return (last + step).astype(np.int64)
+    return np.asarray(last + step, dtype=np.int64)
 
 
 def findings(goals: IntArray, last: IntArray, last_step: IntArray, table: ServoTable) -> list[Finding]:

@@ -32,7 +32,7 @@ def common_centre(tree: JointTree, joints: list[int], tol_mm: float = 1e-6) -> F
         rhs += proj @ pj
     c = np.linalg.lstsq(m, rhs, rcond=None)[0]
     d = np.linalg.norm(np.cross(c - p, a), axis=1)
-    return c if np.all(d <= tol_mm) else None
+    return np.asarray(c, dtype=np.float64) if np.all(d <= tol_mm) else None
 
 
 def point_triangle_distance(c: FloatArray, tri: FloatArray) -> FloatArray:

@@ -48,7 +48,8 @@ def cover_spheres(
     cell = max(min_cell_mm, float(np.sqrt(max(area, 1e-9) / max(target_count, 1))))
     if max_cell_mm is not None:
         cell = min(cell, max_cell_mm)
-    vertices, faces = trimesh.remesh.subdivide_to_size(vertices, faces, max_edge=cell / 2.0, max_iter=12)
+    subdivide = trimesh.remesh.subdivide_to_size
+    vertices, faces = subdivide(vertices, faces, max_edge=cell / 2.0, max_iter=12)  # type: ignore[no-untyped-call]
     tri = vertices[faces]  # (m, 3, 3)
     keys = np.floor(tri.mean(axis=1) / cell).astype(np.int64)
     _, label = np.unique(keys, axis=0, return_inverse=True)

@@ -110,7 +110,7 @@ class SkinTwin:
         """(..., n, 3) every posed skin vertex for (..., n, 3) offsets."""
         v = self.rest + offsets
         m = (self._w_used @ self._mats(world)).reshape(*v.shape[:-1], 3, 4)
-        return np.einsum("...nij,...nj->...ni", m[..., :3], v) + m[..., 3]
+        return np.asarray(np.einsum("...nij,...nj->...ni", m[..., :3], v) + m[..., 3], dtype=np.float64)
 
     def measure(
         self, world: FloatArray, offsets: FloatArray

@@ -161,7 +161,7 @@ class TssBroadPhase:
     def out_of_box(self, angles_deg: FloatArray) -> BoolArray:
         """(..., n_pairs) True where a pair's joints left the swept box (its table is then not valid)."""
         a = angles_deg[..., None, :]
-        return np.any((a < self._lo) | (a > self._hi), axis=-1)
+        return np.asarray(np.any((a < self._lo) | (a > self._hi), axis=-1), dtype=bool)
 
     def centres(self, world: FloatArray) -> FloatArray:
         """(..., S, 3) posed centres of the tabulated spheres; ``world`` (..., J, 4, 4)."""

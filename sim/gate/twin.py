@@ -93,7 +93,7 @@ class TwinPoser:
         if self._coupled.any():
             full = self.calibration.goals_to_targets_array(t, clip=True)
             out[:, self._coupled] = np.asarray(full, dtype=np.float64)[:, self._coupled]
-        return out
+        return np.asarray(out, dtype=np.float64)
 
     def joint_angles(self, targets: FloatArray) -> FloatArray:
         """(k, J) joint angles: driven joints from their servo's target, the rest at neutral, all clamped to

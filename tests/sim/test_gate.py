@@ -16,7 +16,7 @@ from sim.gate.strain import StrainLimits
 
 @pytest.fixture(scope="module")
 def cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return tmp_path_factory.mktemp("tss-gate")
+    return tmp_path_factory.getbasetemp() / "tss-demo"  # shared by the demo-head modules: built once
 
 
 @pytest.fixture(scope="module")

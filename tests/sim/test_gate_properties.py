@@ -21,7 +21,7 @@ def gate(tmp_path_factory: pytest.TempPathFactory) -> TwinGate:
     # faster rates than the default so a few frames reach collisions, strain and coupling
     roles = [a.role for a in head.actuators]
     cfg = GateConfig(
-        cache_dir=tmp_path_factory.mktemp("tss-prop"),
+        cache_dir=tmp_path_factory.getbasetemp() / "tss-demo",
         max_step_tick={r: 400 for r in roles},
         max_speedup_tick={r: 150 for r in roles},
     )

@@ -19,7 +19,9 @@ from sim.gate.tss_build import TssParams, build_or_load, summed_reduction
 def demo_collisions(tmp_path_factory: pytest.TempPathFactory) -> PartCollisions:
     head = demo_head()
     tree = JointTree(head.joints)
-    return PartCollisions(head, tree, auto_pairs(head, tree), TssParams(), tmp_path_factory.mktemp("tss"))
+    return PartCollisions(
+        head, tree, auto_pairs(head, tree), TssParams(), tmp_path_factory.getbasetemp() / "tss-demo"
+    )
 
 
 @pytest.mark.parametrize(
