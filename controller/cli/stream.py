@@ -43,6 +43,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--ease", type=float, default=0.5, help="seconds to ease to neutral in a dropout (0.5)"
     )
     parser.add_argument(
+        "--playout-ms",
+        type=float,
+        default=0.0,
+        help="sample this far in the past, interpolating (evens out jitter)",
+    )
+    parser.add_argument(
         "--min-confidence", type=float, default=0.0, help="ignore messages below this confidence"
     )
     parser.add_argument(

@@ -310,6 +310,7 @@ def test_cli_stream_stdin_summary(
         (["stream", "--emulate", "--stdin", "--rate", "0"], "--rate"),
         (["stream", "--emulate", "--stdin", "--duration", "-1"], "--duration"),
         (["stream", "--emulate", "--stdin", "--dropout-ms", "0"], "dropout_ms"),
+        (["stream", "--emulate", "--stdin", "--playout-ms", "-5"], "playout_ms"),
         (["stream", "--emulate", "--stdin", "--head", "/nonexistent/head"], "nonexistent"),
     ],
 )
