@@ -6,7 +6,8 @@
 
 Every score must be a known shape name (ARKit's 52 + MediaPipe's ``_neutral``) with a finite value in
 0..1; anything else raises :class:`InputError` naming the field. Names are matched exactly (ARKit spells
-``eyeBlinkLeft``; a ``EyeBlinkLeft`` from Live Link Face CSVs is accepted by a case-insensitive fallback).
+``eyeBlinkLeft``; Live Link Face's ``EyeBlinkLeft`` and Furhat's ``EYE_BLINK_LEFT`` are accepted by a
+fallback that ignores case and underscores).
 
 Eyes: the eight ``eyeLook{In,Out,Up,Down}{Left,Right}`` shapes become a gaze. Yaw towards the subject's own
 left = mean of (left eye: Out - In) and (right eye: In - Out) -> AU61 (eyes turn left) / AU62 (right);
@@ -63,7 +64,7 @@ class BlendshapeMap:
         self.entries = dict(entries)
         self.allowed = allowed if allowed is not None else default_au_names("human")
         self.source = source
-        self._folded = {name.lower(): name for name in self.entries}
+        self._folded = {_fold(name): name for name in self.entries}
 
     @property
     def names(self) -> frozenset[str]:
@@ -74,7 +75,7 @@ class BlendshapeMap:
         if isinstance(name, str):
             if name in self.entries:
                 return name
-            folded = self._folded.get(name.strip().lower())
+            folded = self._folded.get(_fold(name))
             if folded is not None:
                 return folded
         raise InputError(
@@ -215,3 +216,9 @@ def _term(raw: Any, key: str) -> ShapeTerm:
     if not 0.0 <= nums["from"] < nums["to"] <= 1.0 or not 0.0 < nums["weight"] <= 1.0:
         raise InputError(f"{key}: expected 0 <= from < to <= 1 and 0 < weight <= 1")
     return ShapeTerm(raw["au"].strip().upper(), side, nums["weight"], nums["from"], nums["to"])
+
+
+def _fold(name: str) -> str:
+    """Spelling-insensitive key: Live Link Face's ``EyeBlinkLeft`` and Furhat's ``EYE_BLINK_LEFT`` both match
+    ARKit's ``eyeBlinkLeft``."""
+    return name.strip().replace("_", "").lower()

@@ -195,3 +195,12 @@ def test_shape_ranges_rescale_per_user_and_round_trip(tmp_path: Path) -> None:
     path.write_text('{"schema_version": 1, "ranges": {"eyeWider": [0.0, 0.1]}}')
     with pytest.raises(InputError, match="ranges.eyeWider"):
         ShapeRanges.load(path, bmap.names)
+
+
+def test_other_spellings_of_shape_names_are_accepted() -> None:
+    bmap = load_blendshape_map()
+    for spelling in ("EyeBlinkLeft", "EYE_BLINK_LEFT", "eyeblinkleft"):
+        assert bmap.to_aus({spelling: 1.0}) == {"AU43L": 1.0}
+    assert bmap.to_aus({"NEUTRAL": 0.9}) == {}
+    with pytest.raises(InputError, match="given twice"):
+        bmap.to_aus({"eyeBlinkLeft": 0.1, "EYE_BLINK_LEFT": 0.2})
