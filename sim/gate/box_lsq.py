@@ -26,6 +26,22 @@ class BoxLsq:
         self.max_iter = max_iter
         self._x = np.clip(np.zeros(n), self.lo, self.hi)
         self._free = np.ones(n, dtype=bool)
+        self._cache: dict[bytes, tuple[FloatArray, FloatArray]] = {}
+
+    def _blocks(self, free: NDArray[np.bool_], fixed: NDArray[np.bool_]) -> tuple[FloatArray, FloatArray]:
+        """inv(H_free,free) and H_free,fixed, cached per free set (the set rarely changes frame to frame)."""
+        key = free.tobytes()
+        hit = self._cache.get(key)
+        if hit is not None:
+            return hit
+        blocks = (
+            np.asarray(np.linalg.inv(self.h[np.ix_(free, free)]), dtype=np.float64),
+            np.asarray(self.h[np.ix_(free, fixed)], dtype=np.float64),
+        )
+        if len(self._cache) > 256:
+            self._cache.clear()
+        self._cache[key] = blocks
+        return blocks
 
     def solve(self, y: FloatArray) -> FloatArray | None:
         """The minimiser, or None if the iteration limit was hit (the caller then uses a reference solver)."""
@@ -38,8 +54,8 @@ class BoxLsq:
         for _ in range(self.max_iter):
             fixed = ~free
             if free.any():
-                rhs = b[free] - h[np.ix_(free, fixed)] @ x[fixed]
-                xf = np.linalg.solve(h[np.ix_(free, free)], rhs)
+                inv_ff, h_fx = self._blocks(free, fixed)
+                xf = inv_ff @ (b[free] - h_fx @ x[fixed])
                 cur = x[free]
                 out = (xf < lo[free]) | (xf > hi[free])
                 if out.any():

@@ -152,16 +152,14 @@ class TwinGate:
         bad: list[Finding] = []
         seen = set()
         for sid, tick in goals.items():
-            ok_id = (
-                isinstance(sid, numbers.Integral) and not isinstance(sid, bool) and int(sid) in self._index
-            )
-            if not ok_id:
+            i_or_none = self._index.get(sid) if _is_int(sid) else None
+            if i_or_none is None:
                 bad.append(
                     Finding("input", f"{what}: unknown servo id {sid!r}; head servos {list(self.table.ids)}")
                 )
                 continue
-            i = self._index[int(sid)]
-            if isinstance(tick, bool) or not isinstance(tick, numbers.Integral):
+            i = i_or_none
+            if not _is_int(tick):
                 desc = "non-finite" if isinstance(tick, float) and not np.isfinite(tick) else "not an integer"
                 bad.append(
                     Finding(
@@ -356,3 +354,11 @@ class TwinGate:
         offsets = self.skin_source.offsets(pulls[0])
         joint_deg = {n: float(a) for n, a in zip(self.tree.names, angles[0], strict=True)}
         return joint_deg, offsets, {r: float(t) for r, t in zip(self.poser.roles, targets[0], strict=True)}
+
+
+def _is_int(value: Any) -> bool:
+    """An integer and not a bool (Python int, numpy integer, other Integral); concrete types first (fast)."""
+    kind = type(value)
+    if kind is int or isinstance(value, np.integer):
+        return True
+    return kind is not bool and isinstance(value, numbers.Integral)

@@ -90,8 +90,14 @@ class SkinTwin:
         self._faces = remap[f[act_f]]
         self._rest_normal = self.rest_normal[act_f]
         self._rest_v = self.rest[verts]
+        self._rest_vt = np.ascontiguousarray(self._rest_v.T)
+        self._inv_rest_len2 = 1.0 / self.rest_len[act_e] ** 2
         self._w = self._w_used[verts]
         self._face_w = self._w_used[f[act_f]].mean(axis=1)
+        self._w_t = np.ascontiguousarray(self._w.T)
+        self._rest_normal32 = np.ascontiguousarray(self._rest_normal.T, dtype=np.float32)
+        self._inv_rest_len2 = self._inv_rest_len2.astype(np.float32)
+        self._face_w_t = np.ascontiguousarray(self._face_w.T)
         self.n_active_edges = int(act_e.sum())
         self.n_active_faces = int(act_f.sum())
 
@@ -115,26 +121,39 @@ class SkinTwin:
     def measure(
         self, world: FloatArray, offsets: FloatArray
     ) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
-        """(max stretch (...,), min compression (...,), flipped triangles (...,)) for (..., n, 3) offsets."""
-        mats = self._mats(world)
-        v = self._rest_v + offsets[..., self._v, :]
-        m = (self._w @ mats).reshape(*v.shape[:-1], 3, 4)
-        v = (m[..., 0] * v[..., 0:1] + m[..., 1] * v[..., 1:2] + m[..., 2] * v[..., 2:3]) + m[..., 3]
-        d = v[..., self._edges[:, 0], :] - v[..., self._edges[:, 1], :]
-        ratio = np.sqrt((d * d).sum(axis=-1)) / self._rest_len
-        rot = (self._face_w @ mats).reshape(*v.shape[:-2], -1, 3, 4)
-        n = self._rest_normal
-        expect = rot[..., 0] * n[:, 0:1] + rot[..., 1] * n[:, 1:2] + rot[..., 2] * n[:, 2:3]
-        p0 = v[..., self._faces[:, 0], :]
-        u = v[..., self._faces[:, 1], :] - p0
-        w = v[..., self._faces[:, 2], :] - p0
-        ux, uy, uz = u[..., 0], u[..., 1], u[..., 2]
-        wx, wy, wz = w[..., 0], w[..., 1], w[..., 2]
-        dot = (uy * wz - uz * wy) * expect[..., 0] + (uz * wx - ux * wz) * expect[..., 1]
-        dot += (ux * wy - uy * wx) * expect[..., 2]
+        """(max stretch (...,), min compression (...,), flipped triangles (...,)) for (..., n, 3) offsets.
+
+        Coordinates are kept as separate x, y, z arrays (vertices on the last axis): gathers and sums
+        over 3-vectors are then plain element-wise work.
+        """
+        mats = self._mats(world)  # (..., u, 12)
+        m = np.swapaxes(mats, -1, -2) @ self._w_t  # (..., 12, nv), rows contiguous
+        m = np.moveaxis(m, -2, 0)
+        local = offsets[..., self._v, :]
+        x = self._rest_vt[0] + local[..., 0]
+        y = self._rest_vt[1] + local[..., 1]
+        z = self._rest_vt[2] + local[..., 2]
+        # float32 from here: ratios and signs need ~1e-6 relative precision, not 1e-15, at half the memory
+        px = (m[0] * x + m[1] * y + m[2] * z + m[3]).astype(np.float32)
+        py = (m[4] * x + m[5] * y + m[6] * z + m[7]).astype(np.float32)
+        pz = (m[8] * x + m[9] * y + m[10] * z + m[11]).astype(np.float32)
+        e0, e1 = self._edges[:, 0], self._edges[:, 1]
+        dx, dy, dz = px[..., e0] - px[..., e1], py[..., e0] - py[..., e1], pz[..., e0] - pz[..., e1]
+        r2 = (dx * dx + dy * dy + dz * dz) * self._inv_rest_len2
+        r = np.moveaxis(np.swapaxes(mats, -1, -2) @ self._face_w_t, -2, 0).astype(np.float32)
+        n0, n1, n2 = self._rest_normal32
+        ex, ey, ez = (
+            r[0] * n0 + r[1] * n1 + r[2] * n2,
+            r[4] * n0 + r[5] * n1 + r[6] * n2,
+            r[8] * n0 + r[9] * n1 + r[10] * n2,
+        )
+        f0, f1, f2 = self._faces[:, 0], self._faces[:, 1], self._faces[:, 2]
+        ux, uy, uz = px[..., f1] - px[..., f0], py[..., f1] - py[..., f0], pz[..., f1] - pz[..., f0]
+        wx, wy, wz = px[..., f2] - px[..., f0], py[..., f2] - py[..., f0], pz[..., f2] - pz[..., f0]
+        dot = (uy * wz - uz * wy) * ex + (uz * wx - ux * wz) * ey + (ux * wy - uy * wx) * ez
         flipped = dot <= 0.0
-        stretch = np.maximum(ratio.max(axis=-1, initial=0.0), self._const_max)
-        comp = np.minimum(ratio.min(axis=-1, initial=np.inf), self._const_min)
+        stretch = np.maximum(np.sqrt(r2.max(axis=-1, initial=0.0).astype(np.float64)), self._const_max)
+        comp = np.minimum(np.sqrt(r2.min(axis=-1, initial=np.inf).astype(np.float64)), self._const_min)
         return stretch, comp, flipped.sum(axis=-1) + self._const_flips
 
 

@@ -116,22 +116,6 @@ class TssBroadPhase:
         self._ball_a = np.array([np.r_[b[3], 1.0] for b in balls]).reshape(-1, 4)
         self._ball_b = np.array([np.r_[b[4], 1.0] for b in balls]).reshape(-1, 4)
         self._ball_reach = np.array([b[5] for b in balls], dtype=np.float64)
-        self._untabulated = {
-            p: (
-                np.c_[self.pairs[p].spheres_a.centres_mm, np.ones(self.pairs[p].spheres_a.n)],
-                self.pairs[p].spheres_a.radii_mm,
-                np.c_[self.pairs[p].spheres_b.centres_mm, np.ones(self.pairs[p].spheres_b.n)],
-                self.pairs[p].spheres_b.radii_mm,
-                self.pairs[p].table.tolerance_mm,
-                sa,
-                sb,
-                _ball(self.pairs[p].spheres_a),
-                _ball(self.pairs[p].spheres_b),
-            )
-            for p, sa, sb in zip(
-                self._always_idx.tolist(), self._ball_slot_a.tolist(), self._ball_slot_b.tolist(), strict=True
-            )
-        }
         # per pair, for the relative-frame evaluation: a's used spheres (homogeneous, a's rest frame),
         # b's used spheres (b's rest frame), local index pairs and squared reach
         self._per_pair: list[
@@ -218,30 +202,9 @@ class TssBroadPhase:
         return out.T.reshape(*lead, self.n_pairs)
 
     def flag(self, world: FloatArray, angles_deg: FloatArray) -> BoolArray:
-        """Pairs that need the exact test: overlapping tabulated spheres or outside the swept box; for
-        untabulated pairs, meeting bounding balls (and, for one command, overlapping spheres)."""
-        meet = self.balls_meet(world)
-        if world.ndim == 3:
-            for p in np.flatnonzero(meet):
-                meet[p] = self._spheres_meet(int(p), world)
-        return self.overlaps(world) | self.out_of_box(angles_deg) | meet
-
-    def _spheres_meet(self, p: int, world: FloatArray) -> bool:
-        """All spheres of an untabulated pair, filtered by the other part's ball first (one command)."""
-        xa, ra, xb, rb, tol, sa, sb, (ba, qa), (bb, qb) = self._untabulated[p]
-        n = world.shape[-3]
-        ta = np.eye(4) if sa == n else world[sa]
-        tb = np.eye(4) if sb == n else world[sb]
-        ca = xa @ ta[:3].T
-        cb = xb @ tb[:3].T
-        ball_a = ta[:3] @ np.r_[ba, 1.0]
-        ball_b = tb[:3] @ np.r_[bb, 1.0]
-        near_a = np.linalg.norm(ca - ball_b, axis=1) <= ra + qb + tol
-        near_b = np.linalg.norm(cb - ball_a, axis=1) <= rb + qa + tol
-        if not near_a.any() or not near_b.any():
-            return False
-        d = np.linalg.norm(ca[near_a][:, None, :] - cb[near_b][None, :, :], axis=-1)
-        return bool(np.any(d <= ra[near_a][:, None] + rb[near_b][None, :] + tol))
+        """Pairs that need the exact test: overlapping tabulated spheres, joints outside the swept box, or
+        (untabulated pairs) meeting bounding balls — fcl's own BVH then settles those in microseconds."""
+        return self.overlaps(world) | self.out_of_box(angles_deg) | self.balls_meet(world)
 
     def balls_meet(self, world: FloatArray) -> BoolArray:
         """(..., n_pairs) True for exact-only pairs whose bounding balls overlap (False elsewhere)."""
