@@ -70,6 +70,7 @@ def play_timeline(
     """Run ``source`` through ``pipeline`` at ``rate_hz`` (default: the pipeline's) for ``duration_s``."""
     rate = float(rate_hz or pipeline.rate_hz)
     result = Performance(rate_hz=rate)
+    _pace(pipeline, rate, sleep)  # the gate's caps are per frame: never two bus frames within one period
 
     def frame(tick: Tick) -> bool | None:
         t_s = start_s + tick.t_s
@@ -93,9 +94,21 @@ def play_timeline(
         # the loop skipped the last slot(s): land the final keyframe anyway, so a motion always ends
         # where it was asked to (late, and counted as such)
         t_end = start_s + duration_s
+        _pace(pipeline, rate, sleep)
         trace = pipeline.step(source.sample(t_end), t_end, late_s=0.0)
         if keep_traces:
             result.traces.append(trace)
         if on_frame is not None:
             on_frame(trace)
     return result
+
+
+def _pace(pipeline: Pipeline, rate_hz: float, sleep: Callable[[float], None]) -> None:
+    """Wait until one frame period has passed since the pipeline last cycled the bus (a new timeline right
+    after another, or the landing frame right after the loop's last one, would otherwise double a step)."""
+    last = getattr(pipeline, "last_cycle_s", None)
+    if last is None:
+        return
+    wait_s = last + 1.0 / rate_hz - time.monotonic()
+    if wait_s > 0:
+        sleep(min(wait_s, 1.0 / rate_hz))

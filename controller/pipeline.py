@@ -99,6 +99,7 @@ class Pipeline:
         self.temperature_limits_c = dict(temperature_limits_c or {})
         self._ids = frozenset(s.servo_id for s in self._servos)
         self.last_snapshot: ChainSnapshot | None = None
+        self.last_cycle_s: float | None = None  # time.monotonic() of the last driver cycle (pacing)
         self._index = 0
 
     # -- state ------------------------------------------------------------------------------------
@@ -157,6 +158,7 @@ class Pipeline:
         if self.driver is not None:
             before = self.driver.bus.stats.bytes_written
             self.last_snapshot = self.driver.cycle(sent)
+            self.last_cycle_s = time.monotonic()
             written = self.driver.bus.stats.bytes_written - before
         t4 = time.perf_counter()
         timings["bus_ms"] = (t4 - t3) * 1e3
@@ -207,5 +209,6 @@ class Pipeline:
         if self.driver is None:
             return None
         self.last_snapshot = self.driver.cycle(self.last_goals_tick)
+        self.last_cycle_s = time.monotonic()
         self.gate.reset()  # the servos got a zero step: the next frame starts from rest (accel cap)
         return self.last_snapshot
