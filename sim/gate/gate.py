@@ -205,19 +205,23 @@ class TwinGate:
         ]
         return out
 
-    def _hard_ok_batch(self, goals: IntArray) -> BoolArray:
-        """Coupling, strain and broad phase for (k, n) goals, exact test for the broad-phase survivors."""
+    def _last_ok(self, goals: IntArray) -> int | None:
+        """Index of the last of (k, n) candidates passing every state check, or None. Coupling is checked
+        for all at once (cheap); strain and collisions one candidate at a time from the end, stopping at
+        the first that passes."""
         targets, angles, world, pulls = self._pose_arrays(goals)
-        ok = self.coupling.ok(self._shares(targets))
-        stretch, comp, flips = self.skin.measure(world, self.skin_source.offsets_batch(pulls))
+        coupling_ok = self.coupling.ok(self._shares(targets))
         s = self.config.strain
-        ok &= (stretch <= s.max_stretch) & (comp >= s.min_compression) & (flips <= s.max_flipped)
-        flags = self.collisions.broad.flag(world, angles)
-        for k in np.nonzero(ok & flags.any(axis=1))[0]:
-            ok[k] = not any(
-                self.collisions._collide(self.collisions.specs[p], world[k]) for p in np.nonzero(flags[k])[0]
-            )
-        return ok
+        for k in np.flatnonzero(coupling_ok)[::-1]:
+            stretch, comp, flips = self.skin.measure(world[k], self.skin_source.offsets(pulls[k]))
+            if not (stretch <= s.max_stretch and comp >= s.min_compression and flips <= s.max_flipped):
+                continue
+            flags = self.collisions.broad.flag(world[k], angles[k])
+            if not any(
+                self.collisions._collide(self.collisions.specs[p], world[k]) for p in np.flatnonzero(flags)
+            ):
+                return int(k)
+        return None
 
     # ---- public ---------------------------------------------------------------------------------------
     def check(
@@ -252,7 +256,7 @@ class TwinGate:
         best, frac = self._scale_back(req, last, last_step, table)
         if best is None or np.array_equal(best, last):
             findings.append(
-                Finding("input", "no safe command found between the last one and the request: holding")
+                Finding("hold", "no safe command found between the last one and the request: holding")
             )
             return self._remember(Verdict("reject", hold, tuple(findings), 0.0, requested), last)
         goals = {sid: int(t) for sid, t in zip(self.table.ids, best, strict=True)}
@@ -267,18 +271,17 @@ class TwinGate:
         best: IntArray | None = None
         best_frac = 0.0
         cand_1 = lim.clamp(req, last, last_step, table)
-        if self._hard_ok_batch(cand_1[None, :])[0]:
+        if self._last_ok(cand_1[None, :]) == 0:
             return cand_1, 1.0
         for _ in range(max(1, self.config.bisection_rounds)):
             fracs = lo + (hi - lo) * np.arange(1, 9) / 8.0
             raw = last + np.trunc(fracs[:, None] * step[None, :]).astype(np.int64)
             cands = lim.clamp(raw, last, last_step, table)
-            ok = self._hard_ok_batch(cands)
-            good = np.nonzero(ok)[0]
-            if len(good) == 0:
+            found = self._last_ok(cands)
+            if found is None:
                 hi = fracs[0]
                 continue
-            g = int(good[-1])
+            g = found
             best, best_frac = cands[g], float(fracs[g])
             lo = float(fracs[g])
             hi = float(fracs[g + 1]) if g + 1 < len(fracs) else hi
