@@ -194,7 +194,8 @@ class TwinGate:
         out = self.coupling.findings(self._shares(targets)[0])
         if out and stop_early:
             return out
-        stretch, comp, flips = self.skin.measure(world[0], self.skin_source.offsets(pulls[0]))
+        active = self.skin.active_vertices
+        stretch, comp, flips = self.skin.measure(world[0], self.skin_source.offsets_rows(pulls[0], active))
         out += strain_findings(float(stretch), float(comp), int(flips), self.config.strain)
         if out and stop_early:
             return out
@@ -213,7 +214,8 @@ class TwinGate:
         coupling_ok = self.coupling.ok(self._shares(targets))
         s = self.config.strain
         for k in np.flatnonzero(coupling_ok)[::-1]:
-            stretch, comp, flips = self.skin.measure(world[k], self.skin_source.offsets(pulls[k]))
+            offsets = self.skin_source.offsets_rows(pulls[k], self.skin.active_vertices)
+            stretch, comp, flips = self.skin.measure(world[k], offsets)
             if not (stretch <= s.max_stretch and comp >= s.min_compression and flips <= s.max_flipped):
                 continue
             flags = self.collisions.broad.flag(world[k], angles[k])

@@ -136,7 +136,9 @@ def findings(goals: IntArray, last: IntArray, last_step: IntArray, table: ServoT
     out: list[Finding] = []
     step = goals - last
     lo, hi = step_bounds(last_step, table)
-    for i in range(table.n):
+    bad = (goals < table.min_tick) | (goals > table.max_tick) | (step < lo) | (step > hi)
+    bad |= np.abs(step) > table.max_step_tick
+    for i in np.flatnonzero(bad).tolist():
         sid, role, g = table.ids[i], table.roles[i], int(goals[i])
         if g < table.min_tick[i] or g > table.max_tick[i]:
             side, lim = (

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from dataclasses import field as dc_field
 from typing import Any
 
 import numpy as np
@@ -38,6 +39,7 @@ class SkinSource:
     lower_mm: FloatArray
     upper_mm: FloatArray
     movable: BoolArray  # (n,)
+    _rows: dict[int, tuple[NDArray[np.int64], FloatArray, FloatArray]] = dc_field(default_factory=dict)
 
     def offsets(self, pulls_mm: FloatArray) -> FloatArray:
         """(n, 3) skin offsets for one pull vector (A,), clamped to the actuator ranges first."""
@@ -46,6 +48,21 @@ class SkinSource:
             return self.base + (self.bumps @ p).reshape(-1, 3)
         c = self.contract(p)
         return self.base + self.field(c) + (self.bumps @ (p - self.unit_pull @ c)).reshape(-1, 3)
+
+    def offsets_rows(self, pulls_mm: FloatArray, rows: NDArray[np.int64]) -> FloatArray:
+        """(len(rows), 3) offsets of some vertices only (the strain check's active set)."""
+        key = id(rows)
+        cached = self._rows.get(key)
+        if cached is None or cached[0] is not rows:
+            sub = self.bumps.reshape(-1, 3, self.bumps.shape[1])[rows].reshape(-1, self.bumps.shape[1])
+            cached = (rows, np.ascontiguousarray(sub), self.base[rows])
+            self._rows[key] = cached
+        _, bumps, base = cached
+        p = np.clip(pulls_mm, self.lower_mm, self.upper_mm)
+        if self.contract is None or self.field is None:
+            return base + (bumps @ p).reshape(-1, 3)
+        c = self.contract(p)
+        return base + self.field(c)[rows] + (bumps @ (p - self.unit_pull @ c)).reshape(-1, 3)
 
     def offsets_batch(self, pulls_mm: FloatArray) -> FloatArray:
         """(k, n, 3) for (k, A) pulls."""

@@ -101,6 +101,11 @@ class SkinTwin:
         self.n_active_edges = int(act_e.sum())
         self.n_active_faces = int(act_f.sum())
 
+    @property
+    def active_vertices(self) -> NDArray[np.int64]:
+        """Indices of the vertices the strain check reads (sorted)."""
+        return self._v
+
     def _normals(self, v: FloatArray) -> FloatArray:
         t = v[..., self.faces, :]
         return np.cross(t[..., 1, :] - t[..., 0, :], t[..., 2, :] - t[..., 0, :])
@@ -129,7 +134,8 @@ class SkinTwin:
         mats = self._mats(world)  # (..., u, 12)
         m = np.swapaxes(mats, -1, -2) @ self._w_t  # (..., 12, nv), rows contiguous
         m = np.moveaxis(m, -2, 0)
-        local = offsets[..., self._v, :]
+        # offsets of every vertex, or already of the active ones only (`active_vertices`)
+        local = offsets if offsets.shape[-2] == len(self._v) else offsets[..., self._v, :]
         x = self._rest_vt[0] + local[..., 0]
         y = self._rest_vt[1] + local[..., 1]
         z = self._rest_vt[2] + local[..., 2]
