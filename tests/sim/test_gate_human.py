@@ -79,7 +79,15 @@ def test_face_model_skin_is_exactly_pose_from_targets(gate: TwinGate, face_model
         ref = face_model.pose_from_targets(
             {**neutral, **{a.role: float(v) for a, v in zip(anchors, p, strict=True)}}
         )
-        assert np.allclose(gate.skin_source.offsets(p), ref.skin_offset_mm, atol=1e-9)
+        full = gate.skin_source.offsets(p)
+        assert np.allclose(full, ref.skin_offset_mm, atol=1e-9)
+        rows = gate.skin.active_vertices
+        part = gate.skin_source.offsets_rows(p, rows)
+        assert np.allclose(part, full[rows], atol=1e-12)
+        world = gate.tree.world(gate.tree.neutral_deg[None, :])[0]
+        assert [float(x) for x in gate.skin.measure(world, part)] == [
+            float(x) for x in gate.skin.measure(world, full)
+        ]
 
 
 def test_box_lsq_matches_the_face_models_fit(face_model) -> None:  # type: ignore[no-untyped-def]
