@@ -1,0 +1,29 @@
+"""`servoface bench pipeline --json --quick` runs end to end and prints figures next to their limits."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from controller.cli import main
+from hardware.wire import cycle_budget
+
+
+def test_bench_pipeline_prints_figures_against_the_wire_limit(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "pipeline", "--json", "--quick"]) == 0
+    figures = {d["name"]: d for d in map(json.loads, capsys.readouterr().out.splitlines())}
+    fps = next(d for name, d in figures.items() if name.startswith("pipeline frames/s"))
+    assert fps["unit"] == "frames/s" and fps["value"] > 0
+    # 21 goals written, 24 positions read: a little less traffic than a full 24-servo cycle
+    assert cycle_budget(24, 1_000_000).limit_hz < fps["limit"] < cycle_budget(21, 1_000_000).limit_hz
+    assert fps["ratio"] == pytest.approx(fps["value"] / fps["limit"], rel=1e-3)
+    assert "corrupt 0" in fps["note"]
+    stages = {
+        name.rsplit(" ", 1)[-1]: d for name, d in figures.items() if name.startswith("pipeline stage median")
+    }
+    assert set(stages) == {"muscle", "calibration", "gate", "bus", "total"}
+    assert all(
+        stages[s]["value"] < stages["total"]["value"] for s in ("muscle", "calibration", "gate", "bus")
+    )
+    assert stages["gate"]["limit"] == 1.0 and stages["bus"]["limit"] == pytest.approx(1e3 / fps["limit"])
