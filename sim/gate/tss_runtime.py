@@ -169,10 +169,19 @@ class TssBroadPhase:
     def _overlaps_flat(self, world: FloatArray) -> BoolArray:
         """Few commands: every table entry in one gather (fewest numpy calls)."""
         lead = world.shape[:-3]
-        c = self.centres(world)
-        d = c[..., self.ga, :] - c[..., self.gb, :]
-        close = np.einsum("...ei,...ei->...e", d, d) <= self.thr2
         out = np.zeros((*lead, self.n_pairs), dtype=bool)
+        if not self.n_tests:
+            return out
+        c = self.centres(world)
+        if not lead:  # one command: coordinates as separate arrays, element-wise work only
+            cx, cy, cz = np.ascontiguousarray(c.T)
+            dx = cx[self.ga] - cx[self.gb]
+            dy = cy[self.ga] - cy[self.gb]
+            dz = cz[self.ga] - cz[self.gb]
+            close = dx * dx + dy * dy + dz * dz <= self.thr2
+        else:
+            d = c[..., self.ga, :] - c[..., self.gb, :]
+            close = np.einsum("...ei,...ei->...e", d, d) <= self.thr2
         if self.n_tests:
             out[..., self._nonempty] = np.logical_or.reduceat(close, self._starts, axis=-1)
         return out
