@@ -161,3 +161,18 @@ def test_any_sequence_of_au_frames_stays_safe_on_the_wire(
         assert trace.verdict in ("accept", "clip", "reject")
     assert len(chain.goal_writes()) == before + len(frames) * len(face.head.actuators)
     check_wire(face.pipeline, chain)
+
+
+def test_a_coupling_rule_holds_the_face_short_of_a_refused_apex(played: Played) -> None:
+    """The sadness apex asks one mouth corner up and down hard at once (a known refusal, see
+    test_library_apexes): the gate stops it at the rule with the rule named, and the wire stays safe."""
+    face = played.face
+    start = len(played.chain.goal_writes())
+    perf = face.express("sadness", transition_s=0.3, hold_s=0.1)
+    coupled = [t for t in perf.traces if "coupling" in t.checks]
+    assert coupled, perf.summary()
+    assert all(any("[coupling] rule 'one mouth corner" in r for r in t.reasons) for t in coupled)
+    assert perf.traces[-1].goals_sent != perf.traces[-1].goals_requested  # held short of the apex
+    assert face.pipeline.gate.audit(face.pipeline.last_goals_tick) == []  # and where it stands is safe
+    check_wire(face.pipeline, played.chain, start)
+    face.neutral(transition_s=0.3)
