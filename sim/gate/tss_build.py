@@ -170,28 +170,57 @@ def build_pair(
         counts[i] = max(2, int(counts[i] * 0.85))
     step = np.where(counts > 1, (hi - lo) / np.maximum(counts - 1, 1), 0.0)
     margin = float(np.sum(arms * np.deg2rad(step) / 2.0))
-    axes = [np.linspace(lo[i], hi[i], int(counts[i])) for i in range(len(rel))]
-    grid = (
-        np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(rel))
-        if rel
-        else np.zeros((1, 0))
-    )
-    angles = np.zeros((grid.shape[0], len(tree.names)))
-    angles[:, rel] = grid
     ja = -1 if part_a.joint is None else tree.index[part_a.joint]
     jb = -1 if part_b.joint is None else tree.index[part_b.joint]
     coarse = margin > params.max_margin_mm
-    hit = _sweep(
-        tree,
-        angles,
-        ja,
-        jb,
-        spheres_a,
-        spheres_b,
-        margin + tolerance_mm,
-        params.chunk_elements,
-        balls_only=coarse,
-    )
+    n_grid = int(np.prod(counts)) if rel else 1
+    if coarse:
+        hit = _sweep(
+            tree,
+            _grid_angles(tree, rel, lo, hi, counts),
+            ja,
+            jb,
+            spheres_a,
+            spheres_b,
+            margin + tolerance_mm,
+            params.chunk_elements,
+            balls_only=True,
+        )
+    else:
+        # coarse to fine: a sweep at a quarter of the resolution (its larger margin keeps it conservative)
+        # finds the spheres that can come close at all; the fine sweep only queries those
+        cand_a = np.ones(spheres_a.n, dtype=bool)
+        cand_b = np.ones(spheres_b.n, dtype=bool)
+        if n_grid > 1000:
+            c_counts = np.maximum(2, np.ceil(counts / 4.0)).astype(np.int64)
+            c_step = np.where(c_counts > 1, (hi - lo) / np.maximum(c_counts - 1, 1), 0.0)
+            c_margin = float(np.sum(arms * np.deg2rad(c_step) / 2.0))
+            c_hit = _sweep(
+                tree,
+                _grid_angles(tree, rel, lo, hi, c_counts),
+                ja,
+                jb,
+                spheres_a,
+                spheres_b,
+                c_margin + tolerance_mm,
+                params.chunk_elements,
+            )
+            cand_a, cand_b = np.asarray(c_hit.any(axis=1)), np.asarray(c_hit.any(axis=0))
+        hit = np.zeros((spheres_a.n, spheres_b.n), dtype=bool)
+        if cand_a.any() and cand_b.any():
+            ia_c, ib_c = np.flatnonzero(cand_a), np.flatnonzero(cand_b)
+            sub = _sweep(
+                tree,
+                _grid_angles(tree, rel, lo, hi, counts),
+                ja,
+                jb,
+                _subset(spheres_a, ia_c),
+                _subset(spheres_b, ib_c),
+                margin + tolerance_mm,
+                params.chunk_elements,
+            )
+            si, sj = np.nonzero(sub)
+            hit[ia_c[si], ib_c[sj]] = True
     ia, ib = np.nonzero(hit)
     exact_only = bool(coarse and hit.any())
     if exact_only:
@@ -207,11 +236,30 @@ def build_pair(
         spheres_a.n * spheres_b.n,
         margin,
         step,
-        int(grid.shape[0]),
+        n_grid,
         tolerance_mm,
         key,
         exact_only,
     )
+
+
+def _grid_angles(
+    tree: JointTree, rel: list[int], lo: FloatArray, hi: FloatArray, counts: IntArray
+) -> FloatArray:
+    """(G, J) joint angles of a regular grid over the ``rel`` joints (others at 0)."""
+    axes = [np.linspace(lo[i], hi[i], int(counts[i])) for i in range(len(rel))]
+    grid = (
+        np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(rel))
+        if rel
+        else np.zeros((1, 0))
+    )
+    angles = np.zeros((grid.shape[0], len(tree.names)))
+    angles[:, rel] = grid
+    return angles
+
+
+def _subset(spheres: SphereSet, idx: IntArray) -> SphereSet:
+    return SphereSet(spheres.centres_mm[idx], spheres.radii_mm[idx])
 
 
 def _sweep(
