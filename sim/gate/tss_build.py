@@ -23,7 +23,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sim.gate.errors import TssCacheError
 from sim.gate.fk import JointTree
 from sim.gate.spheres import SphereSet, cover_spheres
 
@@ -316,64 +315,6 @@ def _sweep(
     return hit
 
 
-def _save(path: Path, table: PairTable, sa: SphereSet, sb: SphereSet) -> None:
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
-        np.savez_compressed(
-            tmp,
-            a=table.a,
-            b=table.b,
-            joints=np.array(table.joints, dtype=str),
-            lower=table.lower_deg,
-            upper=table.upper_deg,
-            ia=table.ia,
-            ib=table.ib,
-            n_all=table.n_all_pairs,
-            margin=table.margin_mm,
-            step=table.step_deg,
-            grid=table.grid_points,
-            tol=table.tolerance_mm,
-            key=table.key,
-            exact_only=table.exact_only,
-            ca=sa.centres_mm,
-            ra=sa.radii_mm,
-            cb=sb.centres_mm,
-            rb=sb.radii_mm,
-        )
-        os.replace(tmp, path)
-    except OSError as err:
-        raise TssCacheError(f"cannot write TSS cache file {path}: {err}") from err
-
-
-def _load(path: Path, key: str) -> tuple[PairTable, SphereSet, SphereSet] | None:
-    if not path.exists():
-        return None
-    try:
-        with np.load(path) as z:
-            if str(z["key"]) != key:
-                return None
-            table = PairTable(
-                str(z["a"]),
-                str(z["b"]),
-                tuple(str(s) for s in z["joints"]),
-                z["lower"],
-                z["upper"],
-                z["ia"].astype(np.int64),
-                z["ib"].astype(np.int64),
-                int(z["n_all"]),
-                float(z["margin"]),
-                z["step"],
-                int(z["grid"]),
-                float(z["tol"]),
-                key,
-                bool(z["exact_only"]),
-            )
-            return table, SphereSet(z["ca"], z["ra"]), SphereSet(z["cb"], z["rb"])
-    except (OSError, KeyError, ValueError) as err:
-        raise TssCacheError(f"TSS cache file {path} is unreadable ({err}); delete it to rebuild") from err
-
-
 @dataclass(frozen=True)
 class BuiltPair:
     table: PairTable
@@ -395,16 +336,18 @@ def build_or_load(
 ) -> BuiltPair:
     """The pair's table from the cache when its key matches, else built (and cached when a dir is given)."""
     key = pair_key(tree, part_a, part_b, mesh_a, mesh_b, tolerance_mm, params)
+    from sim.gate.tss_cache import load_table, save_table
+
     path = None if cache_dir is None else cache_dir / f"{head_name}-{part_a.name}-{part_b.name}-{key}.npz"
     if path is not None:
-        got = _load(path, key)
+        got = load_table(path, key)
         if got is not None:
             return BuiltPair(got[0], got[1], got[2], True)
     sa = cover_spheres(mesh_a, params.spheres_per_part, max_cell_mm=params.max_cell_mm)
     sb = cover_spheres(mesh_b, params.spheres_per_part, max_cell_mm=params.max_cell_mm)
     table = build_pair(tree, part_a, part_b, sa, sb, tolerance_mm, params, key)
     if path is not None:
-        _save(path, table, sa, sb)
+        save_table(path, table, sa, sb)
     return BuiltPair(table, sa, sb, False)
 
 

@@ -1,0 +1,70 @@
+"""TSS tables on disk: one ``.npz`` per part pair, written atomically, read back only when its key matches."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from sim.gate.errors import TssCacheError
+from sim.gate.spheres import SphereSet
+from sim.gate.tss_build import PairTable
+
+
+def save_table(path: Path, table: PairTable, sa: SphereSet, sb: SphereSet) -> None:
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
+        np.savez_compressed(
+            tmp,
+            a=table.a,
+            b=table.b,
+            joints=np.array(table.joints, dtype=str),
+            lower=table.lower_deg,
+            upper=table.upper_deg,
+            ia=table.ia,
+            ib=table.ib,
+            n_all=table.n_all_pairs,
+            margin=table.margin_mm,
+            step=table.step_deg,
+            grid=table.grid_points,
+            tol=table.tolerance_mm,
+            key=table.key,
+            exact_only=table.exact_only,
+            ca=sa.centres_mm,
+            ra=sa.radii_mm,
+            cb=sb.centres_mm,
+            rb=sb.radii_mm,
+        )
+        os.replace(tmp, path)
+    except OSError as err:
+        raise TssCacheError(f"cannot write TSS cache file {path}: {err}") from err
+
+
+def load_table(path: Path, key: str) -> tuple[PairTable, SphereSet, SphereSet] | None:
+    if not path.exists():
+        return None
+    try:
+        with np.load(path) as z:
+            if str(z["key"]) != key:
+                return None
+            table = PairTable(
+                str(z["a"]),
+                str(z["b"]),
+                tuple(str(s) for s in z["joints"]),
+                z["lower"],
+                z["upper"],
+                z["ia"].astype(np.int64),
+                z["ib"].astype(np.int64),
+                int(z["n_all"]),
+                float(z["margin"]),
+                z["step"],
+                int(z["grid"]),
+                float(z["tol"]),
+                key,
+                bool(z["exact_only"]),
+            )
+            return table, SphereSet(z["ca"], z["ra"]), SphereSet(z["cb"], z["rb"])
+    except (OSError, KeyError, ValueError) as err:
+        raise TssCacheError(f"TSS cache file {path} is unreadable ({err}); delete it to rebuild") from err
