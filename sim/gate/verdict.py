@@ -16,7 +16,6 @@ CheckName = Literal[
     "collision",
     "strain",
     "flip",
-    "tss_range",
     "hold",
 ]
 
