@@ -6,6 +6,7 @@ expression library as a contact sheet, and what happened as ``report.json``.
 from __future__ import annotations
 
 import json
+import os
 import platform
 import time
 from collections.abc import Callable
@@ -42,7 +43,9 @@ def settle_error_tick(face: Face, settle_s: float = 0.6) -> dict[int, int]:
         return {}
     snapshot = driver.read_state()
     goals = face.pipeline.last_goals_tick
-    return {sid: abs(int(pos) - int(goals[sid])) for sid, pos in snapshot.positions_tick().items() if sid in goals}
+    return {
+        sid: abs(int(pos) - int(goals[sid])) for sid, pos in snapshot.positions_tick().items() if sid in goals
+    }
 
 
 def gated_pose(face: Face, trace: FrameTrace) -> HeadPose:
@@ -158,22 +161,34 @@ def run_demo(
         report: dict[str, Any] = {
             "head": head,
             "script": str(DEMO_SCRIPTS[head].name),
-            "machine": f"{platform.machine()} {platform.processor() or ''} Python {platform.python_version()}".strip(),
-            "bus": {"interface": "emulator (in-process, wire time on)", "baud": baud,
-                    "servos": len(face.head.actuators),
-                    "transactions": getattr(stats, "transactions", None),
-                    "bytes_written": getattr(stats, "bytes_written", None)},
+            "machine": f"{platform.machine()} {os.cpu_count()} cpu, Python {platform.python_version()}",
+            "bus": {
+                "interface": "emulator (in-process, wire time on)",
+                "baud": baud,
+                "servos": len(face.head.actuators),
+                "transactions": getattr(stats, "transactions", None),
+                "bytes_written": getattr(stats, "bytes_written", None),
+            },
             "frames": summary["frames"],
             "verdicts": summary["verdicts"],
-            "loop": {"target_hz": rate_hz, "achieved_hz": loop.get("achieved_hz"),
-                     "late_frames": loop.get("late"), "missed_frames": loop.get("missed"),
-                     "overruns": loop.get("overruns")},
+            "loop": {
+                "target_hz": rate_hz,
+                "achieved_hz": loop.get("achieved_hz"),
+                "late_frames": loop.get("late"),
+                "missed_frames": loop.get("missed"),
+                "overruns": loop.get("overruns"),
+            },
             "median_stage_ms": summary.get("median_stage_ms", {}),
             "max_goal_error_tick": max(errors.values()) if errors else None,
             "goal_error_tick": {str(k): v for k, v in sorted(errors.items())},
             "clip_reasons": _reason_counts(perf),
-            "outputs": {"video": video.name, "video_frames": n_video, "sheet": sheet.name,
-                        "sheet_expressions": names, "clipped_frame": clipped_png.name if clipped_png else None},
+            "outputs": {
+                "video": video.name,
+                "video_frames": n_video,
+                "sheet": sheet.name,
+                "sheet_expressions": names,
+                "clipped_frame": clipped_png.name if clipped_png else None,
+            },
             "open_s": round(t_open, 3),
         }
     report["wall_s"] = round(time.perf_counter() - t0, 3)

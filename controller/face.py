@@ -133,8 +133,13 @@ class Face:
             driver = Driver(bus, specs, fast_sync_read=fast_sync_read)
             driver.configure()
             driver.torque_on()
-            pipeline = Pipeline(the_head, cal, driver=driver, rate_hz=rate_hz,
-                                temperature_limits_c=temperature_limits_c(specs))
+            pipeline = Pipeline(
+                the_head,
+                cal,
+                driver=driver,
+                rate_hz=rate_hz,
+                temperature_limits_c=temperature_limits_c(specs),
+            )
             snapshot = driver.read_state()
             lo_hi = cal.position_limits_tick()
             present = {
@@ -151,8 +156,13 @@ class Face:
         return cls(the_head, pipeline, driver=driver, bus=bus, chain=chain)
 
     @classmethod
-    def offline(cls, head: str | Path | Head = "human", *, rate_hz: float = 50.0,
-                calibration: HeadCalibration | str | Path | None = None) -> Face:
+    def offline(
+        cls,
+        head: str | Path | Head = "human",
+        *,
+        rate_hz: float = 50.0,
+        calibration: HeadCalibration | str | Path | None = None,
+    ) -> Face:
         """The pipeline without a bus: muscle model, calibration and twin gate only (previews, checks)."""
         the_head = head if isinstance(head, Head) else load_head(head)
         return cls(the_head, Pipeline(the_head, head_calibration(the_head, calibration), rate_hz=rate_hz))
@@ -160,8 +170,15 @@ class Face:
     # -- motion -------------------------------------------------------------------------------------
     def _run(self, timeline: Timeline | Script, duration_s: float) -> Performance:
         self._check_open()
-        perf = play_timeline(self.pipeline, timeline, duration_s, start_s=0.0,
-                             on_frame=self.traces.append, keep_traces=True, stop_on_interrupt=True)
+        perf = play_timeline(
+            self.pipeline,
+            timeline,
+            duration_s,
+            start_s=0.0,
+            on_frame=self.traces.append,
+            keep_traces=True,
+            stop_on_interrupt=True,
+        )
         self.t_s += duration_s
         if perf.traces:
             self.pose = dict(perf.traces[-1].aus)
@@ -186,31 +203,50 @@ class Face:
             previous = perf.traces[-2].goals_sent if len(perf.traces) > 1 else None
             if last.goals_sent == last.goals_requested or last.goals_sent == previous:
                 return
-            more = play_timeline(self.pipeline, source, SETTLE_CHUNK_S, start_s=final.t_s + period_s,
-                                 on_frame=self.traces.append, keep_traces=True, stop_on_interrupt=True)
+            more = play_timeline(
+                self.pipeline,
+                source,
+                SETTLE_CHUNK_S,
+                start_s=final.t_s + period_s,
+                on_frame=self.traces.append,
+                keep_traces=True,
+                stop_on_interrupt=True,
+            )
             perf.traces.extend(more.traces)
             perf.interrupted = more.interrupted
             waited += SETTLE_CHUNK_S
 
-    def set_aus(self, aus: Mapping[str, float], *, transition_s: float = 0.4, hold_s: float = 0.0) -> Performance:
+    def set_aus(
+        self, aus: Mapping[str, float], *, transition_s: float = 0.4, hold_s: float = 0.0
+    ) -> Performance:
         """Move to the AU pose ``aus`` (AUs not named go to 0) over ``transition_s``, then hold."""
         pose = self.validator.pose(dict(aus), where="set_aus")
         for name, value in (("transition_s", transition_s), ("hold_s", hold_s)):
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-                raise ControllerError(f"set_aus: {name} must be a finite number of seconds >= 0, got {value!r}")
+                raise ControllerError(
+                    f"set_aus: {name} must be a finite number of seconds >= 0, got {value!r}"
+                )
         transition = max(float(transition_s), 1.0 / self.pipeline.rate_hz)
         duration = transition + float(hold_s)
         timeline = Timeline(self.head.face_type, initial_pose=self.pose)
         channels = {
-            au: (Key(0.0, None), Key(transition, value, min_jerk), Key(duration, value)) for au, value in pose.items()
+            au: (Key(0.0, None), Key(transition, value, min_jerk), Key(duration, value))
+            for au, value in pose.items()
         }
-        clip = ChannelClip(channels, duration, unlisted="to_zero", release_s=transition,
-                           release_easing=min_jerk, name="set_aus")
+        clip = ChannelClip(
+            channels,
+            duration,
+            unlisted="to_zero",
+            release_s=transition,
+            release_easing=min_jerk,
+            name="set_aus",
+        )
         timeline.play(clip)
         return self._run(timeline, duration)
 
-    def express(self, name: str, *, intensity: float = 1.0, transition_s: float = 0.5,
-                hold_s: float = 1.0) -> Performance:
+    def express(
+        self, name: str, *, intensity: float = 1.0, transition_s: float = 0.5, hold_s: float = 1.0
+    ) -> Performance:
         """Move to a named expression's apex (scaled by ``intensity``) and hold it."""
         library = load_library(self.head.expressions_path or self.head.face_type)
         if name not in library:
@@ -232,11 +268,19 @@ class Face:
         if len(values) != 3 or not all(
             isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v) for v in values
         ):
-            raise ControllerError(f"look_at: point_mm must be three finite numbers (x, y, z) in mm, got {point_mm!r}")
+            raise ControllerError(
+                f"look_at: point_mm must be three finite numbers (x, y, z) in mm, got {point_mm!r}"
+            )
         cfg = gaze_config_for(self.head.face_type, self.head)
         gaze = solve_look_at(tuple(float(v) for v in values), cfg)  # type: ignore[arg-type]
-        gaze_aus = angles_to_aus(self.head.face_type, cfg, gaze.head_yaw_deg, gaze.head_pitch_deg,
-                                 gaze.eye_yaw_deg, gaze.eye_pitch_deg)
+        gaze_aus = angles_to_aus(
+            self.head.face_type,
+            cfg,
+            gaze.head_yaw_deg,
+            gaze.head_pitch_deg,
+            gaze.eye_yaw_deg,
+            gaze.eye_pitch_deg,
+        )
         keep = _GAZE_AUS if self.head.face_type == "human" else _DOG_GAZE_AUS
         pose = {au: v for au, v in self.pose.items() if au not in keep}
         pose.update({au: v for au, v in gaze_aus.items() if abs(v) > 1e-9})
@@ -247,7 +291,8 @@ class Face:
         loaded = script if isinstance(script, Script) else load_script(script)
         if loaded.face_type != self.head.face_type:
             raise ControllerError(
-                f"script {loaded.source} is for a {loaded.face_type} face; head {self.head.name!r} is {self.head.face_type}"
+                f"script {loaded.source} is for a {loaded.face_type} face; "
+                f"head {self.head.name!r} is {self.head.face_type}"
             )
         return self._run(loaded, loaded.end_s)
 
@@ -258,8 +303,9 @@ class Face:
 
         self._check_open()
         if duration_s is not None and not (isinstance(duration_s, int | float) and 0 < duration_s < math.inf):
-            raise ControllerError(f"follow: duration_s must be a positive number of seconds or None, "
-                                  f"got {duration_s!r}")
+            raise ControllerError(
+                f"follow: duration_s must be a positive number of seconds or None, got {duration_s!r}"
+            )
         perf = follow(self.pipeline, source, duration_s, on_frame=self.traces.append, stop_on_interrupt=True)
         if perf.traces:
             self.t_s += perf.traces[-1].t_s
@@ -298,6 +344,7 @@ class Face:
     def __enter__(self) -> Face:
         return self
 
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
         self.close()

@@ -42,13 +42,18 @@ class Performance:
         return [t for t in self.traces if t.verdict != "accept"]
 
     def summary(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"frames": len(self.traces), "verdicts": self.verdicts, "target_rate_hz": self.rate_hz}
+        out: dict[str, Any] = {
+            "frames": len(self.traces),
+            "verdicts": self.verdicts,
+            "target_rate_hz": self.rate_hz,
+        }
         if self.stats is not None:
             out["loop"] = self.stats.summary()
         if self.traces:
             stages = self.traces[0].timings_ms.keys()
             out["median_stage_ms"] = {
-                s: round(sorted(t.timings_ms[s] for t in self.traces)[len(self.traces) // 2], 4) for s in stages
+                s: round(sorted(t.timings_ms[s] for t in self.traces)[len(self.traces) // 2], 4)
+                for s in stages
             }
             out["bytes_written"] = sum(t.bytes_written for t in self.traces)
         return out

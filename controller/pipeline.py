@@ -132,7 +132,9 @@ class Pipeline:
         ]
         return {s.role: float(c) for s, c in zip(self._servos, clamped, strict=True)}, reasons
 
-    def step(self, frame: AUFrame | Mapping[str, float], t_s: float | None = None, late_s: float = 0.0) -> FrameTrace:
+    def step(
+        self, frame: AUFrame | Mapping[str, float], t_s: float | None = None, late_s: float = 0.0
+    ) -> FrameTrace:
         """Run one frame. Raises (FrameError / sim errors) on invalid input, before anything is sent."""
         timings: dict[str, float] = {}
         t0 = time.perf_counter()

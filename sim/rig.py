@@ -133,7 +133,8 @@ class LinearMuscle:
     """A linear (vector) muscle: the bone end ``attachment_mm`` is fixed, the skin end ``insertion_mm`` moves.
 
     ``zone_deg`` = half-angle of the influence cone around attachment->insertion; ``rs_mm`` / ``rf_mm`` =
-    fall-off start / finish radii measured from the attachment (Waters' R_s, R_f); ``max_contraction`` in 0..1.
+    fall-off start / finish radii measured from the attachment (Waters' R_s, R_f);
+    ``max_contraction`` in 0..1.
     """
 
     name: str

@@ -82,7 +82,9 @@ def calibration():  # type: ignore[no-untyped-def]
 
     from calibration.fileformat import load_calibration
 
-    return load_calibration(Path(__file__).resolve().parents[1] / "sim" / "heads" / "human" / "calibration.json")
+    return load_calibration(
+        Path(__file__).resolve().parents[1] / "sim" / "heads" / "human" / "calibration.json"
+    )
 
 
 @_pytest.fixture
@@ -92,7 +94,9 @@ def dog_calibration():  # type: ignore[no-untyped-def]
 
     from calibration.fileformat import load_calibration
 
-    return load_calibration(Path(__file__).resolve().parents[1] / "sim" / "heads" / "dog" / "calibration.json")
+    return load_calibration(
+        Path(__file__).resolve().parents[1] / "sim" / "heads" / "dog" / "calibration.json"
+    )
 
 
 # ---- head fixtures (heads engineer): the built-in heads, loaded once per process (cached by load_head) ----

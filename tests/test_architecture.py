@@ -73,9 +73,14 @@ def test_print_only_in_the_cli() -> None:
                 continue
             tree = ast.parse(path.read_text(encoding="utf-8"))
             for node in ast.walk(tree):
-                if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in {
-                    "print",
-                    "input",
-                }:
+                if (
+                    isinstance(node, ast.Call)
+                    and isinstance(node.func, ast.Name)
+                    and node.func.id
+                    in {
+                        "print",
+                        "input",
+                    }
+                ):
                     bad.append(f"{path.relative_to(ROOT)}:{node.lineno} calls {node.func.id}")
     assert not bad, "print/input belong in controller/cli only:\n" + "\n".join(bad)

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import json
-import platform
 import os
+import platform
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -50,4 +50,6 @@ class Figure:
 
 def machine_description() -> str:
     """A one-line description of the machine, printed with every bench run."""
-    return f"{platform.machine()} {os.cpu_count()} cpu, Python {platform.python_version()}, {platform.system()}"
+    return (
+        f"{platform.machine()} {os.cpu_count()} cpu, Python {platform.python_version()}, {platform.system()}"
+    )

@@ -39,7 +39,7 @@ def _load(module_name: str) -> ModuleType | None:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="servoface",
-        description="Drive expressive Dynamixel faces: AUs -> muscle model -> calibration -> twin gate -> bus.",
+        description="Drive expressive Dynamixel faces: AUs -> muscles -> calibration -> twin gate -> bus.",
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, module_name in COMMANDS.items():

@@ -12,8 +12,9 @@ HELP = "run benchmarks and print figures (one JSON object per line with --json)"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from controller.benchmarks import SUITES
 
-    parser.add_argument("suites", nargs="*", metavar="SUITE",
-                        help=f"which suites to run ({', '.join(SUITES)}); default all")
+    parser.add_argument(
+        "suites", nargs="*", metavar="SUITE", help=f"which suites to run ({', '.join(SUITES)}); default all"
+    )
     parser.add_argument("--json", action="store_true", help="one JSON object per figure per line")
     parser.add_argument("--quick", action="store_true", help="fewer repetitions (smoke run)")
 
@@ -25,7 +26,9 @@ def run(args: argparse.Namespace) -> int:
     names = args.suites or list(SUITES)
     unknown = [n for n in names if n not in SUITES]
     if unknown:
-        print(f"servoface bench: unknown suite(s) {unknown}; expected some of {list(SUITES)}", file=sys.stderr)
+        print(
+            f"servoface bench: unknown suite(s) {unknown}; expected some of {list(SUITES)}", file=sys.stderr
+        )
         return 2
     if not args.json:
         print(f"# machine: {machine_description()}")
@@ -50,5 +53,7 @@ def run(args: argparse.Namespace) -> int:
                     extra += f", goal {d['goal']:g})" if "goal" in d else ")"
                 elif "goal" in d:
                     extra = f"  (goal {d['goal']:g})"
-                print(f"{name:9s} {figure.name:48s} {figure.value:12.4g} {figure.unit:10s}{extra}", flush=True)
+                print(
+                    f"{name:9s} {figure.name:48s} {figure.value:12.4g} {figure.unit:10s}{extra}", flush=True
+                )
     return status

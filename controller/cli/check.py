@@ -11,7 +11,9 @@ HELP = "validate a head profile and its calibration; print a table of servos, li
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("head", help="built-in head (human, dog) or a profile folder")
-    parser.add_argument("--calibration", type=Path, help="calibration JSON (default: the one the profile names)")
+    parser.add_argument(
+        "--calibration", type=Path, help="calibration JSON (default: the one the profile names)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -29,18 +31,23 @@ def run(args: argparse.Namespace) -> int:
     except (SimError, CalibrationError, ControllerError) as err:
         print(f"servoface check: {err}", file=sys.stderr)
         return 1
-    print(f"head {head.name!r} ({head.face_type}): {len(head.joints)} joints, {len(head.parts)} parts, "
-          f"{head.skin.vertices_mm.shape[0]} skin vertices, {len(head.muscles)} muscles, {len(specs)} servos")
+    print(
+        f"head {head.name!r} ({head.face_type}): {len(head.joints)} joints, {len(head.parts)} parts, "
+        f"{head.skin.vertices_mm.shape[0]} skin vertices, {len(head.muscles)} muscles, {len(specs)} servos"
+    )
     print(f"calibration: {head.calibration_path if args.calibration is None else args.calibration}")
-    header = f"{'id':>3} {'role':16} {'model':11} {'kind':6} {'target range':>20} {'ticks min..max':>15} {'neutral':>7}"
+    header = f"{'id':>3} {'role':16} {'model':11} {'kind':6} {'target range':>20}"
+    header += f" {'ticks min..max':>15} {'neutral':>7}"
     print(header)
     print("-" * len(header))
     for spec in specs:
         c = cal[spec.role]
         actuator = head.actuator(spec.role)
         rng = f"{c.min_target:.1f}..{c.max_target:.1f} {c.unit}"
-        print(f"{spec.servo_id:>3} {spec.role:16} {spec.model:11} {actuator.kind:6} {rng:>20} "
-              f"{c.min_tick:>6}..{c.max_tick:<6}  {c.neutral_tick:>7}")
+        print(
+            f"{spec.servo_id:>3} {spec.role:16} {spec.model:11} {actuator.kind:6} {rng:>20} "
+            f"{c.min_tick:>6}..{c.max_tick:<6}  {c.neutral_tick:>7}"
+        )
     problems = []
     try:
         from sim.face_model import FaceModel
@@ -54,8 +61,10 @@ def run(args: argparse.Namespace) -> int:
             problems.append(f"the neutral pose does not pass the twin gate: {verdict.reasons()}")
         for role, target in face.solve({}).actuator_targets.items():
             if abs(target - cal[role].neutral_target) > cal[role].target_resolution():
-                problems.append(f"{role}: the muscle model's neutral {target:.2f} differs from the calibrated "
-                                f"neutral {cal[role].neutral_target:.2f} {cal[role].unit}")
+                problems.append(
+                    f"{role}: the muscle model's neutral {target:.2f} differs from the calibrated "
+                    f"neutral {cal[role].neutral_target:.2f} {cal[role].unit}"
+                )
     except (SimError, CalibrationError) as err:
         problems.append(str(err))
     for p in problems:

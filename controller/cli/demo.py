@@ -11,8 +11,12 @@ HELP = "play the built-in performance on the emulated chain; write twin video, c
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder (default out/demo)")
-    parser.add_argument("--head", choices=["human", "dog"], default="human", help="built-in head (default human)")
-    parser.add_argument("--format", choices=["mp4", "gif"], default="mp4", help="twin video format (default mp4)")
+    parser.add_argument(
+        "--head", choices=["human", "dog"], default="human", help="built-in head (default human)"
+    )
+    parser.add_argument(
+        "--format", choices=["mp4", "gif"], default="mp4", help="twin video format (default mp4)"
+    )
     parser.add_argument("--baud", type=int, default=1_000_000, help="emulated bus speed (default 1000000)")
     parser.add_argument("--rate", type=float, default=50.0, help="control rate in Hz (default 50)")
 
@@ -28,13 +32,21 @@ def run(args: argparse.Namespace) -> int:
         return 2
     heads = ["human", "dog"] if args.head == "both" else [args.head]
     for head in heads:
-        out = run_demo(args.out, head=head, video_format=args.format, baud=args.baud, rate_hz=args.rate,
-                       progress=lambda msg: print(f"servoface demo: {msg}", file=sys.stderr, flush=True))
+        out = run_demo(
+            args.out,
+            head=head,
+            video_format=args.format,
+            baud=args.baud,
+            rate_hz=args.rate,
+            progress=lambda msg: print(f"servoface demo: {msg}", file=sys.stderr, flush=True),
+        )
         r = out.report_data
         loop = r["loop"]
-        print(f"head {head}: {r['frames']} frames, verdicts {r['verdicts']}, "
-              f"loop {loop['achieved_hz']} Hz of {loop['target_hz']:g} Hz target, late {loop['late_frames']}, "
-              f"max goal error after settling {r['max_goal_error_tick']} tick")
+        print(
+            f"head {head}: {r['frames']} frames, verdicts {r['verdicts']}, "
+            f"loop {loop['achieved_hz']} Hz of {loop['target_hz']:g} Hz target, late {loop['late_frames']}, "
+            f"max goal error after settling {r['max_goal_error_tick']} tick"
+        )
         print(f"  video  {out.video}")
         print(f"  sheet  {out.sheet}")
         if out.clipped_frame is not None:

@@ -11,18 +11,32 @@ HELP = "play an expression or a timeline script on a head, on a real port or on 
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("what", nargs="?", help="an expression name (see `servoface preview --all`) or a script .toml")
-    parser.add_argument("--input", type=Path, help="instead of WHAT: a recorded tracker file (OpenFace/py-feat CSV, "
-                        "ARKit/MediaPipe blendshape CSV or JSON lines, MPEG-4 .fap); see README 'Inputs'")
-    parser.add_argument("--mirror", action="store_true", help="with --input: imitate a person facing the robot")
+    parser.add_argument(
+        "what", nargs="?", help="an expression name (see `servoface preview --all`) or a script .toml"
+    )
+    parser.add_argument(
+        "--input",
+        type=Path,
+        help="instead of WHAT: a recorded tracker file (OpenFace/py-feat CSV, "
+        "ARKit/MediaPipe blendshape CSV or JSON lines, MPEG-4 .fap); see README 'Inputs'",
+    )
+    parser.add_argument(
+        "--mirror", action="store_true", help="with --input: imitate a person facing the robot"
+    )
     parser.add_argument("--head", default="human", help="built-in head (human, dog) or a profile folder")
     where = parser.add_mutually_exclusive_group(required=True)
-    where.add_argument("--port", help="serial port of the chain, e.g. /dev/ttyUSB0 (or a pty from `servoface emulate`)")
+    where.add_argument(
+        "--port", help="serial port of the chain, e.g. /dev/ttyUSB0 (or a pty from `servoface emulate`)"
+    )
     where.add_argument("--emulate", action="store_true", help="run on an in-process emulated chain")
     parser.add_argument("--baud", type=int, default=1_000_000, help="bus speed in bps (default 1000000)")
     parser.add_argument("--rate", type=float, default=50.0, help="control rate in Hz (default 50)")
-    parser.add_argument("--hold", type=float, default=1.5, help="seconds to hold an expression's apex (default 1.5)")
-    parser.add_argument("--calibration", type=Path, help="calibration JSON (default: the one the profile names)")
+    parser.add_argument(
+        "--hold", type=float, default=1.5, help="seconds to hold an expression's apex (default 1.5)"
+    )
+    parser.add_argument(
+        "--calibration", type=Path, help="calibration JSON (default: the one the profile names)"
+    )
     parser.add_argument("--trace", type=Path, help="write every frame's trace as JSON lines to this file")
 
 
@@ -43,8 +57,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"servoface play: --hold must be >= 0 s, got {args.hold}", file=sys.stderr)
         return 2
     if (args.what is None) == (args.input is None):
-        print("servoface play: give what to play (an expression or a script .toml) or --input FILE, one of them",
-              file=sys.stderr)
+        print(
+            "servoface play: give what to play (an expression or a script .toml) or --input FILE, "
+            "one of them",
+            file=sys.stderr,
+        )
         return 2
     recording = None
     is_script = args.what is not None and (args.what.endswith(".toml") or Path(args.what).is_file())
@@ -60,8 +77,14 @@ def run(args: argparse.Namespace) -> int:
             known = load_library(head.expressions_path or head.face_type)
             if args.what not in known:
                 raise ControllerError(f"unknown expression {args.what!r}; known: {sorted(known)}")
-        face = Face.open(head, port=args.port, emulate=args.emulate, baud=args.baud, rate_hz=args.rate,
-                         calibration=args.calibration)
+        face = Face.open(
+            head,
+            port=args.port,
+            emulate=args.emulate,
+            baud=args.baud,
+            rate_hz=args.rate,
+            calibration=args.calibration,
+        )
     except (ControllerError, SimError, CalibrationError, HardwareError, ValueError, OSError) as err:
         print(f"servoface play: {err}", file=sys.stderr)
         return 2
@@ -70,8 +93,13 @@ def run(args: argparse.Namespace) -> int:
             if recording is not None:
                 from controller.performance import play_timeline
 
-                perf = play_timeline(face.pipeline, recording, recording.duration_s, on_frame=face.traces.append,
-                                     stop_on_interrupt=True)
+                perf = play_timeline(
+                    face.pipeline,
+                    recording,
+                    recording.duration_s,
+                    on_frame=face.traces.append,
+                    stop_on_interrupt=True,
+                )
             elif is_script:
                 perf = face.play(what)
             else:
@@ -84,8 +112,10 @@ def run(args: argparse.Namespace) -> int:
         return 1
     summary = perf.summary()
     loop = summary.get("loop", {})
-    print(f"{summary['frames']} frames; verdicts {summary['verdicts']}; loop {loop.get('achieved_hz')} Hz "
-          f"(target {args.rate:g}), late {loop.get('late')}, skipped {loop.get('missed')}")
+    print(
+        f"{summary['frames']} frames; verdicts {summary['verdicts']}; loop {loop.get('achieved_hz')} Hz "
+        f"(target {args.rate:g}), late {loop.get('late')}, skipped {loop.get('missed')}"
+    )
     reasons: dict[str, int] = {}
     for trace in perf.traces:
         for reason in trace.reasons:
