@@ -1,4 +1,4 @@
-"""A clipped expression rendered as requested vs gated face (real EGL render), written to out/."""
+"""A clipped request rendered as requested vs gated face (real EGL render), written to out/."""
 
 from __future__ import annotations
 
@@ -18,7 +18,6 @@ def test_render_verdict_of_a_clipped_expression() -> None:
     if reason:
         pytest.skip(f"headless EGL rendering unavailable: {reason}")
     from calibration.fileformat import load_calibration
-    from sim.expressions import load_library
     from sim.face_model import FaceModel
     from sim.gate import GateConfig, TwinGate
     from sim.gate.render import render_verdict, verdict_targets
@@ -31,8 +30,10 @@ def test_render_verdict_of_a_clipped_expression() -> None:
     roles = list(cal.roles)
     fast = GateConfig(max_step_tick={r: 4000 for r in roles}, max_speedup_tick={r: 4000 for r in roles})
     gate = TwinGate(head, cal, 1 / 60, fast, face_model=fm)
-    aus = dict(load_library("human")["sadness"].events)
-    goals = cal.targets_to_goals(fm.solve(aus).actuator_targets)
+    # one mouth corner pulled up (zygomatic servo) and down (depressor servo) hard at once: the coupling
+    # rule's case (the shipped expressions no longer trip it; the sadness apex is accepted)
+    targets = dict(fm.solve({}).actuator_targets, lip_corner_l=10.0, lip_depressor_l=7.0)
+    goals = cal.targets_to_goals(targets)
     verdict = gate.check(goals, gate.neutral_goals())
     assert verdict.kind == "clip" and "coupling" in verdict.checks
     requested, gated = verdict_targets(gate, verdict)
@@ -42,5 +43,5 @@ def test_render_verdict_of_a_clipped_expression() -> None:
     assert np.abs(left.astype(int) - right.astype(int)).sum() > 0, "gated face should differ from the request"
     out = Path("out") / "gate"
     out.mkdir(parents=True, exist_ok=True)
-    save_image(img, out / "verdict_sadness.png")
-    assert (out / "verdict_sadness.png").stat().st_size > 1000
+    save_image(img, out / "verdict_corner_clash.png")
+    assert (out / "verdict_corner_clash.png").stat().st_size > 1000
