@@ -15,12 +15,7 @@ from sim.expressions import load_library
 from sim.gate import GateConfig
 from sim.heads import load_head
 
-KNOWN_REFUSED: dict[tuple[str, str], str] = {
-    ("human", "sadness"): "coupling: one mouth corner pulled up and down hard at once",
-    ("dog", "anger"): "coupling: flew lifted and corner pulled back hard",
-    ("dog", "anger_without_tongue"): "coupling: flew lifted and corner pulled back hard",
-    ("dog", "affection_ii"): "coupling: fully extended tongue also curled fully",
-}
+KNOWN_REFUSED: dict[tuple[str, str], str] = {}  # (head, expression) -> why; all pass since the 13:41 tuning
 
 _PIPELINES: dict[str, Pipeline] = {}
 

@@ -12,9 +12,13 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from controller.face import Face
-from controller.performance import Performance
+from controller.performance import Performance, play_timeline
+from controller.pipeline import Pipeline
 from controller.script import SCRIPTS_DIR
+from controller.timeline import ChannelClip, Key, Timeline, min_jerk
 from hardware.emulator import ServoChain
+from sim.gate import GateConfig
+from sim.gate.coupling import CouplingLimit
 from tests.integration.wire_checks import check_wire
 
 UNSAFE = SCRIPTS_DIR / "unsafe_pose.toml"
@@ -163,16 +167,36 @@ def test_any_sequence_of_au_frames_stays_safe_on_the_wire(
     check_wire(face.pipeline, chain)
 
 
-def test_a_coupling_rule_holds_the_face_short_of_a_refused_apex(played: Played) -> None:
-    """The sadness apex asks one mouth corner up and down hard at once (a known refusal, see
-    test_library_apexes): the gate stops it at the rule with the rule named, and the wire stays safe."""
+def test_a_coupling_rule_given_to_the_gate_clips_and_is_named(played: Played) -> None:
+    """A stricter coupling rule (GateConfig: explicit arguments win over the head profile) on a pipeline over
+    the same bus: a brow raise with a smile is held at the rule, the reasons name it, the wire stays safe."""
     face = played.face
+    rule = CouplingLimit(
+        "integration: no big smile under raised brows",
+        ("brow_inner_l", "lip_corner_l"),
+        0.6,
+        "sum_at_most",
+        "any",
+    )
+    strict = Pipeline(
+        face.head, face.pipeline.calibration, driver=face.driver, gate_config=GateConfig(coupling=(rule,))
+    )
+    strict.pin_to(face.pipeline.last_goals_tick)
     start = len(played.chain.goal_writes())
-    perf = face.express("sadness", transition_s=0.3, hold_s=0.1)
+    timeline = Timeline("human")
+    pose = {"AU1": 0.8, "AU2": 0.6, "AU12": 0.8}
+    timeline.play(
+        ChannelClip(
+            {au: (Key(0.0, 0.0), Key(0.4, v, min_jerk), Key(0.6, v)) for au, v in pose.items()},
+            0.6,
+            name="brows_and_smile",
+        )
+    )
+    perf = play_timeline(strict, timeline, 0.6)
     coupled = [t for t in perf.traces if "coupling" in t.checks]
     assert coupled, perf.summary()
-    assert all(any("[coupling] rule 'one mouth corner" in r for r in t.reasons) for t in coupled)
-    assert perf.traces[-1].goals_sent != perf.traces[-1].goals_requested  # held short of the apex
-    assert face.pipeline.gate.audit(face.pipeline.last_goals_tick) == []  # and where it stands is safe
-    check_wire(face.pipeline, played.chain, start)
-    face.neutral(transition_s=0.3)
+    assert all(any(f"rule '{rule.name}'" in r for r in t.reasons) for t in coupled)
+    last = perf.traces[-1]
+    assert last.goals_sent != last.goals_requested  # held short of the request
+    assert not [f for f in strict.gate.audit(strict.last_goals_tick) if f.check == "coupling"]
+    check_wire(strict, played.chain, start)
