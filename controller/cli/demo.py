@@ -30,8 +30,7 @@ def run(args: argparse.Namespace) -> int:
     if not (0 < args.rate <= 1000):
         print(f"servoface demo: --rate must be within 0..1000 Hz, got {args.rate}", file=sys.stderr)
         return 2
-    heads = ["human", "dog"] if args.head == "both" else [args.head]
-    for head in heads:
+    for head in [args.head]:
         out = run_demo(
             args.out,
             head=head,
