@@ -30,25 +30,25 @@ def run(args: argparse.Namespace) -> int:
     if not (0 < args.rate <= 1000):
         print(f"servoface demo: --rate must be within 0..1000 Hz, got {args.rate}", file=sys.stderr)
         return 2
-    for head in [args.head]:
-        out = run_demo(
-            args.out,
-            head=head,
-            video_format=args.format,
-            baud=args.baud,
-            rate_hz=args.rate,
-            progress=lambda msg: print(f"servoface demo: {msg}", file=sys.stderr, flush=True),
-        )
-        r = out.report_data
-        loop = r["loop"]
-        print(
-            f"head {head}: {r['frames']} frames, verdicts {r['verdicts']}, "
-            f"loop {loop['achieved_hz']} Hz of {loop['target_hz']:g} Hz target, late {loop['late_frames']}, "
-            f"max goal error after settling {r['max_goal_error_tick']} tick"
-        )
-        print(f"  video  {out.video}")
-        print(f"  sheet  {out.sheet}")
-        if out.clipped_frame is not None:
-            print(f"  clip   {out.clipped_frame}")
-        print(f"  report {out.report}")
+    head = args.head
+    out = run_demo(
+        args.out,
+        head=head,
+        video_format=args.format,
+        baud=args.baud,
+        rate_hz=args.rate,
+        progress=lambda msg: print(f"servoface demo: {msg}", file=sys.stderr, flush=True),
+    )
+    r = out.report_data
+    loop = r["loop"]
+    print(
+        f"head {head}: {r['frames']} frames, verdicts {r['verdicts']}, "
+        f"loop {loop['achieved_hz']} Hz of {loop['target_hz']:g} Hz target, late {loop['late_frames']}, "
+        f"max goal error after settling {r['max_goal_error_tick']} tick"
+    )
+    print(f"  video  {out.video}")
+    print(f"  sheet  {out.sheet}")
+    if out.clipped_frame is not None:
+        print(f"  clip   {out.clipped_frame}")
+    print(f"  report {out.report}")
     return 0
