@@ -2,18 +2,15 @@
 gate accepts (`TwinGate.audit`: limits, coupling rules, skin strain, exact collisions on every pair).
 
 Known refusals are strict xfails naming the rule, so the list shrinks (and this file fails) when they are
-fixed. The dog is checked without part collisions (its TSS tables take ~90 s to build cold); its collision
-findings are in the integration report."""
+fixed. Both heads are checked with every part pair (the dog's TSS tables take ~15 s to build cold)."""
 
 from __future__ import annotations
 
 import pytest
 
-from controller.face import Face, head_calibration
+from controller.face import Face
 from controller.pipeline import Pipeline
 from sim.expressions import load_library
-from sim.gate import GateConfig
-from sim.heads import load_head
 
 KNOWN_REFUSED: dict[tuple[str, str], str] = {}  # (head, expression) -> why; all pass since the 13:41 tuning
 
@@ -22,13 +19,7 @@ _PIPELINES: dict[str, Pipeline] = {}
 
 def _pipeline(head_name: str) -> Pipeline:
     if head_name not in _PIPELINES:
-        if head_name == "human":
-            _PIPELINES[head_name] = Face.offline("human").pipeline
-        else:
-            head = load_head(head_name)
-            _PIPELINES[head_name] = Pipeline(
-                head, head_calibration(head), gate_config=GateConfig(collision_pairs=())
-            )
+        _PIPELINES[head_name] = Face.offline(head_name).pipeline
     return _PIPELINES[head_name]
 
 
