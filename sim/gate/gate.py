@@ -116,6 +116,7 @@ class TwinGate:
         self.collisions = PartCollisions(head, self.tree, pairs, cfg.tss, cache)
         self._last_sent: IntArray | None = None
         self._last_step: IntArray = np.zeros(self.table.n, dtype=np.int64)
+        self._memo: tuple[bytes, list[Finding]] = (b"", [])  # (command bytes, its state findings)
 
     # ---- set-up ---------------------------------------------------------------------------------------
     def _build_skin(self, face_model: Any) -> SkinTwin:
@@ -195,8 +196,9 @@ class TwinGate:
         if out and stop_early:
             return out
         active = self.skin.active_vertices
-        stretch, comp, flips = self.skin.measure(world[0], self.skin_source.offsets_rows(pulls[0], active))
-        out += strain_findings(float(stretch), float(comp), int(flips), self.config.strain)
+        offsets = self.skin_source.offsets_rows(pulls[0], active)
+        stretch, comp, flips = self.skin.measure_one(world[0], offsets)
+        out += strain_findings(stretch, comp, flips, self.config.strain)
         if out and stop_early:
             return out
         hits, _ = self.collisions.colliding(world[0], angles[0])
@@ -211,18 +213,23 @@ class TwinGate:
         for all at once (cheap); strain and collisions one candidate at a time from the end, stopping at
         the first that passes."""
         targets, angles, world, pulls = self._pose_arrays(goals)
-        coupling_ok = self.coupling.ok(self._shares(targets))
+        coupling_ok = np.flatnonzero(self.coupling.ok(self._shares(targets)))
+        if coupling_ok.size == 0:
+            return None
         s = self.config.strain
-        for k in np.flatnonzero(coupling_ok)[::-1]:
-            offsets = self.skin_source.offsets_rows(pulls[k], self.skin.active_vertices)
-            stretch, comp, flips = self.skin.measure(world[k], offsets)
-            if not (stretch <= s.max_stretch and comp >= s.min_compression and flips <= s.max_flipped):
+        col = self.collisions
+        flags = col.broad.flag(world[coupling_ok], angles[coupling_ok])  # one batched broad phase
+        for row in range(len(coupling_ok) - 1, -1, -1):
+            k = int(coupling_ok[row])
+            # the exact test on flagged pairs first: where candidates fail it is mostly by contact, and
+            # it is cheaper than the skin; the verdict needs both to pass, so the order changes nothing
+            if any(col._collide(col.specs[p], world[k]) for p in np.flatnonzero(flags[row])):
                 continue
-            flags = self.collisions.broad.flag(world[k], angles[k])
-            if not any(
-                self.collisions._collide(self.collisions.specs[p], world[k]) for p in np.flatnonzero(flags)
-            ):
-                return int(k)
+            offsets = self.skin_source.offsets_rows(pulls[k], self.skin.active_vertices)
+            stretch, comp, flips = self.skin.measure_one(world[k], offsets)
+            if stretch <= s.max_stretch and comp >= s.min_compression and flips <= s.max_flipped:
+                self._memo = (goals[k].tobytes(), [])
+                return k
         return None
 
     # ---- public ---------------------------------------------------------------------------------------
@@ -248,14 +255,17 @@ class TwinGate:
         if bad:
             return self._remember(Verdict("reject", hold, tuple(health_findings + bad), 0.0, requested), last)
         findings = health_findings + lim.findings(req, last, last_step, table)
-        hard = self._hard_findings(req)
+        key = req.tobytes()
+        if self._memo[0] != key:  # state checks depend on the command only: a held command is not redone
+            self._memo = (key, self._hard_findings(req))
+        hard = list(self._memo[1])
         findings += hard
         if len(findings) == len(health_findings):
             return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last)
         clamped = lim.clamp(req, last, last_step, table)
         if not hard and np.array_equal(clamped, req):  # only health notes fired
             return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last)
-        best, frac = self._scale_back(req, last, last_step, table)
+        best, frac = self._scale_back(req, last, last_step, table, skip_full=bool(hard))
         if best is None or np.array_equal(best, last):
             findings.append(
                 Finding("hold", "no safe command found between the last one and the request: holding")
@@ -265,15 +275,21 @@ class TwinGate:
         return self._remember(Verdict("clip", goals, tuple(findings), frac, requested), last)
 
     def _scale_back(
-        self, req: IntArray, last: IntArray, last_step: IntArray, table: lim.ServoTable
+        self,
+        req: IntArray,
+        last: IntArray,
+        last_step: IntArray,
+        table: lim.ServoTable,
+        skip_full: bool = False,
     ) -> tuple[IntArray | None, float]:
-        """The largest step fraction whose clamped command passes every check (batched bisection)."""
+        """The largest step fraction whose clamped command passes every check (batched bisection).
+        ``skip_full``: ``req`` itself failed a state check, so its clamp is not re-checked if equal."""
         step = req - last
         lo, hi = 0.0, 1.0
         best: IntArray | None = None
         best_frac = 0.0
         cand_1 = lim.clamp(req, last, last_step, table)
-        if self._last_ok(cand_1[None, :]) == 0:
+        if not (skip_full and np.array_equal(cand_1, req)) and self._last_ok(cand_1[None, :]) == 0:
             return cand_1, 1.0
         for _ in range(max(1, self.config.bisection_rounds)):
             fracs = lo + (hi - lo) * np.arange(1, 9) / 8.0

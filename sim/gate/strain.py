@@ -98,6 +98,12 @@ class SkinTwin:
         self._rest_normal32 = np.ascontiguousarray(self._rest_normal.T, dtype=np.float32)
         self._inv_rest_len2 = self._inv_rest_len2.astype(np.float32)
         self._face_w_t = np.ascontiguousarray(self._face_w.T)
+        # single-frame fast path (`measure_one`): float32 tables, one index array per corner / edge end
+        self._rest_vt32 = self._rest_vt.astype(np.float32)
+        self._w_t32 = self._w_t.astype(np.float32)
+        self._face_w_t32 = self._face_w_t.astype(np.float32)
+        self._e0, self._e1 = (np.ascontiguousarray(self._edges[:, i]) for i in range(2))
+        self._f0, self._f1, self._f2 = (np.ascontiguousarray(self._faces[:, i]) for i in range(3))
         self.n_active_edges = int(act_e.sum())
         self.n_active_faces = int(act_f.sum())
 
@@ -161,6 +167,77 @@ class SkinTwin:
         stretch = np.maximum(np.sqrt(r2.max(axis=-1, initial=0.0).astype(np.float64)), self._const_max)
         comp = np.minimum(np.sqrt(r2.min(axis=-1, initial=np.inf).astype(np.float64)), self._const_min)
         return stretch, comp, flipped.sum(axis=-1) + self._const_flips
+
+    def measure_one(self, world: FloatArray, offsets: FloatArray) -> tuple[float, float, int]:
+        """`measure` for one frame: (J, 4, 4) transforms and the offsets of the active vertices only
+        (`active_vertices`, (nv, 3)). Same quantities as `measure` (float32 from the transforms on, in
+        place, each corner gathered once): about half its cost per frame."""
+        mats = self._mats(world).astype(np.float32)  # (u, 12)
+        m = mats.T @ self._w_t32  # (12, nv)
+        o = offsets.T.astype(np.float32)
+        rv = self._rest_vt32
+        x, y, z = rv[0] + o[0], rv[1] + o[1], rv[2] + o[2]
+        px = m[0] * x
+        px += m[1] * y
+        px += m[2] * z
+        px += m[3]
+        py = m[4] * x
+        py += m[5] * y
+        py += m[6] * z
+        py += m[7]
+        pz = m[8] * x
+        pz += m[9] * y
+        pz += m[10] * z
+        pz += m[11]
+        e0, e1 = self._e0, self._e1
+        dx, dy, dz = px[e0], py[e0], pz[e0]
+        dx -= px[e1]
+        dy -= py[e1]
+        dz -= pz[e1]
+        dx *= dx
+        dy *= dy
+        dz *= dz
+        dx += dy
+        dx += dz
+        dx *= self._inv_rest_len2  # squared stretch ratio per active edge
+        r = mats.T @ self._face_w_t32  # (12, nf) blended transform per face
+        n0, n1, n2 = self._rest_normal32
+        ex = r[0] * n0
+        ex += r[1] * n1
+        ex += r[2] * n2
+        ey = r[4] * n0
+        ey += r[5] * n1
+        ey += r[6] * n2
+        ez = r[8] * n0
+        ez += r[9] * n1
+        ez += r[10] * n2
+        f0, f1, f2 = self._f0, self._f1, self._f2
+        ax, ay, az = px[f0], py[f0], pz[f0]
+        ux, uy, uz = px[f1], py[f1], pz[f1]
+        ux -= ax
+        uy -= ay
+        uz -= az
+        wx, wy, wz = px[f2], py[f2], pz[f2]
+        wx -= ax
+        wy -= ay
+        wz -= az
+        cx = uy * wz
+        cx -= uz * wy
+        cx *= ex
+        cy = uz * wx
+        cy -= ux * wz
+        cy *= ey
+        cz = ux * wy
+        cz -= uy * wx
+        cz *= ez
+        cx += cy
+        cx += cz  # posed normal . carried rest normal
+        if dx.size:
+            stretch = max(float(np.sqrt(float(dx.max()))), self._const_max)
+            comp = min(float(np.sqrt(float(dx.min()))), self._const_min)
+        else:
+            stretch, comp = self._const_max, self._const_min
+        return stretch, comp, int(np.count_nonzero(cx <= 0.0)) + self._const_flips
 
 
 def strain_findings(stretch: float, compression: float, flipped: int, limits: StrainLimits) -> list[Finding]:
