@@ -31,6 +31,7 @@ from sim.gate.errors import GateConfigError, GateInputError
 from sim.gate.fk import JointTree
 from sim.gate.health import HealthPolicy, ServoHealth, derate
 from sim.gate.skin_source import face_model_source, falloff_source
+from sim.gate.skin_static import build_static
 from sim.gate.strain import SkinTwin, StrainLimits, strain_findings
 from sim.gate.tss_build import TssParams, default_cache_dir
 from sim.gate.twin import TwinPoser
@@ -111,6 +112,7 @@ class TwinGate:
         rules = cfg.coupling if cfg.coupling is not None else tuple(limits_from_head(head))
         self.coupling = CouplingCheck(rules, self.poser.roles)
         self.skin = self._build_skin(face_model)
+        self.static_skin = build_static(self.skin, self.poser, self.tree)
         cache = (cfg.cache_dir or default_cache_dir()) if cfg.use_cache else None
         pairs = list(cfg.collision_pairs) if cfg.collision_pairs is not None else auto_pairs(head, self.tree)
         self.collisions = PartCollisions(head, self.tree, pairs, cfg.tss, cache)
@@ -189,6 +191,10 @@ class TwinGate:
         p = self.poser
         return travel_share(targets, p.target_lower, p.target_upper, p.target_neutral)
 
+    def _static(self, goal: IntArray) -> tuple[float, float, int]:
+        """The tabulated joint-only skin strain for one command (neutral values when not tabulated)."""
+        return (0.0, np.inf, 0) if self.static_skin is None else self.static_skin.values(goal)
+
     def _hard_findings(self, goal: IntArray, stop_early: bool = False) -> list[Finding]:
         """Coupling, strain, flips and collisions (exact on flagged pairs) for one command."""
         targets, angles, world, pulls = self._pose_arrays(goal[None, :])
@@ -197,7 +203,7 @@ class TwinGate:
             return out
         active = self.skin.active_vertices
         offsets = self.skin_source.offsets_rows(pulls[0], active)
-        stretch, comp, flips = self.skin.measure_one(world[0], offsets)
+        stretch, comp, flips = self.skin.measure_one(world[0], offsets, self._static(goal))
         out += strain_findings(stretch, comp, flips, self.config.strain)
         if out and stop_early:
             return out
@@ -226,7 +232,7 @@ class TwinGate:
             if any(col._collide(col.specs[p], world[k]) for p in np.flatnonzero(flags[row])):
                 continue
             offsets = self.skin_source.offsets_rows(pulls[k], self.skin.active_vertices)
-            stretch, comp, flips = self.skin.measure_one(world[k], offsets)
+            stretch, comp, flips = self.skin.measure_one(world[k], offsets, self._static(goals[k]))
             if stretch <= s.max_stretch and comp >= s.min_compression and flips <= s.max_flipped:
                 self._memo = (goals[k].tobytes(), [])
                 return k

@@ -65,7 +65,7 @@ class SkinSource:
             return np.asarray(base + (bumps @ p).reshape(-1, 3), dtype=np.float64)
         c = self.contract(p)
         fit = np.asarray(bumps @ (p - self.unit_pull @ c), dtype=np.float64).reshape(-1, 3)
-        return base + self.field(c)[rows] + fit
+        return base + np.take(self.field(c), rows, axis=0) + fit  # take: a row gather ~5x faster
 
     def offsets_batch(self, pulls_mm: FloatArray) -> FloatArray:
         """(k, n, 3) for (k, A) pulls."""

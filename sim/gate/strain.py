@@ -85,6 +85,7 @@ class SkinTwin:
         remap = np.full(len(self.rest), -1, dtype=np.int64)
         remap[verts] = np.arange(len(verts))
         self._v = verts
+        self._act_e = act_e
         self._edges = remap[self.edges[act_e]]
         self._rest_len = self.rest_len[act_e]
         self._faces = remap[f[act_f]]
@@ -102,10 +103,54 @@ class SkinTwin:
         self._rest_vt32 = self._rest_vt.astype(np.float32)
         self._w_t32 = self._w_t.astype(np.float32)
         self._face_w_t32 = self._face_w_t.astype(np.float32)
-        self._e0, self._e1 = (np.ascontiguousarray(self._edges[:, i]) for i in range(2))
-        self._f0, self._f1, self._f2 = (np.ascontiguousarray(self._faces[:, i]) for i in range(3))
         self.n_active_edges = int(act_e.sum())
         self.n_active_faces = int(act_f.sum())
+        self._fast_subset(np.ones(len(self._edges), dtype=bool), np.ones(len(self._faces), dtype=bool))
+
+    def _fast_subset(self, edges: NDArray[np.bool_], faces: NDArray[np.bool_]) -> None:
+        """The active edges and faces `measure_one` measures (all of them, or the pull-driven ones)."""
+        self._e0, self._e1 = (np.ascontiguousarray(self._edges[edges, i]) for i in range(2))
+        self._f0, self._f1, self._f2 = (np.ascontiguousarray(self._faces[faces, i]) for i in range(3))
+        self._fe_inv = np.ascontiguousarray(self._inv_rest_len2[edges])
+        self._fn32 = np.ascontiguousarray(self._rest_normal32[:, faces])
+        self._ffw_t32 = np.ascontiguousarray(self._face_w_t32[:, faces])
+
+    def split_static(self) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+        """Leave out of `measure_one` the active edges and faces no anchor pull moves (their shape follows
+        the joints alone, so the caller tabulates them: `measure_static`). Returns those (edge, face)
+        masks over the active edges / faces."""
+        mv = self.movable[self._v]
+        static_e = ~mv[self._edges].any(axis=1)
+        static_f = ~mv[self._faces].any(axis=1)
+        self._fast_subset(~static_e, ~static_f)
+        return static_e, static_f
+
+    def measure_static(
+        self, world: FloatArray, edges: NDArray[np.bool_], faces: NDArray[np.bool_]
+    ) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
+        """(max squared stretch, min squared stretch, flips) per (k, J, 4, 4) pose over some active edges
+        and faces of the skin at rest offsets (float64; the tables behind `split_static`)."""
+        mats = self._mats(world)  # (k, u, 12)
+        m = np.swapaxes(mats, -1, -2) @ self._w_t  # (k, 12, nv)
+        x, y, z = self._rest_vt
+        p = [m[:, 4 * r] * x + m[:, 4 * r + 1] * y + m[:, 4 * r + 2] * z + m[:, 4 * r + 3] for r in range(3)]
+        e = self._edges[edges]
+        r2 = sum((c[:, e[:, 0]] - c[:, e[:, 1]]) ** 2 for c in p) * (
+            1.0 / self.rest_len[self._act_e][edges] ** 2
+        )
+        f = self._faces[faces]
+        u = np.stack([c[:, f[:, 1]] - c[:, f[:, 0]] for c in p], axis=-1)
+        w = np.stack([c[:, f[:, 2]] - c[:, f[:, 0]] for c in p], axis=-1)
+        rot = (np.swapaxes(mats, -1, -2) @ self._face_w_t[:, faces]).reshape(len(mats), 3, 4, -1)[:, :, :3]
+        carried = np.einsum("kijf,fj->kfi", rot, self._rest_normal[faces])
+        flips = (np.einsum("kfi,kfi->kf", np.cross(u, w), carried) <= 0.0).sum(axis=1)
+        hi = r2.max(axis=1, initial=0.0) if r2.shape[1] else np.zeros(len(mats))
+        lo = r2.min(axis=1, initial=np.inf) if r2.shape[1] else np.full(len(mats), np.inf)
+        return (
+            np.asarray(hi, dtype=np.float64),
+            np.asarray(lo, dtype=np.float64),
+            np.asarray(flips, dtype=np.int64),
+        )
 
     @property
     def active_vertices(self) -> NDArray[np.int64]:
@@ -168,7 +213,9 @@ class SkinTwin:
         comp = np.minimum(np.sqrt(r2.min(axis=-1, initial=np.inf).astype(np.float64)), self._const_min)
         return stretch, comp, flipped.sum(axis=-1) + self._const_flips
 
-    def measure_one(self, world: FloatArray, offsets: FloatArray) -> tuple[float, float, int]:
+    def measure_one(
+        self, world: FloatArray, offsets: FloatArray, static: tuple[float, float, int] = (0.0, np.inf, 0)
+    ) -> tuple[float, float, int]:
         """`measure` for one frame: (J, 4, 4) transforms and the offsets of the active vertices only
         (`active_vertices`, (nv, 3)). Same quantities as `measure` (float32 from the transforms on, in
         place, each corner gathered once): about half its cost per frame."""
@@ -199,9 +246,9 @@ class SkinTwin:
         dz *= dz
         dx += dy
         dx += dz
-        dx *= self._inv_rest_len2  # squared stretch ratio per active edge
-        r = mats.T @ self._face_w_t32  # (12, nf) blended transform per face
-        n0, n1, n2 = self._rest_normal32
+        dx *= self._fe_inv  # squared stretch ratio per measured edge
+        r = mats.T @ self._ffw_t32  # (12, nf) blended transform per face
+        n0, n1, n2 = self._fn32
         ex = r[0] * n0
         ex += r[1] * n1
         ex += r[2] * n2
@@ -232,12 +279,11 @@ class SkinTwin:
         cz *= ez
         cx += cy
         cx += cz  # posed normal . carried rest normal
-        if dx.size:
-            stretch = max(float(np.sqrt(float(dx.max()))), self._const_max)
-            comp = min(float(np.sqrt(float(dx.min()))), self._const_min)
-        else:
-            stretch, comp = self._const_max, self._const_min
-        return stretch, comp, int(np.count_nonzero(cx <= 0.0)) + self._const_flips
+        hi2 = max(float(dx.max()), static[0]) if dx.size else static[0]
+        lo2 = min(float(dx.min()), static[1]) if dx.size else static[1]
+        stretch = max(float(np.sqrt(hi2)), self._const_max)
+        comp = min(float(np.sqrt(lo2)), self._const_min)
+        return stretch, comp, int(np.count_nonzero(cx <= 0.0)) + self._const_flips + static[2]
 
 
 def strain_findings(stretch: float, compression: float, flipped: int, limits: StrainLimits) -> list[Finding]:

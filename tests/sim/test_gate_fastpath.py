@@ -68,10 +68,27 @@ def test_fast_state_checks_match_the_audit(gate_fm: tuple[TwinGate, Any]) -> Non
         _, _, world, pulls = gate._pose_arrays(row[None, :])
         s_ref, c_ref, f_ref = gate.skin.measure(world[0], gate.skin_source.offsets(pulls[0]))
         rows = gate.skin.active_vertices
-        s, c, f = gate.skin.measure_one(world[0], gate.skin_source.offsets_rows(pulls[0], rows))
+        offsets = gate.skin_source.offsets_rows(pulls[0], rows)
+        s, c, f = gate.skin.measure_one(world[0], offsets, gate._static(row))
         assert s == pytest.approx(float(s_ref), rel=1e-4) and c == pytest.approx(float(c_ref), rel=1e-4)
         assert f == int(f_ref)
     assert kinds_seen & {"collision", "coupling", "strain", "flip"}, "no state check ever fired"
+
+
+def test_human_jaw_skin_is_tabulated_per_jaw_tick() -> None:
+    """The human's joint-only skin (skull/jaw blend) is tabulated over the jaw servo's ticks; each entry
+    equals measuring that skin at the tick."""
+    gate, _ = _gate("human")
+    st = gate.static_skin
+    assert st is not None and gate.poser.roles[st.column] == "jaw"
+    static_e, static_f = gate.skin.split_static()
+    assert static_e.any() and static_f.any()
+    for tick in (int(gate.table.min_tick[st.column]), int(gate.table.max_tick[st.column])):
+        goal = gate.table.neutral_tick.copy()
+        goal[st.column] = tick
+        _, _, world, _ = gate._pose_arrays(goal[None, :])
+        hi2, lo2, flips = gate.skin.measure_static(world, static_e, static_f)
+        assert st.values(goal) == pytest.approx((float(hi2[0]), float(lo2[0]), int(flips[0])), rel=1e-9)
 
 
 def test_scale_back_picks_the_last_candidate_the_audit_passes(gate_fm: tuple[TwinGate, Any]) -> None:
