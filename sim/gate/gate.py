@@ -201,7 +201,7 @@ class TwinGate:
         out = self.coupling.findings(self._shares(targets)[0])
         if out and stop_early:
             return out
-        active = self.skin.active_vertices
+        active = self.skin.fast_vertices
         offsets = self.skin_source.offsets_rows(pulls[0], active)
         stretch, comp, flips = self.skin.measure_one(world[0], offsets, self._static(goal))
         out += strain_findings(stretch, comp, flips, self.config.strain)
@@ -228,7 +228,7 @@ class TwinGate:
             flags = col.broad.flag(world[k], angles[k])  # one pose: the flat broad phase (fastest for one)
             if any(col._collide(col.specs[p], world[k]) for p in np.flatnonzero(flags)):
                 continue
-            offsets = self.skin_source.offsets_rows(pulls[k], self.skin.active_vertices)
+            offsets = self.skin_source.offsets_rows(pulls[k], self.skin.fast_vertices)
             stretch, comp, flips = self.skin.measure_one(world[k], offsets, self._static(goals[k]))
             if stretch <= s.max_stretch and comp >= s.min_compression and flips <= s.max_flipped:
                 self._memo = (goals[k].tobytes(), [])

@@ -108,9 +108,16 @@ class SkinTwin:
         self._fast_subset(np.ones(len(self._edges), dtype=bool), np.ones(len(self._faces), dtype=bool))
 
     def _fast_subset(self, edges: NDArray[np.bool_], faces: NDArray[np.bool_]) -> None:
-        """The active edges and faces `measure_one` measures (all of them, or the pull-driven ones)."""
-        self._e0, self._e1 = (np.ascontiguousarray(self._edges[edges, i]) for i in range(2))
-        self._f0, self._f1, self._f2 = (np.ascontiguousarray(self._faces[faces, i]) for i in range(3))
+        """The active edges and faces `measure_one` measures (all of them, or the pull-driven ones), and
+        the vertices they touch (`fast_vertices`)."""
+        sel = np.unique(np.concatenate([self._edges[edges].ravel(), self._faces[faces].ravel()]))
+        remap = np.full(len(self._v), -1, dtype=np.int64)
+        remap[sel] = np.arange(len(sel))
+        self._fv = self._v[sel]
+        self._frest_vt32 = np.ascontiguousarray(self._rest_vt32[:, sel])
+        self._fw_t32 = np.ascontiguousarray(self._w_t32[:, sel])
+        self._e0, self._e1 = (np.ascontiguousarray(remap[self._edges[edges, i]]) for i in range(2))
+        self._f0, self._f1, self._f2 = (np.ascontiguousarray(remap[self._faces[faces, i]]) for i in range(3))
         self._fe_inv = np.ascontiguousarray(self._inv_rest_len2[edges])
         self._fn32 = np.ascontiguousarray(self._rest_normal32[:, faces])
         self._ffw_t32 = np.ascontiguousarray(self._face_w_t32[:, faces])
@@ -156,6 +163,11 @@ class SkinTwin:
     def active_vertices(self) -> NDArray[np.int64]:
         """Indices of the vertices the strain check reads (sorted)."""
         return self._v
+
+    @property
+    def fast_vertices(self) -> NDArray[np.int64]:
+        """Indices of the vertices `measure_one` reads (sorted; a subset of `active_vertices`)."""
+        return np.asarray(self._fv, dtype=np.int64)
 
     def _normals(self, v: FloatArray) -> FloatArray:
         t = v[..., self.faces, :]
@@ -217,12 +229,12 @@ class SkinTwin:
         self, world: FloatArray, offsets: FloatArray, static: tuple[float, float, int] = (0.0, np.inf, 0)
     ) -> tuple[float, float, int]:
         """`measure` for one frame: (J, 4, 4) transforms and the offsets of the active vertices only
-        (`active_vertices`, (nv, 3)). Same quantities as `measure` (float32 from the transforms on, in
+        (`fast_vertices`, (nv, 3)). Same quantities as `measure` (float32 from the transforms on, in
         place, each corner gathered once): about half its cost per frame."""
         mats = self._mats(world).astype(np.float32)  # (u, 12)
-        m = mats.T @ self._w_t32  # (12, nv)
+        m = mats.T @ self._fw_t32  # (12, nv)
         o = offsets.T.astype(np.float32)
-        rv = self._rest_vt32
+        rv = self._frest_vt32
         x, y, z = rv[0] + o[0], rv[1] + o[1], rv[2] + o[2]
         px = m[0] * x
         px += m[1] * y

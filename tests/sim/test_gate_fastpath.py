@@ -67,7 +67,7 @@ def test_fast_state_checks_match_the_audit(gate_fm: tuple[TwinGate, Any]) -> Non
         # the numbers agree too: float32 fast strain vs the full reference measure
         _, _, world, pulls = gate._pose_arrays(row[None, :])
         s_ref, c_ref, f_ref = gate.skin.measure(world[0], gate.skin_source.offsets(pulls[0]))
-        rows = gate.skin.active_vertices
+        rows = gate.skin.fast_vertices
         offsets = gate.skin_source.offsets_rows(pulls[0], rows)
         s, c, f = gate.skin.measure_one(world[0], offsets, gate._static(row))
         assert s == pytest.approx(float(s_ref), rel=1e-4) and c == pytest.approx(float(c_ref), rel=1e-4)
