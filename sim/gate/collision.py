@@ -112,6 +112,7 @@ class PartCollisions:
                 )
             )
         self.exact = ExactCollider(meshes)
+        self._last_exact: dict[tuple[str, str, float], tuple[bytes, bool]] = {}
         keep = []
         for spec, b in zip(self.specs, built, strict=True):
             if b.table.n_tests == 0 and not b.table.exact_only:
@@ -141,12 +142,16 @@ class PartCollisions:
         return np.eye(4) if j is None else world[self.tree.index[j]]
 
     def _collide(self, spec: PairSpec, world: FloatArray) -> bool:
-        return self.exact.collide(
-            f"{spec.a}@{spec.tolerance_mm}",
-            f"{spec.b}@{spec.tolerance_mm}",
-            self.part_transform(spec.a, world),
-            self.part_transform(spec.b, world),
-        )
+        """The exact test of one pair; the last answer per pair is kept and reused when both parts sit
+        exactly where they sat then (the same inputs: e.g. still lids while the mouth moves)."""
+        ta, tb = self.part_transform(spec.a, world), self.part_transform(spec.b, world)
+        key = ta.tobytes() + tb.tobytes()
+        last = self._last_exact.get((spec.a, spec.b, spec.tolerance_mm))
+        if last is not None and last[0] == key:
+            return last[1]
+        hit = self.exact.collide(f"{spec.a}@{spec.tolerance_mm}", f"{spec.b}@{spec.tolerance_mm}", ta, tb)
+        self._last_exact[(spec.a, spec.b, spec.tolerance_mm)] = (key, hit)
+        return hit
 
     def colliding(self, world: FloatArray, angles_deg: FloatArray) -> tuple[list[PairSpec], int]:
         """(pairs in collision by the exact test, number of pairs the broad phase flagged) for one pose."""

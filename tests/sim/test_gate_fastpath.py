@@ -129,3 +129,28 @@ def test_verdicts_of_a_walk_match_a_fresh_gate_without_memo(gate_fm: tuple[TwinG
         kinds.add(v.kind)
         last = np.array([v.goals_tick[i] for i in t.ids])
     assert "accept" in kinds and "clip" in kinds
+
+
+def test_exact_memo_answers_like_the_exact_test(gate_fm: tuple[TwinGate, Any]) -> None:
+    """The last exact answer per pair is reused only for the very same transforms: repeated, partly
+    repeated and new poses all answer as fcl does afresh."""
+    gate, _ = gate_fm
+    col = gate.collisions
+    tree = col.tree
+    rng = np.random.default_rng(8)
+    q = rng.uniform(tree.lower_deg, tree.upper_deg, size=(80, len(tree.names)))
+    edge = rng.random(q.shape) < 0.5  # half the joints at a stop, where parts meet
+    q = np.where(edge, np.where(rng.random(q.shape) < 0.5, tree.lower_deg, tree.upper_deg), q)
+    q[1::4] = q[0::4]  # the same pose twice in a row
+    q[2::4, : len(tree.names) // 2] = q[1::4, : len(tree.names) // 2]  # some joints kept
+    world = tree.world(q)
+    hits = 0
+    for k in range(len(q)):
+        for spec in col.specs:
+            ta, tb = col.part_transform(spec.a, world[k]), col.part_transform(spec.b, world[k])
+            fresh = col.exact.collide(
+                f"{spec.a}@{spec.tolerance_mm}", f"{spec.b}@{spec.tolerance_mm}", ta, tb
+            )
+            assert col._collide(spec, world[k]) == fresh
+            hits += fresh
+    assert hits > 0 or gate.head.name == "human"  # the human's parts never meet inside the joint stops
