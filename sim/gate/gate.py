@@ -269,6 +269,10 @@ class TwinGate:
         if not hard and np.array_equal(clamped, req):  # only health notes fired
             return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last)
         best, frac = self._scale_back(req, last, last_step, table, skip_full=bool(hard))
+        if best is not None and np.array_equal(best, last) and np.array_equal(clamped, last):
+            # the per-servo clamp itself is the last command and passed every check (e.g. a servo held at
+            # its narrowed limit while the others have arrived): a clip at the limits, not a refusal
+            return self._remember(Verdict("clip", hold, tuple(findings), 1.0, requested), last)
         if best is None or np.array_equal(best, last):
             findings.append(
                 Finding("hold", "no safe command found between the last one and the request: holding")

@@ -253,3 +253,34 @@ def test_calibration_that_does_not_match_the_head_is_refused() -> None:
     trimmed = replace(head, actuators=head.actuators[:-1])
     with pytest.raises(GateConfigError, match="lip_depressor_l"):
         TwinGate(trimmed, cal, 1 / 60, GateConfig(use_cache=False))
+
+
+def test_servo_held_at_its_narrowed_limit_is_a_clip_not_a_reject(fast_gate: TwinGate) -> None:
+    """The overload scenario: a derated servo already sits at its narrowed limit, the request still asks
+    for more and everything else has arrived. The clamp is the last command: a clip at the limit (same
+    goals as holding), not 'no safe command found'."""
+    fast_gate.reset()
+    n = fast_gate.neutral_goals()
+    over = {1: ServoHealth(35.0, 70.0, 1.2, overloaded=True)}
+    req = dict(n)
+    req[1] = int(fast_gate.table.max_tick[0])
+    last = dict(n)
+    for _ in range(200):  # walk servo 1 up to its narrowed limit
+        v = fast_gate.check(req, last, health=over)
+        if v.goals_tick == last:
+            break
+        last = v.goals_tick
+    assert v.goals_tick == last and last[1] < req[1]
+    assert v.kind == "clip" and v.step_fraction == 1.0
+    assert "limit" in v.checks and "health" in v.checks and "hold" not in v.checks
+    assert fast_gate.audit(v.goals_tick) == []
+
+
+def test_request_beyond_the_max_from_the_max_is_a_clip(fast_gate: TwinGate) -> None:
+    fast_gate.reset()
+    last = fast_gate.neutral_goals()
+    last[1] = int(fast_gate.table.max_tick[0])
+    req = dict(last)
+    req[1] += 40
+    v = fast_gate.check(req, last)
+    assert v.kind == "clip" and v.goals_tick == last and v.checks == ("limit",)
