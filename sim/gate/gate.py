@@ -214,10 +214,11 @@ class TwinGate:
         ]
         return out
 
-    def _last_ok(self, goals: IntArray) -> int | None:
+    def _last_ok(self, goals: IntArray, suspects: tuple[int, ...] = ()) -> int | None:
         """Index of the last of (k, n) candidates passing every state check, or None. Coupling is checked
         for all at once (cheap); collisions, then strain, one candidate at a time from the end, stopping at
-        the first that passes."""
+        the first that passes. ``suspects``: pair indices the request collided on, tested exactly first
+        (a contact found by the exact test fails the candidate whatever the broad phase says)."""
         targets, angles, world, pulls = self._pose_arrays(goals)
         coupling_ok = np.flatnonzero(self.coupling.ok(self._shares(targets)))
         s = self.config.strain
@@ -225,8 +226,10 @@ class TwinGate:
         for k in (int(i) for i in coupling_ok[::-1]):
             # contact first (broad phase, exact test on flagged pairs): where candidates fail it is mostly
             # by contact, and that is cheaper than the skin; a pass needs both, so the order changes nothing
+            if any(col._collide(col.specs[p], world[k]) for p in suspects):
+                continue
             flags = col.broad.flag(world[k], angles[k])  # one pose: the flat broad phase (fastest for one)
-            if any(col._collide(col.specs[p], world[k]) for p in np.flatnonzero(flags)):
+            if any(col._collide(col.specs[p], world[k]) for p in np.flatnonzero(flags) if p not in suspects):
                 continue
             offsets = self.skin_source.offsets_rows(pulls[k], self.skin.fast_vertices)
             stretch, comp, flips = self.skin.measure_one(world[k], offsets, self._static(goals[k]))
@@ -268,7 +271,9 @@ class TwinGate:
         clamped = lim.clamp(req, last, last_step, table)
         if not hard and np.array_equal(clamped, req):  # only health notes fired
             return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last)
-        best, frac = self._scale_back(req, last, last_step, table, skip_full=bool(hard))
+        hit = {f.parts for f in hard if f.check == "collision"}
+        suspects = tuple(p for p, spec in enumerate(self.collisions.specs) if (spec.a, spec.b) in hit)
+        best, frac = self._scale_back(req, last, last_step, table, skip_full=bool(hard), suspects=suspects)
         if best is not None and np.array_equal(best, last) and np.array_equal(clamped, last):
             # the per-servo clamp itself is the last command and passed every check (e.g. a servo held at
             # its narrowed limit while the others have arrived): a clip at the limits, not a refusal
@@ -288,6 +293,7 @@ class TwinGate:
         last_step: IntArray,
         table: lim.ServoTable,
         skip_full: bool = False,
+        suspects: tuple[int, ...] = (),
     ) -> tuple[IntArray | None, float]:
         """The largest step fraction whose clamped command passes every check (batched bisection).
         ``skip_full``: ``req`` itself failed a state check, so its clamp is not re-checked if equal."""
@@ -296,13 +302,13 @@ class TwinGate:
         best: IntArray | None = None
         best_frac = 0.0
         cand_1 = lim.clamp(req, last, last_step, table)
-        if not (skip_full and np.array_equal(cand_1, req)) and self._last_ok(cand_1[None, :]) == 0:
+        if not (skip_full and np.array_equal(cand_1, req)) and self._last_ok(cand_1[None, :], suspects) == 0:
             return cand_1, 1.0
         for _ in range(max(1, self.config.bisection_rounds)):
             fracs = lo + (hi - lo) * np.arange(1, 9) / 8.0
             raw = last + np.trunc(fracs[:, None] * step[None, :]).astype(np.int64)
             cands = lim.clamp(raw, last, last_step, table)
-            found = self._last_ok(cands)
+            found = self._last_ok(cands, suspects)
             if found is None:
                 hi = fracs[0]
                 continue
