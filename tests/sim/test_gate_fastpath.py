@@ -104,6 +104,10 @@ def test_scale_back_picks_the_last_candidate_the_audit_passes(gate_fm: tuple[Twi
         ]
         expected = max((k for k, good in enumerate(ok) if good), default=None)
         assert gate._last_ok(cands) == expected
+        # with the pairs the request (b) collides on tested first, as `check` passes them
+        hit = {f.parts for f in gate._hard_findings(b) if f.check == "collision"}
+        suspects = tuple(p for p, s in enumerate(gate.collisions.specs) if (s.a, s.b) in hit)
+        assert gate._last_ok(cands, suspects) == expected
 
 
 def test_verdicts_of_a_walk_match_a_fresh_gate_without_memo(gate_fm: tuple[TwinGate, Any]) -> None:
