@@ -61,6 +61,17 @@ class CouplingCheck:
             if not 0.0 <= rule.share <= float(len(rule.roles)):
                 raise GateConfigError(f"coupling rule '{rule.name}': share {rule.share} out of range")
             self._cols.append(np.array([col[r] for r in rule.roles], dtype=np.int64))
+        # all rules at once for `ok`: (R, L) padded columns, pad masked out of min and sum
+        width = max((len(c) for c in self._cols), default=0)
+        self._pad_cols = np.zeros((len(self.rules), width), dtype=np.int64)
+        self._pad_ok = np.zeros((len(self.rules), width), dtype=bool)
+        for i, c in enumerate(self._cols):
+            self._pad_cols[i, : len(c)] = c
+            self._pad_ok[i, : len(c)] = True
+        self._sign = np.array([-1.0 if r.direction == "-" else 1.0 for r in self.rules])[:, None]
+        self._abs = np.array([r.direction == "any" for r in self.rules])[:, None]
+        self._is_min = np.array([r.kind == "not_all_past" for r in self.rules])
+        self._limit = np.array([r.share for r in self.rules], dtype=np.float64)
 
     def _scores(self, shares: FloatArray) -> list[tuple[FloatArray, float]]:
         """Per rule: (score (...,), limit); the rule holds where score <= limit."""
@@ -76,10 +87,14 @@ class CouplingCheck:
 
     def ok(self, shares: FloatArray) -> NDArray[np.bool_]:
         """True where every rule holds; shape ``shares.shape[:-1]``."""
-        result = np.ones(shares.shape[:-1], dtype=bool)
-        for score, limit in self._scores(shares):
-            result &= score <= limit
-        return result
+        if not self.rules:
+            return np.ones(shares.shape[:-1], dtype=bool)
+        s = shares[..., self._pad_cols]  # (..., R, L)
+        s = np.where(self._abs, np.abs(s), s * self._sign)
+        lowest = np.where(self._pad_ok, s, np.inf).min(axis=-1)
+        total = np.where(self._pad_ok, np.maximum(s, 0.0), 0.0).sum(axis=-1)
+        score = np.where(self._is_min, lowest, total)
+        return np.asarray((score <= self._limit).all(axis=-1), dtype=bool)
 
     def findings(self, shares: FloatArray) -> list[Finding]:
         """One finding per broken rule, naming its roles and their shares; [] fast when all hold."""

@@ -158,3 +158,24 @@ def test_exact_memo_answers_like_the_exact_test(gate_fm: tuple[TwinGate, Any]) -
             assert col._collide(spec, world[k]) == fresh
             hits += fresh
     assert hits > 0 or gate.head.name == "human"  # the human's parts never meet inside the joint stops
+
+
+def test_vectorised_coupling_ok_matches_rule_by_rule() -> None:
+    from sim.gate.coupling import CouplingCheck, CouplingLimit
+
+    roles = ("a", "b", "c", "d")
+    rules = (
+        CouplingLimit("past", ("a", "b"), 0.5),
+        CouplingLimit("neg", ("b", "c", "d"), 0.3, direction="-"),
+        CouplingLimit("sum", ("a", "c"), 0.9, kind="sum_at_most", direction="any"),
+        CouplingLimit("sum+", ("a", "b", "c", "d"), 1.2, kind="sum_at_most"),
+    )
+    check = CouplingCheck(rules, roles)
+    shares = np.random.default_rng(3).uniform(-1, 1, size=(500, 4))
+    expected = np.ones(500, dtype=bool)
+    for score, limit in check._scores(shares):
+        expected &= score <= limit
+    got = check.ok(shares)
+    assert np.array_equal(got, expected) and 0 < got.sum() < 500
+    assert [bool(check.ok(row)) for row in shares[:50]] == expected[:50].tolist()
+    assert [bool(x) for x in check.ok(shares.reshape(25, 20, 4)).ravel()] == expected.tolist()
