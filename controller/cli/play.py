@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+from controller.cli.head_args import add_head_arguments, open_errors, open_face, rate_problem
+
 HELP = "play an expression or a timeline script on a head, on a real port or on the emulator"
 
 
@@ -23,35 +25,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--mirror", action="store_true", help="with --input: imitate a person facing the robot"
     )
-    parser.add_argument("--head", default="human", help="built-in head (human, dog) or a profile folder")
-    where = parser.add_mutually_exclusive_group(required=True)
-    where.add_argument(
-        "--port", help="serial port of the chain, e.g. /dev/ttyUSB0 (or a pty from `servoface emulate`)"
-    )
-    where.add_argument("--emulate", action="store_true", help="run on an in-process emulated chain")
-    parser.add_argument("--baud", type=int, default=1_000_000, help="bus speed in bps (default 1000000)")
-    parser.add_argument("--rate", type=float, default=50.0, help="control rate in Hz (default 50)")
+    add_head_arguments(parser)
     parser.add_argument(
         "--hold", type=float, default=1.5, help="seconds to hold an expression's apex (default 1.5)"
     )
-    parser.add_argument(
-        "--calibration", type=Path, help="calibration JSON (default: the one the profile names)"
-    )
-    parser.add_argument("--trace", type=Path, help="write every frame's trace as JSON lines to this file")
 
 
 def run(args: argparse.Namespace) -> int:
-    from calibration import CalibrationError
     from controller.errors import ControllerError
-    from controller.face import Face
     from controller.script import load_script
     from hardware.errors import HardwareError
     from sim.errors import SimError
     from sim.expressions import load_library
     from sim.heads import load_head
 
-    if not (0 < args.rate <= 1000):
-        print(f"servoface play: --rate must be within 0..1000 Hz, got {args.rate}", file=sys.stderr)
+    if (problem := rate_problem(args)) is not None:
+        print(f"servoface play: {problem}", file=sys.stderr)
         return 2
     if not (args.hold >= 0):
         print(f"servoface play: --hold must be >= 0 s, got {args.hold}", file=sys.stderr)
@@ -77,15 +66,8 @@ def run(args: argparse.Namespace) -> int:
             known = load_library(head.expressions_path or head.face_type)
             if args.what not in known:
                 raise ControllerError(f"unknown expression {args.what!r}; known: {sorted(known)}")
-        face = Face.open(
-            head,
-            port=args.port,
-            emulate=args.emulate,
-            baud=args.baud,
-            rate_hz=args.rate,
-            calibration=args.calibration,
-        )
-    except (ControllerError, SimError, CalibrationError, HardwareError, ValueError, OSError) as err:
+        face = open_face(args, head)
+    except open_errors() as err:
         print(f"servoface play: {err}", file=sys.stderr)
         return 2
     try:

@@ -12,14 +12,13 @@ import json
 import sys
 from pathlib import Path
 
+from controller.cli.head_args import add_head_arguments, open_errors, open_face, rate_problem
+
 HELP = "follow a live face-data stream (UDP, TCP or stdin JSON) on a head, on a real port or the emulator"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--head", default="human", help="built-in head (human, dog) or a profile folder")
-    where = parser.add_mutually_exclusive_group(required=True)
-    where.add_argument("--port", help="serial port of the chain, e.g. /dev/ttyUSB0")
-    where.add_argument("--emulate", action="store_true", help="run on an in-process emulated chain")
+    add_head_arguments(parser)
     src = parser.add_mutually_exclusive_group(required=True)
     src.add_argument("--udp", metavar="[HOST:]PORT", help="JSON datagrams, e.g. 127.0.0.1:9100")
     src.add_argument("--tcp", metavar="[HOST:]PORT", help="a TCP server, one JSON object per line")
@@ -59,17 +58,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-smoothing", action="store_true", help="switch the One-Euro filter off")
     parser.add_argument("--min-cutoff", type=float, default=1.5, help="One-Euro cutoff at rest, Hz (1.5)")
     parser.add_argument("--beta", type=float, default=0.5, help="One-Euro speed coefficient (0.5)")
-    parser.add_argument("--baud", type=int, default=1_000_000, help="bus speed in bps (default 1000000)")
-    parser.add_argument("--rate", type=float, default=50.0, help="control rate in Hz (default 50)")
-    parser.add_argument(
-        "--calibration", type=Path, help="calibration JSON (default: the one the profile names)"
-    )
     parser.add_argument(
         "--record",
         type=Path,
         help="write every accepted message's AUs as JSON lines (replay: play --input FILE)",
     )
-    parser.add_argument("--trace", type=Path, help="write every frame's trace as JSON lines to this file")
 
 
 def _fail(message: str) -> int:
@@ -78,9 +71,7 @@ def _fail(message: str) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    from calibration import CalibrationError
     from controller.errors import ControllerError
-    from controller.face import Face
     from controller.frame import FrameValidator
     from controller.inputs import LineReceiver, MessageDecoder, StreamSource, TcpReceiver, UdpReceiver
     from controller.inputs.follow import follow
@@ -91,8 +82,8 @@ def run(args: argparse.Namespace) -> int:
     from sim.errors import SimError
     from sim.heads import load_head
 
-    if not (0 < args.rate <= 1000):
-        return _fail(f"--rate must be within 0..1000 Hz, got {args.rate}")
+    if (problem := rate_problem(args)) is not None:
+        return _fail(problem)
     if args.duration is not None and not (0 < args.duration < 1e7):
         return _fail(f"--duration must be a positive number of seconds, got {args.duration}")
     if not 0.0 <= args.min_confidence <= 1.0:
@@ -138,15 +129,8 @@ def run(args: argparse.Namespace) -> int:
         else:
             receiver = LineReceiver(source, sys.stdin)
             where = "stdin"
-        face = Face.open(
-            head,
-            port=args.port,
-            emulate=args.emulate,
-            baud=args.baud,
-            rate_hz=args.rate,
-            calibration=args.calibration,
-        )
-    except (ControllerError, SimError, CalibrationError, HardwareError, ValueError, OSError) as err:
+        face = open_face(args, head)
+    except open_errors() as err:
         if receiver is not None:
             receiver.close()
         if recorder is not None:
