@@ -105,8 +105,7 @@ class Pipeline:
     # -- state ------------------------------------------------------------------------------------
     def pin_to(self, goals_tick: Mapping[int, int]) -> None:
         """Take ``goals_tick`` (e.g. present positions after torque-on) as the last safe command."""
-        known = {s.servo_id for s in self._servos}
-        unknown = sorted(set(goals_tick) - known)
+        unknown = sorted(set(goals_tick) - self._ids)
         if unknown:
             raise SimError(f"pin_to: servo id(s) {unknown} are not in head {self.head.name!r}")
         self.last_goals_tick = {**self.last_goals_tick, **{int(k): int(v) for k, v in goals_tick.items()}}
