@@ -4,13 +4,13 @@ Leaf package: imports nothing else of servoface. The procedure is handed a bus b
 
 Main entry points::
 
-    from calibration import load_calibration, HeadCalibration
+    from servoface.calibration import load_calibration, HeadCalibration
     cal = load_calibration("sim/heads/human/calibration.json")
     goals = cal.targets_to_goals({"jaw": 12.0, "brow_inner_l": 3.0})   # {18: 2185, 1: ...}
     targets = cal.goals_to_targets(goals)                                # {"jaw": 11.98..., ...}
 """
 
-from calibration.curves import (
+from servoface.calibration.curves import (
     CENTRE_TICK,
     TICKS_PER_DEG,
     TICKS_PER_TURN,
@@ -20,7 +20,7 @@ from calibration.curves import (
     PiecewiseLinearCurve,
     fit_curve,
 )
-from calibration.errors import (
+from servoface.calibration.errors import (
     CalibrationError,
     CalibrationFileError,
     CoverageError,
@@ -34,17 +34,17 @@ from calibration.errors import (
     TickOutOfRangeError,
     UnknownServoError,
 )
-from calibration.fileformat import (
+from servoface.calibration.fileformat import (
     SCHEMA_VERSION,
     calibration_from_dict,
     calibration_to_dict,
     load_calibration,
     save_calibration,
 )
-from calibration.head import CalibrationMetadata, HeadCalibration
-from calibration.rbf import RbfMap
-from calibration.servo import RbfCoupling, ServoCalibration
-from calibration.spec import ServoSpec
+from servoface.calibration.head import CalibrationMetadata, HeadCalibration
+from servoface.calibration.rbf import RbfMap
+from servoface.calibration.servo import RbfCoupling, ServoCalibration
+from servoface.calibration.spec import ServoSpec
 
 __all__ = [
     "CENTRE_TICK",

@@ -17,9 +17,8 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-
-from calibration.errors import TargetOutOfRangeError, TickOutOfRangeError
-from calibration.servo import ServoCalibration, round_ticks
+from servoface.calibration.errors import TargetOutOfRangeError, TickOutOfRangeError
+from servoface.calibration.servo import ServoCalibration, round_ticks
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]

@@ -21,12 +21,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-
-from calibration.curves import CENTRE_TICK, TICKS_PER_DEG, LinearCurve, PchipCurve
-from calibration.fileformat import save_calibration
-from calibration.fitting import FitReport, check_servo
-from calibration.head import CalibrationMetadata, HeadCalibration
-from calibration.spec import ServoSpec
+from servoface.calibration.curves import CENTRE_TICK, TICKS_PER_DEG, LinearCurve, PchipCurve
+from servoface.calibration.fileformat import save_calibration
+from servoface.calibration.fitting import FitReport, check_servo
+from servoface.calibration.head import CalibrationMetadata, HeadCalibration
+from servoface.calibration.spec import ServoSpec
 
 CRANK_MAX_ANGLE_DEG = 60.0
 ANCHOR_POINTS = 13  # PCHIP through 13 crank points stays within 0.3 tick of the crank
@@ -70,15 +69,13 @@ def builtin_calibration(head: str, specs: Sequence[ServoSpec], source: str = "")
     meta = CalibrationMetadata(
         created_utc="",  # deterministic: regenerating an unchanged head gives a byte-identical file
         method="builtin",
-        source=source or "calibration.builtin (ideal emulated servos)",
+        source=source or "servoface.calibration.builtin (ideal emulated servos)",
         notes="joints linear 4096/360 tick/deg, 2048 = neutral; anchors on a crank: "
         f"pull = r*sin(angle), r so the range ends at {CRANK_MAX_ANGLE_DEG:g} deg, stored as pchip",
     )
     return HeadCalibration(head, servos, meta)
 
 
-def write_builtin(
-    head: str, specs: Sequence[ServoSpec], path: str | os.PathLike[str], source: str = ""
-) -> Path:
+def write_builtin(head: str, specs: Sequence[ServoSpec], path: str | os.PathLike[str], source: str = "") -> Path:
     """Generate and save (atomically) the built-in calibration of ``head``."""
     return save_calibration(builtin_calibration(head, specs, source), path)

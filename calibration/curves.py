@@ -4,7 +4,7 @@ Every curve is strictly monotone (increasing or decreasing) on the whole real li
 construction, so it is invertible everywhere. Point curves (piecewise-linear, PCHIP) are defined by
 measured ``(target, tick)`` points and continue past their end points as straight lines with the end
 segment's secant slope. Limits, neutral and rounding to integer ticks belong to
-:class:`calibration.servo.ServoCalibration`; a curve is pure math.
+:class:`servoface.calibration.servo.ServoCalibration`; a curve is pure math.
 
 All evaluation is vectorised: ``forward`` and ``inverse`` take and return float arrays of any shape.
 """
@@ -18,8 +18,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
-
-from calibration.errors import CurveError, NotMonotoneError
+from servoface.calibration.errors import CurveError, NotMonotoneError
 
 TICKS_PER_TURN = 4096
 TICKS_PER_DEG = TICKS_PER_TURN / 360.0
@@ -93,7 +92,7 @@ class Curve(ABC):
 
     @abstractmethod
     def pieces(self) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """The curve as polynomial pieces, for evaluating many curves at once (see calibration.bank).
+        """The curve as polynomial pieces, for evaluating many curves at once (see servoface.calibration.bank).
 
         Returns ``knots`` (n,) ascending targets, ``base`` (n + 1,) and ``coef`` (n + 1, 4): for a target
         t with ``i = count(knots <= t)``, tick = sum_p coef[i, p] * (t - base[i]) ** p. Piece 0 is the
@@ -113,9 +112,7 @@ class LinearCurve(Curve):
 
     def __init__(self, offset_tick: float, scale_tick_per_unit: float, direction: int = 1) -> None:
         if not (np.isfinite(offset_tick) and np.isfinite(scale_tick_per_unit)):
-            raise CurveError(
-                f"linear curve: offset {offset_tick!r} and scale {scale_tick_per_unit!r} must be finite"
-            )
+            raise CurveError(f"linear curve: offset {offset_tick!r} and scale {scale_tick_per_unit!r} must be finite")
         if scale_tick_per_unit <= 0.0:
             raise NotMonotoneError(
                 f"linear curve: scale {scale_tick_per_unit!r} tick per unit must be > 0 "
@@ -134,9 +131,7 @@ class LinearCurve(Curve):
         arr = as_points(points)
         gain, offset = np.polyfit(arr[:, 0], arr[:, 1], 1)
         if gain == 0.0 or not np.isfinite(gain):
-            raise NotMonotoneError(
-                f"linear fit: slope {gain!r} tick per unit; the points do not move the servo"
-            )
+            raise NotMonotoneError(f"linear fit: slope {gain!r} tick per unit; the points do not move the servo")
         return cls(float(offset), float(abs(gain)), 1 if gain > 0 else -1)
 
     @property
@@ -283,8 +278,7 @@ class PchipCurve(_PointCurve):
         if not (np.all(steps > 0.0) or np.all(steps < 0.0)):
             i = int(np.argwhere((steps <= 0.0) if self._increasing else (steps >= 0.0))[0][0])
             raise NotMonotoneError(
-                f"pchip curve: not strictly monotone near target {grid[i]:g} "
-                f"(ticks {table[i]:g} -> {table[i + 1]:g})"
+                f"pchip curve: not strictly monotone near target {grid[i]:g} (ticks {table[i]:g} -> {table[i + 1]:g})"
             )
         self._grid = grid
         self._table = table if self._increasing else table[::-1]

@@ -57,11 +57,9 @@ class OutOfRangeError(CalibrationError, ValueError):
         self.upper = upper
         self.unit = unit
         super().__init__(
-            f"servo '{role}': {what} {value!r} {unit} is outside its calibrated range "
-            f"[{lower:g}, {upper:g}] {unit}"
+            f"servo '{role}': {what} {value!r} {unit} is outside its calibrated range [{lower:g}, {upper:g}] {unit}"
             if value == value and abs(value) != float("inf")
-            else f"servo '{role}': {what} {value!r} is not a finite number "
-            f"(expected {lower:g}..{upper:g} {unit})"
+            else f"servo '{role}': {what} {value!r} is not a finite number (expected {lower:g}..{upper:g} {unit})"
         )
 
 

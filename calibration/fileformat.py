@@ -36,8 +36,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from calibration.curves import (
+from servoface.calibration.curves import (
     TICKS_PER_TURN,
     Curve,
     LinearCurve,
@@ -45,10 +44,10 @@ from calibration.curves import (
     PiecewiseLinearCurve,
     points_list,
 )
-from calibration.errors import CalibrationError, CalibrationFileError
-from calibration.head import CalibrationMetadata, HeadCalibration
-from calibration.rbf import RbfMap
-from calibration.servo import UNITS, RbfCoupling, ServoCalibration
+from servoface.calibration.errors import CalibrationError, CalibrationFileError
+from servoface.calibration.head import CalibrationMetadata, HeadCalibration
+from servoface.calibration.rbf import RbfMap
+from servoface.calibration.servo import UNITS, RbfCoupling, ServoCalibration
 
 SCHEMA_VERSION = 1
 METHODS = ("procedure", "csv", "builtin")
@@ -168,9 +167,7 @@ def _coupling(r: _Reader, value: Any, path: str) -> RbfCoupling:
         raise r.fail(f"{path}.outputs", "expected a list of numbers")
     outputs = [r.number(o, f"{path}.outputs[{i}]") for i, o in enumerate(v["outputs"])]
     if len(outputs) != len(inputs):
-        raise r.fail(
-            f"{path}.outputs", f"expected {len(inputs)} values (one per input row), got {len(outputs)}"
-        )
+        raise r.fail(f"{path}.outputs", f"expected {len(inputs)} values (one per input row), got {len(outputs)}")
     smoothing = r.number(v["smoothing"], f"{path}.smoothing")
     try:
         return RbfCoupling(neighbours, RbfMap.fit(inputs, outputs, smoothing=smoothing))
@@ -220,9 +217,7 @@ def calibration_from_dict(data: Any, file: str = "<dict>") -> HeadCalibration:
     top = r.obj(data, "", _TOP_KEYS, _TOP_KEYS - {"metadata"})
     version = top["schema_version"]
     if isinstance(version, bool) or not isinstance(version, int) or version != SCHEMA_VERSION:
-        raise r.fail(
-            "schema_version", f"unknown schema version {version!r}; this servoface reads {SCHEMA_VERSION}"
-        )
+        raise r.fail("schema_version", f"unknown schema version {version!r}; this servoface reads {SCHEMA_VERSION}")
     head = r.string(top["head"], "head")
     units = top["units"]
     if not isinstance(units, dict) or units.get("ticks_per_turn") != TICKS_PER_TURN:
@@ -241,9 +236,7 @@ def calibration_from_dict(data: Any, file: str = "<dict>") -> HeadCalibration:
             raise r.fail(f"servos[{i}].role", f"role '{s.role}' already used by servos[{seen_role[s.role]}]")
         if s.servo_id in seen_id:
             j = seen_id[s.servo_id]
-            raise r.fail(
-                f"servos[{i}].id", f"id {s.servo_id} already used by servos[{j}] ('{servos[j].role}')"
-            )
+            raise r.fail(f"servos[{i}].id", f"id {s.servo_id} already used by servos[{j}] ('{servos[j].role}')")
         seen_role[s.role] = i
         seen_id[s.servo_id] = i
         servos.append(s)

@@ -14,12 +14,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-
-from calibration.curves import Curve, as_points, fit_curve
-from calibration.errors import CalibrationError, CoverageError, NotMonotoneError
-from calibration.rbf import RbfMap
-from calibration.servo import MAX_POSITION_TICK, MIN_POSITION_TICK, RbfCoupling, ServoCalibration, round_ticks
-from calibration.spec import ServoSpec
+from servoface.calibration.curves import Curve, as_points, fit_curve
+from servoface.calibration.errors import CalibrationError, CoverageError, NotMonotoneError
+from servoface.calibration.rbf import RbfMap
+from servoface.calibration.servo import (
+    MAX_POSITION_TICK,
+    MIN_POSITION_TICK,
+    RbfCoupling,
+    ServoCalibration,
+    round_ticks,
+)
+from servoface.calibration.spec import ServoSpec
 
 COVERAGE_TOLERANCE = 0.02  # fraction of the range the points may stop short of each end
 GAP_WARNING = 0.35  # warn when two neighbouring points are further apart than this fraction of the range
@@ -85,9 +90,7 @@ def fit_servo(
     return check_servo(spec, curve, pts, neutral_tick=neutral_tick)
 
 
-def check_servo(
-    spec: ServoSpec, curve: Curve, points: ArrayLike, *, neutral_tick: int | None = None
-) -> FitReport:
+def check_servo(spec: ServoSpec, curve: Curve, points: ArrayLike, *, neutral_tick: int | None = None) -> FitReport:
     """Checks and limits shared by every way of making a curve (see :func:`fit_servo`)."""
     kind = curve.kind
     pts = as_points(points, what=f"servo '{spec.role}' measured points")
@@ -109,9 +112,7 @@ def check_servo(
         warnings.append(
             f"servo '{spec.role}': the whole range is only {tick_hi - tick_lo} tick; resolution will be poor"
         )
-    neutral = (
-        int(round_ticks(curve.forward(np.array(spec.neutral)))) if neutral_tick is None else neutral_tick
-    )
+    neutral = int(round_ticks(curve.forward(np.array(spec.neutral)))) if neutral_tick is None else neutral_tick
     neutral = min(max(neutral, tick_lo), tick_hi)
     servo = ServoCalibration(
         spec.role,
@@ -154,11 +155,7 @@ def fit_coupling(
     points = np.hstack([np.zeros((grid.shape[0], 1)), grid])
     direction = rbf.axis_direction(points, 0, float(servo.min_tick), float(servo.max_tick))
     if np.any(direction == 0.0) or np.unique(direction).size > 1:
-        i = (
-            int(np.argmax(direction != direction[0]))
-            if np.all(direction != 0.0)
-            else int(np.argmax(direction == 0))
-        )
+        i = int(np.argmax(direction != direction[0])) if np.all(direction != 0.0) else int(np.argmax(direction == 0))
         where = ", ".join(f"{n}={v:g}" for n, v in zip(neighbours, grid[i], strict=True))
         raise NotMonotoneError(
             f"servo '{servo.role}': the coupled map is not strictly monotone in its own tick over "
@@ -202,16 +199,12 @@ def fit_coupled_servo(
                 f"its neutral {tick}; the slice at neutral is extrapolated"
             )
     own = np.linspace(x[:, 0].min(), x[:, 0].max(), COUPLED_SLICE_SAMPLES)
-    at_neutral = np.column_stack(
-        [own, np.tile(np.asarray(neighbour_neutral_tick, dtype=np.float64), (len(own), 1))]
-    )
+    at_neutral = np.column_stack([own, np.tile(np.asarray(neighbour_neutral_tick, dtype=np.float64), (len(own), 1))])
     pulls = rbf.evaluate(at_neutral)
     report = fit_servo(spec, np.column_stack([pulls, own]), "pchip")
     coupling = fit_coupling(report.servo, neighbours, x, y, smoothing=smoothing)
     neutral_rows = np.all(x[:, 1:] == np.asarray(neighbour_neutral_tick, dtype=np.float64), axis=1)
-    measured = (
-        np.column_stack([y[neutral_rows], x[neutral_rows, 0]]) if neutral_rows.any() else np.zeros((0, 2))
-    )
+    measured = np.column_stack([y[neutral_rows], x[neutral_rows, 0]]) if neutral_rows.any() else np.zeros((0, 2))
     servo = dataclasses.replace(report.servo, coupling=coupling, measured_points=measured)
     residual = float(np.max(np.abs(rbf.evaluate(x) - y)))
     return FitReport(

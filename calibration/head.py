@@ -16,10 +16,14 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-
-from calibration.bank import CurveBank
-from calibration.errors import CalibrationError, CurveError, TargetOutOfRangeError, UnknownServoError
-from calibration.servo import ServoCalibration, round_ticks
+from servoface.calibration.bank import CurveBank
+from servoface.calibration.errors import (
+    CalibrationError,
+    CurveError,
+    TargetOutOfRangeError,
+    UnknownServoError,
+)
+from servoface.calibration.servo import ServoCalibration, round_ticks
 
 
 @dataclass(frozen=True)
@@ -83,9 +87,7 @@ class HeadCalibration:
             coupling = self._by_role[role].coupling
             for n in coupling.neighbours if coupling else ():
                 if n not in self._by_role:
-                    raise CalibrationError(
-                        f"head '{self.head}': servo '{role}' is coupled to unknown role '{n}'"
-                    )
+                    raise CalibrationError(f"head '{self.head}': servo '{role}' is coupled to unknown role '{n}'")
                 visit(n, chain + (role,))
             state[role] = 2
             order.append(role)
@@ -186,8 +188,7 @@ class HeadCalibration:
         t = np.asarray(targets, dtype=np.float64)
         if t.ndim != 2 or t.shape[1] != len(self._roles):
             raise CalibrationError(
-                f"head '{self.head}': expected targets of shape (n, {len(self._roles)}) in role order, "
-                f"got {t.shape}"
+                f"head '{self.head}': expected targets of shape (n, {len(self._roles)}) in role order, got {t.shape}"
             )
         if not self._coupled:
             return self._bank.to_ticks(t)
@@ -210,8 +211,7 @@ class HeadCalibration:
         k = np.asarray(goals, dtype=np.float64)
         if k.ndim != 2 or k.shape[1] != len(self._roles):
             raise CalibrationError(
-                f"head '{self.head}': expected goals of shape (n, {len(self._roles)}) in role order, "
-                f"got {k.shape}"
+                f"head '{self.head}': expected goals of shape (n, {len(self._roles)}) in role order, got {k.shape}"
             )
         out = self._bank.to_targets(k, clip=clip)
         for j in self._coupled:

@@ -15,8 +15,8 @@ from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 
-from calibration.errors import MeasurementCsvError
-from calibration.servo import MAX_POSITION_TICK, MIN_POSITION_TICK
+from servoface.calibration.errors import MeasurementCsvError
+from servoface.calibration.servo import MAX_POSITION_TICK, MIN_POSITION_TICK
 
 HEADER = ("role", "target", "tick")
 
@@ -41,9 +41,7 @@ def _tick(name: str, lineno: int, text: str, what: str) -> int:
     except ValueError:
         raise MeasurementCsvError(name, lineno, f"{what} {text!r} is not an integer") from None
     if not MIN_POSITION_TICK <= tick <= MAX_POSITION_TICK:
-        raise MeasurementCsvError(
-            name, lineno, f"{what} {tick} is outside {MIN_POSITION_TICK}..{MAX_POSITION_TICK}"
-        )
+        raise MeasurementCsvError(name, lineno, f"{what} {tick} is outside {MIN_POSITION_TICK}..{MAX_POSITION_TICK}")
     return tick
 
 
@@ -75,9 +73,7 @@ def _row(
         if not sep or not other:
             raise MeasurementCsvError(name, lineno, f"extra cell {cell!r}: expected neighbour_role=tick")
         if other == role or (others is not None and other not in others):
-            raise MeasurementCsvError(
-                name, lineno, f"neighbour '{other}' of '{role}' is not another known role"
-            )
+            raise MeasurementCsvError(name, lineno, f"neighbour '{other}' of '{role}' is not another known role")
         if other in dict(neighbours):
             raise MeasurementCsvError(name, lineno, f"neighbour '{other}' given twice")
         neighbours.append((other, _tick(name, lineno, value.strip(), f"tick of neighbour '{other}'")))

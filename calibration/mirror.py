@@ -12,11 +12,10 @@ import dataclasses
 from collections.abc import Iterable
 
 import numpy as np
-
-from calibration.curves import Curve, LinearCurve, PchipCurve, PiecewiseLinearCurve
-from calibration.errors import CalibrationError
-from calibration.head import HeadCalibration
-from calibration.servo import MAX_POSITION_TICK, MIN_POSITION_TICK, ServoCalibration
+from servoface.calibration.curves import Curve, LinearCurve, PchipCurve, PiecewiseLinearCurve
+from servoface.calibration.errors import CalibrationError
+from servoface.calibration.head import HeadCalibration
+from servoface.calibration.servo import MAX_POSITION_TICK, MIN_POSITION_TICK, ServoCalibration
 
 
 def _mirror_curve(curve: Curve, centre: float) -> Curve:
@@ -29,14 +28,11 @@ def _mirror_curve(curve: Curve, centre: float) -> Curve:
     raise CalibrationError(f"cannot mirror a curve of kind {curve.kind!r}")
 
 
-def mirror_servo(
-    source: ServoCalibration, role: str, servo_id: int, model: str | None = None
-) -> ServoCalibration:
+def mirror_servo(source: ServoCalibration, role: str, servo_id: int, model: str | None = None) -> ServoCalibration:
     """The calibration of ``role`` (id ``servo_id``) as the mirror image of ``source``."""
     if source.coupling is not None:
         raise CalibrationError(
-            f"servo '{source.role}' is coupled to {list(source.coupling.neighbours)}; "
-            f"calibrate '{role}' itself"
+            f"servo '{source.role}' is coupled to {list(source.coupling.neighbours)}; calibrate '{role}' itself"
         )
     centre = float(source.neutral_tick)
     lo, hi = 2 * source.neutral_tick - source.max_tick, 2 * source.neutral_tick - source.min_tick

@@ -9,14 +9,11 @@ import os
 from pathlib import Path
 
 import numpy as np
+from servoface.calibration.errors import CalibrationError
+from servoface.calibration.servo import ServoCalibration
 
-from calibration.errors import CalibrationError
-from calibration.servo import ServoCalibration
 
-
-def plot_servo(
-    servo: ServoCalibration, path: str | os.PathLike[str], *, warnings: list[str] | None = None
-) -> Path:
+def plot_servo(servo: ServoCalibration, path: str | os.PathLike[str], *, warnings: list[str] | None = None) -> Path:
     """Write ``path`` (PNG): target on x, tick on y. Returns the path."""
     try:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -71,9 +68,7 @@ def plot_servo(
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize=8)
     if warnings:
-        fig.text(
-            0.01, 0.01, "\n".join(w[:110] for w in warnings[:3]), fontsize=6, color="tab:red", va="bottom"
-        )
+        fig.text(0.01, 0.01, "\n".join(w[:110] for w in warnings[:3]), fontsize=6, color="tab:red", va="bottom")
     fig.tight_layout()
     fig.savefig(str(p), format="png")
     return p

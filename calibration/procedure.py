@@ -22,15 +22,19 @@ from pathlib import Path
 from typing import Literal, Protocol
 
 import numpy as np
-
-from calibration.errors import CalibrationError, MeasurementCsvError, ProcedureAborted, ProcedureError
-from calibration.fileformat import metadata_now, save_calibration
-from calibration.fitting import FitReport, fit_coupled_servo, fit_servo
-from calibration.head import HeadCalibration
-from calibration.measurements import Measurement, read_measurements_csv
-from calibration.plot import plot_servo
-from calibration.servo import MAX_POSITION_TICK, MIN_POSITION_TICK
-from calibration.spec import ServoSpec
+from servoface.calibration.errors import (
+    CalibrationError,
+    MeasurementCsvError,
+    ProcedureAborted,
+    ProcedureError,
+)
+from servoface.calibration.fileformat import metadata_now, save_calibration
+from servoface.calibration.fitting import FitReport, fit_coupled_servo, fit_servo
+from servoface.calibration.head import HeadCalibration
+from servoface.calibration.measurements import Measurement, read_measurements_csv
+from servoface.calibration.plot import plot_servo
+from servoface.calibration.servo import MAX_POSITION_TICK, MIN_POSITION_TICK
+from servoface.calibration.spec import ServoSpec
 
 Step = Literal["neutral", "lower", "upper", "point", "extra"]
 
@@ -215,9 +219,7 @@ class _Session:
             }[step]
             present = self.present(spec)
             reply = self.operator.ask(
-                Prompt(
-                    spec.role, spec.servo_id, spec.unit, step, target, present, text, self.hint(spec, target)
-                )
+                Prompt(spec.role, spec.servo_id, spec.unit, step, target, present, text, self.hint(spec, target))
             )
             if isinstance(reply, Abort):
                 raise ProcedureAborted(f"calibration aborted by the operator at servo '{spec.role}' ({step})")
@@ -240,9 +242,7 @@ class _Session:
                 self.operator.tell(f"'{spec.role}': enter the target in {spec.unit} for this point")
                 continue
             return Measurement(spec.role, float(value), self.present(spec))
-        raise ProcedureError(
-            f"servo '{spec.role}': no capture after {self.options.max_jogs} replies ({step})"
-        )
+        raise ProcedureError(f"servo '{spec.role}': no capture after {self.options.max_jogs} replies ({step})")
 
     def measure(self, spec: ServoSpec) -> list[Measurement]:
         self.torque_off(spec)
@@ -282,9 +282,7 @@ def run_procedure(
         for attempt in range(1, opts.attempts + 1):
             points = session.measure(spec)
             try:
-                reports[spec.role] = fit_servo(
-                    spec, [(m.target, m.tick) for m in points], _kind_for(opts, spec.role)
-                )
+                reports[spec.role] = fit_servo(spec, [(m.target, m.tick) for m in points], _kind_for(opts, spec.role))
                 break
             except CalibrationError as err:
                 operator.tell(f"{err} (attempt {attempt} of {opts.attempts})")
@@ -311,7 +309,7 @@ def calibrate_from_csv(
 
     A role in ``specs`` with no rows is an error unless ``keep`` has it (then it is carried over). Rows
     with ``neighbour=tick`` cells make that servo a coupled anchor (RBF map, see
-    :func:`calibration.fitting.fit_coupled_servo`); its neighbours must be plain servos.
+    :func:`servoface.calibration.fitting.fit_coupled_servo`); its neighbours must be plain servos.
     """
     own = {s.role for s in specs}
     rows = read_measurements_csv(csv_path, roles=own, neighbour_roles=own | set(keep.roles if keep else ()))
@@ -387,9 +385,7 @@ def _finish(
     result = ProcedureResult(calibration, dict(reports))
     if plot_dir is not None:
         for role, report in reports.items():
-            result.plots[role] = plot_servo(
-                report.servo, Path(plot_dir) / f"{role}.png", warnings=report.warnings
-            )
+            result.plots[role] = plot_servo(report.servo, Path(plot_dir) / f"{role}.png", warnings=report.warnings)
     if out is not None:
         result.saved_to = save_calibration(calibration, out)
     return result

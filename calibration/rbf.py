@@ -22,8 +22,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
-
-from calibration.errors import CurveError, NotMonotoneError
+from servoface.calibration.errors import CurveError, NotMonotoneError
 
 FloatArray = NDArray[np.float64]
 
@@ -98,9 +97,7 @@ class RbfMap:
         except (scipy.linalg.LinAlgError, ValueError) as err:
             raise CurveError(f"rbf fit: the system is singular ({err})") from err
         if not np.all(np.isfinite(sol)) or np.linalg.cond(system) > 1e14:
-            raise CurveError(
-                "rbf fit: the system is singular; the input points must not all lie on one line/plane"
-            )
+            raise CurveError("rbf fit: the system is singular; the input points must not all lie on one line/plane")
         return cls(pn, radii, sol[:k], sol[k:], shift, scale, q.copy(), float(smoothing))
 
     @property
@@ -146,9 +143,7 @@ class RbfMap:
         dec = np.all(steps < 0.0, axis=1)
         return np.where(inc, 1.0, np.where(dec, -1.0, 0.0))
 
-    def solve_axis(
-        self, outputs: ArrayLike, points: ArrayLike, axis: int, lo: float, hi: float
-    ) -> FloatArray:
+    def solve_axis(self, outputs: ArrayLike, points: ArrayLike, axis: int, lo: float, hi: float) -> FloatArray:
         """The value along ``axis`` in [lo, hi] where G equals ``outputs``, the other inputs held.
 
         outputs: (n,) or scalar; points: (n, d) or (d,) (column ``axis`` ignored). Vectorised bisection

@@ -15,10 +15,14 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-
-from calibration.curves import Curve
-from calibration.errors import CalibrationError, CurveError, TargetOutOfRangeError, TickOutOfRangeError
-from calibration.rbf import RbfMap
+from servoface.calibration.curves import Curve
+from servoface.calibration.errors import (
+    CalibrationError,
+    CurveError,
+    TargetOutOfRangeError,
+    TickOutOfRangeError,
+)
+from servoface.calibration.rbf import RbfMap
 
 Unit = Literal["deg", "mm"]
 UNITS: tuple[str, ...] = ("deg", "mm")
@@ -88,8 +92,7 @@ class ServoCalibration:
             )
         if not self.min_tick <= self.neutral_tick <= self.max_tick:
             raise CalibrationError(
-                f"{who}: neutral tick {self.neutral_tick} is outside the limits "
-                f"{self.min_tick}..{self.max_tick}"
+                f"{who}: neutral tick {self.neutral_tick} is outside the limits {self.min_tick}..{self.max_tick}"
             )
         ends = np.sort(self.curve.inverse(np.array([self.min_tick, self.max_tick], dtype=np.float64)))
         lo, hi = self.min_target, self.max_target

@@ -1,6 +1,6 @@
 """What calibration needs to know about a servo before measuring it: the head's view of the actuator.
 
-The controller builds these from a head profile (``sim.heads.load_head``); calibration never imports sim.
+The controller builds these from a head profile (``servoface.sim.heads.load_head``); calibration never imports sim.
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-from calibration.errors import CalibrationError
+from servoface.calibration.errors import CalibrationError
 
 Kind = Literal["joint", "anchor"]
 

@@ -16,8 +16,8 @@ import re
 from functools import cache
 from typing import Any
 
-from controller.errors import FrameError
-from sim.rig import FaceType
+from servoface.controller.errors import FrameError
+from servoface.sim.rig import FaceType
 
 _NAME_RE = re.compile(r"^AU0*(\d{1,3})([LR]?)$")
 
@@ -93,7 +93,7 @@ def au_side(name: str) -> str:
 
 @cache
 def default_au_names(face_type: FaceType) -> frozenset[str]:
-    """The allowed AU names of a face type: the built-in AU table of ``sim.au`` when it loads, else the
+    """The allowed AU names of a face type: the built-in AU table of ``servoface.sim.au`` when it loads, else the
     sets above."""
     table = _au_table(face_type)
     if table is not None:
@@ -104,7 +104,7 @@ def default_au_names(face_type: FaceType) -> frozenset[str]:
 @cache
 def au_ranges(face_type: FaceType) -> dict[str, tuple[float, float]]:
     """Per-AU intensity ranges that differ from the face's range (DFACS AU15 blink and AU16 lick have no
-    counter: 0..1), from ``sim.au``'s table."""
+    counter: 0..1), from ``servoface.sim.au``'s table."""
     table = _au_table(face_type)
     out: dict[str, tuple[float, float]] = {}
     if table is None:
@@ -121,7 +121,7 @@ def au_ranges(face_type: FaceType) -> dict[str, tuple[float, float]]:
 
 def _au_table(face_type: FaceType) -> Any:
     try:
-        from sim.au import load_au_table
+        from servoface.sim.au import load_au_table
     except ImportError:
         return None
     try:
@@ -131,18 +131,16 @@ def _au_table(face_type: FaceType) -> Any:
 
 
 def head_au_names(head: Any) -> frozenset[str]:
-    """The AU names a head accepts: its own AU table (``head.au_table_path``, a ``sim.head.Head``) when it
+    """The AU names a head accepts: its own AU table (``head.au_table_path``, a ``servoface.sim.head.Head``) when it
     has one, else its face type's default set."""
     path = getattr(head, "au_table_path", None)
     if path:
         try:
-            from sim.au import load_au_table
+            from servoface.sim.au import load_au_table
 
             return frozenset(load_au_table(path).names())
         except Exception as err:  # noqa: BLE001 - report any table problem as a frame-side error
-            raise FrameError(
-                f"head {getattr(head, 'name', '?')}: cannot read its AU table {path}: {err}"
-            ) from err
+            raise FrameError(f"head {getattr(head, 'name', '?')}: cannot read its AU table {path}: {err}") from err
     return default_au_names(getattr(head, "face_type", None))
 
 

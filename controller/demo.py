@@ -15,12 +15,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from controller.face import Face
-from controller.performance import Performance
-from controller.pipeline import FrameTrace
-from controller.script import load_script
-from sim.rig import HeadPose
+from servoface.controller.face import Face
+from servoface.controller.performance import Performance
+from servoface.controller.pipeline import FrameTrace
+from servoface.controller.script import load_script
+from servoface.sim.rig import HeadPose
 
 SCRIPTS_DIR = Path(__file__).resolve().parent / "scripts"
 DEMO_SCRIPTS = {"human": SCRIPTS_DIR / "human_performance.toml", "dog": SCRIPTS_DIR / "dog_performance.toml"}
@@ -43,9 +42,7 @@ def settle_error_tick(face: Face, settle_s: float = 0.6) -> dict[int, int]:
         return {}
     snapshot = driver.read_state()
     goals = face.pipeline.last_goals_tick
-    return {
-        sid: abs(int(pos) - int(goals[sid])) for sid, pos in snapshot.positions_tick().items() if sid in goals
-    }
+    return {sid: abs(int(pos) - int(goals[sid])) for sid, pos in snapshot.positions_tick().items() if sid in goals}
 
 
 def gated_pose(face: Face, trace: FrameTrace) -> HeadPose:
@@ -64,9 +61,9 @@ def render_performance(
     progress: Callable[[int, int], None] | None = None,
 ) -> int:
     """Target face (left) vs gated face (right) for the played frames, resampled to ``fps``."""
-    from sim.render import HeadRenderer
-    from sim.render.images import render_side_by_side
-    from sim.render.video import write_gif, write_mp4
+    from servoface.sim.render import HeadRenderer
+    from servoface.sim.render.images import render_side_by_side
+    from servoface.sim.render.video import write_gif, write_mp4
 
     traces = perf.traces
     if not traces:
@@ -96,10 +93,9 @@ def render_performance(
 
 def write_sheet(face: Face, path: Path, size: tuple[int, int] = (240, 200)) -> list[str]:
     from PIL import Image as PILImage
-
-    from sim.expressions import load_library
-    from sim.render import HeadRenderer
-    from sim.render.clips import library_sheet
+    from servoface.sim.expressions import load_library
+    from servoface.sim.render import HeadRenderer
+    from servoface.sim.render.clips import library_sheet
 
     library = load_library(face.head.expressions_path or face.head.face_type)
     with HeadRenderer(*size) as renderer:
@@ -114,9 +110,8 @@ def write_clipped_frame(face: Face, perf: Performance, path: Path) -> Path | Non
     if not clipped:
         return None
     from PIL import Image as PILImage
-
-    from sim.render import HeadRenderer
-    from sim.render.images import render_side_by_side
+    from servoface.sim.render import HeadRenderer
+    from servoface.sim.render.images import render_side_by_side
 
     def gap(t: FrameTrace) -> int:
         return max(abs(t.goals_requested[s] - t.goals_sent[s]) for s in t.goals_sent)

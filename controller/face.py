@@ -1,7 +1,7 @@
 """`Face`: the ten-line Python API. Open a head on a port or on the emulator, set AUs or an expression,
 play a script, look at a point, close safely.
 
-    from controller.face import Face
+    from servoface.controller.face import Face
 
     with Face.open("human", emulate=True) as face:      # or Face.open("my_head/", port="/dev/ttyUSB0")
         face.express("happiness", hold_s=1.0)
@@ -24,21 +24,21 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from calibration import HeadCalibration, load_calibration
-from controller.alive.gaze import gaze_config_for, solve_look_at
-from controller.alive.gaze_layer import angles_to_aus
-from controller.errors import ControllerError
-from controller.frame import AUFrame, FrameValidator
-from controller.head_servos import servo_specs, temperature_limits_c
-from controller.performance import Performance, Samples, play_timeline
-from controller.pipeline import FrameTrace, Pipeline
-from controller.script import Script, load_script
-from controller.timeline import ChannelClip, Key, Timeline, min_jerk
-from hardware.bus import ServoBus, open_bus
-from hardware.driver import Driver
-from sim.expressions import load_library
-from sim.head import Head
-from sim.heads import load_head
+from servoface.calibration import HeadCalibration, load_calibration
+from servoface.controller.alive.gaze import gaze_config_for, solve_look_at
+from servoface.controller.alive.gaze_layer import angles_to_aus
+from servoface.controller.errors import ControllerError
+from servoface.controller.frame import AUFrame, FrameValidator
+from servoface.controller.head_servos import servo_specs, temperature_limits_c
+from servoface.controller.performance import Performance, Samples, play_timeline
+from servoface.controller.pipeline import FrameTrace, Pipeline
+from servoface.controller.script import Script, load_script
+from servoface.controller.timeline import ChannelClip, Key, Timeline, min_jerk
+from servoface.hardware.bus import ServoBus, open_bus
+from servoface.hardware.driver import Driver
+from servoface.sim.expressions import load_library
+from servoface.sim.head import Head
+from servoface.sim.heads import load_head
 
 _GAZE_AUS = frozenset({"AU51", "AU52", "AU53", "AU54", "AU55", "AU56", "AU61", "AU62", "AU63", "AU64"})
 _DOG_GAZE_AUS = frozenset({"AU9", "AU10", "AU11", "AU12", "AU13"})
@@ -121,7 +121,7 @@ class Face:
         specs = servo_specs(the_head, cal)
         chain = None
         if emulate:
-            from hardware.emulator import ServoChain
+            from servoface.hardware.emulator import ServoChain
 
             chain = ServoChain.create([(s.servo_id, s.model) for s in specs], baud=baud, wire_time=wire_time)
             for s in specs:  # the head powers up at rest
@@ -143,8 +143,7 @@ class Face:
             snapshot = driver.read_state()
             lo_hi = cal.position_limits_tick()
             present = {
-                sid: min(max(tick, lo_hi[sid][0]), lo_hi[sid][1])
-                for sid, tick in snapshot.positions_tick().items()
+                sid: min(max(tick, lo_hi[sid][0]), lo_hi[sid][1]) for sid, tick in snapshot.positions_tick().items()
             }
             pipeline.pin_to(present)
             pipeline.last_snapshot = snapshot
@@ -216,22 +215,17 @@ class Face:
             perf.interrupted = more.interrupted
             waited += SETTLE_CHUNK_S
 
-    def set_aus(
-        self, aus: Mapping[str, float], *, transition_s: float = 0.4, hold_s: float = 0.0
-    ) -> Performance:
+    def set_aus(self, aus: Mapping[str, float], *, transition_s: float = 0.4, hold_s: float = 0.0) -> Performance:
         """Move to the AU pose ``aus`` (AUs not named go to 0) over ``transition_s``, then hold."""
         pose = self.validator.pose(dict(aus), where="set_aus")
         for name, value in (("transition_s", transition_s), ("hold_s", hold_s)):
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-                raise ControllerError(
-                    f"set_aus: {name} must be a finite number of seconds >= 0, got {value!r}"
-                )
+                raise ControllerError(f"set_aus: {name} must be a finite number of seconds >= 0, got {value!r}")
         transition = max(float(transition_s), 1.0 / self.pipeline.rate_hz)
         duration = transition + float(hold_s)
         timeline = Timeline(self.head.face_type, initial_pose=self.pose)
         channels = {
-            au: (Key(0.0, None), Key(transition, value, min_jerk), Key(duration, value))
-            for au, value in pose.items()
+            au: (Key(0.0, None), Key(transition, value, min_jerk), Key(duration, value)) for au, value in pose.items()
         }
         clip = ChannelClip(
             channels,
@@ -268,9 +262,7 @@ class Face:
         if len(values) != 3 or not all(
             isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v) for v in values
         ):
-            raise ControllerError(
-                f"look_at: point_mm must be three finite numbers (x, y, z) in mm, got {point_mm!r}"
-            )
+            raise ControllerError(f"look_at: point_mm must be three finite numbers (x, y, z) in mm, got {point_mm!r}")
         cfg = gaze_config_for(self.head.face_type, self.head)
         gaze = solve_look_at(tuple(float(v) for v in values), cfg)  # type: ignore[arg-type]
         gaze_aus = angles_to_aus(
@@ -286,20 +278,30 @@ class Face:
         pose.update({au: v for au, v in gaze_aus.items() if abs(v) > 1e-9})
         return self.set_aus(pose, transition_s=transition_s)
 
-    def play(self, script: Script | str | Path) -> Performance:
-        """Play a timeline script (a TOML file or a loaded Script) to its end."""
+    def play(self, script: Script | str | Path, *, duration_s: float | None = None) -> Performance:
+        """Play a timeline script to its end (or for ``duration_s`` at most): a TOML file, a shipped
+        script by name (``"human_performance"``, see ``servoface list scripts``) or a loaded Script."""
         loaded = script if isinstance(script, Script) else load_script(script)
         if loaded.face_type != self.head.face_type:
             raise ControllerError(
                 f"script {loaded.source} is for a {loaded.face_type} face; "
                 f"head {self.head.name!r} is {self.head.face_type}"
             )
-        return self._run(loaded, loaded.end_s)
+        end_s = loaded.end_s
+        if duration_s is not None:
+            if (
+                isinstance(duration_s, bool)
+                or not isinstance(duration_s, int | float)
+                or not (0 < duration_s < math.inf)
+            ):
+                raise ControllerError(f"play: duration_s must be a positive number of seconds, got {duration_s!r}")
+            end_s = min(end_s, float(duration_s))
+        return self._run(loaded, end_s)
 
     def follow(self, source: Samples, duration_s: float | None = None) -> Performance:
-        """Follow a live source (``controller.inputs.StreamSource``) or a recording for ``duration_s``
+        """Follow a live source (``servoface.controller.inputs.StreamSource``) or a recording for ``duration_s``
         (None = until Ctrl-C); the source's dropout policy decides what a gap in the data looks like."""
-        from controller.inputs.follow import follow
+        from servoface.controller.inputs.follow import follow
 
         self._check_open()
         if duration_s is not None and not (isinstance(duration_s, int | float) and 0 < duration_s < math.inf):

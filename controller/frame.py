@@ -2,10 +2,10 @@
 
 ``AUFrame(t_s, aus)`` is what every input (preset, timeline, file, live stream) hands to the pipeline.
 Construction always checks what is true for every face: ``t_s`` finite, names follow the AU grammar
-(:mod:`controller.au_names`), values are real, finite and within -1..1. Give ``face_type`` (and
+(:mod:`servoface.controller.au_names`), values are real, finite and within -1..1. Give ``face_type`` (and
 optionally the head's own ``allowed`` name set from its AU table) for the full check: human FACS 0..1,
 DFACS signed -1..1 (negative = the counter AU), names known to that face. Failures raise
-:class:`controller.errors.FrameError` naming the AU and what was expected; nothing is half-built.
+:class:`servoface.controller.errors.FrameError` naming the AU and what was expected; nothing is half-built.
 """
 
 from __future__ import annotations
@@ -16,9 +16,15 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
 
-from controller.au_names import au_ranges, canonical_au, default_au_names, head_au_names, intensity_range
-from controller.errors import FrameError
-from sim.rig import FaceType
+from servoface.controller.au_names import (
+    au_ranges,
+    canonical_au,
+    default_au_names,
+    head_au_names,
+    intensity_range,
+)
+from servoface.controller.errors import FrameError
+from servoface.sim.rig import FaceType
 
 FACE_TYPES: tuple[FaceType, ...] = ("human", "dog")
 
@@ -30,9 +36,7 @@ def check_face_type(face_type: Any, *, field: str = "face type") -> FaceType:
     return face_type  # type: ignore[no-any-return]
 
 
-def check_intensity(
-    value: Any, *, field: str, lo: float = -1.0, hi: float = 1.0, what: str = "AU intensity"
-) -> float:
+def check_intensity(value: Any, *, field: str, lo: float = -1.0, hi: float = 1.0, what: str = "AU intensity") -> float:
     """Return ``value`` as a float if it is a finite real number in [lo, hi], else raise FrameError."""
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise FrameError(f"{field}: expected a number ({what} {lo:g}..{hi:g}), got {value!r}")
@@ -58,9 +62,7 @@ def validate_aus(
     ``where`` prefixes every message (e.g. ``"poses.smile"``) so errors name the whole path.
     """
     if not isinstance(aus, Mapping):
-        raise FrameError(
-            f"{where or 'aus'}: expected a mapping of AU name -> intensity, got {type(aus).__name__}"
-        )
+        raise FrameError(f"{where or 'aus'}: expected a mapping of AU name -> intensity, got {type(aus).__name__}")
     lo, hi = (-1.0, 1.0) if face_type is None else intensity_range(check_face_type(face_type))
     names = None
     ranges: dict[str, tuple[float, float]] = {}
@@ -72,9 +74,7 @@ def validate_aus(
         field = f"{where}.{raw}" if where else str(raw)
         name = raw if names is not None and raw in names else canonical_au(raw, field=field)
         if names is not None and name not in names:
-            raise FrameError(
-                f"{field}: {name} is not an AU of the {face_type} face; expected one of {_sample(names)}"
-            )
+            raise FrameError(f"{field}: {name} is not an AU of the {face_type} face; expected one of {_sample(names)}")
         if name in out:
             raise FrameError(f"{field}: {name} is given twice (names are case-insensitive)")
         kind = "DFACS intensity" if face_type == "dog" else "FACS intensity" if face_type else "AU intensity"
@@ -167,7 +167,7 @@ class FrameValidator:
 
     @classmethod
     def for_head(cls, head: Any) -> FrameValidator:
-        """A validator for a loaded head (``sim.head.Head``): its face type and its AU table's names."""
+        """A validator for a loaded head (``servoface.sim.head.Head``): its face type and its AU table's names."""
         return cls(check_face_type(getattr(head, "face_type", None)), head_au_names(head))
 
     @property

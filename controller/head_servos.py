@@ -6,11 +6,11 @@ backstop never fights a legal goal): the last safety layer under the twin gate.
 
 from __future__ import annotations
 
-from calibration import HeadCalibration
-from hardware.registers import model_by_name
-from hardware.servo_config import ServoSpec
-from sim.errors import HeadProfileError
-from sim.head import Head
+from servoface.calibration import HeadCalibration
+from servoface.hardware.registers import model_by_name
+from servoface.hardware.servo_config import ServoSpec
+from servoface.sim.errors import HeadProfileError
+from servoface.sim.head import Head
 
 # Head profiles may use the short catalogue name; the driver names the Protocol 2.0 firmware explicitly.
 _MODEL_ALIASES = {"MX-28": "MX-28(2.0)", "MX-28-2.0": "MX-28(2.0)"}
@@ -60,6 +60,5 @@ def servo_specs(
 def temperature_limits_c(specs: list[ServoSpec]) -> dict[int, float]:
     """id -> the temperature limit the servo works to (its spec's, else the model's default)."""
     return {
-        s.servo_id: float(s.temperature_limit_c or model_by_name(s.model).default_temperature_limit_c)
-        for s in specs
+        s.servo_id: float(s.temperature_limit_c or model_by_name(s.model).default_temperature_limit_c) for s in specs
     }

@@ -26,7 +26,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
-from controller.errors import LoopError
+from servoface.controller.errors import LoopError
 
 Clock = Callable[[], float]
 Sleep = Callable[[float], None]

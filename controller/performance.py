@@ -13,9 +13,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from controller.frame import AUFrame
-from controller.loop import FixedRateLoop, LoopStats, Tick, stop_on_sigint
-from controller.pipeline import FrameTrace, Pipeline
+from servoface.controller.frame import AUFrame
+from servoface.controller.loop import FixedRateLoop, LoopStats, Tick, stop_on_sigint
+from servoface.controller.pipeline import FrameTrace, Pipeline
 
 
 class Samples(Protocol):
@@ -52,8 +52,7 @@ class Performance:
         if self.traces:
             stages = self.traces[0].timings_ms.keys()
             out["median_stage_ms"] = {
-                s: round(sorted(t.timings_ms[s] for t in self.traces)[len(self.traces) // 2], 4)
-                for s in stages
+                s: round(sorted(t.timings_ms[s] for t in self.traces)[len(self.traces) // 2], 4) for s in stages
             }
             out["bytes_written"] = sum(t.bytes_written for t in self.traces)
         return out

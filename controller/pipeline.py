@@ -14,17 +14,16 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-
-from calibration import HeadCalibration
-from controller.errors import FrameError
-from controller.frame import AUFrame
-from controller.telemetry import gate_health
-from hardware.driver import Driver
-from hardware.snapshot import ChainSnapshot
-from sim.errors import SimError
-from sim.face_model import FaceModel
-from sim.gate import GateConfig, TwinGate, Verdict
-from sim.head import Head
+from servoface.calibration import HeadCalibration
+from servoface.controller.errors import FrameError
+from servoface.controller.frame import AUFrame
+from servoface.controller.telemetry import gate_health
+from servoface.hardware.driver import Driver
+from servoface.hardware.snapshot import ChainSnapshot
+from servoface.sim.errors import SimError
+from servoface.sim.face_model import FaceModel
+from servoface.sim.gate import GateConfig, TwinGate, Verdict
+from servoface.sim.head import Head
 
 
 @dataclass(frozen=True)
@@ -117,9 +116,7 @@ class Pipeline:
 
     def clamp_targets(self, targets: Mapping[str, float]) -> tuple[dict[str, float], list[str]]:
         """Targets clamped into each servo's calibrated range, with one reason per clamp."""
-        values = np.array(
-            [float(targets.get(s.role, n)) for s, n in zip(self._servos, self._neutral, strict=True)]
-        )
+        values = np.array([float(targets.get(s.role, n)) for s, n in zip(self._servos, self._neutral, strict=True)])
         if not np.all(np.isfinite(values)):
             bad = [s.role for s, v in zip(self._servos, values, strict=True) if not np.isfinite(v)]
             raise FrameError(f"muscle model produced non-finite targets for {bad}")
@@ -131,9 +128,7 @@ class Pipeline:
         ]
         return {s.role: float(c) for s, c in zip(self._servos, clamped, strict=True)}, reasons
 
-    def step(
-        self, frame: AUFrame | Mapping[str, float], t_s: float | None = None, late_s: float = 0.0
-    ) -> FrameTrace:
+    def step(self, frame: AUFrame | Mapping[str, float], t_s: float | None = None, late_s: float = 0.0) -> FrameTrace:
         """Run one frame. Raises (FrameError / sim errors) on invalid input, before anything is sent."""
         timings: dict[str, float] = {}
         t0 = time.perf_counter()

@@ -1,6 +1,6 @@
 """Timeline scripts in TOML: poses, expressions and when to play them, gaze, blinks, idle, blend rules.
 
-A script becomes a :class:`~controller.timeline.Timeline`; ``Script.sample(t_s) -> AUFrame``. Every error
+A script becomes a :class:`~servoface.controller.timeline.Timeline`; ``Script.sample(t_s) -> AUFrame``. Every error
 is a :class:`ScriptError` naming the file, the key path (and the line when it can be found); TOML syntax
 errors carry tomllib's line and column. The format (all times in seconds, intensities per face):
 
@@ -11,7 +11,7 @@ errors carry tomllib's line and column. The format (all times in seconds, intens
         pose + onset_s + apex_s + offset_s [+ easing]          (onset / apex / offset envelope)
         keyframes = [{ t_s = 0.2, pose = .., easing = ".." }]  (poses reached at clip times)
         events = ["AU14", "-AU9", 7, {au = "AU7", value = 0.5}] | recipe = "anger"  [+ timing, repeat] (dog)
-        library = "happiness" [+ onset_s, apex_s, offset_s, easing | + timing (dog)]  (sim.expressions)
+        library = "happiness" [+ onset_s, apex_s, offset_s, easing | + timing (dog)]  (servoface.sim.expressions)
     [[play]]                 at_s, track = "face" (default) | any name; expression = "name" |
                              sequence = ["a", "b"] | recipe = "anger" | library = "happiness";
                              from = pose (optional start pose)
@@ -33,12 +33,12 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-from controller.alive import BlinkConfig, BlinkLayer, GazeLayer, IdleConfig, IdleLayer
-from controller.alive.gaze import gaze_config_for
-from controller.errors import FrameError, ScriptError, TimelineError
-from controller.frame import AUFrame, FrameValidator
-from controller.script_fields import Reader
-from controller.timeline import (
+from servoface.controller.alive import BlinkConfig, BlinkLayer, GazeLayer, IdleConfig, IdleLayer
+from servoface.controller.alive.gaze import gaze_config_for
+from servoface.controller.errors import FrameError, ScriptError, TimelineError
+from servoface.controller.frame import AUFrame, FrameValidator
+from servoface.controller.script_fields import Reader
+from servoface.controller.timeline import (
     BlendPolicy,
     Clip,
     Event,
@@ -52,8 +52,8 @@ from controller.timeline import (
     recipe_events,
     sequence,
 )
-from controller.timeline.library import library_clip
-from sim.rig import FaceType
+from servoface.controller.timeline.library import library_clip
+from servoface.sim.rig import FaceType
 
 SCRIPTS_DIR = Path(__file__).resolve().parent / "scripts"
 ALIVE_LAYERS = ("gaze", "blink", "idle")
@@ -83,8 +83,11 @@ def example_scripts() -> list[Path]:
 
 
 def load_script(path: str | Path, *, allowed: frozenset[str] | None = None) -> Script:
-    """Read and build a script file. ``allowed`` = the head's AU names (default: the face's built-in set)."""
-    p = Path(path)
+    """Read and build a script file, or a shipped script by name (``human_performance``, see
+    :mod:`servoface.controller.shipped`). ``allowed`` = the head's AU names (default: the face's built-in set)."""
+    from servoface.controller.shipped import resolve_script
+
+    p = resolve_script(path)
     try:
         text = p.read_text(encoding="utf-8")
     except OSError as err:
@@ -150,9 +153,7 @@ class _Builder:
         if isinstance(value, str) and by_name:
             if value not in self.poses:
                 known = ", ".join(sorted(self.poses)) or "none defined"
-                self.r.fail(
-                    path, f"unknown pose {value!r}; expected a pose name ({known}) or an inline table"
-                )
+                self.r.fail(path, f"unknown pose {value!r}; expected a pose name ({known}) or an inline table")
             return self.poses[value]
         table = self.r.table(value, path)
         try:
@@ -210,8 +211,7 @@ class _Builder:
             r.fail(_first_path(str(err), path), _strip_path(str(err)), err)
         r.fail(
             path,
-            "expected movements (+ duration_s), keyframes, onset_s/apex_s/offset_s (+ pose), "
-            "or events/recipe",
+            "expected movements (+ duration_s), keyframes, onset_s/apex_s/offset_s (+ pose), or events/recipe",
         )
 
     def keyframes(self, name: str, keys: list[Any], path: str) -> Clip:
@@ -227,9 +227,7 @@ class _Builder:
             if t < prev:
                 r.fail(f"{kpath}.t_s", f"keyframes must be in time order; {t:g} s comes after {prev:g} s")
             times.append(t)
-            moves.append(
-                (self.pose(r.get(k, "pose", kpath, required=True), f"{kpath}.pose"), self.easing(k, kpath))
-            )
+            moves.append((self.pose(r.get(k, "pose", kpath, required=True), f"{kpath}.pose"), self.easing(k, kpath)))
             prev = t
         duration = times[-1]
         if duration <= 0:
@@ -346,9 +344,7 @@ class _Builder:
         for key in keys:
             if key.endswith("_mm") and key in setup:
                 raw = self.r.array(setup, key, "gaze_setup")
-                if len(raw) != 3 or not all(
-                    isinstance(c, int | float) and not isinstance(c, bool) for c in raw
-                ):
+                if len(raw) != 3 or not all(isinstance(c, int | float) and not isinstance(c, bool) for c in raw):
                     self.r.fail(f"gaze_setup.{key}", f"expected [x, y, z] in mm (head frame), got {raw!r}")
                 values[key] = tuple(float(c) for c in raw)
             elif key in setup:
@@ -369,9 +365,7 @@ class _Builder:
             target = None
             if "look_at_mm" in entry:
                 raw = self.r.array(entry, "look_at_mm", path)
-                if len(raw) != 3 or not all(
-                    isinstance(c, int | float) and not isinstance(c, bool) for c in raw
-                ):
+                if len(raw) != 3 or not all(isinstance(c, int | float) and not isinstance(c, bool) for c in raw):
                     self.r.fail(f"{path}.look_at_mm", f"expected [x, y, z] in mm (head frame), got {raw!r}")
                 target = (float(raw[0]), float(raw[1]), float(raw[2]))
             try:
@@ -410,9 +404,7 @@ class _Builder:
         if not all(isinstance(p, str) for p in priority):
             r.fail("blend.priority", f"expected an array of track names, got {priority!r}")
         try:
-            return BlendPolicy.for_face(
-                self.face, rules, priority or None, r.string(table, "default", "blend", "max")
-            )
+            return BlendPolicy.for_face(self.face, rules, priority or None, r.string(table, "default", "blend", "max"))
         except (TimelineError, FrameError) as err:
             r.fail("blend.rules" if rules else "blend.default", _strip_path(str(err)), err)
 

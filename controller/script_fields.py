@@ -1,6 +1,6 @@
-"""Typed reading of a parsed TOML script with key paths in every error (used by controller.script).
+"""Typed reading of a parsed TOML script with key paths in every error (used by servoface.controller.script).
 
-Errors are :class:`controller.errors.ScriptError` with ``file``, ``key_path`` and (best effort) ``line``
+Errors are :class:`servoface.controller.errors.ScriptError` with ``file``, ``key_path`` and (best effort) ``line``
 attributes; the message reads ``<file>:<line>: <key.path>: <what was expected>``.
 """
 
@@ -11,7 +11,7 @@ import re
 from collections.abc import Mapping, Sequence
 from typing import Any, NoReturn
 
-from controller.errors import ScriptError
+from servoface.controller.errors import ScriptError
 
 
 def line_of(text: str, path: str) -> int | None:
@@ -26,9 +26,7 @@ def line_of(text: str, path: str) -> int | None:
         header_path = ".".join(re.sub(r"\[\d+\]", "", p) for p in parts[: depth + 1])
         index = int(idx.rstrip("]")) if idx else None
         if index is not None:
-            headers = [
-                i for i in range(lo, hi) if re.match(rf"^\s*\[\[\s*{re.escape(header_path)}\s*\]\]", lines[i])
-            ]
+            headers = [i for i in range(lo, hi) if re.match(rf"^\s*\[\[\s*{re.escape(header_path)}\s*\]\]", lines[i])]
             if index < len(headers):
                 if depth == len(parts) - 1:
                     return headers[index] + 1
@@ -77,9 +75,7 @@ class Reader:
             if key not in allowed:
                 self.fail(_join(path, key), f"unknown key; expected one of: {', '.join(allowed)}")
 
-    def get(
-        self, table: Mapping[str, Any], key: str, path: str, default: Any = ..., *, required: bool = False
-    ) -> Any:
+    def get(self, table: Mapping[str, Any], key: str, path: str, default: Any = ..., *, required: bool = False) -> Any:
         if key not in table:
             if required or default is ...:
                 self.fail(_join(path, key), "missing; this key is required")
@@ -99,9 +95,7 @@ class Reader:
             self.fail(_join(path, key), f"expected {what} in {lo:g}..{hi:g}, got {value!r}")
         return float(value)
 
-    def integer(
-        self, table: Mapping[str, Any], key: str, path: str, default: Any = ..., *, lo: int = 0
-    ) -> int:
+    def integer(self, table: Mapping[str, Any], key: str, path: str, default: Any = ..., *, lo: int = 0) -> int:
         value = self.get(table, key, path, default)
         if isinstance(value, bool) or not isinstance(value, int) or value < lo:
             self.fail(_join(path, key), f"expected an integer >= {lo}, got {value!r}")

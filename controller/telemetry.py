@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from hardware.snapshot import ChainSnapshot, FaultKind
-from sim.gate import ServoHealth
+from servoface.hardware.snapshot import ChainSnapshot, FaultKind
+from servoface.sim.gate import ServoHealth
 
 _HOT = {FaultKind.OVERHEATING, FaultKind.THERMAL_DERATE, FaultKind.THERMAL_TORQUE_OFF}
 _OVERLOADED = {FaultKind.OVERLOAD, FaultKind.LOAD_BACKOFF}

@@ -2,7 +2,7 @@
 
 Leaf package: imports nothing else of servoface. Servos are integer ids here; roles live above.
 
-Driver side, one idea per module (nothing is imported here, so ``import hardware`` stays cheap):
+Driver side, one idea per module (nothing is imported here, so ``import servoface.hardware`` stays cheap):
 
 - ``registers``      control-table fields as an enum (address, size, sign, area), models, error bits
 - ``bus``            the `ServoBus` interface and ``open_bus(name, ...)``; ``dynamixel_bus`` the only SDK user

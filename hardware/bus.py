@@ -1,6 +1,6 @@
 """The servo bus interface (python-can style) and the factory that picks a backend by name.
 
-Everything in servoface talks to a chain through `ServoBus`; only `hardware.dynamixel_bus` touches
+Everything in servoface talks to a chain through `ServoBus`; only `servoface.hardware.dynamixel_bus` touches
 dynamixel-sdk. Backends are imported lazily by `open_bus`, so importing this module costs nothing.
 
 Error contract, shared by every backend (and checked by one contract test suite):
@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from types import TracebackType
 from typing import Any, Protocol, runtime_checkable
 
-from hardware.registers import Register
+from servoface.hardware.registers import Register
 
 
 @dataclass(frozen=True)
@@ -119,9 +119,9 @@ class BackendInfo:
 
 BACKENDS: dict[str, BackendInfo] = {
     # the real Dynamixel bus; ``port`` is a device path (or a pty path), or an emulated chain object
-    "dynamixel": BackendInfo("hardware.dynamixel_bus", "DynamixelBus"),
+    "dynamixel": BackendInfo("servoface.hardware.dynamixel_bus", "DynamixelBus"),
     # the same bus class, in-process against an emulated chain (``chain=`` or ``port=`` a ServoChain)
-    "emulator": BackendInfo("hardware.dynamixel_bus", "DynamixelBus", ("memory",)),
+    "emulator": BackendInfo("servoface.hardware.dynamixel_bus", "DynamixelBus", ("memory",)),
 }
 
 

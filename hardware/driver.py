@@ -13,9 +13,9 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
 
-from hardware.bus import ServoBus
-from hardware.driver_reads import MOTION, READ_FAILURES, STATUS, THERMAL, ChainReads, TelemetryGroup
-from hardware.errors import (
+from servoface.hardware.bus import ServoBus
+from servoface.hardware.driver_reads import MOTION, READ_FAILURES, STATUS, THERMAL, ChainReads, TelemetryGroup
+from servoface.hardware.errors import (
     BusCorruptError,
     BusDisconnectedError,
     BusError,
@@ -24,13 +24,13 @@ from hardware.errors import (
     GoalRejectedError,
     HardwareConfigError,
 )
-from hardware.fault_policy import FaultPolicy, ThermalTrend, eased_goal
-from hardware.fault_reactions import FaultReactions
-from hardware.goal_check import check_goals
-from hardware.registers import Register
-from hardware.servo_config import ConfigReport, ServoSpec, check_specs, configure_servo
-from hardware.servo_record import ServoRecord
-from hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind
+from servoface.hardware.fault_policy import FaultPolicy, ThermalTrend, eased_goal
+from servoface.hardware.fault_reactions import FaultReactions
+from servoface.hardware.goal_check import check_goals
+from servoface.hardware.registers import Register
+from servoface.hardware.servo_config import ConfigReport, ServoSpec, check_specs, configure_servo
+from servoface.hardware.servo_record import ServoRecord
+from servoface.hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind
 
 
 class Driver(ChainReads):
@@ -137,9 +137,7 @@ class Driver(ChainReads):
         rec.temperature_limit_c = report.limits[Register.TEMPERATURE_LIMIT]
         rec.current_limit = report.limits[Register.CURRENT_LIMIT] if rec.info.reports_current else None
         if rec.derated:  # configuration wrote the spec's profile; keep the derated one
-            self.bus.write(
-                rec.servo_id, Register.PROFILE_VELOCITY, self._reactions.derated_profile_velocity(rec)
-            )
+            self.bus.write(rec.servo_id, Register.PROFILE_VELOCITY, self._reactions.derated_profile_velocity(rec))
         return report
 
     def _pin_and_enable(self, rec: ServoRecord) -> None:
@@ -197,9 +195,7 @@ class Driver(ChainReads):
     def _guard(self, rec: ServoRecord, tick: int) -> int:
         lo, hi = rec.limits_tick
         if not lo <= tick <= hi:  # the last line of defence before the wire; unreachable by design
-            raise GoalRejectedError(
-                rec.servo_id, tick, f"{rec.spec.label}: refusing to send {tick} outside {lo}..{hi}"
-            )
+            raise GoalRejectedError(rec.servo_id, tick, f"{rec.spec.label}: refusing to send {tick} outside {lo}..{hi}")
         return tick
 
     def _write_goal_single(self, rec: ServoRecord, tick: int) -> None:

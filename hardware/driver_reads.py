@@ -6,13 +6,13 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from hardware.bus import ServoBus
-from hardware.errors import BusCorruptError, BusTimeoutError, ServoStatusError
-from hardware.fault_policy import FaultPolicy
-from hardware.fault_reactions import FaultReactions
-from hardware.registers import Register
-from hardware.servo_record import ServoRecord
-from hardware.snapshot import FaultKind
+from servoface.hardware.bus import ServoBus
+from servoface.hardware.errors import BusCorruptError, BusTimeoutError, ServoStatusError
+from servoface.hardware.fault_policy import FaultPolicy
+from servoface.hardware.fault_reactions import FaultReactions
+from servoface.hardware.registers import Register
+from servoface.hardware.servo_record import ServoRecord
+from servoface.hardware.snapshot import FaultKind
 
 POSITION = (Register.PRESENT_POSITION,)
 MOTION = (Register.MOVING, Register.PRESENT_CURRENT, Register.PRESENT_VELOCITY)  # 122..131, one block
@@ -95,8 +95,7 @@ class ChainReads:
         return [
             sid
             for sid, rec in self._records.items()
-            if not rec.missing
-            and (rec.recover_at_s is None or rec.recover_at_s <= now or rec.reboot_at_s is not None)
+            if not rec.missing and (rec.recover_at_s is None or rec.recover_at_s <= now or rec.reboot_at_s is not None)
         ]
 
     def _read_positions(self, now: float) -> None:

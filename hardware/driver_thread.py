@@ -13,9 +13,9 @@ from concurrent.futures import Future
 from types import TracebackType
 from typing import TypeVar
 
-from hardware.driver import Driver
-from hardware.errors import HardwareError
-from hardware.snapshot import ChainSnapshot
+from servoface.hardware.driver import Driver
+from servoface.hardware.errors import HardwareError
+from servoface.hardware.snapshot import ChainSnapshot
 
 T = TypeVar("T")
 

@@ -6,7 +6,7 @@ chain's pyserial-like object — so the SDK's packet, CRC and timeout code runs 
 
 The SDK's reply window is ``tx_time * bytes + 2 * LATENCY_TIMER + 2 ms`` with a module-global
 ``LATENCY_TIMER = 16``; our port handlers carry their own ``latency_timer_ms`` instead (set from the OS
-latency timer, see `hardware.latency`), so two buses in one process do not fight over a global.
+latency timer, see `servoface.hardware.latency`), so two buses in one process do not fight over a global.
 """
 
 from __future__ import annotations
@@ -17,9 +17,8 @@ from types import TracebackType
 from typing import Any, Protocol
 
 import dynamixel_sdk as sdk
-
-from hardware.bus import BusStats, PingReply, check_ids
-from hardware.errors import (
+from servoface.hardware.bus import BusStats, PingReply, check_ids
+from servoface.hardware.errors import (
     BusClosedError,
     BusCorruptError,
     BusDisconnectedError,
@@ -28,8 +27,8 @@ from hardware.errors import (
     HardwareConfigError,
     ServoStatusError,
 )
-from hardware.latency import read_latency_timer, sdk_latency_ms, warn_if_high
-from hardware.registers import STATUS_ALERT_BIT, STATUS_ERROR_NAMES, Register, slice_value, span
+from servoface.hardware.latency import read_latency_timer, sdk_latency_ms, warn_if_high
+from servoface.hardware.registers import STATUS_ALERT_BIT, STATUS_ERROR_NAMES, Register, slice_value, span
 
 SDK_BAUDS = (
     9600,
@@ -126,7 +125,7 @@ def _is_pty(path: str) -> bool:
 
 
 class DynamixelBus:
-    """A Protocol 2.0 chain over dynamixel-sdk. Implements `hardware.bus.ServoBus`.
+    """A Protocol 2.0 chain over dynamixel-sdk. Implements `servoface.hardware.bus.ServoBus`.
 
     ``latency_timer_ms``: the SDK latency constant for this port (default: from the OS timer for a real
     USB adapter, 16 ms for a pty, 2 ms in-process). ``warn_latency``: warn (`UsbLatencyWarning`) when an FTDI
@@ -142,9 +141,7 @@ class DynamixelBus:
         warn_latency: bool = True,
     ) -> None:
         if baud not in SDK_BAUDS:
-            raise HardwareConfigError(
-                f"baud {baud} cannot be opened by dynamixel-sdk; expected one of {SDK_BAUDS}"
-            )
+            raise HardwareConfigError(f"baud {baud} cannot be opened by dynamixel-sdk; expected one of {SDK_BAUDS}")
         self.baud = baud
         self.stats = BusStats()
         self.alerts: set[int] = set()
@@ -157,20 +154,14 @@ class DynamixelBus:
             if warn_latency:
                 warn_if_high(timer)
             self.latency_timer_ms = (
-                float(latency_timer_ms)
-                if latency_timer_ms is not None
-                else float(sdk_latency_ms(timer, _is_pty(port)))
+                float(latency_timer_ms) if latency_timer_ms is not None else float(sdk_latency_ms(timer, _is_pty(port)))
             )
         else:
             if not hasattr(port, "open_serial"):
-                raise HardwareConfigError(
-                    f"port must be a path or an emulated chain with open_serial(), got {port!r}"
-                )
+                raise HardwareConfigError(f"port must be a path or an emulated chain with open_serial(), got {port!r}")
             self._port = _ChainPort(port)
             self.port_name = self._port.port_name
-            self.latency_timer_ms = (
-                IN_PROCESS_LATENCY_MS if latency_timer_ms is None else float(latency_timer_ms)
-            )
+            self.latency_timer_ms = IN_PROCESS_LATENCY_MS if latency_timer_ms is None else float(latency_timer_ms)
         self._port.latency_timer_ms = self.latency_timer_ms
 
     # -- life cycle ---------------------------------------------------------------------------------
@@ -186,7 +177,7 @@ class DynamixelBus:
             ok = self._port.openPort()
         except (OSError, ValueError) as err:
             raise BusDisconnectedError(
-                f"cannot open port {self.port_name} at {self.baud} bps: {err}"
+                f"cannot open port {self.port_name} at {self.baud} bps: {err}{_open_hint(err)}"
             ) from err
         if not ok:
             raise BusError(f"cannot open port {self.port_name} at {self.baud} bps")
@@ -215,9 +206,7 @@ class DynamixelBus:
         self.close()
 
     def __repr__(self) -> str:
-        return (
-            f"DynamixelBus({self.port_name!r}, baud={self.baud}, latency_timer_ms={self.latency_timer_ms:g})"
-        )
+        return f"DynamixelBus({self.port_name!r}, baud={self.baud}, latency_timer_ms={self.latency_timer_ms:g})"
 
     # -- plumbing -----------------------------------------------------------------------------------
     def _call(self, fn: Any, *args: Any) -> Any:
@@ -243,9 +232,7 @@ class DynamixelBus:
             self.stats.corrupt += 1
             raise BusCorruptError(f"{what}: corrupt reply (bad CRC or truncated) from {list(ids)}", ids)
         if comm == sdk.COMM_PORT_BUSY:
-            raise BusError(
-                f"{what}: port {self.port_name} is in use by another caller (one thread owns a bus)", ids
-            )
+            raise BusError(f"{what}: port {self.port_name} is in use by another caller (one thread owns a bus)", ids)
         if comm != sdk.COMM_SUCCESS:
             raise BusError(f"{what}: {self._packet.getTxRxResult(comm)} (code {comm})", ids)
         if err & 0x7F:
@@ -299,9 +286,7 @@ class DynamixelBus:
     def write(self, servo_id: int, register: Register, value: int) -> None:
         check_ids([servo_id])
         data = list(register.encode(value))
-        comm, err = self._call(
-            self._packet.writeTxRx, self._port, servo_id, register.address, register.size, data
-        )
+        comm, err = self._call(self._packet.writeTxRx, self._port, servo_id, register.address, register.size, data)
         self.stats.bytes_written += 12 + register.size
         self._check(comm, err, f"write {register.name}={value} to servo {servo_id}", (servo_id,))
 
@@ -361,9 +346,7 @@ class DynamixelBus:
             block = group.data_dict.get(sid)
             if block is None or len(block) < length:
                 self.stats.corrupt += 1
-                raise BusCorruptError(
-                    f"{what}: servo {sid} returned {0 if block is None else len(block)} bytes", ids
-                )
+                raise BusCorruptError(f"{what}: servo {sid} returned {0 if block is None else len(block)} bytes", ids)
             raw = bytes(block)
             out[sid] = {r: int.from_bytes(raw[a:b], "little", signed=sg) for r, a, b, sg in fields}
         return out
@@ -399,12 +382,26 @@ class DynamixelBus:
             regs = sorted(writes[sid], key=lambda r: r.address)
             start, length = span(tuple(regs))
             if sum(r.size for r in regs) != length:
-                raise HardwareConfigError(
-                    f"bulk write to servo {sid}: registers {[r.name for r in regs]} leave gaps"
-                )
+                raise HardwareConfigError(f"bulk write to servo {sid}: registers {[r.name for r in regs]} leave gaps")
             data = b"".join(r.encode(writes[sid][r]) for r in regs)
             group.addParam(sid, start, length, list(data))
         if not ids:
             return
         comm = self._call(group.txPacket)
         self._check(comm, 0, "bulk write", ids)
+
+
+def _open_hint(err: BaseException) -> str:
+    """What to do about a port that would not open (permission, missing device, busy)."""
+    text = str(err)
+    code = getattr(err, "errno", None)
+    if code == 13 or "Errno 13" in text or "Permission denied" in text:
+        return (
+            "; no permission: on Linux add yourself to the 'dialout' group "
+            "(sudo usermod -aG dialout $USER, then log out and in again)"
+        )
+    if code == 2 or "Errno 2" in text or "No such file" in text:
+        return "; no such device: check the cable and the name (ls /dev/ttyUSB* /dev/ttyACM*)"
+    if code == 16 or "Errno 16" in text or "busy" in text.lower():
+        return "; the port is busy: another program has it open"
+    return ""

@@ -67,9 +67,7 @@ class ServoConfigMismatch(HardwareConfigError):
         self.field = field
         self.expected = expected
         self.actual = actual
-        super().__init__(
-            f"servo {servo_id}: {field} reads back {actual}, expected {expected} after writing it"
-        )
+        super().__init__(f"servo {servo_id}: {field} reads back {actual}, expected {expected} after writing it")
 
 
 class GoalRejectedError(HardwareConfigError):

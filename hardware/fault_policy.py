@@ -1,6 +1,6 @@
 """Fault policy: thresholds and the pure decisions the driver takes on them (tested without a bus).
 
-The reactions themselves (which register is written when) live in `hardware.driver`; the table in the
+The reactions themselves (which register is written when) live in `servoface.hardware.driver`; the table in the
 README section "Faults" lists both.
 """
 
@@ -31,9 +31,7 @@ class FaultPolicy:
     thermal_derate_horizon_s: float = 120.0  # ... or when predicted to reach the limit within this
     thermal_off_horizon_s: float = 20.0  # torque off when predicted to reach the limit within this
     thermal_off_margin_c: float = 1.0  # ... or at (limit - this)
-    thermal_resume_margin_c: float = (
-        10.0  # back in service (and reboot if the servo shut down) below limit - this
-    )
+    thermal_resume_margin_c: float = 10.0  # back in service (and reboot if the servo shut down) below limit - this
     thermal_window_s: float = 30.0  # rate of rise: least-squares slope over this window
     derate_profile_velocity: int = 40  # Profile Velocity while derated (0.229 rpm units)
     # supply voltage (defaults: the model's recommended supply range)
@@ -48,11 +46,7 @@ class FaultPolicy:
     def __post_init__(self) -> None:
         for name in ("retries", "missing_after_failures", "max_reboots", "voltage_debounce"):
             value = getattr(self, name)
-            if (
-                isinstance(value, bool)
-                or not isinstance(value, int)
-                or value < (1 if name != "retries" else 0)
-            ):
+            if isinstance(value, bool) or not isinstance(value, int) or value < (1 if name != "retries" else 0):
                 raise ValueError(f"FaultPolicy.{name} = {value!r}: expected a positive int")
         for name, value in vars(self).items():
             if isinstance(value, float) and (not math.isfinite(value) or value < 0):
@@ -116,9 +110,7 @@ class ThermalTrend:
         return (limit_c - latest) / slope
 
 
-def thermal_level(
-    temperature_c: float, limit_c: float, seconds_to_limit: float | None, policy: FaultPolicy
-) -> int:
+def thermal_level(temperature_c: float, limit_c: float, seconds_to_limit: float | None, policy: FaultPolicy) -> int:
     """0 = fine, 1 = derate, 2 = torque off (before the servo's own shutdown at the limit)."""
     if temperature_c >= limit_c - policy.thermal_off_margin_c or (
         seconds_to_limit is not None and seconds_to_limit <= policy.thermal_off_horizon_s

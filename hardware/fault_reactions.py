@@ -7,12 +7,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from hardware.bus import ServoBus
-from hardware.errors import BusCorruptError, BusTimeoutError, ServoStatusError
-from hardware.fault_policy import FaultPolicy, thermal_level, voltage_state
-from hardware.registers import DRIVE_MODE_TIME_BASED_PROFILE, HardwareErrorBits, Register
-from hardware.servo_record import ServoRecord
-from hardware.snapshot import FaultEvent, FaultKind
+from servoface.hardware.bus import ServoBus
+from servoface.hardware.errors import BusCorruptError, BusTimeoutError, ServoStatusError
+from servoface.hardware.fault_policy import FaultPolicy, thermal_level, voltage_state
+from servoface.hardware.registers import DRIVE_MODE_TIME_BASED_PROFILE, HardwareErrorBits, Register
+from servoface.hardware.servo_record import ServoRecord
+from servoface.hardware.snapshot import FaultEvent, FaultKind
 
 Emit = Callable[[int | None, FaultKind, str], None]
 _LATCHING = HardwareErrorBits.MOTOR_ENCODER | HardwareErrorBits.ELECTRICAL_SHOCK
@@ -71,9 +71,7 @@ class FaultReactions:
             rec.reboot_reason = reason
             rec.fault_t_s = now
             if reason in (FaultKind.OVERHEATING, FaultKind.VOLTAGE_LOW):
-                self.request_read(
-                    "thermal"
-                )  # the reboot waits for a temperature/voltage read after the fault
+                self.request_read("thermal")  # the reboot waits for a temperature/voltage read after the fault
 
     # -- telemetry handlers -------------------------------------------------------------------------
     def on_status(self, rec: ServoRecord, torque_enable: int, hw_error: int, now: float) -> None:
@@ -150,11 +148,7 @@ class FaultReactions:
         elif level >= 1 and FaultKind.THERMAL_DERATE not in rec.faults:
             rec.faults.add(FaultKind.THERMAL_DERATE)
             self._set_derate(rec, True)
-            eta = (
-                ""
-                if rec.seconds_to_limit is None
-                else f", limit in {rec.seconds_to_limit:.0f} s at this rate"
-            )
+            eta = "" if rec.seconds_to_limit is None else f", limit in {rec.seconds_to_limit:.0f} s at this rate"
             self.emit(
                 rec.servo_id,
                 FaultKind.THERMAL_DERATE,
@@ -182,10 +176,7 @@ class FaultReactions:
         state = voltage_state(rec.voltage_v, low, high)
         if state == 0:
             rec.voltage_count = 0
-            if (
-                FaultKind.VOLTAGE_LOW in rec.faults
-                and not rec.hardware_error & HardwareErrorBits.INPUT_VOLTAGE
-            ):
+            if FaultKind.VOLTAGE_LOW in rec.faults and not rec.hardware_error & HardwareErrorBits.INPUT_VOLTAGE:
                 rec.faults.discard(FaultKind.VOLTAGE_LOW)
                 if FaultKind.THERMAL_DERATE not in rec.faults:
                     self._set_derate(rec, False)

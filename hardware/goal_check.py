@@ -6,24 +6,20 @@ import math
 import operator
 from collections.abc import Mapping
 
-from hardware.errors import GoalRejectedError
-from hardware.servo_config import ServoSpec
+from servoface.hardware.errors import GoalRejectedError
+from servoface.hardware.servo_config import ServoSpec
 
 
 def check_goals(goals_tick: Mapping[int, int], specs: Mapping[int, ServoSpec]) -> dict[int, int]:
     """Every goal an integer tick (not a float, bool, NaN or inf) for a known servo, inside its configured
     ``min_position_tick..max_position_tick``; else `GoalRejectedError` naming the servo."""
     if not isinstance(goals_tick, Mapping):
-        raise GoalRejectedError(
-            None, goals_tick, f"goals must be a mapping servo id -> tick, got {type(goals_tick)}"
-        )
+        raise GoalRejectedError(None, goals_tick, f"goals must be a mapping servo id -> tick, got {type(goals_tick)}")
     out: dict[int, int] = {}
     for sid, goal in goals_tick.items():
         spec = specs.get(sid) if isinstance(sid, int) and not isinstance(sid, bool) else None
         if spec is None:
-            raise GoalRejectedError(
-                sid, goal, f"goal for unknown servo id {sid!r}; configured: {list(specs)}"
-            )
+            raise GoalRejectedError(sid, goal, f"goal for unknown servo id {sid!r}; configured: {list(specs)}")
         if isinstance(goal, float) and not math.isfinite(goal):
             raise GoalRejectedError(sid, goal, f"{spec.label}: goal {goal!r} is not finite; nothing sent")
         if isinstance(goal, bool):

@@ -192,9 +192,7 @@ _ALL_MODES = frozenset(OperatingMode)
 _NO_CURRENT = frozenset(
     {OperatingMode.VELOCITY, OperatingMode.POSITION, OperatingMode.EXTENDED_POSITION, OperatingMode.PWM}
 )
-_DEFAULT_SHUTDOWN = (
-    HardwareErrorBits.OVERHEATING | HardwareErrorBits.ELECTRICAL_SHOCK | HardwareErrorBits.OVERLOAD
-)
+_DEFAULT_SHUTDOWN = HardwareErrorBits.OVERHEATING | HardwareErrorBits.ELECTRICAL_SHOCK | HardwareErrorBits.OVERLOAD
 
 MODELS: dict[int, ModelInfo] = {
     m.number: m

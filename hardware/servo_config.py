@@ -14,9 +14,9 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from hardware.bus import ServoBus
-from hardware.errors import ServoConfigMismatch, ServoDescriptionError
-from hardware.registers import (
+from servoface.hardware.bus import ServoBus
+from servoface.hardware.errors import ServoConfigMismatch, ServoDescriptionError
+from servoface.hardware.registers import (
     DRIVE_MODE_TIME_BASED_PROFILE,
     HardwareErrorBits,
     ModelInfo,
@@ -69,9 +69,7 @@ class ServoSpec:
     def validate(self) -> None:
         sid = self.servo_id
         if isinstance(sid, bool) or not isinstance(sid, int) or not 0 <= sid <= 252:
-            raise ServoDescriptionError(
-                None, "servo_id", f"servo_id {sid!r} ({self.role}): expected an int 0..252"
-            )
+            raise ServoDescriptionError(None, "servo_id", f"servo_id {sid!r} ({self.role}): expected an int 0..252")
         try:
             info = model_by_name(self.model)
         except KeyError as err:
@@ -110,10 +108,7 @@ class ServoSpec:
         for name in ("profile_velocity", "profile_acceleration"):
             if not 0 <= getattr(self, name) <= 32767:
                 raise self._fail(name, f"= {getattr(self, name)}: expected 0..32767")
-        if (
-            self.drive_mode & DRIVE_MODE_TIME_BASED_PROFILE
-            and self.profile_acceleration > self.profile_velocity // 2
-        ):
+        if self.drive_mode & DRIVE_MODE_TIME_BASED_PROFILE and self.profile_acceleration > self.profile_velocity // 2:
             raise self._fail(
                 "profile_acceleration",
                 f"= {self.profile_acceleration} ms: time-based profile needs "
@@ -122,22 +117,16 @@ class ServoSpec:
         if not 0 <= self.return_delay_us <= 508 or self.return_delay_us % 2:
             raise self._fail("return_delay_us", f"= {self.return_delay_us}: expected an even number 0..508")
         if not 0 <= self.drive_mode <= 0x0D:
-            raise self._fail(
-                "drive_mode", f"= {self.drive_mode}: expected bits 0 (reverse), 2 (time-based), 3"
-            )
+            raise self._fail("drive_mode", f"= {self.drive_mode}: expected bits 0 (reverse), 2 (time-based), 3")
         if self.shutdown is not None and (int(self.shutdown) & ~0x3D or int(self.shutdown) < 0):
-            raise self._fail(
-                "shutdown", f"= {self.shutdown!r}: expected HardwareErrorBits (0x01|0x04|0x08|0x10|0x20)"
-            )
+            raise self._fail("shutdown", f"= {self.shutdown!r}: expected HardwareErrorBits (0x01|0x04|0x08|0x10|0x20)")
         if self.temperature_limit_c is not None and not (
             isinstance(self.temperature_limit_c, int) and 0 <= self.temperature_limit_c <= 100
         ):
             raise self._fail("temperature_limit_c", f"= {self.temperature_limit_c!r}: expected an int 0..100")
         for name in ("min_voltage_v", "max_voltage_v"):
             value = getattr(self, name)
-            if value is not None and not (
-                isinstance(value, int | float) and math.isfinite(value) and 0 < value < 30
-            ):
+            if value is not None and not (isinstance(value, int | float) and math.isfinite(value) and 0 < value < 30):
                 raise self._fail(name, f"= {value!r}: expected volts, 0 < V < 30")
         if (
             self.min_voltage_v is not None
@@ -171,9 +160,7 @@ class ServoSpec:
             Register.OPERATING_MODE: int(self.operating_mode),
             Register.DRIVE_MODE: self.drive_mode,
             Register.RETURN_DELAY_TIME: self.return_delay_us // 2,
-            Register.SHUTDOWN: int(
-                self.shutdown if self.shutdown is not None else self.model_info.default_shutdown
-            ),
+            Register.SHUTDOWN: int(self.shutdown if self.shutdown is not None else self.model_info.default_shutdown),
         }
         if self.operating_mode == OperatingMode.POSITION:  # the servo ignores the limits in other modes
             out[Register.MIN_POSITION_LIMIT] = self.min_position_tick
@@ -212,9 +199,7 @@ class ServoSpec:
             )
         for required in ("servo_id", "model"):
             if required not in data:
-                raise ServoDescriptionError(
-                    None, required, f"{key_path}: missing required field {required!r}"
-                )
+                raise ServoDescriptionError(None, required, f"{key_path}: missing required field {required!r}")
         kwargs = dict(data)
         if "operating_mode" in kwargs and isinstance(kwargs["operating_mode"], str):
             try:
@@ -225,11 +210,7 @@ class ServoSpec:
                     "operating_mode",
                     f"{key_path}.operating_mode: unknown mode {data['operating_mode']!r}",
                 ) from err
-        if (
-            "shutdown" in kwargs
-            and isinstance(kwargs["shutdown"], int)
-            and not isinstance(kwargs["shutdown"], bool)
-        ):
+        if "shutdown" in kwargs and isinstance(kwargs["shutdown"], int) and not isinstance(kwargs["shutdown"], bool):
             kwargs["shutdown"] = HardwareErrorBits(kwargs["shutdown"])
         try:
             return cls(**kwargs)

@@ -5,10 +5,10 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass, field
 
-from hardware.fault_policy import ThermalTrend
-from hardware.registers import VELOCITY_RPM_PER_LSB, HardwareErrorBits, ModelInfo, Register
-from hardware.servo_config import ServoSpec
-from hardware.snapshot import FaultKind, ServoState
+from servoface.hardware.fault_policy import ThermalTrend
+from servoface.hardware.registers import VELOCITY_RPM_PER_LSB, HardwareErrorBits, ModelInfo, Register
+from servoface.hardware.servo_config import ServoSpec
+from servoface.hardware.snapshot import FaultKind, ServoState
 
 
 @dataclass

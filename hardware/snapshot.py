@@ -7,8 +7,8 @@ from dataclasses import dataclass
 from enum import Enum
 from types import MappingProxyType
 
-from hardware.bus import BusCounters
-from hardware.registers import HardwareErrorBits
+from servoface.hardware.bus import BusCounters
+from servoface.hardware.registers import HardwareErrorBits
 
 
 class FaultKind(Enum):

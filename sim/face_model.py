@@ -3,14 +3,14 @@
 ``FaceModel(head).solve(aus)`` validates the AUs, maps them through the head's AU table to muscle
 contractions and joint angles (sum of signed contributions, then clamp: contractions to the table's range,
 joints to their limits), deforms the rest skin by the precomputed Waters-style muscle fields
-(``sim.muscles.field``), and reads the actuator targets off the result:
+(``servoface.sim.muscles.field``), and reads the actuator targets off the result:
 
 - joint actuator  -> the mean angle of its joints (deg), clamped to the actuator's range;
 - anchor actuator -> the skin offset of its anchor vertex projected on its line of action (mm), clamped.
 
 ``pose_from_targets(targets)`` is the twin's inverse: joints straight from the joint targets, skin from the
 anchor pulls by a bounded least-squares fit of muscle contractions plus exact per-anchor bumps
-(``sim.muscles.fit``). Everything heavy is precomputed in the constructor: one ``solve`` is two small
+(``servoface.sim.muscles.fit``). Everything heavy is precomputed in the constructor: one ``solve`` is two small
 matrix products, one sparse matrix-vector product and a few dictionary builds.
 """
 
@@ -25,20 +25,26 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.au.mapping import AUMapping, canonical_au_name, check_au
-from sim.au.table import AUTable, load_au_table
-from sim.errors import HeadProfileError, PoseError, UnknownActionUnitError
-from sim.muscles import EyelidMuscle, LinearMuscle, Muscle, SheetMuscle, SphincterMuscle, muscle_from_mapping
-from sim.muscles.field import MuscleField
-from sim.muscles.fit import AnchorFit
-from sim.rig import AnchorActuator, HeadPose, JointActuator
+from servoface.sim.au.mapping import AUMapping, canonical_au_name, check_au
+from servoface.sim.au.table import AUTable, load_au_table
+from servoface.sim.errors import HeadProfileError, PoseError, UnknownActionUnitError
+from servoface.sim.muscles import (
+    EyelidMuscle,
+    LinearMuscle,
+    Muscle,
+    SheetMuscle,
+    SphincterMuscle,
+    muscle_from_mapping,
+)
+from servoface.sim.muscles.field import MuscleField
+from servoface.sim.muscles.fit import AnchorFit
+from servoface.sim.rig import AnchorActuator, HeadPose, JointActuator
 
 FloatArray = NDArray[np.float64]
 
 
 def as_model_muscle(muscle: Any) -> Muscle:
-    """A muscle of ``sim.muscles`` from any muscle record with the same fields (e.g. ``sim.rig``'s)."""
+    """A muscle of ``servoface.sim.muscles`` from any record with the same fields (e.g. ``sim.rig``'s)."""
     if isinstance(muscle, LinearMuscle | SheetMuscle | SphincterMuscle | EyelidMuscle):
         return muscle
     name = getattr(muscle, "name", None)
@@ -65,9 +71,7 @@ class FaceModel:
     it anyway (they are listed in ``self.mapping.missing``); by default that is a HeadProfileError.
     """
 
-    def __init__(
-        self, head: Any, au_table: AUTable | str | Path | None = None, *, allow_missing: bool = False
-    ) -> None:
+    def __init__(self, head: Any, au_table: AUTable | str | Path | None = None, *, allow_missing: bool = False) -> None:
         self.head = head
         rest = np.asarray(head.skin.vertices_mm, dtype=np.float64)
         self.n_vertices = int(rest.shape[0])
@@ -79,8 +83,7 @@ class FaceModel:
             table = load_au_table(au_table or getattr(head, "au_table_path", None) or head.face_type)
         if table.face_type != head.face_type:
             raise HeadProfileError(
-                f"{table.path}: face_type {table.face_type!r} does not match "
-                f"head {head.name!r} ({head.face_type!r})"
+                f"{table.path}: face_type {table.face_type!r} does not match head {head.name!r} ({head.face_type!r})"
             )
         joints = _values(head.joints)
         self.joint_names: tuple[str, ...] = tuple(j.name for j in joints)
@@ -212,10 +215,11 @@ def benchmark_solve(head_name: str, n_frames: int = 500) -> list[float]:
     """Seconds per ``FaceModel.solve`` over ``n_frames`` varied AU frames of a built-in head (or profile).
 
     The frames cycle through the expression library's apex poses scaled by a slow sine, so every frame
-    differs. For RENDER's bench: ``statistics.median(benchmark_solve("human", 500))``.
+    differs. These are the raw per-frame times, not a summary: take the median yourself,
+    ``statistics.median(benchmark_solve("human", 500))`` (``servoface bench face`` prints it).
     """
-    from sim.expressions import load_library
-    from sim.heads import load_head
+    from servoface.sim.expressions import load_library
+    from servoface.sim.heads import load_head
 
     head = load_head(head_name)
     model = FaceModel(head)

@@ -1,6 +1,6 @@
 """A loaded head: the rig (joints, rigid parts, skin), its muscles, actuators and profile data.
 
-Built by :func:`sim.heads.load_head` from a profile folder (``head.toml`` + meshes); every field is
+Built by :func:`servoface.sim.heads.load_head` from a profile folder (``head.toml`` + meshes); every field is
 validated there, so a ``Head`` in hand is consistent (parents exist, joints are in parent-first order,
 actuators name existing joints and skin vertices, servo ids are unique).
 """
@@ -13,8 +13,7 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.rig import (
+from servoface.sim.rig import (
     Actuator,
     AnchorActuator,
     CouplingRule,
@@ -67,9 +66,7 @@ class Head:
         try:
             return self.joints[self.joint_index[name]]
         except KeyError:
-            raise KeyError(
-                f"head {self.name!r} has no joint {name!r}; joints: {list(self.joint_names)}"
-            ) from None
+            raise KeyError(f"head {self.name!r} has no joint {name!r}; joints: {list(self.joint_names)}") from None
 
     def part(self, name: str) -> RigidPart:
         for p in self.parts:
@@ -87,9 +84,7 @@ class Head:
         for m in self.muscles:
             if m.name == name:
                 return m
-        raise KeyError(
-            f"head {self.name!r} has no muscle {name!r}; muscles: {[m.name for m in self.muscles]}"
-        )
+        raise KeyError(f"head {self.name!r} has no muscle {name!r}; muscles: {[m.name for m in self.muscles]}")
 
     @cached_property
     def roles(self) -> tuple[str, ...]:

@@ -15,10 +15,9 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.errors import PoseError
-from sim.head import Head
-from sim.rig import HeadPose, JointActuator
+from servoface.sim.errors import PoseError
+from servoface.sim.head import Head
+from servoface.sim.rig import HeadPose, JointActuator
 
 Transform = NDArray[np.float64]  # (4, 4) float
 
@@ -185,8 +184,7 @@ def _check_offsets(head: Head, offsets: NDArray[np.float64]) -> NDArray[np.float
     arr = np.asarray(offsets, dtype=np.float64)
     if arr.shape != head.skin.vertices_mm.shape:
         raise PoseError(
-            f"skin_offset_mm must have shape {head.skin.vertices_mm.shape} for head {head.name!r}, "
-            f"got {arr.shape}"
+            f"skin_offset_mm must have shape {head.skin.vertices_mm.shape} for head {head.name!r}, got {arr.shape}"
         )
     if not np.all(np.isfinite(arr)):
         raise PoseError("skin_offset_mm must be finite")

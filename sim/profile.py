@@ -1,6 +1,6 @@
-"""Head profiles: read ``head.toml`` (+ meshes) and validate it into a frozen :class:`sim.head.Head`.
+"""Head profiles: read ``head.toml`` (+ meshes) and validate it into a frozen :class:`servoface.sim.head.Head`.
 
-Every error is a :class:`sim.errors.HeadProfileError` whose message starts with the file and the key path
+Every error is a :class:`servoface.sim.errors.HeadProfileError` whose message starts with the file and the key path
 (``head.toml: actuator[3].servo.id: ...``) and says what was expected. The schema is documented in
 ``sim/heads/README.md``; the built-in profiles ``sim/heads/human`` and ``sim/heads/dog`` use all of it.
 """
@@ -13,11 +13,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from sim.errors import HeadProfileError
-from sim.head import Head
-from sim.heads.binding import BindRule, HalfSpace, bind_weights
-from sim.rig import (
+from servoface.sim.errors import HeadProfileError
+from servoface.sim.head import Head
+from servoface.sim.heads.binding import BindRule, HalfSpace, bind_weights
+from servoface.sim.rig import (
     SERVO_MODELS,
     Actuator,
     AnchorActuator,
@@ -49,9 +48,7 @@ class _Reader:
     def __init__(self, file: Path) -> None:
         self.file = file
 
-    def fail(
-        self, key: str, expected: str, got: Any = None, cause: BaseException | None = None
-    ) -> HeadProfileError:
+    def fail(self, key: str, expected: str, got: Any = None, cause: BaseException | None = None) -> HeadProfileError:
         got_s = "" if got is None else f", got {got!r}"
         return HeadProfileError(f"{self.file}: {key}: expected {expected}{got_s}")
 
@@ -93,9 +90,7 @@ class _Reader:
             raise self.fail(key, "a finite number", v)
         return float(v)
 
-    def vec(
-        self, d: dict[str, Any], name: str, key: str, n: int = 3, unit: bool = False
-    ) -> tuple[float, ...]:
+    def vec(self, d: dict[str, Any], name: str, key: str, n: int = 3, unit: bool = False) -> tuple[float, ...]:
         v = self.req(d, name, key)
         k = f"{key}.{name}" if key else name
         if not isinstance(v, list) or len(v) != n:
@@ -115,9 +110,7 @@ class _Reader:
     def interval(self, d: dict[str, Any], name: str, key: str) -> tuple[float, float]:
         lo, hi = self.vec(d, name, key, 2)
         if not lo < hi:
-            raise self.fail(
-                f"{key}.{name}", "[lower, upper] with lower < upper (limits reversed or empty)", [lo, hi]
-            )
+            raise self.fail(f"{key}.{name}", "[lower, upper] with lower < upper (limits reversed or empty)", [lo, hi])
         return lo, hi
 
     def rgba(
@@ -151,7 +144,7 @@ def load_profile(path: Path) -> Head:
 
 
 def _build(r: _Reader, data: dict[str, Any], folder: Path) -> Head:
-    from sim.heads.meshes import load_part_mesh, load_skin_mesh
+    from servoface.sim.heads.meshes import load_part_mesh, load_skin_mesh
 
     r.keys(data, "", _TOP_KEYS)
     version = data.get("schema_version", SCHEMA_VERSION)
@@ -241,9 +234,7 @@ def _joints(r: _Reader, data: dict[str, Any]) -> tuple[Joint, ...]:
         neutral = r.number(j, "neutral_deg", key, 0.0)
         if not lo <= neutral <= hi:
             raise r.fail(f"{key}.neutral_deg", f"a value within limits_deg [{lo}, {hi}]", neutral)
-        raw[name] = Joint(
-            name, parent, r.vec3(j, "pivot_mm", key), r.vec3(j, "axis", key, unit=True), lo, hi, neutral
-        )
+        raw[name] = Joint(name, parent, r.vec3(j, "pivot_mm", key), r.vec3(j, "axis", key, unit=True), lo, hi, neutral)
         keys[name] = key
     for name, jt in raw.items():
         if jt.parent is not None and jt.parent not in raw:
@@ -262,9 +253,7 @@ def _joints(r: _Reader, data: dict[str, Any]) -> tuple[Joint, ...]:
     return tuple(ordered)
 
 
-def _skin(
-    r: _Reader, data: dict[str, Any], folder: Path, jnames: set[str], loader: Any
-) -> tuple[Skin, str | None]:
+def _skin(r: _Reader, data: dict[str, Any], folder: Path, jnames: set[str], loader: Any) -> tuple[Skin, str | None]:
     s = r.table(r.req(data, "skin", ""), "skin")
     r.keys(
         s,
@@ -287,9 +276,7 @@ def _skin(
     for i, b in enumerate(binds):
         key = f"skin.bind[{i}]"
         b = r.table(b, key)
-        r.keys(
-            b, key, {"joint", "halfspaces", "sphere_centre_mm", "sphere_radius_mm", "falloff_mm", "weight"}
-        )
+        r.keys(b, key, {"joint", "halfspaces", "sphere_centre_mm", "sphere_radius_mm", "falloff_mm", "weight"})
         bj = r.string(b, "joint", key)
         if bj not in jnames:
             raise r.fail(f"{key}.joint", f"a joint of this head {sorted(jnames)}", bj)
@@ -369,8 +356,7 @@ def _muscles(r: _Reader, data: dict[str, Any]) -> tuple[Muscle, ...]:
             r.keys(
                 m,
                 key,
-                common
-                | {"attachment_mm", "attachment_end_mm", "insertion_mm", "insertion_end_mm", "width_mm"},
+                common | {"attachment_mm", "attachment_end_mm", "insertion_mm", "insertion_end_mm", "width_mm"},
             )
             width = r.number(m, "width_mm", key)
             if width <= 0:
@@ -494,17 +480,13 @@ def _actuators(
                 if jn not in joints:
                     raise r.fail(f"{key}.joints[{k}]", f"a joint of this head {sorted(joints)}", jn)
                 if jn in driven:
-                    raise r.fail(
-                        f"{key}.joints[{k}]", f"a joint no other actuator drives ({driven[jn]!r} does)", jn
-                    )
+                    raise r.fail(f"{key}.joints[{k}]", f"a joint no other actuator drives ({driven[jn]!r} does)", jn)
                 driven[jn] = role
             lo_j = max(joints[j].lower_deg for j in js)
             hi_j = min(joints[j].upper_deg for j in js)
             lo, hi = r.interval(a, "range_deg", key) if "range_deg" in a else (lo_j, hi_j)
             if lo < lo_j - 1e-9 or hi > hi_j + 1e-9:
-                raise r.fail(
-                    f"{key}.range_deg", f"a range within the joints' limits [{lo_j}, {hi_j}]", [lo, hi]
-                )
+                raise r.fail(f"{key}.range_deg", f"a range within the joints' limits [{lo_j}, {hi_j}]", [lo, hi])
             neutral = r.number(a, "neutral_deg", key, float(np.clip(0.0, lo, hi)))
             if not lo <= neutral <= hi:
                 raise r.fail(f"{key}.neutral_deg", f"a value within [{lo}, {hi}]", neutral)
@@ -522,11 +504,7 @@ def _actuators(
                 vertex = anchors[an]
             else:
                 raw_vertex = a.get("vertex")
-                if (
-                    isinstance(raw_vertex, bool)
-                    or not isinstance(raw_vertex, int)
-                    or not 0 <= raw_vertex < n_vert
-                ):
+                if isinstance(raw_vertex, bool) or not isinstance(raw_vertex, int) or not 0 <= raw_vertex < n_vert:
                     raise r.fail(
                         f"{key}.vertex",
                         f"a skin vertex index in 0..{n_vert - 1} (or anchor = <name>)",
@@ -540,11 +518,7 @@ def _actuators(
             radius = r.number(a, "radius_mm", key, 15.0)
             if radius <= 0:
                 raise r.fail(f"{key}.radius_mm", "a positive radius", radius)
-            out.append(
-                AnchorActuator(
-                    role, servo, vertex, r.vec3(a, "line", key, unit=True), lo, hi, neutral, radius
-                )
-            )
+            out.append(AnchorActuator(role, servo, vertex, r.vec3(a, "line", key, unit=True), lo, hi, neutral, radius))
         else:
             raise r.fail(f"{key}.kind", '"joint" or "anchor"', kind)
     return tuple(out)

@@ -32,15 +32,42 @@ def _sources(package: str) -> list[Path]:
     return sorted((ROOT / package).rglob("*.py"))
 
 
+def _ours(name: str) -> str | None:
+    """The package of ours a module name imports (``servoface.sim.gate`` -> ``sim``), else None."""
+    parts = name.split(".")
+    if parts[0] == "servoface" and len(parts) > 1 and parts[1] in OURS:
+        return parts[1]
+    return None
+
+
 @pytest.mark.parametrize("package", sorted(ALLOWED))
 def test_packages_import_only_what_they_may(package: str) -> None:
     bad = []
     for path in _sources(package):
         for lineno, name in _imports(path):
-            top = name.split(".")[0]
-            if top in OURS and top != package and top not in ALLOWED[package]:
+            top = _ours(name)
+            if top is not None and top != package and top not in ALLOWED[package]:
                 bad.append(f"{path.relative_to(ROOT)}:{lineno} imports {name}")
     assert not bad, "forbidden imports:\n" + "\n".join(bad)
+
+
+def test_the_rules_see_the_imports() -> None:
+    """The rules above are not vacuous: controller does import the three others under the root."""
+    seen = {_ours(name) for path in _sources("controller") for _, name in _imports(path)}
+    assert {"sim", "hardware", "calibration", "controller"} <= seen
+
+
+@pytest.mark.parametrize("folder", ["controller", "sim", "hardware", "calibration", "tests", "examples"])
+def test_every_import_of_ours_goes_through_the_servoface_root(folder: str) -> None:
+    """``import controller`` / ``from sim...`` would load a second copy of a module (or a user's own
+    package of that name): everything of ours is imported as ``servoface.<package>``."""
+    bad = [
+        f"{path.relative_to(ROOT)}:{lineno} imports {name}"
+        for path in _sources(folder)
+        for lineno, name in _imports(path)
+        if name.split(".")[0] in OURS
+    ]
+    assert not bad, "imports outside the servoface root:\n" + "\n".join(bad)
 
 
 def test_only_the_dynamixel_bus_imports_the_sdk() -> None:
@@ -58,7 +85,7 @@ def test_emulator_is_independent_of_the_driver() -> None:
     bad = []
     for path in _sources("hardware/emulator"):
         for lineno, name in _imports(path):
-            if name.startswith("hardware") and not name.startswith("hardware.emulator"):
+            if _ours(name) is not None and not name.startswith("servoface.hardware.emulator"):
                 bad.append(f"{path.relative_to(ROOT)}:{lineno} imports {name}")
             if name.split(".")[0] in {"dynamixel_sdk", "serial"} and "pty" not in path.name:
                 bad.append(f"{path.relative_to(ROOT)}:{lineno} imports {name}")

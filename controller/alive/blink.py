@@ -20,10 +20,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
-
-from controller.errors import TimelineError
-from controller.timeline.easing import min_jerk
-from sim.rig import FaceType
+from servoface.controller.errors import TimelineError
+from servoface.controller.timeline.easing import min_jerk
+from servoface.sim.rig import FaceType
 
 BLINK_AU: dict[str, str] = {"human": "AU45", "dog": "AU15"}
 LID_AUS: dict[str, tuple[str, ...]] = {

@@ -25,8 +25,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
-from controller.errors import TimelineError
+from servoface.controller.errors import TimelineError
 
 Vec = NDArray[np.float64]
 
@@ -57,10 +56,7 @@ class GazeConfig:
                 raise TimelineError(f"gaze.{name}: expected a finite positive number, got {value!r}")
             if name.endswith("_deg") and value >= 180:
                 raise TimelineError(f"gaze.{name}: a swing limit must be < 180 deg, got {value!r}")
-        if (
-            self.eye_range_yaw_deg > self.eye_limit_yaw_deg
-            or self.eye_range_pitch_deg > self.eye_limit_pitch_deg
-        ):
+        if self.eye_range_yaw_deg > self.eye_limit_yaw_deg or self.eye_range_pitch_deg > self.eye_limit_pitch_deg:
             raise TimelineError("gaze.eye_range_*: the eyes' comfortable range must lie within their limits")
 
 
@@ -119,9 +115,7 @@ def clamp_swing(d: Vec, r_yaw_deg: float, r_pitch_deg: float) -> tuple[Vec, bool
     return from_swing(sx / q, sy / q), True
 
 
-def clamp_angles(
-    yaw_deg: float, pitch_deg: float, r_yaw_deg: float, r_pitch_deg: float
-) -> tuple[float, float]:
+def clamp_angles(yaw_deg: float, pitch_deg: float, r_yaw_deg: float, r_pitch_deg: float) -> tuple[float, float]:
     return angles(clamp_swing(direction(yaw_deg, pitch_deg), r_yaw_deg, r_pitch_deg)[0])
 
 
@@ -202,14 +196,14 @@ _SCALE_AUS: dict[str, tuple[int, int, str]] = {
 
 
 def gaze_config_for(face_type: str, head: Any = None, **overrides: Any) -> GazeConfig:
-    """A GazeConfig whose AU full scales (= swing limits) come from the face's AU table in ``sim.au``
+    """A GazeConfig whose AU full scales (= swing limits) come from the face's AU table in ``servoface.sim.au``
     (e.g. human AU61 = eyes 30 deg left, AU51 = neck 45 deg), so AU intensities mean what the muscle model
     will do with them. Falls back to the defaults when the table cannot be read. With a ``head``
-    (``sim.head.Head``: anything with ``joints`` carrying ``name`` and ``pivot_mm``) the eye centre is the
+    (``servoface.sim.head.Head``: anything with ``joints`` carrying ``name`` and ``pivot_mm``) the eye centre is the
     midpoint of the eye-pan pivots and the neck pivot that of ``neck_pan`` / ``neck_pitch``."""
     values: dict[str, Any] = {}
     try:
-        from sim.au import load_au_table
+        from servoface.sim.au import load_au_table
 
         table = load_au_table(face_type)
         for key, (human_au, dog_au, joint_prefix) in _SCALE_AUS.items():
@@ -232,7 +226,5 @@ def gaze_config_for(face_type: str, head: Any = None, **overrides: Any) -> GazeC
     values.update(overrides)
     base = GazeConfig()
     values.setdefault("eye_range_yaw_deg", min(base.eye_range_yaw_deg, values.get("eye_limit_yaw_deg", 1e9)))
-    values.setdefault(
-        "eye_range_pitch_deg", min(base.eye_range_pitch_deg, values.get("eye_limit_pitch_deg", 1e9))
-    )
+    values.setdefault("eye_range_pitch_deg", min(base.eye_range_pitch_deg, values.get("eye_limit_pitch_deg", 1e9)))
     return GazeConfig(**values)

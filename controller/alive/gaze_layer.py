@@ -21,11 +21,16 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-
-from controller.alive.gaze import GazeConfig, GazePose, eyes_for_head, gaze_config_for, solve_look_at
-from controller.errors import TimelineError
-from controller.timeline.easing import min_jerk
-from sim.rig import FaceType
+from servoface.controller.alive.gaze import (
+    GazeConfig,
+    GazePose,
+    eyes_for_head,
+    gaze_config_for,
+    solve_look_at,
+)
+from servoface.controller.errors import TimelineError
+from servoface.controller.timeline.easing import min_jerk
+from servoface.sim.rig import FaceType
 
 
 def _split(value: float, pos: str, neg: str) -> dict[str, float]:

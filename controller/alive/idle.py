@@ -18,11 +18,10 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
-
-from controller.alive.gaze import GazeConfig, gaze_config_for
-from controller.alive.gaze_layer import angles_to_aus
-from controller.errors import TimelineError
-from sim.rig import FaceType
+from servoface.controller.alive.gaze import GazeConfig, gaze_config_for
+from servoface.controller.alive.gaze_layer import angles_to_aus
+from servoface.controller.errors import TimelineError
+from servoface.sim.rig import FaceType
 
 CHANNELS = ("head_yaw", "head_pitch", "head_roll", "eye_yaw", "eye_pitch")
 
@@ -48,9 +47,7 @@ class IdleConfig:
 
 def _bspline(c0: float, c1: float, c2: float, c3: float, u: float) -> float:
     u2, u3 = u * u, u * u * u
-    return (
-        c0 * (1 - u) ** 3 + c1 * (3 * u3 - 6 * u2 + 4) + c2 * (-3 * u3 + 3 * u2 + 3 * u + 1) + c3 * u3
-    ) / 6.0
+    return (c0 * (1 - u) ** 3 + c1 * (3 * u3 - 6 * u2 + 4) + c2 * (-3 * u3 + 3 * u2 + 3 * u + 1) + c3 * u3) / 6.0
 
 
 @dataclass

@@ -6,9 +6,9 @@ Each suite module defines ``run(quick: bool = False) -> Iterator[Figure]``.
 """
 
 SUITES: dict[str, str] = {
-    "bus": "controller.benchmarks.bus",
-    "face": "controller.benchmarks.face",
-    "gate": "controller.benchmarks.gate",
-    "pipeline": "controller.benchmarks.pipeline",
-    "timeline": "controller.benchmarks.timeline",
+    "bus": "servoface.controller.benchmarks.bus",
+    "face": "servoface.controller.benchmarks.face",
+    "gate": "servoface.controller.benchmarks.gate",
+    "pipeline": "servoface.controller.benchmarks.pipeline",
+    "timeline": "servoface.controller.benchmarks.timeline",
 }

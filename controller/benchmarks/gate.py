@@ -16,14 +16,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from controller.benchmarks.figure import Figure
+from servoface.controller.benchmarks.figure import Figure
 
 
 def _gate(name: str, cache: Path | None) -> Any:
-    from calibration.fileformat import load_calibration
-    from sim.gate import GateConfig, TwinGate
-    from sim.heads import load_head
+    from servoface.calibration.fileformat import load_calibration
+    from servoface.sim.gate import GateConfig, TwinGate
+    from servoface.sim.heads import load_head
 
     head = load_head(name)
     if head.calibration_path is None:
@@ -83,7 +82,7 @@ def _misses(gate: Any, samples: int, seed: int = 3) -> tuple[int, int]:
 
 
 def run(quick: bool = False) -> Iterator[Figure]:
-    from sim.gate.tss_build import summed_reduction
+    from servoface.sim.gate.tss_build import summed_reduction
 
     frames = 60 if quick else 400
     with tempfile.TemporaryDirectory() as tmp:

@@ -6,13 +6,13 @@ from __future__ import annotations
 import time
 from collections.abc import Iterator
 
-from controller.benchmarks.figure import Figure
+from servoface.controller.benchmarks.figure import Figure
 
 FRAME_BUDGET_S = 1.0 / 50.0
 
 
 def _sample_cost(name: str, quick: bool) -> Figure:
-    from controller.script import SCRIPTS_DIR, load_script
+    from servoface.controller.script import SCRIPTS_DIR, load_script
 
     script = load_script(SCRIPTS_DIR / f"{name}.toml")
     times = [k / 50.0 for k in range(int(script.end_s * 50.0))]
@@ -35,11 +35,11 @@ def _sample_cost(name: str, quick: bool) -> Figure:
 
 
 def _loop_figures(quick: bool) -> Iterator[Figure]:
-    from controller.loop import FixedRateLoop
+    from servoface.controller.loop import FixedRateLoop
 
     duration_s = 0.5 if quick else 2.0
     stats = FixedRateLoop(lambda tick: None, 50.0).run(duration_s=duration_s)
-    yield Figure("loop achieved rate (idle callback)", stats.achieved_hz, "Hz", limit=50.0, goal=0.99)
+    yield Figure("loop achieved rate (idle callback)", stats.achieved_hz, "Hz", limit=50.0, goal_ratio=0.99)
     yield Figure(
         "loop start lateness p99",
         stats.percentile_lateness_s(99) * 1e3,

@@ -15,15 +15,16 @@ from types import ModuleType
 
 # name -> module implementing it, in the order shown by --help
 COMMANDS: dict[str, str] = {
-    "demo": "controller.cli.demo",
-    "play": "controller.cli.play",
-    "stream": "controller.cli.stream",
-    "preview": "controller.cli.preview",
-    "check": "controller.cli.check",
-    "calibrate": "controller.cli.calibrate",
-    "emulate": "controller.cli.emulate",
-    "scan": "controller.cli.scan",
-    "bench": "controller.cli.bench",
+    "demo": "servoface.controller.cli.demo",
+    "play": "servoface.controller.cli.play",
+    "stream": "servoface.controller.cli.stream",
+    "preview": "servoface.controller.cli.preview",
+    "check": "servoface.controller.cli.check",
+    "calibrate": "servoface.controller.cli.calibrate",
+    "emulate": "servoface.controller.cli.emulate",
+    "scan": "servoface.controller.cli.scan",
+    "bench": "servoface.controller.cli.bench",
+    "list": "servoface.controller.cli.list",
 }
 
 
@@ -63,6 +64,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("servoface: interrupted", file=sys.stderr)
         return 130
+    except OSError as err:  # a path, folder or device the command could not use: say which, no traceback
+        print(f"servoface {args.command}: {describe_os_error(err)}", file=sys.stderr)
+        return 1
+
+
+def describe_os_error(err: OSError) -> str:
+    """One line for a failed file or device operation: what, which path, and what to do."""
+    import errno
+
+    where = f" {err.filename!r}" if err.filename else ""
+    what = err.strerror or str(err)
+    hint = {
+        errno.EACCES: "check its permissions (a serial port: add yourself to the 'dialout' group)",
+        errno.EPERM: "check its permissions",
+        errno.ENOENT: "check the path; create the folder first or choose another",
+        errno.EROFS: "choose a folder on a writable file system",
+        errno.ENOSPC: "free some disk space",
+        errno.ENOTDIR: "a part of the path is a file, not a folder",
+        errno.EISDIR: "give a file name, not a folder",
+    }.get(err.errno or 0, "")
+    return f"cannot use{where}: {what}" + (f" ({hint})" if hint else "")
 
 
 if __name__ == "__main__":

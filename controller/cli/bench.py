@@ -10,7 +10,7 @@ HELP = "run benchmarks and print figures (one JSON object per line with --json)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from controller.benchmarks import SUITES
+    from servoface.controller.benchmarks import SUITES
 
     parser.add_argument(
         "suites", nargs="*", metavar="SUITE", help=f"which suites to run ({', '.join(SUITES)}); default all"
@@ -20,18 +20,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from controller.benchmarks import SUITES
-    from controller.benchmarks.figure import machine_description
+    from servoface.controller.benchmarks import SUITES
+    from servoface.controller.benchmarks.figure import machine_description
 
     names = args.suites or list(SUITES)
     unknown = [n for n in names if n not in SUITES]
     if unknown:
-        print(
-            f"servoface bench: unknown suite(s) {unknown}; expected some of {list(SUITES)}", file=sys.stderr
-        )
+        print(f"servoface bench: unknown suite(s) {unknown}; expected some of {list(SUITES)}", file=sys.stderr)
         return 2
     if not args.json:
         print(f"# machine: {machine_description()}")
+        print(
+            f"# {'suite':9s} {'figure':48s} {'value':>12s} {'unit':10s} {'verdict':7s} "
+            "goal (floor: at least / ceiling: at most); vs limit"
+        )
     status = 0
     for name in names:
         try:
@@ -46,14 +48,17 @@ def run(args: argparse.Namespace) -> int:
             if args.json:
                 print(figure.to_json(), flush=True)
             else:
-                d = figure.as_dict()
-                extra = ""
-                if "limit" in d:
-                    extra = f"  (limit {d['limit']:g}, ratio {d.get('ratio', float('nan')):.3f}"
-                    extra += f", goal {d['goal']:g})" if "goal" in d else ")"
-                elif "goal" in d:
-                    extra = f"  (goal {d['goal']:g})"
-                print(
-                    f"{name:9s} {figure.name:48s} {figure.value:12.4g} {figure.unit:10s}{extra}", flush=True
-                )
+                print(_row(name, figure), flush=True)
     return status
+
+
+def _row(suite: str, figure: object) -> str:
+    from servoface.controller.benchmarks.figure import Figure
+
+    assert isinstance(figure, Figure)
+    goal = figure.goal_text() or "no goal"
+    limit = ""
+    if figure.limit is not None:
+        ratio = figure.ratio
+        limit = f"; limit {figure.limit:g}" + (f", ratio {ratio:.3f}" if ratio is not None else "")
+    return f"{suite:11s} {figure.name:48s} {figure.value:12.4g} {figure.unit:10s} {figure.verdict:7s} {goal}{limit}"

@@ -18,9 +18,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from calibration.procedure import ProcedureOptions, ProcedureResult, Prompt, Reply
-    from calibration.spec import ServoSpec
-    from hardware.bus import ServoBus
+    from servoface.calibration.procedure import ProcedureOptions, ProcedureResult, Prompt, Reply
+    from servoface.calibration.spec import ServoSpec
+    from servoface.hardware.bus import ServoBus
 
 HELP = "calibrate a head's servos (interactive on a port/emulator, or from a CSV) and save the calibration"
 
@@ -33,9 +33,7 @@ KEYS_HELP = """keys: Enter = capture here (at the asked target) | =VALUE = captu
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--head", required=True, help="head profile: 'human', 'dog' or a profile folder")
     source = parser.add_mutually_exclusive_group(required=True)
-    source.add_argument(
-        "--port", help="serial port of the chain (a real adapter, or a pty from 'servoface emulate')"
-    )
+    source.add_argument("--port", help="serial port of the chain (a real adapter, or a pty from 'servoface emulate')")
     source.add_argument("--emulate", action="store_true", help="run on an in-process emulated chain")
     source.add_argument("--csv", type=Path, help="non-interactive: measured role,target,tick rows")
     source.add_argument(
@@ -51,12 +49,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "folder, ./calibration-<head>.json for a built-in head)",
     )
     parser.add_argument("--plot-dir", type=Path, help="write one PNG per calibrated servo here")
-    parser.add_argument(
-        "--roles", help="comma-separated roles to calibrate (others are kept from the existing file)"
-    )
-    parser.add_argument(
-        "--points", type=int, default=3, help="intermediate points asked per servo (default 3)"
-    )
+    parser.add_argument("--roles", help="comma-separated roles to calibrate (others are kept from the existing file)")
+    parser.add_argument("--points", type=int, default=3, help="intermediate points asked per servo (default 3)")
     parser.add_argument(
         "--free-points",
         action="store_true",
@@ -76,9 +70,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def specs_from_head(head: Any) -> list[ServoSpec]:
-    """Calibration's view of a head's actuators (sim.head.Head -> calibration.spec.ServoSpec)."""
-    from calibration.spec import ServoSpec, default_direction
-    from sim.rig import JointActuator
+    """Calibration's view of a head's actuators (servoface.sim.head.Head -> servoface.calibration.spec.ServoSpec)."""
+    from servoface.calibration.spec import ServoSpec, default_direction
+    from servoface.sim.rig import JointActuator
 
     specs = []
     for a in head.actuators:
@@ -116,33 +110,33 @@ def specs_from_head(head: Any) -> list[ServoSpec]:
 
 def builtin_source(head: Any) -> str:
     """The ``metadata.source`` of a generated built-in calibration (no absolute paths: files are shipped)."""
-    return f"calibration.builtin from the ranges of head profile '{head.name}' (ideal emulated servos)"
+    return f"servoface.calibration.builtin from the ranges of head profile '{head.name}' (ideal emulated servos)"
 
 
 class BusServoAccess:
-    """`calibration.procedure.ServoAccess` over a `hardware.bus.ServoBus` (single reads and writes)."""
+    """`ServoAccess` (servoface.calibration.procedure) over a `ServoBus` (single reads and writes)."""
 
     def __init__(self, bus: ServoBus) -> None:
         self.bus = bus
 
     def read_present_tick(self, servo_id: int) -> int:
-        from hardware.registers import Register
+        from servoface.hardware.registers import Register
 
         return int(self.bus.read(servo_id, Register.PRESENT_POSITION))
 
     def set_torque(self, servo_id: int, enabled: bool) -> None:
-        from hardware.registers import Register
+        from servoface.hardware.registers import Register
 
         self.bus.write(servo_id, Register.TORQUE_ENABLE, 1 if enabled else 0)
 
     def write_goal_tick(self, servo_id: int, tick: int) -> None:
-        from hardware.registers import Register
+        from servoface.hardware.registers import Register
 
         self.bus.write(servo_id, Register.GOAL_POSITION, int(tick))
 
 
 class TerminalOperator:
-    """`calibration.procedure.Operator` that asks through input() and answers with print()."""
+    """`servoface.calibration.procedure.Operator` that asks through input() and answers with print()."""
 
     def __init__(self, jog_step: int = 10) -> None:
         self.jog_step = jog_step
@@ -152,7 +146,7 @@ class TerminalOperator:
         print(f"  ! {message}")
 
     def ask(self, prompt: Prompt) -> Reply:
-        from calibration.procedure import Abort, Capture, Finish, GoTo, Jog, Relax
+        from servoface.calibration.procedure import Abort, Capture, Finish, GoTo, Jog, Relax
 
         if not self._shown_help:
             print(KEYS_HELP)
@@ -160,9 +154,7 @@ class TerminalOperator:
         while True:
             hint = "Enter to capture" if prompt.target is not None else "=VALUE to capture, d when done"
             try:
-                text = input(
-                    f"[{prompt.role} #{prompt.servo_id} @ {prompt.present_tick}] {prompt.text} ({hint}): "
-                )
+                text = input(f"[{prompt.role} #{prompt.servo_id} @ {prompt.present_tick}] {prompt.text} ({hint}): ")
             except EOFError:
                 return Abort()
             text = text.strip()
@@ -201,7 +193,7 @@ class TerminalOperator:
 
 
 def _default_out(head: Any, name: str) -> Path:
-    from sim.heads import BUILTIN_HEADS
+    from servoface.sim.heads import BUILTIN_HEADS
 
     if name in BUILTIN_HEADS or head.profile_dir is None:
         return Path(f"calibration-{head.name}.json")
@@ -209,12 +201,12 @@ def _default_out(head: Any, name: str) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from calibration.builtin import write_builtin
-    from calibration.errors import CalibrationError, ProcedureAborted
-    from calibration.fileformat import load_calibration, save_calibration
-    from calibration.procedure import ProcedureOptions, calibrate_from_csv
-    from hardware.errors import HardwareError
-    from sim.heads import load_head
+    from servoface.calibration.builtin import write_builtin
+    from servoface.calibration.errors import CalibrationError, ProcedureAborted
+    from servoface.calibration.fileformat import load_calibration, save_calibration
+    from servoface.calibration.procedure import ProcedureOptions, calibrate_from_csv
+    from servoface.hardware.errors import HardwareError
+    from servoface.sim.heads import load_head
 
     try:
         head = load_head(args.head)
@@ -287,12 +279,12 @@ def _interactive(
     options: ProcedureOptions,
     keep: Any,
 ) -> ProcedureResult:
-    from calibration.procedure import run_procedure
-    from hardware.bus import open_bus
+    from servoface.calibration.procedure import run_procedure
+    from servoface.hardware.bus import open_bus
 
     chain = None
     if args.emulate:
-        from hardware.emulator import ServoChain
+        from servoface.hardware.emulator import ServoChain
 
         chain = ServoChain.create(ids=[(s.servo_id, s.model) for s in specs], baud=args.baud, wire_time=False)
         bus = open_bus("dynamixel", port=chain, baud=args.baud)
@@ -335,8 +327,8 @@ def parse_mirror(text: str, specs: list[ServoSpec]) -> list[tuple[str, str]]:
 
 def apply_mirror(cal: Any, pairs: list[tuple[str, str]], specs: list[ServoSpec]) -> Any:
     """Add/replace each DST servo by the mirror image of its SRC; servos ordered as in the head."""
-    from calibration.head import HeadCalibration
-    from calibration.mirror import mirror_servo
+    from servoface.calibration.head import HeadCalibration
+    from servoface.calibration.mirror import mirror_servo
 
     by_role = {s.role: s for s in cal.servos}
     spec_of = {s.role: s for s in specs}
@@ -348,8 +340,8 @@ def apply_mirror(cal: Any, pairs: list[tuple[str, str]], specs: list[ServoSpec])
 
 def check_servos_answer(bus: ServoBus, specs: list[ServoSpec]) -> None:
     """Ping every servo first: fail before touching anything, naming the silent ids and wrong models."""
-    from hardware.errors import BusError, HardwareConfigError
-    from hardware.registers import model_by_name, model_name
+    from servoface.hardware.errors import BusError, HardwareConfigError
+    from servoface.hardware.registers import model_by_name, model_name
 
     silent, wrong = [], []
     for s in specs:

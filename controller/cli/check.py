@@ -11,18 +11,16 @@ HELP = "validate a head profile and its calibration; print a table of servos, li
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("head", help="built-in head (human, dog) or a profile folder")
-    parser.add_argument(
-        "--calibration", type=Path, help="calibration JSON (default: the one the profile names)"
-    )
+    parser.add_argument("--calibration", type=Path, help="calibration JSON (default: the one the profile names)")
 
 
 def run(args: argparse.Namespace) -> int:
-    from calibration import CalibrationError
-    from controller.errors import ControllerError
-    from controller.face import head_calibration
-    from controller.head_servos import servo_specs
-    from sim.errors import SimError
-    from sim.heads import load_head
+    from servoface.calibration import CalibrationError
+    from servoface.controller.errors import ControllerError
+    from servoface.controller.face import head_calibration
+    from servoface.controller.head_servos import servo_specs
+    from servoface.sim.errors import SimError
+    from servoface.sim.heads import load_head
 
     try:
         head = load_head(args.head)
@@ -50,8 +48,8 @@ def run(args: argparse.Namespace) -> int:
         )
     problems = []
     try:
-        from sim.face_model import FaceModel
-        from sim.gate import TwinGate
+        from servoface.sim.face_model import FaceModel
+        from servoface.sim.gate import TwinGate
 
         face = FaceModel(head)
         gate = TwinGate(head, cal, 0.02, face_model=face)

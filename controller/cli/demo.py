@@ -11,12 +11,8 @@ HELP = "play the built-in performance on the emulated chain; write twin video, c
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder (default out/demo)")
-    parser.add_argument(
-        "--head", choices=["human", "dog"], default="human", help="built-in head (default human)"
-    )
-    parser.add_argument(
-        "--format", choices=["mp4", "gif"], default="mp4", help="twin video format (default mp4)"
-    )
+    parser.add_argument("--head", choices=["human", "dog"], default="human", help="built-in head (default human)")
+    parser.add_argument("--format", choices=["mp4", "gif"], default="mp4", help="twin video format (default mp4)")
     parser.add_argument("--baud", type=int, default=1_000_000, help="emulated bus speed (default 1000000)")
     parser.add_argument("--rate", type=float, default=50.0, help="control rate in Hz (default 50)")
 
@@ -25,11 +21,19 @@ def run(args: argparse.Namespace) -> int:
     import os
 
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
-    from controller.demo import run_demo
+    from servoface.controller.demo import run_demo
 
     if not (0 < args.rate <= 1000):
         print(f"servoface demo: --rate must be within 0..1000 Hz, got {args.rate}", file=sys.stderr)
         return 2
+    from servoface.controller.cli import describe_os_error
+    from servoface.controller.cli.outputs import writable_folder
+
+    try:
+        writable_folder(args.out)
+    except OSError as err:
+        print(f"servoface demo: --out {args.out}: {describe_os_error(err)}", file=sys.stderr)
+        return 1
     head = args.head
     out = run_demo(
         args.out,

@@ -67,12 +67,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hardware.emulator import EmulatorError, ServoChain
+    from servoface.hardware.emulator import EmulatorError, ServoChain
 
     try:
-        chain = ServoChain.create(
-            ids=args.ids, model=args.model, baud=args.baud, wire_time=not args.no_wire_time
-        )
+        chain = ServoChain.create(ids=args.ids, model=args.model, baud=args.baud, wire_time=not args.no_wire_time)
     except EmulatorError as err:
         print(f"servoface emulate: {err}", file=sys.stderr)
         return 2

@@ -7,37 +7,43 @@ import json
 import sys
 from pathlib import Path
 
-from controller.cli.head_args import add_head_arguments, open_errors, open_face, rate_problem
+from servoface.controller.cli.head_args import add_head_arguments, open_errors, open_face, rate_problem
 
 HELP = "play an expression or a timeline script on a head, on a real port or on the emulator"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "what", nargs="?", help="an expression name (see `servoface preview --all`) or a script .toml"
+        "what",
+        nargs="?",
+        help="an expression name, a shipped script name (e.g. human_performance) or a script .toml "
+        "(see `servoface list`)",
     )
     parser.add_argument(
         "--input",
         type=Path,
         help="instead of WHAT: a recorded tracker file (OpenFace/py-feat CSV, "
-        "ARKit/MediaPipe blendshape CSV or JSON lines, MPEG-4 .fap); see README 'Inputs'",
+        "ARKit/MediaPipe blendshape CSV or JSON lines, MPEG-4 .fap) or a shipped sample "
+        "(sample:openface_smile, see `servoface list samples`); see README 'Inputs'",
     )
-    parser.add_argument(
-        "--mirror", action="store_true", help="with --input: imitate a person facing the robot"
-    )
+    parser.add_argument("--mirror", action="store_true", help="with --input: imitate a person facing the robot")
     add_head_arguments(parser)
+    parser.add_argument("--hold", type=float, default=1.5, help="seconds to hold an expression's apex (default 1.5)")
     parser.add_argument(
-        "--hold", type=float, default=1.5, help="seconds to hold an expression's apex (default 1.5)"
+        "--duration",
+        type=float,
+        default=None,
+        help="play a script or a recording for at most this many seconds (default: to its end)",
     )
 
 
 def run(args: argparse.Namespace) -> int:
-    from controller.errors import ControllerError
-    from controller.script import load_script
-    from hardware.errors import HardwareError
-    from sim.errors import SimError
-    from sim.expressions import load_library
-    from sim.heads import load_head
+    from servoface.controller.errors import ControllerError
+    from servoface.controller.script import load_script
+    from servoface.hardware.errors import HardwareError
+    from servoface.sim.errors import SimError
+    from servoface.sim.expressions import load_library
+    from servoface.sim.heads import load_head
 
     if (problem := rate_problem(args)) is not None:
         print(f"servoface play: {problem}", file=sys.stderr)
@@ -45,19 +51,25 @@ def run(args: argparse.Namespace) -> int:
     if not (args.hold >= 0):
         print(f"servoface play: --hold must be >= 0 s, got {args.hold}", file=sys.stderr)
         return 2
+    if args.duration is not None and not (0 < args.duration < 1e6):
+        print(f"servoface play: --duration must be a positive number of seconds, got {args.duration}", file=sys.stderr)
+        return 2
     if (args.what is None) == (args.input is None):
         print(
-            "servoface play: give what to play (an expression or a script .toml) or --input FILE, "
-            "one of them",
+            "servoface play: give what to play (an expression or a script .toml) or --input FILE, one of them",
             file=sys.stderr,
         )
         return 2
     recording = None
-    is_script = args.what is not None and (args.what.endswith(".toml") or Path(args.what).is_file())
+    from servoface.controller.shipped import is_shipped_script
+
+    is_script = args.what is not None and (
+        args.what.endswith(".toml") or Path(args.what).is_file() or is_shipped_script(args.what)
+    )
     try:  # check what to play before opening the port: a typo must not switch torque on
         head = load_head(args.head)
         if args.input is not None:
-            from controller.inputs import load_recording
+            from servoface.controller.inputs import load_recording
 
             recording = load_recording(args.input, head.face_type, mirror=args.mirror)
         elif is_script:
@@ -73,17 +85,17 @@ def run(args: argparse.Namespace) -> int:
     try:
         with face:
             if recording is not None:
-                from controller.performance import play_timeline
+                from servoface.controller.performance import play_timeline
 
                 perf = play_timeline(
                     face.pipeline,
                     recording,
-                    recording.duration_s,
+                    recording.duration_s if args.duration is None else min(recording.duration_s, args.duration),
                     on_frame=face.traces.append,
                     stop_on_interrupt=True,
                 )
             elif is_script:
-                perf = face.play(what)
+                perf = face.play(what, duration_s=args.duration)
             else:
                 perf = face.express(args.what, hold_s=args.hold)
     except (ControllerError, SimError, ValueError) as err:
@@ -106,6 +118,7 @@ def run(args: argparse.Namespace) -> int:
     for reason, count in sorted(reasons.items(), key=lambda kv: -kv[1])[:12]:
         print(f"  {count:5d} x {reason}")
     if args.trace is not None:
+        args.trace.parent.mkdir(parents=True, exist_ok=True)
         with args.trace.open("w") as fh:
             for trace in perf.traces:
                 fh.write(json.dumps(trace.as_dict()) + "\n")

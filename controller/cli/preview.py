@@ -6,17 +6,13 @@ import argparse
 import sys
 from pathlib import Path
 
-HELP = (
-    "render an expression of a head to PNG (apex), GIF/MP4 (neutral -> apex -> neutral), or --all as a sheet"
-)
+HELP = "render an expression of a head to PNG (apex), GIF/MP4 (neutral -> apex -> neutral), or --all as a sheet"
 STILL = (".png", ".jpg", ".jpeg")
 CLIP = (".gif", ".mp4")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "expression", nargs="?", metavar="EXPR", help="expression name from the head's library"
-    )
+    parser.add_argument("expression", nargs="?", metavar="EXPR", help="expression name from the head's library")
     parser.add_argument("--all", action="store_true", help="every expression of the library on one sheet")
     parser.add_argument("--head", default="human", help="built-in head (human, dog) or a profile folder")
     parser.add_argument(
@@ -39,9 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--duration", type=float, default=2.0, help="clip length in seconds (default 2.0)")
     parser.add_argument("--fps", type=float, default=20.0, help="clip frame rate (default 20)")
-    parser.add_argument(
-        "--columns", type=int, default=None, help="sheet columns with --all (default: about square)"
-    )
+    parser.add_argument("--columns", type=int, default=None, help="sheet columns with --all (default: about square)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -58,36 +52,42 @@ def run(args: argparse.Namespace) -> int:
     allowed = STILL if args.all else STILL + CLIP
     if suffix not in allowed:
         what = "a sheet" if args.all else "a preview"
-        return _fail(
-            f"output {args.output}: {what} must end in {', '.join(allowed)}, got {suffix or 'no extension'!r}"
-        )
+        return _fail(f"output {args.output}: {what} must end in {', '.join(allowed)}, got {suffix or 'no extension'!r}")
     if not args.output.parent.exists():
         return _fail(f"output {args.output}: folder {args.output.parent} does not exist")
+    from servoface.controller.cli.outputs import writable_file
+
+    try:
+        writable_file(args.output)
+    except OSError as err:
+        from servoface.controller.cli import describe_os_error
+
+        return _fail(f"output {args.output}: {describe_os_error(err)}")
     if args.columns is not None and args.columns < 1:
         return _fail(f"--columns must be >= 1, got {args.columns}")
 
-    from sim.errors import ExpressionError, HeadProfileError, RenderError
-    from sim.render.renderer import parse_size
+    from servoface.sim.errors import ExpressionError, HeadProfileError, RenderError
+    from servoface.sim.render.renderer import parse_size
 
     try:
         width, height = parse_size(args.size or ("320x240" if args.all else "640x480"))
     except ValueError as err:
         return _fail(f"--size: {err}")
     if suffix in CLIP:
-        from sim.render.video import there_and_back
+        from servoface.sim.render.video import there_and_back
 
         try:
             there_and_back(args.duration, args.fps)
         except ValueError as err:
             return _fail(str(err))
 
-    from sim.expressions import load_library
-    from sim.heads import load_head
-    from sim.render.camera import default_view
-    from sim.render.clips import clip_frames, library_sheet, pick_expression, render_aus
-    from sim.render.images import save_image
-    from sim.render.renderer import HeadRenderer
-    from sim.render.video import WRITERS
+    from servoface.sim.expressions import load_library
+    from servoface.sim.heads import load_head
+    from servoface.sim.render.camera import default_view
+    from servoface.sim.render.clips import clip_frames, library_sheet, pick_expression, render_aus
+    from servoface.sim.render.images import save_image
+    from servoface.sim.render.renderer import HeadRenderer
+    from servoface.sim.render.video import WRITERS
 
     try:
         head = load_head(args.head)

@@ -32,6 +32,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="ids to ping, e.g. '1-24' or '1,3,7' (default: one broadcast ping, ~0.8 s per baud)",
     )
     parser.add_argument(
+        "--retries",
+        type=int,
+        default=2,
+        help="ping a silent id (or repeat the broadcast ping) this many more times (default 2)",
+    )
+    parser.add_argument(
         "--latency-ms",
         type=float,
         default=None,
@@ -42,15 +48,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import warnings
 
-    from hardware.bus import ids_from_spec, open_bus
-    from hardware.errors import HardwareError
-    from hardware.registers import HardwareErrorBits
-    from hardware.scan import ScanResult, scan
+    from servoface.hardware.bus import ids_from_spec, open_bus
+    from servoface.hardware.errors import HardwareError
+    from servoface.hardware.registers import HardwareErrorBits
+    from servoface.hardware.scan import ScanResult, scan
 
     try:
         ids = ids_from_spec(args.ids) if args.ids else None
     except ValueError as err:
         print(f"servoface scan: --ids: {err}", file=sys.stderr)
+        return 2
+    if not 0 <= args.retries <= 20:
+        print(f"servoface scan: --retries must be within 0..20, got {args.retries}", file=sys.stderr)
         return 2
     bauds = DYNAMIXEL_BAUDS if args.baud == "all" else (args.baud,)
     total = 0
@@ -67,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
                 print(f"warning: {warning.message}", file=sys.stderr)
         try:
             with bus:
-                results: list[ScanResult] = scan(bus, ids)
+                results: list[ScanResult] = scan(bus, ids, retries=args.retries)
         except HardwareError as err:
             print(f"servoface scan: {err}", file=sys.stderr)
             return 1
@@ -89,4 +98,16 @@ def run(args: argparse.Namespace) -> int:
             print(f"{r.servo_id:>4}  {r.model_number:>6}  {r.model_name:<14} {r.firmware_version:>8}  {hw}")
     if not total and len(bauds) > 1:
         print(f"# {args.port}: no servo at any of {list(bauds)} bps")
+        print(
+            "# check the power supply and the wiring (data line, ground), and that nothing else has the "
+            "port open; a servo on Protocol 1.0 does not answer Protocol 2.0 pings",
+            file=sys.stderr,
+        )
+    elif not total:
+        others = [b for b in DYNAMIXEL_BAUDS if b != args.baud]
+        print(
+            f"# no servo answered at {args.baud} bps; new servos ship at 57600 bps. Try "
+            f"`servoface scan --port {args.port} --baud all` (tries {', '.join(map(str, others))})",
+            file=sys.stderr,
+        )
     return 0 if total else 1

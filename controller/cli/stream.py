@@ -12,7 +12,7 @@ import json
 import sys
 from pathlib import Path
 
-from controller.cli.head_args import add_head_arguments, open_errors, open_face, rate_problem
+from servoface.controller.cli.head_args import add_head_arguments, open_errors, open_face, rate_problem
 
 HELP = "follow a live face-data stream (UDP, TCP or stdin JSON) on a head, on a real port or the emulator"
 
@@ -24,32 +24,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     src.add_argument("--tcp", metavar="[HOST:]PORT", help="a TCP server, one JSON object per line")
     src.add_argument("--stdin", action="store_true", help="one JSON object per line on standard input")
     parser.add_argument("--allow-remote", action="store_true", help="allow binding a non-loopback address")
-    parser.add_argument(
-        "--duration", type=float, help="seconds to follow (default: until Ctrl-C / end of stdin)"
-    )
+    parser.add_argument("--duration", type=float, help="seconds to follow (default: until Ctrl-C / end of stdin)")
     parser.add_argument("--mirror", action="store_true", help="imitate a person facing the robot (swap L/R)")
     parser.add_argument("--vergence", action="store_true", help="map eye look differences to AU65/66")
-    parser.add_argument(
-        "--dropout-ms", type=float, default=250.0, help="no data for this long = dropout (250)"
-    )
+    parser.add_argument("--dropout-ms", type=float, default=250.0, help="no data for this long = dropout (250)")
     parser.add_argument(
         "--dropout",
         choices=("neutral", "hold"),
         default="neutral",
         help="in a dropout ease to neutral (default) or hold the last AUs",
     )
-    parser.add_argument(
-        "--ease", type=float, default=0.5, help="seconds to ease to neutral in a dropout (0.5)"
-    )
+    parser.add_argument("--ease", type=float, default=0.5, help="seconds to ease to neutral in a dropout (0.5)")
     parser.add_argument(
         "--playout-ms",
         type=float,
         default=0.0,
         help="sample this far in the past, interpolating (evens out jitter)",
     )
-    parser.add_argument(
-        "--min-confidence", type=float, default=0.0, help="ignore messages below this confidence"
-    )
+    parser.add_argument("--min-confidence", type=float, default=0.0, help="ignore messages below this confidence")
     parser.add_argument(
         "--shape-ranges",
         type=Path,
@@ -71,16 +63,22 @@ def _fail(message: str) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    from controller.errors import ControllerError
-    from controller.frame import FrameValidator
-    from controller.inputs import LineReceiver, MessageDecoder, StreamSource, TcpReceiver, UdpReceiver
-    from controller.inputs.follow import follow
-    from controller.inputs.smoothing import AUSmoother
-    from controller.inputs.stream import StreamRecorder
-    from controller.inputs.transports import parse_address
-    from hardware.errors import HardwareError
-    from sim.errors import SimError
-    from sim.heads import load_head
+    from servoface.controller.errors import ControllerError
+    from servoface.controller.frame import FrameValidator
+    from servoface.controller.inputs import (
+        LineReceiver,
+        MessageDecoder,
+        StreamSource,
+        TcpReceiver,
+        UdpReceiver,
+    )
+    from servoface.controller.inputs.follow import follow
+    from servoface.controller.inputs.smoothing import AUSmoother
+    from servoface.controller.inputs.stream import StreamRecorder
+    from servoface.controller.inputs.transports import parse_address
+    from servoface.hardware.errors import HardwareError
+    from servoface.sim.errors import SimError
+    from servoface.sim.heads import load_head
 
     if (problem := rate_problem(args)) is not None:
         return _fail(problem)
@@ -95,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         validator = FrameValidator.for_head(head)
         ranges = None
         if args.shape_ranges is not None:
-            from controller.inputs import ShapeRanges, load_blendshape_map
+            from servoface.controller.inputs import ShapeRanges, load_blendshape_map
 
             ranges = ShapeRanges.load(args.shape_ranges, load_blendshape_map().names)
         decoder = MessageDecoder(

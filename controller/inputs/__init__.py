@@ -1,5 +1,5 @@
 """Inputs: outside face data -> AU frames. Every source has ``.sample(t_s) -> AUFrame`` so it plugs into
-``controller.performance.play_timeline(pipeline, source, duration_s)``.
+``servoface.controller.performance.play_timeline(pipeline, source, duration_s)``.
 
 Files (a :class:`Recording`): :func:`read_openface_csv`, :func:`read_pyfeat_csv`, :func:`read_jsonl`,
 :func:`read_blendshape_csv`, :func:`read_fap`, or :func:`load_recording` (picks by file).
@@ -7,18 +7,18 @@ Live: :class:`StreamSource` fed by :class:`UdpReceiver`, :class:`TcpReceiver` or
 Mapping: :func:`load_blendshape_map` (ARKit/MediaPipe -> AU prior), :func:`head_pose_aus`, :func:`mirror_aus`.
 """
 
-from controller.inputs.blendshapes import BlendshapeMap, load_blendshape_map
-from controller.inputs.errors import InputError
-from controller.inputs.face_files import load_recording, read_blendshape_csv, read_jsonl
-from controller.inputs.head_pose import head_pose_aus, matrix_to_ypr_deg
-from controller.inputs.messages import Message, MessageDecoder
-from controller.inputs.openface import read_openface_csv, read_pyfeat_csv
-from controller.inputs.recorded import InputReport, Recording
-from controller.inputs.shape_ranges import ShapeRanges
-from controller.inputs.sides import mirror_aus
-from controller.inputs.smoothing import AUSmoother, OneEuroFilter
-from controller.inputs.stream import StreamSource, StreamStats
-from controller.inputs.transports import LineReceiver, TcpReceiver, UdpReceiver
+from servoface.controller.inputs.blendshapes import BlendshapeMap, load_blendshape_map
+from servoface.controller.inputs.errors import InputError
+from servoface.controller.inputs.face_files import load_recording, read_blendshape_csv, read_jsonl
+from servoface.controller.inputs.head_pose import head_pose_aus, matrix_to_ypr_deg
+from servoface.controller.inputs.messages import Message, MessageDecoder
+from servoface.controller.inputs.openface import read_openface_csv, read_pyfeat_csv
+from servoface.controller.inputs.recorded import InputReport, Recording
+from servoface.controller.inputs.shape_ranges import ShapeRanges
+from servoface.controller.inputs.sides import mirror_aus
+from servoface.controller.inputs.smoothing import AUSmoother, OneEuroFilter
+from servoface.controller.inputs.stream import StreamSource, StreamStats
+from servoface.controller.inputs.transports import LineReceiver, TcpReceiver, UdpReceiver
 
 __all__ = [
     "AUSmoother",

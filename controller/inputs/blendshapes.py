@@ -25,10 +25,10 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
-from controller.au_names import default_au_names
-from controller.inputs.errors import InputError
-from controller.inputs.shape_ranges import ShapeRanges
-from controller.inputs.sides import mirror_aus
+from servoface.controller.au_names import default_au_names
+from servoface.controller.inputs.errors import InputError
+from servoface.controller.inputs.shape_ranges import ShapeRanges
+from servoface.controller.inputs.sides import mirror_aus
 
 TABLE_PATH = Path(__file__).with_name("blendshapes.toml")
 
@@ -154,9 +154,7 @@ def check_score(value: Any, *, field: str) -> float:
     return number
 
 
-def load_blendshape_map(
-    path: str | Path | None = None, allowed: frozenset[str] | None = None
-) -> BlendshapeMap:
+def load_blendshape_map(path: str | Path | None = None, allowed: frozenset[str] | None = None) -> BlendshapeMap:
     """Load a blendshape table (default: the built-in ``blendshapes.toml``)."""
     if path is None and allowed is None:
         return _builtin()
@@ -192,9 +190,7 @@ def _load(path: Path, allowed: frozenset[str] | None) -> BlendshapeMap:
             and gaze[1] in ("in", "out", "up", "down")
         ):
             raise InputError(f'{key}.gaze: expected ["L"|"R", "in"|"out"|"up"|"down"], got {gaze!r}')
-        entries[name] = ShapeEntry(
-            name, terms, (gaze[0], gaze[1]) if gaze else None, str(body.get("note", ""))
-        )
+        entries[name] = ShapeEntry(name, terms, (gaze[0], gaze[1]) if gaze else None, str(body.get("note", "")))
     return BlendshapeMap(entries, allowed, str(data.get("source", "")))
 
 

@@ -8,7 +8,7 @@ import math
 from collections.abc import Iterator
 from pathlib import Path
 
-from controller.inputs.errors import InputError
+from servoface.controller.inputs.errors import InputError
 
 
 class CsvTable:
@@ -50,8 +50,7 @@ class CsvTable:
                 continue
             if len(cells) != len(self.header):
                 raise InputError(
-                    f"{self.path}: line {line}: {len(cells)} cells, expected {len(self.header)} "
-                    f"(one per header column)"
+                    f"{self.path}: line {line}: {len(cells)} cells, expected {len(self.header)} (one per header column)"
                 )
             yield line, cells
 

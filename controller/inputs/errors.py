@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from controller.errors import FrameError
+from servoface.controller.errors import FrameError
 
 
 class InputError(FrameError):

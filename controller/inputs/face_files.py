@@ -19,14 +19,14 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from controller.frame import check_face_type
-from controller.inputs.csv_table import CsvTable
-from controller.inputs.errors import InputError
-from controller.inputs.head_pose import head_pose_aus
-from controller.inputs.messages import MessageDecoder
-from controller.inputs.recorded import InputReport, Recording, frames_with_policy
-from controller.inputs.sides import mirror_aus
-from sim.rig import FaceType
+from servoface.controller.frame import check_face_type
+from servoface.controller.inputs.csv_table import CsvTable
+from servoface.controller.inputs.errors import InputError
+from servoface.controller.inputs.head_pose import head_pose_aus
+from servoface.controller.inputs.messages import MessageDecoder
+from servoface.controller.inputs.recorded import InputReport, Recording, frames_with_policy
+from servoface.controller.inputs.sides import mirror_aus
+from servoface.sim.rig import FaceType
 
 _TIME_COLUMNS = ("t", "t_s", "timestamp")
 _POSE_COLUMNS = ("yaw_deg", "pitch_deg", "roll_deg")
@@ -61,9 +61,7 @@ def read_jsonl(
             continue
         msg = decoder.decode_line(line, where=f"{file}: line {number}")
         if msg.t_s is None:
-            raise InputError(
-                f"{file}: line {number}.t: missing; every line of a recording needs a time t (s)"
-            )
+            raise InputError(f"{file}: line {number}.t: missing; every line of a recording needs a time t (s)")
         if msg.t_s < last_t:
             raise InputError(f"{file}: line {number}.t: {msg.t_s:g} s is earlier than the line before")
         last_t = msg.t_s
@@ -105,8 +103,7 @@ def read_blendshape_csv(
         time_col = next((c for c in ("frame", "Timecode") if c in table.columns), None)
     if time_col is None:
         raise InputError(
-            f"{table.path}: missing a time column; expected one of "
-            f"{list(_TIME_COLUMNS) + ['frame', 'Timecode']}"
+            f"{table.path}: missing a time column; expected one of {list(_TIME_COLUMNS) + ['frame', 'Timecode']}"
         )
     shape_cols: dict[str, str] = {}
     report = InputReport(str(table.path))
@@ -154,17 +151,23 @@ def read_blendshape_csv(
 def load_recording(
     path: str | Path, face_type: FaceType = "human", *, mirror: bool = False, fps: float | None = None
 ) -> Recording:
-    """Read any supported recorded file, choosing the reader by extension and CSV header."""
-    from controller.inputs.openface import read_openface_csv, read_pyfeat_csv
+    """Read any supported recorded file, choosing the reader by extension and CSV header. A shipped sample
+    is reachable by name: ``sample:openface_smile`` (see ``servoface list samples``)."""
+    from servoface.controller.errors import ControllerError
+    from servoface.controller.inputs.openface import read_openface_csv, read_pyfeat_csv
+    from servoface.controller.shipped import resolve_sample
 
-    file = Path(path)
+    try:
+        file = resolve_sample(path)
+    except ControllerError as err:
+        raise InputError(str(err)) from err
     suffix = file.suffix.lower()
     if suffix in (".jsonl", ".ndjson", ".json"):
         return read_jsonl(file, face_type, mirror=mirror)
     if face_type != "human":
         raise InputError(f"{file}: only JSON-lines recordings with DFACS 'aus' can drive a {face_type} head")
     if suffix == ".fap":
-        from controller.inputs.fap import read_fap
+        from servoface.controller.inputs.fap import read_fap
 
         return read_fap(file, mirror=mirror, fps=fps)
     if suffix != ".csv":

@@ -24,12 +24,12 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from controller.frame import AUFrame
-from controller.inputs.blendshapes import load_blendshape_map
-from controller.inputs.errors import InputError
-from controller.inputs.head_pose import eye_angles_aus, head_pose_aus
-from controller.inputs.recorded import InputReport, Recording
-from controller.inputs.sides import mirror_aus
+from servoface.controller.frame import AUFrame
+from servoface.controller.inputs.blendshapes import load_blendshape_map
+from servoface.controller.inputs.errors import InputError
+from servoface.controller.inputs.head_pose import eye_angles_aus, head_pose_aus
+from servoface.controller.inputs.recorded import InputReport, Recording
+from servoface.controller.inputs.sides import mirror_aus
 
 N_FAPS = 68
 FAPU_ANGLE_RAD = 1e-5
@@ -114,9 +114,7 @@ def read_fap(
     except (OSError, UnicodeDecodeError) as err:
         raise InputError(f"{file}: cannot read: {err}") from err
     lines = [
-        (i, ln.strip())
-        for i, ln in enumerate(raw_lines, start=1)
-        if ln.strip() and not ln.lstrip().startswith("#")
+        (i, ln.strip()) for i, ln in enumerate(raw_lines, start=1) if ln.strip() and not ln.lstrip().startswith("#")
     ]
     if not lines:
         raise InputError(f"{file}: empty, expected a header '<version> <name> <fps> <n_frames>'")
@@ -140,9 +138,7 @@ def read_fap(
         (mask_no, mask_text), (val_no, val_text) = body[k], body[k + 1]
         mask = mask_text.split()
         if len(mask) != N_FAPS or any(m not in ("0", "1") for m in mask):
-            raise InputError(
-                f"{file}: line {mask_no}: expected a mask of {N_FAPS} 0/1 values, got {len(mask)} items"
-            )
+            raise InputError(f"{file}: line {mask_no}: expected a mask of {N_FAPS} 0/1 values, got {len(mask)} items")
         present = [n for n, m in enumerate(mask, start=1) if m == "1"]
         values = val_text.split()
         if len(values) != len(present) + 1:

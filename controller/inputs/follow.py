@@ -1,5 +1,5 @@
 """Follow a live source through the pipeline on the fixed-rate loop, until a duration, a stop condition or
-Ctrl-C. Like :func:`controller.performance.play_timeline` (same :class:`Performance` result), plus
+Ctrl-C. Like :func:`servoface.controller.performance.play_timeline` (same :class:`Performance` result), plus
 ``until``: a predicate checked every frame (e.g. "stdin reached end of file and the face is neutral").
 
 For a recording (a file) use ``play_timeline(pipeline, recording, recording.duration_s)`` directly.
@@ -11,9 +11,9 @@ import threading
 import time
 from collections.abc import Callable
 
-from controller.loop import FixedRateLoop, Tick, stop_on_sigint
-from controller.performance import Performance, Samples
-from controller.pipeline import FrameTrace, Pipeline
+from servoface.controller.loop import FixedRateLoop, Tick, stop_on_sigint
+from servoface.controller.performance import Performance, Samples
+from servoface.controller.pipeline import FrameTrace, Pipeline
 
 
 def follow(

@@ -19,10 +19,9 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
-from controller.alive.gaze import GazeConfig, gaze_config_for
-from controller.alive.gaze_layer import angles_to_aus
-from controller.inputs.errors import InputError
+from servoface.controller.alive.gaze import GazeConfig, gaze_config_for
+from servoface.controller.alive.gaze_layer import angles_to_aus
+from servoface.controller.inputs.errors import InputError
 
 _HEAD_AUS = ("AU51", "AU52", "AU53", "AU54", "AU55", "AU56")
 _MAX_ABS_DEG = 180.0
@@ -84,14 +83,11 @@ def parse_head(head: Any, *, field: str = "head") -> tuple[float, float, float]:
     ``{"matrix": [[...]]}``. Unknown keys, non-finite or |angle| > 180 deg raise InputError."""
     if not isinstance(head, Mapping):
         raise InputError(
-            f'{field}: expected {{"yaw_deg", "pitch_deg", "roll_deg"}} or {{"matrix"}}, '
-            f"got {type(head).__name__}"
+            f'{field}: expected {{"yaw_deg", "pitch_deg", "roll_deg"}} or {{"matrix"}}, got {type(head).__name__}'
         )
     unknown = set(head) - {"yaw_deg", "pitch_deg", "roll_deg", "matrix"}
     if unknown:
-        raise InputError(
-            f"{field}: unknown key(s) {sorted(unknown)}; expected yaw_deg, pitch_deg, roll_deg or matrix"
-        )
+        raise InputError(f"{field}: unknown key(s) {sorted(unknown)}; expected yaw_deg, pitch_deg, roll_deg or matrix")
     if "matrix" in head:
         if len(head) > 1:
             raise InputError(f"{field}: give either matrix or yaw_deg/pitch_deg/roll_deg, not both")

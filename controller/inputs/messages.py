@@ -21,14 +21,14 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from controller.errors import FrameError
-from controller.frame import FrameValidator, check_face_type
-from controller.inputs.blendshapes import BlendshapeMap, load_blendshape_map
-from controller.inputs.errors import InputError
-from controller.inputs.head_pose import head_pose_aus, parse_head
-from controller.inputs.shape_ranges import ShapeRanges
-from controller.inputs.sides import mirror_aus
-from sim.rig import FaceType
+from servoface.controller.errors import FrameError
+from servoface.controller.frame import FrameValidator, check_face_type
+from servoface.controller.inputs.blendshapes import BlendshapeMap, load_blendshape_map
+from servoface.controller.inputs.errors import InputError
+from servoface.controller.inputs.head_pose import head_pose_aus, parse_head
+from servoface.controller.inputs.shape_ranges import ShapeRanges
+from servoface.controller.inputs.sides import mirror_aus
+from servoface.sim.rig import FaceType
 
 KEYS = frozenset({"t", "aus", "blendshapes", "head", "confidence"})
 MAX_MESSAGE_BYTES = 65_536

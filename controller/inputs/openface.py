@@ -29,12 +29,12 @@ import math
 import re
 from pathlib import Path
 
-from controller.au_names import canonical_au, default_au_names
-from controller.inputs.csv_table import CsvTable
-from controller.inputs.errors import InputError
-from controller.inputs.head_pose import eye_angles_aus
-from controller.inputs.recorded import InputReport, Recording, frames_with_policy
-from controller.inputs.sides import mirror_aus
+from servoface.controller.au_names import canonical_au, default_au_names
+from servoface.controller.inputs.csv_table import CsvTable
+from servoface.controller.inputs.errors import InputError
+from servoface.controller.inputs.head_pose import eye_angles_aus
+from servoface.controller.inputs.recorded import InputReport, Recording, frames_with_policy
+from servoface.controller.inputs.sides import mirror_aus
 
 _OPENFACE_AU = re.compile(r"^AU(\d{2})_r$")
 _PYFEAT_AU = re.compile(r"^AU(\d{2})$")
@@ -113,9 +113,7 @@ def read_openface_csv(
         good = success == 1.0 and confidence >= min_confidence
         rows.append((t_s, (mirror_aus(aus, "human") if mirror else aus) if good else None))
     if not rows:
-        raise InputError(
-            f"{table.path}: no data rows" + (f" for face_id {wanted}" if wanted is not None else "")
-        )
+        raise InputError(f"{table.path}: no data rows" + (f" for face_id {wanted}" if wanted is not None else ""))
     frames, report.held = frames_with_policy(rows, "human", lost=lost, decay_s=decay_s)
     if skipped_faces:
         report.notes.append(f"{skipped_faces} rows of other faces skipped (read face_id {wanted})")
@@ -148,9 +146,7 @@ def read_pyfeat_csv(
     rows: list[tuple[float, dict[str, float] | None]] = []
     for index, (line, cells) in enumerate(table.rows()):
         frame = table.number(cells, line, "frame") if "frame" in table.columns else float(index)
-        score = (
-            table.number(cells, line, "FaceScore", allow_empty=True) if "FaceScore" in table.columns else 1.0
-        )
+        score = table.number(cells, line, "FaceScore", allow_empty=True) if "FaceScore" in table.columns else 1.0
         values = {col: table.number(cells, line, col, allow_empty=True) for col in au_cols}
         missing = [c for c, v in values.items() if v != v]
         report.rows += 1

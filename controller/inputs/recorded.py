@@ -3,7 +3,7 @@
 Times are shifted so the first frame is at 0 s. Between two frames the AUs are interpolated linearly
 (``interpolate=True``, default: smooth playback of a 30 fps file at a 50 Hz loop) or held; before the first
 frame the first one holds, after the last the last one holds. Plugs into
-``controller.performance.play_timeline(pipeline, recording, recording.duration_s)``.
+``servoface.controller.performance.play_timeline(pipeline, recording, recording.duration_s)``.
 """
 
 from __future__ import annotations
@@ -12,9 +12,9 @@ import bisect
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from controller.frame import AUFrame
-from controller.inputs.errors import InputError
-from sim.rig import FaceType
+from servoface.controller.frame import AUFrame
+from servoface.controller.inputs.errors import InputError
+from servoface.sim.rig import FaceType
 
 
 @dataclass

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from controller.inputs.errors import InputError
+from servoface.controller.inputs.errors import InputError
 
 MIN_SPAN = 0.01  # a range narrower than this would turn tracker noise into full-scale motion
 
@@ -76,11 +76,7 @@ class ShapeRanges:
             data = json.loads(file.read_text())
         except (OSError, ValueError) as err:
             raise InputError(f"{file}: cannot read shape ranges: {err}") from err
-        if (
-            not isinstance(data, dict)
-            or data.get("schema_version") != 1
-            or not isinstance(data.get("ranges"), dict)
-        ):
+        if not isinstance(data, dict) or data.get("schema_version") != 1 or not isinstance(data.get("ranges"), dict):
             raise InputError(f'{file}: expected {{"schema_version": 1, "ranges": {{shape: [rest, full]}}}}')
         ranges: dict[str, tuple[float, float]] = {}
         for name, pair in data["ranges"].items():

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from sim.rig import FaceType
+from servoface.sim.rig import FaceType
 
 _HUMAN_SWAP: dict[str, str] = {
     "AU51": "AU52",

@@ -38,12 +38,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-from controller.errors import FrameError
-from controller.frame import AUFrame
-from controller.inputs.errors import InputError
-from controller.inputs.messages import Message, MessageDecoder
-from controller.inputs.smoothing import AUSmoother
-from controller.loop import RunningStat
+from servoface.controller.errors import FrameError
+from servoface.controller.frame import AUFrame
+from servoface.controller.inputs.errors import InputError
+from servoface.controller.inputs.messages import Message, MessageDecoder
+from servoface.controller.inputs.smoothing import AUSmoother
+from servoface.controller.loop import RunningStat
 
 Clock = Callable[[], float]
 RESTART_S = 1.0  # a message this much older than the newest (by its t) means the sender restarted
@@ -73,6 +73,7 @@ class StreamStats:
             "good": self.good,
             "bad": self.bad,
             "out_of_order": self.out_of_order,
+            "superseded": self.superseded,
             "restarts": self.restarts,
             "low_confidence": self.low_confidence,
             "dropouts": self.dropouts,
@@ -116,11 +117,7 @@ class StreamSource:
         if smoothing is not None and smoothing != "default" and not isinstance(smoothing, AUSmoother):
             raise InputError(f"smoothing: expected an AUSmoother, None or 'default', got {smoothing!r}")
         self.smoother: AUSmoother | None = AUSmoother() if isinstance(smoothing, str) else smoothing
-        if (
-            isinstance(playout_ms, bool)
-            or not isinstance(playout_ms, int | float)
-            or not 0 <= playout_ms < 1e4
-        ):
+        if isinstance(playout_ms, bool) or not isinstance(playout_ms, int | float) or not 0 <= playout_ms < 1e4:
             raise InputError(f"playout_ms: expected 0 <= playout < 10000 ms, got {playout_ms!r}")
         self.playout_s = float(playout_ms) / 1e3
         self._history: deque[tuple[float, Message]] = deque(maxlen=16)

@@ -17,9 +17,9 @@ import threading
 from types import TracebackType
 from typing import IO, Any
 
-from controller.inputs.errors import InputError
-from controller.inputs.messages import MAX_MESSAGE_BYTES
-from controller.inputs.stream import StreamSource
+from servoface.controller.inputs.errors import InputError
+from servoface.controller.inputs.messages import MAX_MESSAGE_BYTES
+from servoface.controller.inputs.stream import StreamSource
 
 _POLL_S = 0.05
 

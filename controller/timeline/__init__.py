@@ -1,14 +1,14 @@
 """Timelines: Barker's pose -> movement -> expression -> sequence, envelopes with easing, DFACS ordered
 events, parallel tracks with per-AU blend rules. Sampling is a pure function of time."""
 
-from controller.timeline.barker import Expression, Movement, sequence
-from controller.timeline.blend import BlendPolicy, BlendRule
-from controller.timeline.clip import ChannelClip, Clip, Key, SequenceClip
-from controller.timeline.dfacs import Event, EventTiming, events_clip, parse_events, recipe_events
-from controller.timeline.easing import EASINGS, ease_in_out, easing_by_name, linear, min_jerk
-from controller.timeline.envelope import Envelope, EnvelopeClip
-from controller.timeline.timeline import Layer, Timeline
-from controller.timeline.track import Placed, Track
+from servoface.controller.timeline.barker import Expression, Movement, sequence
+from servoface.controller.timeline.blend import BlendPolicy, BlendRule
+from servoface.controller.timeline.clip import ChannelClip, Clip, Key, SequenceClip
+from servoface.controller.timeline.dfacs import Event, EventTiming, events_clip, parse_events, recipe_events
+from servoface.controller.timeline.easing import EASINGS, ease_in_out, easing_by_name, linear, min_jerk
+from servoface.controller.timeline.envelope import Envelope, EnvelopeClip
+from servoface.controller.timeline.timeline import Layer, Timeline
+from servoface.controller.timeline.track import Placed, Track
 
 __all__ = [
     "EASINGS",

@@ -16,11 +16,11 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from controller.errors import FrameError, TimelineError
-from controller.frame import validate_aus
-from controller.timeline.clip import ChannelClip, Key, SequenceClip
-from controller.timeline.easing import Easing, linear, min_jerk
-from controller.timeline.envelope import check_duration
+from servoface.controller.errors import FrameError, TimelineError
+from servoface.controller.frame import validate_aus
+from servoface.controller.timeline.clip import ChannelClip, Key, SequenceClip
+from servoface.controller.timeline.easing import Easing, linear, min_jerk
+from servoface.controller.timeline.envelope import check_duration
 
 SHARE_TOLERANCE = 1e-6
 
@@ -34,15 +34,9 @@ class Movement:
     easing: Easing = linear
 
     def __post_init__(self) -> None:
-        ok = (
-            isinstance(self.share, int | float)
-            and not isinstance(self.share, bool)
-            and math.isfinite(self.share)
-        )
+        ok = isinstance(self.share, int | float) and not isinstance(self.share, bool) and math.isfinite(self.share)
         if not ok or not 0.0 <= self.share <= 1.0:
-            raise TimelineError(
-                f"share: expected a fraction 0..1 of the expression's duration, got {self.share!r}"
-            )
+            raise TimelineError(f"share: expected a fraction 0..1 of the expression's duration, got {self.share!r}")
         try:
             object.__setattr__(self, "pose", validate_aus(self.pose, where="pose"))
         except FrameError as err:
@@ -65,9 +59,7 @@ class Expression:
         total = sum(m.share for m in self.movements)
         if abs(total - 1.0) > SHARE_TOLERANCE:
             shares = ", ".join(f"{m.share:g}" for m in self.movements)
-            raise TimelineError(
-                f"{self.name}.movements: shares must sum to 1 (100 %), got {total:g} ({shares})"
-            )
+            raise TimelineError(f"{self.name}.movements: shares must sum to 1 (100 %), got {total:g} ({shares})")
 
     @classmethod
     def from_percent(
@@ -136,9 +128,7 @@ class Expression:
         return Expression(self.name, duration_s, self.movements)
 
 
-def sequence(
-    expressions: Sequence[Expression | ChannelClip | SequenceClip], name: str = "sequence"
-) -> SequenceClip:
+def sequence(expressions: Sequence[Expression | ChannelClip | SequenceClip], name: str = "sequence") -> SequenceClip:
     """Expressions in turn; the first starts from the face, each next from where the previous ended."""
     clips = tuple(e.clip() if isinstance(e, Expression) else e for e in expressions)
     return SequenceClip(clips, name=name)

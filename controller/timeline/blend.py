@@ -16,9 +16,9 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from controller.au_names import au_number, canonical_au
-from controller.errors import FrameError, TimelineError
-from sim.rig import FaceType
+from servoface.controller.au_names import au_number, canonical_au
+from servoface.controller.errors import FrameError, TimelineError
+from servoface.sim.rig import FaceType
 
 
 class BlendRule(StrEnum):
@@ -79,9 +79,7 @@ class BlendPolicy:
                 raise TimelineError(str(err)) from err
             table[au] = parse_rule(rule, field=f"blend.{name}")
         pairs = HUMAN_DIRECTION_PAIRS if face_type == "human" else ()
-        return cls(
-            parse_rule(default, field="blend.default"), table, tuple(priority or DEFAULT_PRIORITY), pairs
-        )
+        return cls(parse_rule(default, field="blend.default"), table, tuple(priority or DEFAULT_PRIORITY), pairs)
 
     def rule_for(self, au: str) -> BlendRule:
         cache: dict[str, BlendRule] = self.__dict__.setdefault("_rule_cache", {})

@@ -15,15 +15,15 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Literal, Protocol
 
-from controller.errors import TimelineError
-from controller.timeline.easing import Easing, linear
+from servoface.controller.errors import TimelineError
+from servoface.controller.timeline.easing import Easing, linear
 
 Pose = Mapping[str, float]
 Unlisted = Literal["to_zero", "hold"]
 
 
 class Clip(Protocol):
-    """What a :class:`~controller.timeline.track.Track` can play."""
+    """What a :class:`~servoface.controller.timeline.track.Track` can play."""
 
     @property
     def name(self) -> str: ...

@@ -26,10 +26,10 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from controller.au_names import au_number, canonical_au
-from controller.errors import FrameError, TimelineError
-from controller.timeline.clip import ChannelClip, Key
-from controller.timeline.easing import Easing, linear, min_jerk
+from servoface.controller.au_names import au_number, canonical_au
+from servoface.controller.errors import FrameError, TimelineError
+from servoface.controller.timeline.clip import ChannelClip, Key
+from servoface.controller.timeline.easing import Easing, linear, min_jerk
 
 PULSE_AUS = frozenset({15})
 CYCLIC_AUS = frozenset({16})
@@ -129,9 +129,7 @@ def parse_event(token: Any, *, field: str = "event") -> Event:
         if isinstance(token, str):
             match = _TOKEN_RE.match(token)
             if match is None:
-                raise TimelineError(
-                    f"{field}: {token!r} is not an event; expected 'AU14' or '-AU14' (counter)"
-                )
+                raise TimelineError(f"{field}: {token!r} is not an event; expected 'AU14' or '-AU14' (counter)")
             return Event(canonical_au(match.group(2), field=field), -1 if match.group(1) == "-" else 1)
         if isinstance(token, Mapping):
             return _event_from_mapping(token, field)
@@ -154,9 +152,7 @@ def _event_from_mapping(token: Mapping[str, Any], field: str) -> Event:
             raise TimelineError(f"{field}.value: expected a signed DFACS intensity -1..1, got {value!r}")
         value = float(value) * base.sign
     iterations = token.get("iterations")
-    if iterations is not None and (
-        isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 1
-    ):
+    if iterations is not None and (isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 1):
         raise TimelineError(f"{field}.iterations: expected an integer >= 1, got {iterations!r}")
     sign = base.sign if value is None else (-1 if value < 0 else 1)
     return Event(base.au, sign, value, iterations)
@@ -260,9 +256,9 @@ def recipe_events(name: str, *, use_library: bool = True) -> tuple[Event, ...]:
 
 
 def _library_events() -> dict[str, tuple[Event, ...]]:
-    """Ordered event lists from ``sim.expressions`` if that module is present and exposes them."""
+    """Ordered event lists from ``servoface.sim.expressions`` if that module is present and exposes them."""
     try:
-        from sim.expressions import load_library  # type: ignore[import-not-found,unused-ignore]
+        from servoface.sim.expressions import load_library  # type: ignore[import-not-found,unused-ignore]
     except ImportError:
         return {}
     try:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from controller.errors import TimelineError
+from servoface.controller.errors import TimelineError
 
 Easing = Callable[[float], float]
 
@@ -51,9 +51,7 @@ def easing_by_name(name: str, *, field: str = "easing") -> Easing:
     try:
         return EASINGS[name]
     except (KeyError, TypeError):
-        raise TimelineError(
-            f"{field}: unknown easing {name!r}; expected one of {', '.join(EASINGS)}"
-        ) from None
+        raise TimelineError(f"{field}: unknown easing {name!r}; expected one of {', '.join(EASINGS)}") from None
 
 
 def easing_name(fn: Easing) -> str:

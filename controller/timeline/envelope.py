@@ -11,8 +11,8 @@ import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 
-from controller.errors import TimelineError
-from controller.timeline.easing import Easing, min_jerk
+from servoface.controller.errors import TimelineError
+from servoface.controller.timeline.easing import Easing, min_jerk
 
 
 def _check_duration(value: float, name: str, *, allow_zero: bool = True) -> float:

@@ -1,7 +1,7 @@
-"""Clips from MUSCLES' expression libraries (``sim.expressions``): what ``servoface play <name>`` needs.
+"""Clips from MUSCLES' expression libraries (``servoface.sim.expressions``): what ``servoface play <name>`` needs.
 
 - human (an apex pose): onset / apex / offset with minimum-jerk ramps (defaults 0.4 / 1.5 / 0.6 s);
-- dog (ordered DFACS events): :func:`~controller.timeline.dfacs.events_clip` with the given timing
+- dog (ordered DFACS events): :func:`~servoface.controller.timeline.dfacs.events_clip` with the given timing
   (default :class:`EventTiming`, released to neutral after the hold unless ``timing`` says otherwise).
 """
 
@@ -9,11 +9,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from controller.errors import TimelineError
-from controller.timeline.barker import Expression
-from controller.timeline.clip import ChannelClip
-from controller.timeline.dfacs import EventTiming, events_clip, parse_events
-from controller.timeline.easing import Easing, min_jerk
+from servoface.controller.errors import TimelineError
+from servoface.controller.timeline.barker import Expression
+from servoface.controller.timeline.clip import ChannelClip
+from servoface.controller.timeline.dfacs import EventTiming, events_clip, parse_events
+from servoface.controller.timeline.easing import Easing, min_jerk
 
 DEFAULT_ONSET_S = 0.4
 DEFAULT_APEX_S = 1.5
@@ -24,9 +24,9 @@ DEFAULT_DOG_TIMING = EventTiming(release_s=0.8)
 def load_expressions(face_type: str) -> dict[str, Any]:
     """The library of a face type as {name: sim.expressions.Expression}; TimelineError if unavailable."""
     try:
-        from sim.expressions import load_library
-    except ImportError as err:  # pragma: no cover - sim.expressions ships with servoface
-        raise TimelineError(f"expression library: sim.expressions is not available ({err})") from err
+        from servoface.sim.expressions import load_library
+    except ImportError as err:  # pragma: no cover - servoface.sim.expressions ships with servoface
+        raise TimelineError(f"expression library: servoface.sim.expressions is not available ({err})") from err
     try:
         return dict(load_library(face_type))
     except Exception as err:  # noqa: BLE001 - surface any library error as ours, chained

@@ -13,13 +13,13 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping
 from typing import Protocol
 
-from controller.au_names import intensity_range
-from controller.errors import FrameError, TimelineError
-from controller.frame import AUFrame, FrameValidator, check_face_type
-from controller.timeline.blend import BlendPolicy
-from controller.timeline.clip import Clip, Pose
-from controller.timeline.track import Placed, Track
-from sim.rig import FaceType
+from servoface.controller.au_names import intensity_range
+from servoface.controller.errors import FrameError, TimelineError
+from servoface.controller.frame import AUFrame, FrameValidator, check_face_type
+from servoface.controller.timeline.blend import BlendPolicy
+from servoface.controller.timeline.clip import Clip, Pose
+from servoface.controller.timeline.track import Placed, Track
+from servoface.sim.rig import FaceType
 
 STANDARD_TRACKS: tuple[str, ...] = ("face", "gesture", "speech", "head", "gaze")
 
@@ -81,9 +81,7 @@ class Timeline:
     def layer_names(self) -> tuple[str, ...]:
         return tuple(self._layers)
 
-    def play(
-        self, clip: Clip, at_s: float = 0.0, *, track: str = "face", from_pose: Pose | None = None
-    ) -> Placed:
+    def play(self, clip: Clip, at_s: float = 0.0, *, track: str = "face", from_pose: Pose | None = None) -> Placed:
         """Place ``clip`` on ``track`` at ``at_s``; it starts from that track's pose then (or ``from_pose``).
 
         The clip's AUs and values are checked against this face now, not mid-performance.

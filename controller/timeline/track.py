@@ -12,8 +12,8 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from controller.errors import TimelineError
-from controller.timeline.clip import Clip, Pose
+from servoface.controller.errors import TimelineError
+from servoface.controller.timeline.clip import Clip, Pose
 
 
 @dataclass(frozen=True)
@@ -48,9 +48,7 @@ class Track:
     def add(self, start_s: float, clip: Clip, from_pose: Pose | None = None) -> Placed:
         """Place ``clip`` at ``start_s`` (clips at the same start keep insertion order; the last wins)."""
         if isinstance(start_s, bool) or not isinstance(start_s, int | float) or not math.isfinite(start_s):
-            raise TimelineError(
-                f"track {self.name}: start time must be a finite number of seconds, got {start_s!r}"
-            )
+            raise TimelineError(f"track {self.name}: start time must be a finite number of seconds, got {start_s!r}")
         placed = Placed(float(start_s), clip, None if from_pose is None else dict(from_pose))
         index = bisect.bisect_right(self._starts, placed.start_s)
         self._items.insert(index, placed)

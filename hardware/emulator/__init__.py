@@ -8,23 +8,29 @@ maps are a second transcription of the e-manual, so one wrong address cannot pas
     path = chain.serve_pty()       # or a pseudo-terminal any program can open
 """
 
-from hardware.emulator.chain import ServoChain
-from hardware.emulator.clock import ManualClock, RealClock
-from hardware.emulator.control_table import ControlTable, Register
-from hardware.emulator.errors import (
+from servoface.hardware.emulator.chain import ServoChain
+from servoface.hardware.emulator.clock import ManualClock, RealClock
+from servoface.hardware.emulator.control_table import ControlTable, Register
+from servoface.hardware.emulator.errors import (
     EmulatorConfigError,
     EmulatorError,
     PacketError,
     PortClosedError,
     RegisterError,
 )
-from hardware.emulator.faults import KINDS as FAULT_KINDS
-from hardware.emulator.faults import Fault, FaultSchedule
-from hardware.emulator.models import MODELS, ModelSpec, get_model
-from hardware.emulator.packet import Instruction, Packet, build_instruction, build_status, parse_packet
-from hardware.emulator.packet_log import LogEntry
-from hardware.emulator.serial_port import EmulatedSerial
-from hardware.emulator.servo import EmulatedServo
+from servoface.hardware.emulator.faults import KINDS as FAULT_KINDS
+from servoface.hardware.emulator.faults import Fault, FaultSchedule
+from servoface.hardware.emulator.models import MODELS, ModelSpec, get_model
+from servoface.hardware.emulator.packet import (
+    Instruction,
+    Packet,
+    build_instruction,
+    build_status,
+    parse_packet,
+)
+from servoface.hardware.emulator.packet_log import LogEntry
+from servoface.hardware.emulator.serial_port import EmulatedSerial
+from servoface.hardware.emulator.servo import EmulatedServo
 
 __all__ = [
     "FAULT_KINDS",

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from hardware.emulator.packet import ALERT_BIT, Instruction, build_status
-from hardware.emulator.servo import EmulatedServo
+from servoface.hardware.emulator.packet import ALERT_BIT, Instruction, build_status
+from servoface.hardware.emulator.servo import EmulatedServo
 
 LEVEL_PING_ONLY, LEVEL_READ = 0, 1
 READS = (

@@ -13,17 +13,17 @@ from collections import deque
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
 
-from hardware.emulator.clock import ManualClock, RealClock
-from hardware.emulator.errors import EmulatorConfigError
-from hardware.emulator.faults import FaultSchedule
-from hardware.emulator.instructions import dispatch
-from hardware.emulator.models import ModelSpec, baud_code_for, get_model
-from hardware.emulator.packet import MAX_ID, Packet, PacketReceiver
-from hardware.emulator.packet_log import LogEntry, register_writes
-from hardware.emulator.servo import EmulatedServo
+from servoface.hardware.emulator.clock import ManualClock, RealClock
+from servoface.hardware.emulator.errors import EmulatorConfigError
+from servoface.hardware.emulator.faults import FaultSchedule
+from servoface.hardware.emulator.instructions import dispatch
+from servoface.hardware.emulator.models import ModelSpec, baud_code_for, get_model
+from servoface.hardware.emulator.packet import MAX_ID, Packet, PacketReceiver
+from servoface.hardware.emulator.packet_log import LogEntry, register_writes
+from servoface.hardware.emulator.servo import EmulatedServo
 
 if TYPE_CHECKING:
-    from hardware.emulator.serial_port import EmulatedSerial
+    from servoface.hardware.emulator.serial_port import EmulatedSerial
 
 REBOOT_SILENCE_S = 0.1  # a rebooting servo hears nothing for this long
 GOAL_ADDRESS = 116
@@ -77,9 +77,7 @@ class ServoChain:
             seen.add(sid)
             code = baud_code_for(self.baud, spec)
             self.servos.append(
-                EmulatedServo(
-                    sid, spec, baud_code=code, clock=self._clock, faults=self.faults, lock=self.lock
-                )
+                EmulatedServo(sid, spec, baud_code=code, clock=self._clock, faults=self.faults, lock=self.lock)
             )
         self._by_id: dict[int, list[EmulatedServo]] = {}
         self._silence_until_s = -1.0
@@ -147,9 +145,7 @@ class ServoChain:
         """Move a manual clock forward by ``dt_s`` and bring every servo's physics up to it."""
         advance = getattr(self._clock, "advance", None)
         if advance is None:
-            raise EmulatorConfigError(
-                "chain.advance() needs a manual clock: create the chain with clock='manual'"
-            )
+            raise EmulatorConfigError("chain.advance() needs a manual clock: create the chain with clock='manual'")
         with self.lock:
             advance(dt_s)
             for servo in self.servos:
@@ -326,13 +322,13 @@ class ServoChain:
     # ----------------------------------------------------------------- transports
     def open_serial(self, port: str = "emulated://servo-chain") -> EmulatedSerial:
         """An in-process endpoint with the pyserial subset dynamixel_sdk's PortHandler uses."""
-        from hardware.emulator.serial_port import EmulatedSerial
+        from servoface.hardware.emulator.serial_port import EmulatedSerial
 
         return EmulatedSerial(self, port=port)
 
     def serve_pty(self) -> str:
         """Serve the chain on a pseudo-terminal from a background thread; returns the slave device path."""
-        from hardware.emulator.pty_transport import PtyServer
+        from servoface.hardware.emulator.pty_transport import PtyServer
 
         with self.lock:
             if self._pty is None:
@@ -364,9 +360,7 @@ class ServoChain:
         """Logged packets, optionally only those of one instruction code."""
         return [e for e in list(self.log) if instruction is None or e.instruction == instruction]
 
-    def register_writes(
-        self, address: int, size: int, *, signed: bool = True
-    ) -> list[tuple[float, int, int]]:
+    def register_writes(self, address: int, size: int, *, signed: bool = True) -> list[tuple[float, int, int]]:
         """(t_s, servo_id, value) for every write of the whole register at ``address`` (Write, Reg Write,
         Sync Write, Bulk Write), decoded from the log. Broadcast Write is reported with id 254."""
         return register_writes(list(self.log), address, size, signed=signed)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-from hardware.emulator.errors import EmulatorConfigError
+from servoface.hardware.emulator.errors import EmulatorConfigError
 
 
 class RealClock:
@@ -19,9 +19,7 @@ class RealClock:
         return time.monotonic() - self._t0
 
     def advance(self, dt_s: float) -> None:
-        raise EmulatorConfigError(
-            "chain.advance() needs a manual clock: create the chain with clock='manual'"
-        )
+        raise EmulatorConfigError("chain.advance() needs a manual clock: create the chain with clock='manual'")
 
 
 class ManualClock:
@@ -37,9 +35,7 @@ class ManualClock:
 
     def advance(self, dt_s: float) -> None:
         if dt_s < 0:
-            raise EmulatorConfigError(
-                f"clock advance dt_s {dt_s}: expected >= 0 (time does not run backwards)"
-            )
+            raise EmulatorConfigError(f"clock advance dt_s {dt_s}: expected >= 0 (time does not run backwards)")
         self._t += float(dt_s)
 
     def set(self, t_s: float) -> None:

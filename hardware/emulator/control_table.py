@@ -10,7 +10,7 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
-from hardware.emulator.errors import RegisterError
+from servoface.hardware.emulator.errors import RegisterError
 
 Access = Literal["R", "RW"]
 Area = Literal["EEPROM", "RAM"]
@@ -53,9 +53,7 @@ class Register:
         return (lo is None or value >= lo) and (hi is None or value <= hi)
 
 
-def R(
-    name: str, address: int, size: int, default: int = 0, *, signed: bool = False, unit: str = ""
-) -> Register:
+def R(name: str, address: int, size: int, default: int = 0, *, signed: bool = False, unit: str = "") -> Register:
     """A read-only register."""
     return Register(name, address, size, "R", default, signed, unit)
 

@@ -1,4 +1,4 @@
-"""Errors of the servo-chain emulator (apart from ``hardware.errors``: the emulator stays independent)."""
+"""Errors of the servo-chain emulator (apart from ``servoface.hardware.errors``: the emulator stays independent)."""
 
 
 class EmulatorError(Exception):

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from hardware.emulator.answers import Outcome, Reply, answers, error_byte, servos_with
-from hardware.emulator.crc import crc16
-from hardware.emulator.packet import BROADCAST_ID, HEADER, Instruction, stuff
-from hardware.emulator.servo import EmulatedServo
+from servoface.hardware.emulator.answers import Outcome, Reply, answers, error_byte, servos_with
+from servoface.hardware.emulator.crc import crc16
+from servoface.hardware.emulator.packet import BROADCAST_ID, HEADER, Instruction, stuff
+from servoface.hardware.emulator.servo import EmulatedServo
 
 
 def _fast_read(

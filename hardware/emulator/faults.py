@@ -12,8 +12,8 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from hardware.emulator.errors import EmulatorConfigError
-from hardware.emulator.models import (
+from servoface.hardware.emulator.errors import EmulatorConfigError
+from servoface.hardware.emulator.models import (
     HW_ELECTRICAL_SHOCK,
     HW_ENCODER,
     HW_INPUT_VOLTAGE,

@@ -3,7 +3,7 @@ registers hold, so a host can gather scattered registers into one contiguous rea
 
 from __future__ import annotations
 
-from hardware.emulator.control_table import ControlTable
+from servoface.hardware.emulator.control_table import ControlTable
 
 
 class IndirectMap:

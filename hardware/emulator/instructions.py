@@ -10,10 +10,10 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
-from hardware.emulator.answers import Outcome, Reply, answers, error_byte, servos_with, status
-from hardware.emulator.fast_read import fast_bulk_read, fast_sync_read
-from hardware.emulator.packet import BROADCAST_ID, ErrorNumber, Instruction, Packet, build_status
-from hardware.emulator.servo import EmulatedServo
+from servoface.hardware.emulator.answers import Outcome, Reply, answers, error_byte, servos_with, status
+from servoface.hardware.emulator.fast_read import fast_bulk_read, fast_sync_read
+from servoface.hardware.emulator.packet import BROADCAST_ID, ErrorNumber, Instruction, Packet, build_status
+from servoface.hardware.emulator.servo import EmulatedServo
 
 CLEAR_MULTI_TURN = b"\x01\x44\x58\x4c\x22"
 
@@ -38,9 +38,7 @@ def dispatch(
     if handler is None:
         for servo in targets:
             if answers(servo, inst):
-                out.replies.append(
-                    Reply(servo, build_status(servo.id, error_byte(servo, ErrorNumber.INSTRUCTION)))
-                )
+                out.replies.append(Reply(servo, build_status(servo.id, error_byte(servo, ErrorNumber.INSTRUCTION))))
         return out
     handler(out, pid, params, listeners, by_id, targets)
     return out

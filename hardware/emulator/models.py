@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from hardware.emulator.control_table import RW, ControlTable, R, Register
-from hardware.emulator.errors import EmulatorConfigError
+from servoface.hardware.emulator.control_table import RW, ControlTable, R, Register
+from servoface.hardware.emulator.errors import EmulatorConfigError
 
 # baud code (reg 8) -> bits per second
 BAUD_CODES: dict[int, int] = {

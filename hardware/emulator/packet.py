@@ -11,8 +11,8 @@ from dataclasses import dataclass
 from enum import IntEnum
 from functools import lru_cache
 
-from hardware.emulator.crc import crc16
-from hardware.emulator.errors import PacketError
+from servoface.hardware.emulator.crc import crc16
+from servoface.hardware.emulator.errors import PacketError
 
 HEADER = b"\xff\xff\xfd\x00"
 BROADCAST_ID = 0xFE
@@ -115,9 +115,7 @@ class Packet:
     def error(self) -> int:
         """The error byte of a status packet."""
         if self.instruction != STATUS_INSTRUCTION or not self.params:
-            raise PacketError(
-                f"packet from id {self.id} is not a status packet (instruction {self.instruction:#04x})"
-            )
+            raise PacketError(f"packet from id {self.id} is not a status packet (instruction {self.instruction:#04x})")
         return self.params[0]
 
     @property

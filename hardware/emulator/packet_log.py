@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import NamedTuple
 
-from hardware.emulator.packet import Instruction
+from servoface.hardware.emulator.packet import Instruction
 
 _WRITES = (Instruction.WRITE, Instruction.REG_WRITE)
 

@@ -14,10 +14,10 @@ import threading
 import tty
 from typing import TYPE_CHECKING
 
-from hardware.emulator.errors import EmulatorError
+from servoface.hardware.emulator.errors import EmulatorError
 
 if TYPE_CHECKING:
-    from hardware.emulator.chain import ServoChain
+    from servoface.hardware.emulator.chain import ServoChain
 
 IDLE_WAIT_S = 0.05
 

@@ -8,19 +8,17 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from hardware.emulator.errors import EmulatorConfigError, PortClosedError
+from servoface.hardware.emulator.errors import EmulatorConfigError, PortClosedError
 
 if TYPE_CHECKING:
-    from hardware.emulator.chain import ServoChain
+    from servoface.hardware.emulator.chain import ServoChain
 
 
 class EmulatedSerial:
     """``write``/``read`` (non-blocking)/``in_waiting``/``reset_*``/``flush``/``close``; ``baudrate`` settable
     (a baud the servos are not set to means they hear garbage and stay silent)."""
 
-    def __init__(
-        self, chain: ServoChain, *, port: str = "emulated://servo-chain", baudrate: int | None = None
-    ) -> None:
+    def __init__(self, chain: ServoChain, *, port: str = "emulated://servo-chain", baudrate: int | None = None) -> None:
         self._chain = chain
         self.port = port
         self.name = port

@@ -1,7 +1,7 @@
 """One emulated servo: its control-table memory, the write rules behind the error byte, test hooks, power.
 
 The physics (motion, heat, load, trips, live registers) lives in the base class
-:class:`hardware.emulator.servo_motion.ServoMotion`.
+:class:`servoface.hardware.emulator.servo_motion.ServoMotion`.
 """
 
 from __future__ import annotations
@@ -12,13 +12,13 @@ from collections.abc import Callable
 from functools import wraps
 from typing import Any, TypeVar
 
-from hardware.emulator.control_table import EEPROM_END, Register
-from hardware.emulator.errors import EmulatorConfigError
-from hardware.emulator.faults import FaultSchedule
-from hardware.emulator.indirect import IndirectMap
-from hardware.emulator.models import BAUD_CODES, HW_INPUT_VOLTAGE, TICKS_PER_REV, ModelSpec
-from hardware.emulator.packet import ErrorNumber
-from hardware.emulator.servo_motion import (
+from servoface.hardware.emulator.control_table import EEPROM_END, Register
+from servoface.hardware.emulator.errors import EmulatorConfigError
+from servoface.hardware.emulator.faults import FaultSchedule
+from servoface.hardware.emulator.indirect import IndirectMap
+from servoface.hardware.emulator.models import BAUD_CODES, HW_INPUT_VOLTAGE, TICKS_PER_REV, ModelSpec
+from servoface.hardware.emulator.packet import ErrorNumber
+from servoface.hardware.emulator.servo_motion import (
     A_DRIVE,
     A_GOAL_POS,
     A_HW_ERR,
@@ -188,9 +188,7 @@ class EmulatedServo(ServoMotion):
         """Turn the horn by hand to where Present Position reads ``present_tick`` (only with torque off)."""
         self.advance()
         if self.torque_on:
-            raise EmulatorConfigError(
-                f"servo {self.id}: move_by_hand needs torque off (the motor holds its goal)"
-            )
+            raise EmulatorConfigError(f"servo {self.id}: move_by_hand needs torque off (the motor holds its goal)")
         self.motor.pos = self.motor.target = self._to_shaft(float(present_tick))
         self._plan_key = ()
         self._live_dirty = True

@@ -1,6 +1,6 @@
 """The moving, heating part of an emulated servo: motion profiles, heat, load, trips, live registers.
 
-A base class of :class:`hardware.emulator.servo.EmulatedServo`, kept apart so each module holds one idea:
+A base class of :class:`servoface.hardware.emulator.servo.EmulatedServo`, kept apart so each module holds one idea:
 this one integrates the physics lazily between two clock readings and writes the live registers
 (Realtime Tick .. Present Temperature) from it; the servo module owns memory access and the write rules.
 """
@@ -11,10 +11,10 @@ import math
 import struct
 from collections.abc import Callable
 
-from hardware.emulator import physics
-from hardware.emulator.control_table import EEPROM_END
-from hardware.emulator.faults import HARDWARE_KINDS, FaultSchedule
-from hardware.emulator.models import (
+from servoface.hardware.emulator import physics
+from servoface.hardware.emulator.control_table import EEPROM_END
+from servoface.hardware.emulator.faults import HARDWARE_KINDS, FaultSchedule
+from servoface.hardware.emulator.models import (
     ACCELERATION_UNIT_RPM2,
     HW_INPUT_VOLTAGE,
     HW_OVERHEATING,
@@ -318,9 +318,7 @@ class ServoMotion:
         try:
             _LIVE.pack_into(mem, 120, *values)
         except struct.error:  # something out of its register's range (runaway test values): saturate
-            _LIVE.pack_into(
-                mem, 120, *(_saturate(v, lo, hi) for v, (lo, hi) in zip(values, _LIVE_RANGES, strict=True))
-            )
+            _LIVE.pack_into(mem, 120, *(_saturate(v, lo, hi) for v, (lo, hi) in zip(values, _LIVE_RANGES, strict=True)))
 
 
 _LIVE = struct.Struct("<HBBhhiiiiHB")  # Realtime Tick (120) .. Present Temperature (146)

@@ -14,9 +14,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.au.table import AUAction, AUEntry, AUTable
-from sim.errors import ActionUnitValueError, HeadProfileError, UnknownActionUnitError
+from servoface.sim.au.table import AUAction, AUEntry, AUTable
+from servoface.sim.errors import ActionUnitValueError, HeadProfileError, UnknownActionUnitError
 
 FloatArray = NDArray[np.float64]
 _NAME_RE = re.compile(r"^AU0*([1-9]\d{0,2})([LR]?)$")
@@ -139,9 +138,7 @@ def check_au(table: AUTable, name: object, value: object) -> tuple[int, str, flo
     x = float(value)
     if not math.isfinite(x) or not entry.range[0] <= x <= entry.range[1]:
         hint = " (this AU has no counter AU)" if entry.range[0] >= 0.0 and x < 0.0 else ""
-        raise ActionUnitValueError(
-            f"{name}: expected a finite intensity in {list(entry.range)}, got {value!r}{hint}"
-        )
+        raise ActionUnitValueError(f"{name}: expected a finite intensity in {list(entry.range)}, got {value!r}{hint}")
     return number, side, x
 
 

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sim.errors import HeadProfileError
+from servoface.sim.errors import HeadProfileError
 
 AU_DIR = Path(__file__).resolve().parent
 FACE_TYPES = ("human", "dog")
@@ -105,9 +105,7 @@ def _weights(data: Mapping[str, Any], key: str, where: str) -> tuple[tuple[str, 
     out = []
     for name, weight in table.items():
         if not _NAME_RE.match(name):
-            raise HeadProfileError(
-                f"{where}.{key}: {name!r} is not a muscle/joint name (letters, digits, _, {{side}})"
-            )
+            raise HeadProfileError(f"{where}.{key}: {name!r} is not a muscle/joint name (letters, digits, _, {{side}})")
         if isinstance(weight, bool) or not isinstance(weight, int | float) or not math.isfinite(weight):
             raise HeadProfileError(f"{where}.{key}.{name}: expected a finite number, got {weight!r}")
         out.append((name, float(weight)))
@@ -130,9 +128,7 @@ def _entry(number: int, data: Any, where: str, intensity: tuple[float, float]) -
         raise HeadProfileError(f"{where}: unknown key(s) {unknown}; allowed keys are {sorted(allowed)}")
     source = data.get("source")
     if not isinstance(source, str) or not source.strip():
-        raise HeadProfileError(
-            f"{where}.source: every AU row needs a source (reference sheet section / table)"
-        )
+        raise HeadProfileError(f"{where}.source: every AU row needs a source (reference sheet section / table)")
     sided = data.get("sided", False)
     if not isinstance(sided, bool):
         raise HeadProfileError(f"{where}.sided: expected true or false, got {sided!r}")
@@ -142,9 +138,7 @@ def _entry(number: int, data: Any, where: str, intensity: tuple[float, float]) -
         if not isinstance(data["counter"], Mapping):
             raise HeadProfileError(f"{where}.counter: expected a table, got {data['counter']!r}")
         if rng[0] >= 0.0:
-            raise HeadProfileError(
-                f"{where}.counter: a counter AU needs a negative range, range is {list(rng)}"
-            )
+            raise HeadProfileError(f"{where}.counter: a counter AU needs a negative range, range is {list(rng)}")
         counter = _action(data["counter"], f"{where}.counter", f"counter of AU{number}")
     note = data.get("note", "")
     if not isinstance(note, str):

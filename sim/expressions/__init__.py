@@ -1,6 +1,6 @@
 """Expression libraries (data files ``human.toml``, ``dog.toml``) and their loader."""
 
-from sim.expressions.library import (
+from servoface.sim.expressions.library import (
     EXPRESSIONS_DIR,
     Expression,
     ExpressionLibrary,

@@ -1,6 +1,7 @@
 """Expression libraries: named AU poses (human) and ordered AU events (dog), as TOML data files.
 
-File format (``sim/expressions/human.toml``, ``dog.toml``; a head profile may ship its own)::
+File format (``sim/expressions/human.toml``, ``dog.toml``; a head profile may ship its own). A ``source``
+names where the recipe comes from; the built-ins cite the sheets in the repo's ``docs/reference/``::
 
     schema_version = 1
     face_type = "human"                 # AUs are validated against this face type's AU table
@@ -27,9 +28,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sim.au.mapping import check_au
-from sim.au.table import AUTable, load_au_table
-from sim.errors import ActionUnitValueError, ExpressionError, HeadProfileError, UnknownActionUnitError
+from servoface.sim.au.mapping import check_au
+from servoface.sim.au.table import AUTable, load_au_table
+from servoface.sim.errors import (
+    ActionUnitValueError,
+    ExpressionError,
+    HeadProfileError,
+    UnknownActionUnitError,
+)
 
 EXPRESSIONS_DIR = Path(__file__).resolve().parent
 FACE_TYPES = ("human", "dog")
@@ -135,14 +141,8 @@ def load_library(face_type_or_path: str | Path, au_table: AUTable | None = None)
             raise ExpressionError(f"{where}.source: every expression needs a source")
         events = _events(data, where, table)
         apex_after = data.get("apex_after", len(events))
-        if (
-            isinstance(apex_after, bool)
-            or not isinstance(apex_after, int)
-            or not 0 <= apex_after <= len(events)
-        ):
-            raise ExpressionError(
-                f"{where}.apex_after: expected an integer in 0..{len(events)}, got {apex_after!r}"
-            )
+        if isinstance(apex_after, bool) or not isinstance(apex_after, int) or not 0 <= apex_after <= len(events):
+            raise ExpressionError(f"{where}.apex_after: expected an integer in 0..{len(events)}, got {apex_after!r}")
         note = data.get("note", "")
         if not isinstance(note, str):
             raise ExpressionError(f"{where}.note: expected a string, got {note!r}")
@@ -155,6 +155,4 @@ def get_expression(library: Mapping[str, Expression], name: str) -> Expression:
     try:
         return library[name]
     except KeyError:
-        raise ExpressionError(
-            f"expression {name!r} is not in the library; known: {sorted(library)}"
-        ) from None
+        raise ExpressionError(f"expression {name!r} is not in the library; known: {sorted(library)}") from None

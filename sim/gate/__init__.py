@@ -3,8 +3,8 @@
 ``TwinGate(head, calibration, frame_period_s).check(goals_tick, last_goals_tick, health=None) -> Verdict``.
 """
 
-from sim.gate.gate import BatchReport, GateConfig, TwinGate
-from sim.gate.health import HealthPolicy, ServoHealth
-from sim.gate.verdict import Finding, Verdict
+from servoface.sim.gate.gate import BatchReport, GateConfig, TwinGate
+from servoface.sim.gate.health import HealthPolicy, ServoHealth
+from servoface.sim.gate.verdict import Finding, Verdict
 
 __all__ = ["BatchReport", "Finding", "GateConfig", "HealthPolicy", "ServoHealth", "TwinGate", "Verdict"]

@@ -10,13 +10,12 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.gate.errors import GateConfigError
-from sim.gate.exact import ExactCollider, eroded
-from sim.gate.fk import JointTree
-from sim.gate.proofs import concentric_separation
-from sim.gate.tss_build import BuiltPair, TssParams, build_or_load, relative_joints
-from sim.gate.tss_runtime import TssBroadPhase
+from servoface.sim.gate.errors import GateConfigError
+from servoface.sim.gate.exact import ExactCollider, eroded
+from servoface.sim.gate.fk import JointTree
+from servoface.sim.gate.proofs import concentric_separation
+from servoface.sim.gate.tss_build import BuiltPair, TssParams, build_or_load, relative_joints
+from servoface.sim.gate.tss_runtime import TssBroadPhase
 
 FloatArray = NDArray[np.float64]
 
@@ -46,9 +45,7 @@ def auto_pairs(head: Any, tree: JointTree) -> list[PairSpec]:
         return out
     parts = [p for p in head.parts if getattr(p, "collides", True)]
     return [
-        PairSpec(a.name, b.name)
-        for a, b in itertools.combinations(parts, 2)
-        if relative_joints(tree, a.joint, b.joint)
+        PairSpec(a.name, b.name) for a, b in itertools.combinations(parts, 2) if relative_joints(tree, a.joint, b.joint)
     ]
 
 
@@ -80,12 +77,8 @@ class PartCollisions:
         self.skipped: list[tuple[PairSpec, str]] = []
         rest = np.broadcast_to(np.eye(4), (len(tree.names), 4, 4))
         for spec in pairs:
-            ma = meshes.setdefault(
-                f"{spec.a}@{spec.tolerance_mm}", eroded(parts[spec.a].mesh, spec.tolerance_mm)
-            )
-            mb = meshes.setdefault(
-                f"{spec.b}@{spec.tolerance_mm}", eroded(parts[spec.b].mesh, spec.tolerance_mm)
-            )
+            ma = meshes.setdefault(f"{spec.a}@{spec.tolerance_mm}", eroded(parts[spec.a].mesh, spec.tolerance_mm))
+            mb = meshes.setdefault(f"{spec.b}@{spec.tolerance_mm}", eroded(parts[spec.b].mesh, spec.tolerance_mm))
             reason = concentric_separation(
                 tree,
                 parts[spec.a].joint,
@@ -129,9 +122,7 @@ class PartCollisions:
         self.always = [b.table.exact_only or b.table.n_tests > params.max_table_tests for b in self.built]
         self.broad = TssBroadPhase(tree, self.part_joint, self.built, self.always)
         self.pairs_active = [
-            s
-            for s, b in zip(self.specs, self.built, strict=True)
-            if b.table.n_tests > 0 or b.table.exact_only
+            s for s, b in zip(self.specs, self.built, strict=True) if b.table.n_tests > 0 or b.table.exact_only
         ]
 
     def _neutral_world(self, rest: FloatArray) -> FloatArray:

@@ -17,9 +17,8 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.gate.errors import GateConfigError
-from sim.gate.verdict import Finding
+from servoface.sim.gate.errors import GateConfigError
+from servoface.sim.gate.verdict import Finding
 
 FloatArray = NDArray[np.float64]
 
@@ -35,9 +34,7 @@ class CouplingLimit:
     direction: Literal["+", "-", "any"] = "+"
 
 
-def travel_share(
-    targets: FloatArray, lower: FloatArray, upper: FloatArray, neutral: FloatArray
-) -> FloatArray:
+def travel_share(targets: FloatArray, lower: FloatArray, upper: FloatArray, neutral: FloatArray) -> FloatArray:
     """Signed share of travel per actuator; ``targets`` (..., n), the bounds (n,)."""
     up = np.where(upper > neutral, upper - neutral, 1.0)
     down = np.where(neutral > lower, neutral - lower, 1.0)
@@ -55,9 +52,7 @@ class CouplingCheck:
         for rule in self.rules:
             missing = [r for r in rule.roles if r not in col]
             if missing:
-                raise GateConfigError(
-                    f"coupling rule '{rule.name}': unknown role(s) {missing}; known {list(roles)}"
-                )
+                raise GateConfigError(f"coupling rule '{rule.name}': unknown role(s) {missing}; known {list(roles)}")
             if not 0.0 <= rule.share <= float(len(rule.roles)):
                 raise GateConfigError(f"coupling rule '{rule.name}': share {rule.share} out of range")
             self._cols.append(np.array([col[r] for r in rule.roles], dtype=np.int64))
@@ -124,7 +119,7 @@ class CouplingCheck:
 
 def limits_from_head(head: Any) -> list[CouplingLimit]:
     """The head's coupling rules in gate form. Reads ``head.coupling_rules`` duck-typed: a
-    `sim.rig.CouplingRule` (``roles``, ``max_sum_share``: sum of absolute shares) or a rule with ``roles``
+    `servoface.sim.rig.CouplingRule` (``roles``, ``max_sum_share``: sum of absolute shares) or a rule with ``roles``
     and ``max_share`` / ``share`` and optionally ``name``, ``kind``, ``direction``."""
     out: list[CouplingLimit] = []
     for i, rule in enumerate(getattr(head, "coupling_rules", ()) or ()):
@@ -133,7 +128,7 @@ def limits_from_head(head: Any) -> list[CouplingLimit]:
             continue
         roles = tuple(getattr(rule, "roles", ()))
         name = str(getattr(rule, "name", "") or getattr(rule, "note", "") or f"rule{i}")
-        if getattr(rule, "max_sum_share", None) is not None:  # sim.rig.CouplingRule: sum of |shares|
+        if getattr(rule, "max_sum_share", None) is not None:  # servoface.sim.rig.CouplingRule: sum of |shares|
             out.append(CouplingLimit(name, roles, float(rule.max_sum_share), "sum_at_most", "any"))
             continue
         share = getattr(rule, "max_share", getattr(rule, "share", None))

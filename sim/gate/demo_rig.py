@@ -3,7 +3,7 @@
 A box skull on a neck yaw joint, a jaw plate hinged under it that collides with the skull when closed
 past 0 deg, an ear paddle that hits the skull's side when swung far back, an eyeball with a lid shell, a
 flat skin sheet in front (lower rows follow the jaw) with two anchor pullers and a coupling rule. It has
-the attribute names of `sim.head.Head`, so the gate cannot tell it from a loaded profile.
+the attribute names of `servoface.sim.head.Head`, so the gate cannot tell it from a loaded profile.
 """
 
 from __future__ import annotations
@@ -12,8 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
-
-from sim.rig import AnchorActuator, Joint, JointActuator, RigidPart, ServoRef, Skin
+from servoface.sim.rig import AnchorActuator, Joint, JointActuator, RigidPart, ServoRef, Skin
 
 
 @dataclass(frozen=True)
@@ -123,9 +122,9 @@ def _eyeball() -> Any:
 
 def demo_calibration(head: DemoHead | None = None) -> Any:
     """A linear calibration of the demo head: 4096/360 tick per deg about 2048, 20 tick per mm."""
-    from calibration.curves import LinearCurve
-    from calibration.head import HeadCalibration
-    from calibration.servo import ServoCalibration
+    from servoface.calibration.curves import LinearCurve
+    from servoface.calibration.head import HeadCalibration
+    from servoface.calibration.servo import ServoCalibration
 
     head = head or demo_head()
     servos = []

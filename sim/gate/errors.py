@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from sim.errors import SimError
+from servoface.sim.errors import SimError
 
 
 class GateError(SimError):

@@ -10,8 +10,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.gate.errors import GateConfigError
+from servoface.sim.gate.errors import GateConfigError
 
 FloatArray = NDArray[np.float64]
 
@@ -20,9 +19,7 @@ def _fcl() -> Any:
     try:
         import fcl
     except ImportError as err:
-        raise GateConfigError(
-            "the twin gate's exact collision test needs python-fcl: pip install python-fcl"
-        ) from err
+        raise GateConfigError("the twin gate's exact collision test needs python-fcl: pip install python-fcl") from err
     return fcl
 
 

@@ -1,7 +1,7 @@
 """Batched forward kinematics of a head's joint tree (numpy, no per-command Python loop over commands).
 
 A joint with pivot p and unit axis a (head frame, every joint at 0 deg) rotated by theta has the world
-transform  T_parent @ Trans(p) @ Rot(a, theta) @ Trans(-p)  — the convention of `sim.rig`.
+transform  T_parent @ Trans(p) @ Rot(a, theta) @ Trans(-p)  — the convention of `servoface.sim.rig`.
 """
 
 from __future__ import annotations
@@ -11,8 +11,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.gate.errors import GateConfigError
+from servoface.sim.gate.errors import GateConfigError
 
 FloatArray = NDArray[np.float64]
 
@@ -55,9 +54,7 @@ class JointTree:
         self.axis = axes / norms[:, None]
         self.lower_deg = np.array([by_name[n].lower_deg for n in self.names], dtype=np.float64)
         self.upper_deg = np.array([by_name[n].upper_deg for n in self.names], dtype=np.float64)
-        self.neutral_deg = np.array(
-            [getattr(by_name[n], "neutral_deg", 0.0) for n in self.names], dtype=np.float64
-        )
+        self.neutral_deg = np.array([getattr(by_name[n], "neutral_deg", 0.0) for n in self.names], dtype=np.float64)
 
     def chain(self, name: str | None) -> list[int]:
         """Indices of ``name`` and its ancestors (root last); [] for the head base."""
@@ -78,9 +75,7 @@ class JointTree:
         r = np.eye(3) + np.sin(th) * k + (1.0 - np.cos(th)) * (k @ k)
         out = np.zeros((*angles_deg.shape, 4, 4))
         out[..., :3, :3] = r
-        out[..., :3, 3] = self.pivot_mm - np.einsum(
-            "...ij,...j->...i", r, np.broadcast_to(self.pivot_mm, r.shape[:-1])
-        )
+        out[..., :3, 3] = self.pivot_mm - np.einsum("...ij,...j->...i", r, np.broadcast_to(self.pivot_mm, r.shape[:-1]))
         out[..., 3, 3] = 1.0
         return out
 

@@ -23,19 +23,18 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.gate import limits as lim
-from sim.gate.collision import PairSpec, PartCollisions, auto_pairs
-from sim.gate.coupling import CouplingCheck, CouplingLimit, limits_from_head, travel_share
-from sim.gate.errors import GateConfigError, GateInputError
-from sim.gate.fk import JointTree
-from sim.gate.health import HealthPolicy, ServoHealth, derate
-from sim.gate.skin_source import face_model_source, falloff_source
-from sim.gate.skin_static import build_static
-from sim.gate.strain import SkinTwin, StrainLimits, strain_findings
-from sim.gate.tss_build import TssParams, default_cache_dir
-from sim.gate.twin import TwinPoser
-from sim.gate.verdict import Finding, Verdict
+from servoface.sim.gate import limits as lim
+from servoface.sim.gate.collision import PairSpec, PartCollisions, auto_pairs
+from servoface.sim.gate.coupling import CouplingCheck, CouplingLimit, limits_from_head, travel_share
+from servoface.sim.gate.errors import GateConfigError, GateInputError
+from servoface.sim.gate.fk import JointTree
+from servoface.sim.gate.health import HealthPolicy, ServoHealth, derate
+from servoface.sim.gate.skin_source import face_model_source, falloff_source
+from servoface.sim.gate.skin_static import build_static
+from servoface.sim.gate.strain import SkinTwin, StrainLimits, strain_findings
+from servoface.sim.gate.tss_build import TssParams, default_cache_dir
+from servoface.sim.gate.twin import TwinPoser
+from servoface.sim.gate.verdict import Finding, Verdict
 
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
@@ -86,16 +85,14 @@ class TwinGate:
         config: GateConfig | None = None,
         face_model: Any = "auto",
     ) -> None:
-        """``face_model``: "auto" (the head's `sim.face_model.FaceModel` when it has muscles, else the
+        """``face_model``: "auto" (the head's `servoface.sim.face_model.FaceModel` when it has muscles, else the
         falloff skin), a FaceModel, or None (falloff skin: each anchor drags the skin around it)."""
         self.head = head
         self.config = cfg = config or GateConfig()
         self.frame_period_s = float(frame_period_s)
         self.tree = JointTree(head.joints)
         self.poser = TwinPoser(head, calibration, self.tree)
-        step, speedup = lim.rate_caps_tick(
-            self.poser.models, self.frame_period_s, cfg.speed_share, cfg.accel_time_s
-        )
+        step, speedup = lim.rate_caps_tick(self.poser.models, self.frame_period_s, cfg.speed_share, cfg.accel_time_s)
         for i, role in enumerate(self.poser.roles):
             step[i] = int(cfg.max_step_tick.get(role, step[i]))
             speedup[i] = int(cfg.max_speedup_tick.get(role, speedup[i]))
@@ -127,7 +124,7 @@ class TwinGate:
         if isinstance(face_model, str) and face_model == "auto":
             face_model = None
             if getattr(self.head, "muscles", ()):
-                from sim.face_model import FaceModel
+                from servoface.sim.face_model import FaceModel
 
                 try:
                     face_model = FaceModel(self.head)
@@ -148,18 +145,14 @@ class TwinGate:
     def neutral_goals(self) -> dict[int, int]:
         return {sid: int(t) for sid, t in zip(self.table.ids, self.table.neutral_tick, strict=True)}
 
-    def _vector(
-        self, goals: Mapping[Any, Any], base: IntArray | None, what: str
-    ) -> tuple[IntArray, list[Finding]]:
+    def _vector(self, goals: Mapping[Any, Any], base: IntArray | None, what: str) -> tuple[IntArray, list[Finding]]:
         out = np.zeros(self.table.n, dtype=np.int64) if base is None else base.copy()
         bad: list[Finding] = []
         seen = set()
         for sid, tick in goals.items():
             i_or_none = self._index.get(sid) if _is_int(sid) else None
             if i_or_none is None:
-                bad.append(
-                    Finding("input", f"{what}: unknown servo id {sid!r}; head servos {list(self.table.ids)}")
-                )
+                bad.append(Finding("input", f"{what}: unknown servo id {sid!r}; head servos {list(self.table.ids)}"))
                 continue
             i = i_or_none
             if not _is_int(tick):
@@ -279,9 +272,7 @@ class TwinGate:
             # its narrowed limit while the others have arrived): a clip at the limits, not a refusal
             return self._remember(Verdict("clip", hold, tuple(findings), 1.0, requested), last)
         if best is None or np.array_equal(best, last):
-            findings.append(
-                Finding("hold", "no safe command found between the last one and the request: holding")
-            )
+            findings.append(Finding("hold", "no safe command found between the last one and the request: holding"))
             return self._remember(Verdict("reject", hold, tuple(findings), 0.0, requested), last)
         goals = {sid: int(t) for sid, t in zip(self.table.ids, best, strict=True)}
         return self._remember(Verdict("clip", goals, tuple(findings), frac, requested), last)
@@ -377,9 +368,7 @@ class TwinGate:
         return out
 
     # ---- for callers that need the twin's pose ----------------------------------------------------------
-    def twin_pose(
-        self, goals_tick: Mapping[int, int]
-    ) -> tuple[dict[str, float], FloatArray, dict[str, float]]:
+    def twin_pose(self, goals_tick: Mapping[int, int]) -> tuple[dict[str, float], FloatArray, dict[str, float]]:
         """(joint_deg, skin_offset_mm (n, 3), actuator targets) the twin sees for a full command."""
         vec, bad = self._vector(goals_tick, None, "goals_tick")
         if bad:

@@ -12,10 +12,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
-
-from sim.gate.errors import GateInputError
-from sim.gate.limits import ServoTable
-from sim.gate.verdict import Finding
+from servoface.sim.gate.errors import GateInputError
+from servoface.sim.gate.limits import ServoTable
+from servoface.sim.gate.verdict import Finding
 
 
 @dataclass(frozen=True)
@@ -69,9 +68,7 @@ def derate(
     index = table.index()
     unknown = sorted(set(health) - set(index))
     if unknown:
-        raise GateInputError(
-            f"health given for unknown servo id(s) {unknown}; head servos are {list(table.ids)}"
-        )
+        raise GateInputError(f"health given for unknown servo id(s) {unknown}; head servos are {list(table.ids)}")
     lo, hi = table.min_tick.copy(), table.max_tick.copy()
     step, speedup = table.max_step_tick.copy(), table.max_speedup_tick.copy()
     found: list[Finding] = []
@@ -104,7 +101,5 @@ def derate(
                 "C",
             )
         )
-    narrowed = replace(
-        table, min_tick=lo, max_tick=hi, max_step_tick=step, max_speedup_tick=np.maximum(1, speedup)
-    )
+    narrowed = replace(table, min_tick=lo, max_tick=hi, max_step_tick=step, max_speedup_tick=np.maximum(1, speedup))
     return narrowed, found

@@ -12,9 +12,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.gate.errors import GateConfigError
-from sim.gate.verdict import Finding
+from servoface.sim.gate.errors import GateConfigError
+from servoface.sim.gate.verdict import Finding
 
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
@@ -51,11 +50,7 @@ class ServoTable:
             arr = getattr(self, name)
             if arr.shape != (n,):
                 raise GateConfigError(f"ServoTable.{name}: expected shape ({n},), got {arr.shape}")
-        bad = [
-            self.label(i)
-            for i in range(n)
-            if not self.min_tick[i] <= self.neutral_tick[i] <= self.max_tick[i]
-        ]
+        bad = [self.label(i) for i in range(n) if not self.min_tick[i] <= self.neutral_tick[i] <= self.max_tick[i]]
         if bad:
             raise GateConfigError(f"servo limits need min_tick <= neutral_tick <= max_tick; broken for {bad}")
         if np.any(self.max_step_tick < 1) or np.any(self.max_speedup_tick < 1):
@@ -86,9 +81,7 @@ def rate_caps_tick(
         raise GateConfigError(f"frame_period_s must be a positive number, got {frame_period_s}")
     unknown = sorted({m for m in models if m not in NO_LOAD_SPEED_RPM})
     if unknown:
-        raise GateConfigError(
-            f"no speed known for servo model(s) {unknown}; known: {sorted(NO_LOAD_SPEED_RPM)}"
-        )
+        raise GateConfigError(f"no speed known for servo model(s) {unknown}; known: {sorted(NO_LOAD_SPEED_RPM)}")
     rpm = np.array([NO_LOAD_SPEED_RPM[m] for m in models])
     tick_per_s = rpm / 60.0 * TICKS_PER_REV * speed_share
     step = np.maximum(1, np.floor(tick_per_s * frame_period_s)).astype(np.int64)
@@ -141,11 +134,7 @@ def findings(goals: IntArray, last: IntArray, last_step: IntArray, table: ServoT
     for i in np.flatnonzero(bad).tolist():
         sid, role, g = table.ids[i], table.roles[i], int(goals[i])
         if g < table.min_tick[i] or g > table.max_tick[i]:
-            side, lim = (
-                ("below min", table.min_tick[i])
-                if g < table.min_tick[i]
-                else ("above max", table.max_tick[i])
-            )
+            side, lim = ("below min", table.min_tick[i]) if g < table.min_tick[i] else ("above max", table.max_tick[i])
             out.append(
                 Finding(
                     "limit",

@@ -11,8 +11,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.gate.fk import JointTree
+from servoface.sim.gate.fk import JointTree
 
 FloatArray = NDArray[np.float64]
 

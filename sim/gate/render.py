@@ -1,6 +1,6 @@
 """The twin's verdict as a picture: the requested face next to the gated face, with the reasons.
 
-Uses RENDER's helpers (`sim.render.twin.render_target_vs_gated`); headless through EGL like every render.
+Uses RENDER's helpers (`servoface.sim.render.twin.render_target_vs_gated`); headless through EGL like every render.
 """
 
 from __future__ import annotations
@@ -11,8 +11,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.gate.verdict import Verdict
+from servoface.sim.gate.verdict import Verdict
 
 Image = NDArray[np.uint8]
 
@@ -36,9 +35,8 @@ def render_verdict(
     labelled, with the verdict and its reasons printed underneath. (H, W, 3) uint8."""
     from PIL import Image as PILImage
     from PIL import ImageDraw, ImageFont
-
-    from sim.render import HeadRenderer
-    from sim.render.twin import render_target_vs_gated
+    from servoface.sim.render import HeadRenderer
+    from servoface.sim.render.twin import render_target_vs_gated
 
     r = renderer or HeadRenderer(*size_px)
     pair = render_target_vs_gated(

@@ -20,9 +20,8 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
-
-from sim.gate.box_lsq import BoxLsq
-from sim.gate.errors import GateConfigError
+from servoface.sim.gate.box_lsq import BoxLsq
+from servoface.sim.gate.errors import GateConfigError
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -112,16 +111,12 @@ def face_model_source(face_model: Any, anchors: Sequence[Any]) -> SkinSource:
         )
     model_roles = [a.role for a in fm.anchor_actuators]
     if model_roles != [a.role for a in anchors]:
-        raise GateConfigError(
-            f"face model anchors {model_roles} differ from the gate's {[a.role for a in anchors]}"
-        )
+        raise GateConfigError(f"face model anchors {model_roles} differ from the gate's {[a.role for a in anchors]}")
     n = int(fm.n_vertices)
     n_muscles = len(fm.field.names)
     n_anchors = len(anchors)
     bumps = (
-        np.stack(
-            [np.asarray(fm.fit.bumps(np.eye(n_anchors)[a])).reshape(-1) for a in range(n_anchors)], axis=1
-        )
+        np.stack([np.asarray(fm.fit.bumps(np.eye(n_anchors)[a])).reshape(-1) for a in range(n_anchors)], axis=1)
         if n_anchors
         else np.zeros((3 * n, 0))
     )

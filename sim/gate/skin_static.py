@@ -12,10 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.gate.fk import JointTree
-from sim.gate.strain import SkinTwin
-from sim.gate.twin import TwinPoser
+from servoface.sim.gate.fk import JointTree
+from servoface.sim.gate.strain import SkinTwin
+from servoface.sim.gate.twin import TwinPoser
 
 IntArray = NDArray[np.int64]
 

@@ -15,8 +15,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.gate.errors import GateConfigError
+from servoface.sim.gate.errors import GateConfigError
 
 FloatArray = NDArray[np.float64]
 

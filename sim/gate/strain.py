@@ -12,10 +12,9 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.gate.errors import GateConfigError
-from sim.gate.fk import JointTree
-from sim.gate.verdict import Finding
+from servoface.sim.gate.errors import GateConfigError
+from servoface.sim.gate.fk import JointTree
+from servoface.sim.gate.verdict import Finding
 
 FloatArray = NDArray[np.float64]
 
@@ -52,9 +51,7 @@ class SkinTwin:
         used = np.nonzero(self.weights.any(axis=0))[0]
         self._used = used
         self._w_used = self.weights[:, used]
-        e = np.sort(
-            np.concatenate([self.faces[:, [0, 1]], self.faces[:, [1, 2]], self.faces[:, [2, 0]]]), axis=1
-        )
+        e = np.sort(np.concatenate([self.faces[:, [0, 1]], self.faces[:, [1, 2]], self.faces[:, [2, 0]]]), axis=1)
         self.edges = np.unique(e, axis=0)
         self.rest_len = np.linalg.norm(self.rest[self.edges[:, 0]] - self.rest[self.edges[:, 1]], axis=1)
         if np.any(self.rest_len <= 0):
@@ -74,9 +71,7 @@ class SkinTwin:
         f = self.faces
         area2 = np.linalg.norm(self.rest_normal, axis=1)
         act_f = (area2 > 1e-9 * max(float(area2.max(initial=0.0)), 1e-12)) & (
-            soft[f].any(axis=1)
-            | (joint_of[f[:, 0]] != joint_of[f[:, 1]])
-            | (joint_of[f[:, 0]] != joint_of[f[:, 2]])
+            soft[f].any(axis=1) | (joint_of[f[:, 0]] != joint_of[f[:, 1]]) | (joint_of[f[:, 0]] != joint_of[f[:, 2]])
         )  # degenerate rest triangles have no normal to flip: left out
         self._const_max = 1.0 if (~act_e).any() else 0.0
         self._const_min = 1.0 if (~act_e).any() else np.inf
@@ -142,9 +137,7 @@ class SkinTwin:
         x, y, z = self._rest_vt
         p = [m[:, 4 * r] * x + m[:, 4 * r + 1] * y + m[:, 4 * r + 2] * z + m[:, 4 * r + 3] for r in range(3)]
         e = self._edges[edges]
-        r2 = sum((c[:, e[:, 0]] - c[:, e[:, 1]]) ** 2 for c in p) * (
-            1.0 / self.rest_len[self._act_e][edges] ** 2
-        )
+        r2 = sum((c[:, e[:, 0]] - c[:, e[:, 1]]) ** 2 for c in p) * (1.0 / self.rest_len[self._act_e][edges] ** 2)
         f = self._faces[faces]
         u = np.stack([c[:, f[:, 1]] - c[:, f[:, 0]] for c in p], axis=-1)
         w = np.stack([c[:, f[:, 2]] - c[:, f[:, 0]] for c in p], axis=-1)
@@ -186,9 +179,7 @@ class SkinTwin:
         m = (self._w_used @ self._mats(world)).reshape(*v.shape[:-1], 3, 4)
         return np.asarray(np.einsum("...nij,...nj->...ni", m[..., :3], v) + m[..., 3], dtype=np.float64)
 
-    def measure(
-        self, world: FloatArray, offsets: FloatArray
-    ) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
+    def measure(self, world: FloatArray, offsets: FloatArray) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
         """(max stretch (...,), min compression (...,), flipped triangles (...,)) for (..., n, 3) offsets.
 
         Coordinates are kept as separate x, y, z arrays (vertices on the last axis): gathers and sums

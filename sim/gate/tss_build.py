@@ -22,9 +22,8 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.gate.fk import JointTree
-from sim.gate.spheres import SphereSet, cover_spheres
+from servoface.sim.gate.fk import JointTree
+from servoface.sim.gate.spheres import SphereSet, cover_spheres
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -101,9 +100,7 @@ def pair_key(
         h.update(_mesh_bytes(mesh))
         for i in tree.chain(part.joint):
             h.update(tree.names[i].encode())
-            h.update(
-                np.array([*tree.pivot_mm[i], *tree.axis[i], tree.lower_deg[i], tree.upper_deg[i]]).tobytes()
-            )
+            h.update(np.array([*tree.pivot_mm[i], *tree.axis[i], tree.lower_deg[i], tree.upper_deg[i]]).tobytes())
     h.update(repr((tolerance_mm, params)).encode())
     return h.hexdigest()[:20]
 
@@ -122,12 +119,8 @@ def _tree_distance_bound(tree: JointTree, from_joint: str | None, to_index: int)
     common = next((i for i in chain_from if i in set(chain_to)), None)
     path_up = chain_from if common is None else chain_from[: chain_from.index(common) + 1]
     path_down = chain_to if common is None else chain_to[: chain_to.index(common) + 1]
-    nodes = (
-        path_up + list(reversed(path_down))[1:] if common is not None else path_up + list(reversed(path_down))
-    )
-    length = sum(
-        float(np.linalg.norm(tree.pivot_mm[u] - tree.pivot_mm[v])) for u, v in itertools.pairwise(nodes)
-    )
+    nodes = path_up + list(reversed(path_down))[1:] if common is not None else path_up + list(reversed(path_down))
+    length = sum(float(np.linalg.norm(tree.pivot_mm[u] - tree.pivot_mm[v])) for u, v in itertools.pairwise(nodes))
     return chain_from[0], length
 
 
@@ -242,16 +235,10 @@ def build_pair(
     )
 
 
-def _grid_angles(
-    tree: JointTree, rel: list[int], lo: FloatArray, hi: FloatArray, counts: IntArray
-) -> FloatArray:
+def _grid_angles(tree: JointTree, rel: list[int], lo: FloatArray, hi: FloatArray, counts: IntArray) -> FloatArray:
     """(G, J) joint angles of a regular grid over the ``rel`` joints (others at 0)."""
     axes = [np.linspace(lo[i], hi[i], int(counts[i])) for i in range(len(rel))]
-    grid = (
-        np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(rel))
-        if rel
-        else np.zeros((1, 0))
-    )
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(rel)) if rel else np.zeros((1, 0))
     angles = np.zeros((grid.shape[0], len(tree.names)))
     angles[:, rel] = grid
     return angles
@@ -336,7 +323,7 @@ def build_or_load(
 ) -> BuiltPair:
     """The pair's table from the cache when its key matches, else built (and cached when a dir is given)."""
     key = pair_key(tree, part_a, part_b, mesh_a, mesh_b, tolerance_mm, params)
-    from sim.gate.tss_cache import load_table, save_table
+    from servoface.sim.gate.tss_cache import load_table, save_table
 
     path = None if cache_dir is None else cache_dir / f"{head_name}-{part_a.name}-{part_b.name}-{key}.npz"
     if path is not None:

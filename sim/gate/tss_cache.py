@@ -6,10 +6,9 @@ import os
 from pathlib import Path
 
 import numpy as np
-
-from sim.gate.errors import TssCacheError
-from sim.gate.spheres import SphereSet
-from sim.gate.tss_build import PairTable
+from servoface.sim.gate.errors import TssCacheError
+from servoface.sim.gate.spheres import SphereSet
+from servoface.sim.gate.tss_build import PairTable
 
 
 def save_table(path: Path, table: PairTable, sa: SphereSet, sb: SphereSet) -> None:

@@ -11,10 +11,9 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.gate.fk import JointTree
-from sim.gate.spheres import SphereSet
-from sim.gate.tss_build import BuiltPair
+from servoface.sim.gate.fk import JointTree
+from servoface.sim.gate.spheres import SphereSet
+from servoface.sim.gate.tss_build import BuiltPair
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -33,9 +32,7 @@ class TssBroadPhase:
         """``always[p]``: pair p skips the sphere tests and always goes to the exact test (tables too
         large to pay off, e.g. a part on the head base against one behind three neck joints)."""
         self.pairs = tuple(pairs)
-        self.always = (
-            np.zeros(len(self.pairs), dtype=bool) if always is None else np.array(always, dtype=bool)
-        )
+        self.always = np.zeros(len(self.pairs), dtype=bool) if always is None else np.array(always, dtype=bool)
         n_joints = len(tree.names)
         centres: list[FloatArray] = []
         slot: list[int] = []
@@ -87,9 +84,7 @@ class TssBroadPhase:
             self._lo[p, idx] = b.table.lower_deg - 1e-9
             self._hi[p, idx] = b.table.upper_deg + 1e-9
         self.n_tests = int(self.ga.shape[0])
-        counts = np.array(
-            [0 if self.always[p] else b.table.n_tests for p, b in enumerate(self.pairs)], dtype=np.int64
-        )
+        counts = np.array([0 if self.always[p] else b.table.n_tests for p, b in enumerate(self.pairs)], dtype=np.int64)
         self._nonempty = counts > 0
         self._starts = (np.cumsum(counts) - counts)[self._nonempty]
         # exact-only pairs still get a cheap gate: the parts' bounding balls (around all their spheres)

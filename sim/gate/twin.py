@@ -10,9 +10,8 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.gate.errors import GateConfigError
-from sim.gate.fk import JointTree
+from servoface.sim.gate.errors import GateConfigError
+from servoface.sim.gate.fk import JointTree
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -38,9 +37,7 @@ class TwinPoser:
         head_ids = {a.role: a.servo.id for a in head.actuators}
         wrong = [(r, i, head_ids[r]) for r, i in zip(self.roles, self.ids, strict=True) if head_ids[r] != i]
         if wrong:
-            raise GateConfigError(
-                f"calibration ids differ from the head profile (role, cal id, head id): {wrong}"
-            )
+            raise GateConfigError(f"calibration ids differ from the head profile (role, cal id, head id): {wrong}")
         self.actuators = tuple(actuators[r] for r in self.roles)
         # joint columns: servo column -> joints it drives
         jc: list[int] = []
@@ -52,13 +49,9 @@ class TwinPoser:
                     jj.append(tree.index[name])
         self._joint_col = np.array(jc, dtype=np.int64)
         self._joint_idx = np.array(jj, dtype=np.int64)
-        self.anchor_cols = np.array(
-            [c for c, a in enumerate(self.actuators) if a.kind == "anchor"], dtype=np.int64
-        )
+        self.anchor_cols = np.array([c for c, a in enumerate(self.actuators) if a.kind == "anchor"], dtype=np.int64)
         self.anchor_roles = tuple(self.roles[c] for c in self.anchor_cols)
-        self.anchor_neutral_mm = np.array(
-            [self.actuators[c].neutral_mm for c in self.anchor_cols], dtype=np.float64
-        )
+        self.anchor_neutral_mm = np.array([self.actuators[c].neutral_mm for c in self.anchor_cols], dtype=np.float64)
         servos = calibration.servos
         self.min_tick = np.array([s.min_tick for s in servos], dtype=np.int64)
         self.max_tick = np.array([s.max_tick for s in servos], dtype=np.int64)
@@ -75,9 +68,7 @@ class TwinPoser:
         is one gather (exact: the curve evaluated at the same integer ticks)."""
         span = self.max_tick - self.min_tick + 1
         self._lut_offset = np.r_[0, np.cumsum(span)[:-1]].astype(np.int64)
-        grid = np.concatenate(
-            [np.arange(lo, hi + 1) for lo, hi in zip(self.min_tick, self.max_tick, strict=True)]
-        )
+        grid = np.concatenate([np.arange(lo, hi + 1) for lo, hi in zip(self.min_tick, self.max_tick, strict=True)])
         cols = np.repeat(np.arange(len(span)), span)
         table = np.tile(self.neutral_tick, (len(grid), 1))
         table[np.arange(len(grid)), cols] = grid
@@ -97,7 +88,7 @@ class TwinPoser:
 
     def joint_angles(self, targets: FloatArray) -> FloatArray:
         """(k, J) joint angles: driven joints from their servo's target, the rest at neutral, all clamped to
-        the joint limits (the rig's hard stops, as in `sim.kinematics`)."""
+        the joint limits (the rig's hard stops, as in `servoface.sim.kinematics`)."""
         q = np.broadcast_to(self.tree.neutral_deg, (targets.shape[0], len(self.tree.names))).copy()
         q[:, self._joint_idx] = targets[:, self._joint_col]
         return np.clip(q, self.tree.lower_deg, self.tree.upper_deg)

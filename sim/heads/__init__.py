@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sim.errors import HeadProfileError
-from sim.head import Head
+from servoface.sim.errors import HeadProfileError
+from servoface.sim.head import Head
 
 BUILTIN_DIR = Path(__file__).resolve().parent
 BUILTIN_HEADS = ("human", "dog")
@@ -41,7 +41,7 @@ def load_head(name_or_path: str | Path) -> Head:
     Results are cached per file and modification time; the returned Head and its arrays are read-only
     by contract (skin arrays are flagged non-writeable).
     """
-    from sim.profile import load_profile
+    from servoface.sim.profile import load_profile
 
     if isinstance(name_or_path, str) and name_or_path in BUILTIN_HEADS:
         path = builtin_profile_dir(name_or_path)
@@ -49,8 +49,7 @@ def load_head(name_or_path: str | Path) -> Head:
         path = Path(name_or_path)
         if not path.exists():
             raise HeadProfileError(
-                f"{path}: expected a built-in head name {list(BUILTIN_HEADS)} "
-                "or a profile folder with head.toml"
+                f"{path}: expected a built-in head name {list(BUILTIN_HEADS)} or a profile folder with head.toml"
             )
     file = path / "head.toml" if path.is_dir() else path
     try:

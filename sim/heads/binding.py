@@ -13,9 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.heads.mesh_tools import smoothstep
-from sim.rig import Vec3
+from servoface.sim.heads.mesh_tools import smoothstep
+from servoface.sim.rig import Vec3
 
 
 @dataclass(frozen=True)

@@ -10,9 +10,8 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-
-from sim.heads import dog_gen, human_gen
-from sim.heads.mesh_tools import F64, I64
+from servoface.sim.heads import dog_gen, human_gen
+from servoface.sim.heads.mesh_tools import F64, I64
 
 MeshFn = Callable[[], tuple[F64, I64]]
 

@@ -16,9 +16,8 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-
-from sim.heads import mesh_tools as mt
-from sim.heads.mesh_tools import F64, I64
+from servoface.sim.heads import mesh_tools as mt
+from servoface.sim.heads.mesh_tools import F64, I64
 
 OFFSET = np.array([0.0, -70.0, 50.0])
 
@@ -221,9 +220,7 @@ def skull() -> tuple[F64, I64]:
 
 def nose() -> tuple[F64, I64]:
     """The dark inside of the nostrils (a small body behind the nose pad's dips)."""
-    return _out(
-        *mt.merge(*(mt.ellipsoid((s * 8.0, 99.0, 150.0), (3.5, 2.5, 3.0), subdiv=2) for s in (1.0, -1.0)))
-    )
+    return _out(*mt.merge(*(mt.ellipsoid((s * 8.0, 99.0, 150.0), (3.5, 2.5, 3.0), subdiv=2) for s in (1.0, -1.0))))
 
 
 def mouth_cavity() -> tuple[F64, I64]:
@@ -248,9 +245,7 @@ def _mouth_path(inset_mm: float, z_back: float, spacing_mm: float) -> F64:
     return np.stack([np.interp(t, s, line[:, 0]), np.interp(t, s, line[:, 1])], 1)
 
 
-def _tooth_row(
-    y_gum: float, down: bool, inset_mm: float, canine_mm: float, canine_back_mm: float
-) -> tuple[F64, I64]:
+def _tooth_row(y_gum: float, down: bool, inset_mm: float, canine_mm: float, canine_back_mm: float) -> tuple[F64, I64]:
     """Teeth along the mouth line; the two canines stand ``canine_back_mm`` behind the front."""
     pts = _mouth_path(inset_mm, 100.0, 4.2)
     z_front = _Z[-1] - inset_mm

@@ -13,9 +13,8 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-
-from sim.heads import mesh_tools as mt
-from sim.heads.mesh_tools import F64, I64
+from servoface.sim.heads import mesh_tools as mt
+from servoface.sim.heads.mesh_tools import F64, I64
 
 # --- the numbers head.toml refers to (keep in sync; tests check) -------------------------------------------
 EYE_CENTRE_L = (32.0, 126.0, 66.0)
@@ -264,9 +263,7 @@ def jaw() -> tuple[F64, I64]:
     """Lower teeth on a U-shaped mandible, inside the skin."""
     teeth = _teeth(MOUTH_Y - 4.5, 7.0, 79.5)
     t = np.linspace(-1.0, 1.0, 17)
-    spine = np.stack(
-        [40.0 * np.sin(t * 1.35), 56.0 + 14.0 * np.abs(t) ** 2, 74.0 - 62.0 * (1 - np.cos(t * 1.35))], 1
-    )
+    spine = np.stack([40.0 * np.sin(t * 1.35), 56.0 + 14.0 * np.abs(t) ** 2, 74.0 - 62.0 * (1 - np.cos(t * 1.35))], 1)
     bone = mt.tube_along(spine, np.full(len(spine), 5.0), 12)
     return mt.merge(teeth, bone)
 

@@ -72,9 +72,7 @@ def fan(ring: I64, centre: int, reverse: bool = False) -> I64:
     return np.asarray(tri[:, ::-1] if reverse else tri, dtype=np.int64)
 
 
-def split_vertices(
-    vertices: F64, faces: I64, vertex_ids: I64, face_mask: NDArray[np.bool_]
-) -> tuple[F64, I64, I64]:
+def split_vertices(vertices: F64, faces: I64, vertex_ids: I64, face_mask: NDArray[np.bool_]) -> tuple[F64, I64, I64]:
     """Duplicate ``vertex_ids``; faces in ``face_mask`` use the copies (cuts a slit such as a mouth).
 
     Returns (vertices, faces, copy_ids) with copy_ids[k] the new index of vertex_ids[k].
@@ -88,9 +86,7 @@ def split_vertices(
     return np.concatenate([vertices, vertices[vertex_ids]]), faces, copy_ids
 
 
-def compact(
-    vertices: F64, faces: I64, *extra: NDArray[np.generic]
-) -> tuple[F64, I64, list[NDArray[np.generic]]]:
+def compact(vertices: F64, faces: I64, *extra: NDArray[np.generic]) -> tuple[F64, I64, list[NDArray[np.generic]]]:
     """Drop unreferenced vertices (and the matching rows of ``extra`` per-vertex arrays)."""
     used = np.zeros(len(vertices), dtype=bool)
     used[faces.ravel()] = True
@@ -161,9 +157,7 @@ def sphere_patch(
     return np.asarray(centre + radius * np.stack([x, y, z], -1), dtype=np.float64)
 
 
-def cap(
-    centre: F64, radius: float, half_angle_deg: float, n_ring: int = 24, n_rad: int = 5
-) -> tuple[F64, I64]:
+def cap(centre: F64, radius: float, half_angle_deg: float, n_ring: int = 24, n_rad: int = 5) -> tuple[F64, I64]:
     """An open spherical cap around +z (iris, pupil), outward normals."""
     rings = [np.array([[0.0, 0.0, 1.0]])]
     for k in range(1, n_rad + 1):
@@ -220,7 +214,5 @@ def tube_along(points: F64, radius: F64, n_around: int = 16) -> tuple[F64, I64]:
     v = np.concatenate(rings + [points[:1], points[-1:]])
     f = grid_faces(k, n_around, periodic_u=True)
     start, end = len(v) - 2, len(v) - 1
-    f = np.concatenate(
-        [f, fan(np.arange(n_around), start), fan((k - 1) * n_around + np.arange(n_around), end, True)]
-    )
+    f = np.concatenate([f, fan(np.arange(n_around), start), fan((k - 1) * n_around + np.arange(n_around), end, True)])
     return v, np.asarray(f, dtype=np.int64)

@@ -11,10 +11,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from sim.errors import HeadMeshError
-from sim.heads import builtin
-from sim.heads.mesh_tools import F64, I64
+from servoface.sim.errors import HeadMeshError
+from servoface.sim.heads import builtin
+from servoface.sim.heads.mesh_tools import F64, I64
 
 BUILTIN_PREFIX = "builtin:"
 MESH_SUFFIXES = (".stl", ".obj", ".glb", ".gltf", ".ply", ".off")
@@ -37,9 +36,7 @@ def _read_file(spec: str, folder: Path, where: str) -> Any:
     v = np.asarray(getattr(mesh, "vertices", np.zeros((0, 3))), dtype=np.float64)
     f = np.asarray(getattr(mesh, "faces", np.zeros((0, 3))), dtype=np.int64)
     if len(v) < 3 or len(f) < 1 or f.ndim != 2 or f.shape[1] != 3:
-        raise HeadMeshError(
-            f"{where}: expected a triangle mesh, {path} has {len(v)} vertices / {len(f)} faces"
-        )
+        raise HeadMeshError(f"{where}: expected a triangle mesh, {path} has {len(v)} vertices / {len(f)} faces")
     if not np.all(np.isfinite(v)):
         raise HeadMeshError(f"{where}: mesh {path} has non-finite vertex coordinates")
     return mesh
@@ -52,15 +49,11 @@ def load_part_mesh(spec: str, folder: Path, where: str, scale: float = 1.0) -> A
     if spec.startswith(BUILTIN_PREFIX):
         name = spec[len(BUILTIN_PREFIX) :]
         if name not in builtin.PART_MESHES:
-            raise HeadMeshError(
-                f"{where}: expected a built-in part mesh {sorted(builtin.PART_MESHES)}, got {name!r}"
-            )
+            raise HeadMeshError(f"{where}: expected a built-in part mesh {sorted(builtin.PART_MESHES)}, got {name!r}")
         mesh = builtin.part_mesh(name)
     else:
         src = _read_file(spec, folder, where)
-        mesh = trimesh.Trimesh(
-            np.asarray(src.vertices, dtype=np.float64), np.asarray(src.faces), process=False
-        )
+        mesh = trimesh.Trimesh(np.asarray(src.vertices, dtype=np.float64), np.asarray(src.faces), process=False)
     if scale != 1.0:
         mesh.vertices = np.asarray(mesh.vertices) * scale
     return mesh
@@ -71,9 +64,7 @@ def load_skin_mesh(spec: str, folder: Path, where: str, scale: float = 1.0) -> t
     if spec.startswith(BUILTIN_PREFIX):
         name = spec[len(BUILTIN_PREFIX) :]
         if name not in builtin.SKIN_MESHES:
-            raise HeadMeshError(
-                f"{where}: expected a built-in skin mesh {sorted(builtin.SKIN_MESHES)}, got {name!r}"
-            )
+            raise HeadMeshError(f"{where}: expected a built-in skin mesh {sorted(builtin.SKIN_MESHES)}, got {name!r}")
         v, f, c = builtin.skin_mesh(name)
     else:
         src = _read_file(spec, folder, where)

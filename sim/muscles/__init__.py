@@ -2,7 +2,7 @@
 
 Each muscle is a frozen dataclass in the head frame (mm) with ``from_mapping(name, data, where)`` that
 parses one ``[muscles.<name>]`` table of a head profile (``type`` = "linear" | "sheet" | "sphincter" |
-"eyelid") and raises ``sim.errors.HeadProfileError`` naming the key path. Fields:
+"eyelid") and raises ``servoface.sim.errors.HeadProfileError`` naming the key path. Fields:
 
 - linear:    attachment_mm, insertion_mm, zone_deg (45), rs_mm (|ip - ap|), rf_mm (1.5 rs),
              max_contraction (0.25)
@@ -12,7 +12,7 @@ parses one ``[muscles.<name>]`` table of a head profile (``type`` = "linear" | "
              optional major_axis, normal, falloff ("corrected" | "printed")
 - eyelid:    centre_mm, radius_mm, joint, optional part ("upper" | "lower"), reach_mm, thickness_mm, axis
 
-The field math is in each module; ``sim.muscles.field.MuscleField`` precomputes them on a rest mesh.
+The field math is in each module; ``servoface.sim.muscles.field.MuscleField`` precomputes them on a rest mesh.
 """
 
 from __future__ import annotations
@@ -20,17 +20,15 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from sim.errors import HeadProfileError
-from sim.muscles.eyelid import EyelidMuscle
-from sim.muscles.linear import LinearMuscle
-from sim.muscles.sheet import SheetMuscle
-from sim.muscles.sphincter import SphincterMuscle
+from servoface.sim.errors import HeadProfileError
+from servoface.sim.muscles.eyelid import EyelidMuscle
+from servoface.sim.muscles.linear import LinearMuscle
+from servoface.sim.muscles.sheet import SheetMuscle
+from servoface.sim.muscles.sphincter import SphincterMuscle
 
 Muscle = LinearMuscle | SheetMuscle | SphincterMuscle | EyelidMuscle
 
-MUSCLE_TYPES: dict[
-    str, type[LinearMuscle] | type[SheetMuscle] | type[SphincterMuscle] | type[EyelidMuscle]
-] = {
+MUSCLE_TYPES: dict[str, type[LinearMuscle] | type[SheetMuscle] | type[SphincterMuscle] | type[EyelidMuscle]] = {
     "linear": LinearMuscle,
     "sheet": SheetMuscle,
     "sphincter": SphincterMuscle,

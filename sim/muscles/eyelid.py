@@ -25,9 +25,8 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.errors import HeadProfileError
-from sim.muscles.fields import Vec3, number, require_keys, unit3, vec3
+from servoface.sim.errors import HeadProfileError
+from servoface.sim.muscles.fields import Vec3, number, require_keys, unit3, vec3
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -89,9 +88,7 @@ class EyelidMuscle:
         if self.reach_mm <= 0.0:
             object.__setattr__(self, "reach_mm", 1.6 * self.radius_mm)
         if self.reach_mm <= self.radius_mm + self.thickness_mm:
-            raise HeadProfileError(
-                f"{where}.reach_mm: expected > radius_mm + thickness_mm, got {self.reach_mm}"
-            )
+            raise HeadProfileError(f"{where}.reach_mm: expected > radius_mm + thickness_mm, got {self.reach_mm}")
         if self.part not in ("upper", "lower"):
             raise HeadProfileError(f"{where}.part: expected 'upper' or 'lower', got {self.part!r}")
         if self.axis == (0.0, 0.0, 0.0):
@@ -102,9 +99,7 @@ class EyelidMuscle:
         """Parse ``type = "eyelid"``: ``centre_mm``, ``radius_mm``, ``joint``; optional ``part``,
         ``reach_mm``, ``thickness_mm``, ``axis``."""
         where = where or f"muscles.{name}"
-        require_keys(
-            data, where, {"centre_mm", "radius_mm", "joint"}, {"part", "reach_mm", "thickness_mm", "axis"}
-        )
+        require_keys(data, where, {"centre_mm", "radius_mm", "joint"}, {"part", "reach_mm", "thickness_mm", "axis"})
         centre = vec3(data, "centre_mm", where)
         radius = number(data, "radius_mm", where, low=0.0, low_open=True)
         joint = data["joint"]

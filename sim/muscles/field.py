@@ -13,11 +13,10 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
-
-from sim.muscles.eyelid import EyelidField, EyelidMuscle
-from sim.muscles.linear import LinearMuscle
-from sim.muscles.sheet import SheetMuscle
-from sim.muscles.sphincter import SphincterField, SphincterMuscle
+from servoface.sim.muscles.eyelid import EyelidField, EyelidMuscle
+from servoface.sim.muscles.linear import LinearMuscle
+from servoface.sim.muscles.sheet import SheetMuscle
+from servoface.sim.muscles.sphincter import SphincterField, SphincterMuscle
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]

@@ -6,7 +6,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-from sim.errors import HeadProfileError
+from servoface.sim.errors import HeadProfileError
 
 Vec3 = tuple[float, float, float]
 

@@ -21,9 +21,8 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.errors import HeadProfileError
-from sim.muscles.fields import Vec3, distance, number, require_keys, vec3
+from servoface.sim.errors import HeadProfileError
+from servoface.sim.muscles.fields import Vec3, distance, number, require_keys, vec3
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -76,9 +75,7 @@ class LinearMuscle:
         if not 0.0 < self.zone_deg < 180.0:
             raise HeadProfileError(f"{where}.zone_deg: expected a number in (0, 180), got {self.zone_deg}")
         if not 0.0 < self.max_contraction <= 1.0:
-            raise HeadProfileError(
-                f"{where}.max_contraction: expected a number in (0, 1], got {self.max_contraction}"
-            )
+            raise HeadProfileError(f"{where}.max_contraction: expected a number in (0, 1], got {self.max_contraction}")
 
     @property
     def length_mm(self) -> float:
@@ -93,23 +90,17 @@ class LinearMuscle:
     def from_mapping(cls, name: str, data: Mapping[str, Any], where: str | None = None) -> LinearMuscle:
         """Parse a ``[muscles.<name>]`` table with ``type = "linear"``; errors carry the key path."""
         where = where or f"muscles.{name}"
-        require_keys(
-            data, where, {"attachment_mm", "insertion_mm"}, {"zone_deg", "rs_mm", "rf_mm", "max_contraction"}
-        )
+        require_keys(data, where, {"attachment_mm", "insertion_mm"}, {"zone_deg", "rs_mm", "rf_mm", "max_contraction"})
         attachment = vec3(data, "attachment_mm", where)
         insertion = vec3(data, "insertion_mm", where)
         if distance(attachment, insertion) < 1e-6:
-            raise HeadProfileError(
-                f"{where}.insertion_mm: expected a point away from attachment_mm {attachment}"
-            )
+            raise HeadProfileError(f"{where}.insertion_mm: expected a point away from attachment_mm {attachment}")
         zone = number(data, "zone_deg", where, default=45.0, low=0.0, high=179.0, low_open=True)
         rs = number(data, "rs_mm", where, default=distance(attachment, insertion), low=0.0, low_open=True)
         rf = number(data, "rf_mm", where, default=1.5 * rs, low=0.0, low_open=True)
         if rf <= rs:
             raise HeadProfileError(f"{where}.rf_mm: expected a number > rs_mm = {rs}, got {rf}")
-        lam = number(
-            data, "max_contraction", where, default=DEFAULT_MAX_CONTRACTION, low=0.0, high=1.0, low_open=True
-        )
+        lam = number(data, "max_contraction", where, default=DEFAULT_MAX_CONTRACTION, low=0.0, high=1.0, low_open=True)
         return cls(name, attachment, insertion, zone, rs, rf, lam)
 
     def unit_field(self, rest_mm: FloatArray) -> tuple[IntArray, FloatArray]:

@@ -27,10 +27,9 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.errors import HeadProfileError
-from sim.muscles.fields import Vec3, distance, number, require_keys, vec3
-from sim.muscles.linear import DEFAULT_MAX_CONTRACTION
+from servoface.sim.errors import HeadProfileError
+from servoface.sim.muscles.fields import Vec3, distance, number, require_keys, vec3
+from servoface.sim.muscles.linear import DEFAULT_MAX_CONTRACTION
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -84,9 +83,7 @@ class SheetMuscle:
         if self.width_mm <= 0.0:
             raise HeadProfileError(f"{where}.width_mm: expected a number > 0, got {self.width_mm}")
         if not 0.0 < self.max_contraction <= 1.0:
-            raise HeadProfileError(
-                f"{where}.max_contraction: expected a number in (0, 1], got {self.max_contraction}"
-            )
+            raise HeadProfileError(f"{where}.max_contraction: expected a number in (0, 1], got {self.max_contraction}")
         if self.falloff_mm <= 0.0:
             object.__setattr__(self, "falloff_mm", 0.5 * mean)
         if self.depth_mm <= 0.0:
@@ -99,15 +96,13 @@ class SheetMuscle:
             )
         if t_hat is None:
             raise HeadProfileError(
-                f"{where}: attachment_end_mm/insertion_end_mm give the sheet no sideways extent; "
-                "use a linear muscle"
+                f"{where}: attachment_end_mm/insertion_end_mm give the sheet no sideways extent; use a linear muscle"
             )
 
     @property
     def mean_length_mm(self) -> float:
         return 0.5 * (
-            distance(self.attachment_mm, self.insertion_mm)
-            + distance(self.attachment_end_mm, self.insertion_end_mm)
+            distance(self.attachment_mm, self.insertion_mm) + distance(self.attachment_end_mm, self.insertion_end_mm)
         )
 
     def _frame(self) -> tuple[FloatArray, FloatArray | None, float, float]:
@@ -133,9 +128,7 @@ class SheetMuscle:
         require_keys(data, where, required, {"max_contraction", "falloff_mm", "depth_mm"})
         pts = {key: vec3(data, key, where) for key in sorted(required - {"width_mm"})}
         width = number(data, "width_mm", where, low=0.0, low_open=True)
-        lam = number(
-            data, "max_contraction", where, default=DEFAULT_MAX_CONTRACTION, low=0.0, high=1.0, low_open=True
-        )
+        lam = number(data, "max_contraction", where, default=DEFAULT_MAX_CONTRACTION, low=0.0, high=1.0, low_open=True)
         falloff = number(data, "falloff_mm", where, default=0.0, low=0.0)
         depth = number(data, "depth_mm", where, default=0.0, low=0.0)
         for a_key, i_key in (("attachment_mm", "insertion_mm"), ("attachment_end_mm", "insertion_end_mm")):

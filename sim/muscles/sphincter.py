@@ -23,10 +23,9 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.errors import HeadProfileError
-from sim.muscles.fields import Vec3, number, require_keys, unit3, vec3
-from sim.muscles.linear import DEFAULT_MAX_CONTRACTION
+from servoface.sim.errors import HeadProfileError
+from servoface.sim.muscles.fields import Vec3, number, require_keys, unit3, vec3
+from servoface.sim.muscles.linear import DEFAULT_MAX_CONTRACTION
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -81,21 +80,13 @@ class SphincterMuscle:
     def __post_init__(self) -> None:
         where = f"muscles.{self.name}"
         if min(self.semi_axes_mm) <= 0.0:
-            raise HeadProfileError(
-                f"{where}.semi_axes_mm: expected positive semi-axes, got {self.semi_axes_mm}"
-            )
+            raise HeadProfileError(f"{where}.semi_axes_mm: expected positive semi-axes, got {self.semi_axes_mm}")
         if not 0.0 < self.max_contraction <= 1.0:
-            raise HeadProfileError(
-                f"{where}.max_contraction: expected a number in (0, 1], got {self.max_contraction}"
-            )
+            raise HeadProfileError(f"{where}.max_contraction: expected a number in (0, 1], got {self.max_contraction}")
         if abs(float(np.dot(self.major_axis, self.normal))) > 0.99:
-            raise HeadProfileError(
-                f"{where}.major_axis: expected a direction not parallel to normal {self.normal}"
-            )
+            raise HeadProfileError(f"{where}.major_axis: expected a direction not parallel to normal {self.normal}")
         if self.falloff not in ("corrected", "printed"):
-            raise HeadProfileError(
-                f"{where}.falloff: expected 'corrected' or 'printed', got {self.falloff!r}"
-            )
+            raise HeadProfileError(f"{where}.falloff: expected 'corrected' or 'printed', got {self.falloff!r}")
 
     @property
     def gain_mm(self) -> float:
@@ -110,37 +101,28 @@ class SphincterMuscle:
         Optional: ``major_axis`` (default [1, 0, 0]), ``normal`` (default [0, 0, 1]), ``falloff``.
         """
         where = where or f"muscles.{name}"
-        require_keys(
-            data, where, {"centre_mm", "semi_axes_mm"}, {"max_contraction", "major_axis", "normal", "falloff"}
-        )
+        require_keys(data, where, {"centre_mm", "semi_axes_mm"}, {"max_contraction", "major_axis", "normal", "falloff"})
         centre = vec3(data, "centre_mm", where)
         axes = data["semi_axes_mm"]
         ok = isinstance(axes, list | tuple) and len(axes) in (2, 3)
         ok = ok and all(
-            not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v) and v > 0
-            for v in axes
+            not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v) and v > 0 for v in axes
         )
         if not ok:
-            raise HeadProfileError(
-                f"{where}.semi_axes_mm: expected 2 or 3 positive finite numbers (mm), got {axes!r}"
-            )
+            raise HeadProfileError(f"{where}.semi_axes_mm: expected 2 or 3 positive finite numbers (mm), got {axes!r}")
         semi = (
             float(axes[0]),
             float(axes[1]),
             float(axes[2]) if len(axes) == 3 else float(max(axes[0], axes[1])),
         )
-        lam = number(
-            data, "max_contraction", where, default=DEFAULT_MAX_CONTRACTION, low=0.0, high=1.0, low_open=True
-        )
+        lam = number(data, "max_contraction", where, default=DEFAULT_MAX_CONTRACTION, low=0.0, high=1.0, low_open=True)
         major = unit3(data, "major_axis", where, (1.0, 0.0, 0.0))
         normal = unit3(data, "normal", where, (0.0, 0.0, 1.0))
         form = data.get("falloff", "corrected")
         if form not in ("corrected", "printed"):
             raise HeadProfileError(f"{where}.falloff: expected 'corrected' or 'printed', got {form!r}")
         if abs(float(np.dot(major, normal))) > 0.99:
-            raise HeadProfileError(
-                f"{where}.major_axis: expected a direction not parallel to normal {normal}"
-            )
+            raise HeadProfileError(f"{where}.major_axis: expected a direction not parallel to normal {normal}")
         return cls(name, centre, semi, lam, major, normal, form)
 
     def axes(self) -> tuple[FloatArray, FloatArray, FloatArray]:

@@ -24,8 +24,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.errors import RenderError
+from servoface.sim.errors import RenderError
 
 EGL_INSTALL_HINT = (
     "headless rendering needs EGL and Mesa's llvmpipe driver: "
@@ -55,9 +54,7 @@ def import_pyrender() -> Any:
     try:
         import pyrender
     except Exception as err:  # OpenGL raises ImportError, AttributeError or RuntimeError here
-        raise RenderError(
-            f"cannot import pyrender/OpenGL for EGL rendering: {err}. {EGL_INSTALL_HINT}"
-        ) from err
+        raise RenderError(f"cannot import pyrender/OpenGL for EGL rendering: {err}. {EGL_INSTALL_HINT}") from err
     return pyrender
 
 
@@ -160,9 +157,7 @@ def _fast_renderer_class(pyrender: Any) -> type:
             cam_pos = scene.get_pose(scene.main_camera_node)[:3, 3]
             lights = []
             # a fixed light order (pyrender's is a set's): the same float sums, the same pixels, every run
-            ordered = sorted(
-                scene.directional_light_nodes, key=lambda ln: (str(ln.name), -ln.light.intensity)
-            )
+            ordered = sorted(scene.directional_light_nodes, key=lambda ln: (str(ln.name), -ln.light.intensity))
             for ln in ordered[: self._compute_max_n_lights(flags)[0]]:
                 lights.append((-scene.get_pose(ln)[:3, 2], ln.light.color, float(ln.light.intensity)))
             ready: set[int] = set()
@@ -316,9 +311,7 @@ class Offscreen:
                 platform.delete_context = lambda: _destroy_context_only(platform)
         except Exception as err:
             hint = egl_missing_reason() or EGL_INSTALL_HINT
-            raise RenderError(
-                f"cannot create a {width}x{height} EGL rendering context: {err}. {hint}"
-            ) from err
+            raise RenderError(f"cannot create a {width}x{height} EGL rendering context: {err}. {hint}") from err
         self.width = width
         self.height = height
 

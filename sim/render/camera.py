@@ -111,9 +111,7 @@ def look_at(eye: NDArray[np.float64], target: NDArray[np.float64]) -> NDArray[np
     return pose
 
 
-def light_pose(
-    camera_pose: NDArray[np.float64], direction_cam: tuple[float, float, float]
-) -> NDArray[np.float64]:
+def light_pose(camera_pose: NDArray[np.float64], direction_cam: tuple[float, float, float]) -> NDArray[np.float64]:
     """World pose of a directional light (shines along its -z) whose direction is given in camera frame."""
     d_world = camera_pose[:3, :3] @ np.asarray(direction_cam, dtype=np.float64)
     d_world = d_world / np.linalg.norm(d_world)

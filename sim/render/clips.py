@@ -10,13 +10,12 @@ from collections.abc import Iterator, Mapping
 from typing import Any
 
 import numpy as np
-
-from sim.errors import ExpressionError
-from sim.render.images import Image, contact_sheet
-from sim.render.progress import progress
-from sim.render.renderer import HeadRenderer
-from sim.render.twin import face_model
-from sim.render.video import there_and_back
+from servoface.sim.errors import ExpressionError
+from servoface.sim.render.images import Image, contact_sheet
+from servoface.sim.render.progress import progress
+from servoface.sim.render.renderer import HeadRenderer
+from servoface.sim.render.twin import face_model
+from servoface.sim.render.video import there_and_back
 
 NEUTRAL = "neutral"
 

@@ -2,7 +2,7 @@
 
 Create it once and reuse it (an EGL context costs 0.2-0.5 s); use and close it in the thread that made it.
 Between frames only what moved is updated: rigid parts move by node pose, the skin's vertex buffer is
-rewritten in place (see `sim.render.scene`).
+rewritten in place (see `servoface.sim.render.scene`).
 """
 
 from __future__ import annotations
@@ -14,11 +14,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-
-from sim.errors import RenderError
-from sim.render.backend import Offscreen
-from sim.render.camera import CameraSetup, check_view, default_view, frame_box
-from sim.render.scene import MeshItem, MeshScene
+from servoface.sim.errors import RenderError
+from servoface.sim.render.backend import Offscreen
+from servoface.sim.render.camera import CameraSetup, check_view, default_view, frame_box
+from servoface.sim.render.scene import MeshItem, MeshScene
 
 Image = NDArray[np.uint8]  # (H, W, 3)
 MAX_SIDE_PX = 4096
@@ -94,9 +93,9 @@ def _corners(bounds: NDArray[np.float64]) -> NDArray[np.float64]:
 
 class HeadRenderer:
     """Offscreen renderer of a fixed image size (pixels). ``view``: "front", "three-quarter" or "side";
-    None = per head (`sim.render.camera.default_view`: front for a human face, three-quarter for a dog).
+    None = per head (`servoface.sim.render.camera.default_view`: front for a human face, three-quarter for a dog).
 
-    Raises `sim.errors.RenderError` if EGL is unavailable (with an install hint) or a frame fails.
+    Raises `servoface.sim.errors.RenderError` if EGL is unavailable (with an install hint) or a frame fails.
     """
 
     def __init__(self, width: int = 640, height: int = 480, view: str | None = None) -> None:
@@ -221,7 +220,7 @@ class HeadRenderer:
     def _draw_head(
         self, head: Any, pose: Any, view: str | None, depth: bool
     ) -> tuple[Image, NDArray[np.float32] | None]:
-        from sim.kinematics import part_transforms, posed_skin_vertices
+        from servoface.sim.kinematics import part_transforms, posed_skin_vertices
 
         self._check_thread()
         if self._head_id != id(head):  # another head: drop the previous head's buffers
@@ -234,24 +233,20 @@ class HeadRenderer:
         skin = head.skin
         posed = (posed_skin_vertices(head, pose), skin.faces, skin.color_rgba, _skin_colors(skin))
         view = view or self.view or default_view(str(head.face_type))
-        return self.render_posed(
-            items, posed, view, self.head_box(head), depth=depth, face_type=str(head.face_type)
-        )
+        return self.render_posed(items, posed, view, self.head_box(head), depth=depth, face_type=str(head.face_type))
 
     def render(self, head: Any, pose: Any, view: str | None = None) -> Image:
-        """The head (a `sim.head.Head`) in ``pose`` (a `sim.rig.HeadPose`): (H, W, 3) uint8 RGB."""
+        """The head (a `servoface.sim.head.Head`) in ``pose`` (a `servoface.sim.rig.HeadPose`): (H, W, 3) uint8 RGB."""
         return self._draw_head(head, pose, view, depth=False)[0]
 
     def render_targets(self, head: Any, targets: Mapping[str, float], view: str | None = None) -> Image:
         """The head posed straight from actuator targets (role -> deg / mm) by the twin's face model
         (``FaceModel(head).pose_from_targets``, the model built once per head)."""
-        from sim.render.twin import face_model
+        from servoface.sim.render.twin import face_model
 
         return self.render(head, face_model(head).pose_from_targets(targets), view)
 
-    def render_with_depth(
-        self, head: Any, pose: Any, view: str | None = None
-    ) -> tuple[Image, NDArray[np.float32]]:
+    def render_with_depth(self, head: Any, pose: Any, view: str | None = None) -> tuple[Image, NDArray[np.float32]]:
         """Colour and depth (H, W) float32, mm from the camera along its axis; 0 where only background."""
         color, depth = self._draw_head(head, pose, view, depth=True)
         if depth is None:
@@ -263,7 +258,7 @@ class HeadRenderer:
         with the jaw fully open (so a yawn stays in the picture), cropped to a portrait for a human face."""
         key = id(head)
         if key not in self._head_box:
-            from sim.kinematics import neutral_pose, part_transforms, posed_skin_vertices
+            from servoface.sim.kinematics import neutral_pose, part_transforms, posed_skin_vertices
 
             rest = neutral_pose(head)
             poses = [rest]

@@ -1,7 +1,7 @@
 """A persistent pyrender scene whose meshes are updated in place between frames.
 
 Rigid parts are batched by finish into a few primitives moved on the CPU; the skin (deformable) keeps its
-buffers too. Each frame only rewrites vertex buffers in place (`sim.render.buffers`) instead of building
+buffers too. Each frame only rewrites vertex buffers in place (`servoface.sim.render.buffers`) instead of building
 new pyrender meshes. The skin is drawn twice from one position array: outside in its own colour, and the
 inside (reversed winding) in a dark mouth-cavity colour, so an open mouth shows a dark cavity instead of
 the background.
@@ -15,17 +15,16 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
-from sim.render.buffers import DynamicPrimitive, PartGeometry, RigidBatch
-from sim.render.camera import AMBIENT_RGB, BACKGROUND_RGB, LIGHTS, CameraSetup, light_pose
-from sim.render.materials import (
+from servoface.sim.render.buffers import DynamicPrimitive, PartGeometry, RigidBatch
+from servoface.sim.render.camera import AMBIENT_RGB, BACKGROUND_RGB, LIGHTS, CameraSetup, light_pose
+from servoface.sim.render.materials import (
     MOUTH_CAVITY_RGBA,
     eye_vertex_colors,
     finish_for,
     srgb_to_linear,
     srgb_to_linear_array,
 )
-from sim.render.normals import VertexNormals
+from servoface.sim.render.normals import VertexNormals
 
 Transform = NDArray[np.float64]  # (4, 4)
 
@@ -172,7 +171,7 @@ class MeshScene:
     def set_rigid(self, items: Sequence[MeshItem], face_type: str = "human") -> None:
         """Show exactly ``items`` (by name, else list index). The same parts as last time only move.
 
-        Parts are batched by surface finish (see `sim.render.buffers`). Eyeballs (parts named
+        Parts are batched by surface finish (see `servoface.sim.render.buffers`). Eyeballs (parts named
         ``eyeball*`` without vertex colours) get a painted iris and pupil unless the items carry their own
         iris or pupil parts. Open meshes (an iris disc, an ear flap) are drawn from both sides.
         """

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from calibration.builtin import builtin_calibration
-from calibration.head import HeadCalibration
-from calibration.spec import ServoSpec
+from servoface.calibration.builtin import builtin_calibration
+from servoface.calibration.head import HeadCalibration
+from servoface.calibration.spec import ServoSpec
 
 MODEL = "XL330-M288"
 

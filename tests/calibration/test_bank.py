@@ -6,10 +6,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from calibration.bank import CurveBank
-from calibration.errors import TargetOutOfRangeError, TickOutOfRangeError
-from calibration.head import HeadCalibration
+from servoface.calibration.bank import CurveBank
+from servoface.calibration.errors import TargetOutOfRangeError, TickOutOfRangeError
+from servoface.calibration.head import HeadCalibration
 
 
 def test_forward_and_inverse_match_every_servo(calibration: HeadCalibration) -> None:
@@ -34,7 +33,7 @@ def test_forward_and_inverse_match_every_servo(calibration: HeadCalibration) -> 
 def test_head_round_trip_target_goal_target_within_one_tick(frac: list[float]) -> None:
     from pathlib import Path
 
-    from calibration.fileformat import load_calibration
+    from servoface.calibration.fileformat import load_calibration
 
     cal = _HUMAN.get("cal") or _HUMAN.setdefault(
         "cal", load_calibration(Path(__file__).resolve().parents[2] / "sim/heads/human/calibration.json")

@@ -8,9 +8,8 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-
-from calibration.fileformat import load_calibration
-from controller.cli import main
+from servoface.calibration.fileformat import load_calibration
+from servoface.controller.cli import main
 
 
 def test_csv_mode_through_the_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -48,9 +47,7 @@ def test_csv_mode_through_the_cli(tmp_path: Path, capsys: pytest.CaptureFixture[
 
 def test_cli_reports_bad_csv_with_its_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "m.csv").write_text("jaw,0,2048\njaw,25,two\n")
-    code = main(
-        ["calibrate", "--head", "human", "--csv", str(tmp_path / "m.csv"), "--out", str(tmp_path / "x")]
-    )
+    code = main(["calibrate", "--head", "human", "--csv", str(tmp_path / "m.csv"), "--out", str(tmp_path / "x")])
     assert code == 1
     assert "line 2: tick 'two' is not an integer" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
@@ -103,13 +100,9 @@ def test_interactive_cli_on_the_in_process_emulator(
     assert "keys:" in text
 
 
-def test_abort_saves_nothing(
-    tmp_path: Path, typed_keys: list[str], capsys: pytest.CaptureFixture[str]
-) -> None:
+def test_abort_saves_nothing(tmp_path: Path, typed_keys: list[str], capsys: pytest.CaptureFixture[str]) -> None:
     typed_keys += ["q"]
-    code = main(
-        ["calibrate", "--head", "human", "--emulate", "--roles", "jaw", "--out", str(tmp_path / "x.json")]
-    )
+    code = main(["calibrate", "--head", "human", "--emulate", "--roles", "jaw", "--out", str(tmp_path / "x.json")])
     assert code == 1
     assert "nothing saved" in capsys.readouterr().err
     assert not (tmp_path / "x.json").exists()
@@ -122,11 +115,9 @@ def test_builtin_regeneration(tmp_path: Path) -> None:
     assert out.read_text() == shipped.read_text()
 
 
-def test_port_mode_checks_every_servo_answers_first(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
+def test_port_mode_checks_every_servo_answers_first(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Over a pty (as with 'servoface emulate'): a missing id and a wrong model stop before any write."""
-    from hardware.emulator import ServoChain
+    from servoface.hardware.emulator import ServoChain
 
     with ServoChain.create(ids=[(18, "XL330-M288"), (20, "XM430-W350")], wire_time=False) as chain:
         port = chain.serve_pty()
@@ -151,9 +142,7 @@ def test_port_mode_checks_every_servo_answers_first(
         assert chain.goal_writes() == [] and not chain.servo(20).torque_on
 
 
-def test_mirror_derives_the_right_side_from_the_left(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
+def test_mirror_derives_the_right_side_from_the_left(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rows = [f"brow_inner_l,{t},{tick}" for t, tick in ((-5.0, 1700), (0.0, 2048), (3.0, 2260), (8.0, 2610))]
     (tmp_path / "m.csv").write_text("\n".join(rows) + "\n")
     out = tmp_path / "h.json"

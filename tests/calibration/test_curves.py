@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from calibration.curves import LinearCurve, PchipCurve, PiecewiseLinearCurve, as_points, fit_curve
-from calibration.errors import CurveError, NotMonotoneError
+from servoface.calibration.curves import LinearCurve, PchipCurve, PiecewiseLinearCurve, as_points, fit_curve
+from servoface.calibration.errors import CurveError, NotMonotoneError
 
 
 @st.composite

@@ -10,14 +10,14 @@ from typing import Any
 
 import numpy as np
 import pytest
-
-from calibration.errors import CalibrationFileError
-from calibration.fileformat import (
+from servoface.calibration.errors import CalibrationFileError
+from servoface.calibration.fileformat import (
     calibration_from_dict,
     calibration_to_dict,
     load_calibration,
     save_calibration,
 )
+
 from tests.calibration.helpers import small_head
 
 

@@ -6,10 +6,15 @@ import dataclasses
 
 import numpy as np
 import pytest
+from servoface.calibration.errors import (
+    CalibrationError,
+    NotMonotoneError,
+    TargetOutOfRangeError,
+    UnknownServoError,
+)
+from servoface.calibration.fitting import fit_coupling
+from servoface.calibration.head import HeadCalibration
 
-from calibration.errors import CalibrationError, NotMonotoneError, TargetOutOfRangeError, UnknownServoError
-from calibration.fitting import fit_coupling
-from calibration.head import HeadCalibration
 from tests.calibration.helpers import small_head
 
 
@@ -23,9 +28,7 @@ def test_targets_to_goals_translates_roles_to_ids() -> None:
     back = cal.goals_to_targets(goals)
     assert back["jaw"] == pytest.approx(10.0, abs=360 / 4096)
     assert cal.neutral_goals() == {18: 2048, 6: 2048, 1: 2048, 13: 2048}
-    assert cal.neutral_targets() == pytest.approx(
-        {"jaw": 0, "upper_lid_r": 0, "brow_inner_l": 0, "lip_corner_r": 0}
-    )
+    assert cal.neutral_targets() == pytest.approx({"jaw": 0, "upper_lid_r": 0, "brow_inner_l": 0, "lip_corner_r": 0})
 
 
 def test_mapping_forms_are_all_or_nothing_and_name_the_problem() -> None:
@@ -77,9 +80,7 @@ def _coupled_head() -> HeadCalibration:
     grid = np.stack(np.meshgrid(own, nb, indexing="ij"), axis=-1).reshape(-1, 2)
     pull = corner.to_targets(grid[:, 0]) - 0.002 * (grid[:, 1] - 2048)
     coupling = fit_coupling(corner, ["brow_inner_l"], grid, pull)
-    servos = [
-        dataclasses.replace(s, coupling=coupling) if s.role == "lip_corner_r" else s for s in cal.servos
-    ]
+    servos = [dataclasses.replace(s, coupling=coupling) if s.role == "lip_corner_r" else s for s in cal.servos]
     return HeadCalibration("coupled", servos)
 
 
@@ -112,8 +113,6 @@ def test_coupling_must_be_monotone_in_the_own_tick_and_acyclic() -> None:
     good = _coupled_head()
     brow = good["brow_inner_l"]
     back_coupling = dataclasses.replace(good["lip_corner_r"].coupling, neighbours=("lip_corner_r",))  # type: ignore[type-var]
-    servos = [s for s in good.servos if s.role != "brow_inner_l"] + [
-        dataclasses.replace(brow, coupling=back_coupling)
-    ]
+    servos = [s for s in good.servos if s.role != "brow_inner_l"] + [dataclasses.replace(brow, coupling=back_coupling)]
     with pytest.raises(CalibrationError, match="coupling cycle"):
         HeadCalibration("cyclic", servos)

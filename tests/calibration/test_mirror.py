@@ -6,10 +6,9 @@ import dataclasses
 
 import numpy as np
 import pytest
-
-from calibration.errors import CalibrationError
-from calibration.head import HeadCalibration
-from calibration.mirror import mirror_servo, with_mirrored
+from servoface.calibration.errors import CalibrationError
+from servoface.calibration.head import HeadCalibration
+from servoface.calibration.mirror import mirror_servo, with_mirrored
 
 
 def test_the_builtin_right_side_is_the_mirror_of_the_left(calibration: HeadCalibration) -> None:
@@ -36,8 +35,8 @@ def test_with_mirrored_replaces_only_the_named_servos(calibration: HeadCalibrati
 
 
 def test_mirroring_refuses_to_leave_the_tick_range() -> None:
-    from calibration.curves import LinearCurve
-    from calibration.servo import ServoCalibration
+    from servoface.calibration.curves import LinearCurve
+    from servoface.calibration.servo import ServoCalibration
 
     near_zero = ServoCalibration("lid_l", 5, "XL330-M288", LinearCurve(100, 11.4, 1), 50, 300, 100, "deg")
     with pytest.raises(CalibrationError, match="outside 0..4095"):

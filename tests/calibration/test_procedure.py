@@ -10,15 +10,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from calibration.errors import (
+from servoface.calibration.errors import (
     CoverageError,
     MeasurementCsvError,
     ProcedureAborted,
     ProcedureError,
 )
-from calibration.fileformat import load_calibration
-from calibration.procedure import (
+from servoface.calibration.fileformat import load_calibration
+from servoface.calibration.procedure import (
     Abort,
     Capture,
     Finish,
@@ -31,7 +30,8 @@ from calibration.procedure import (
     calibrate_from_csv,
     run_procedure,
 )
-from calibration.spec import ServoSpec
+from servoface.calibration.spec import ServoSpec
+
 from tests.calibration.helpers import small_specs
 
 
@@ -131,9 +131,7 @@ def test_procedure_captures_fits_plots_and_saves(tmp_path: Path) -> None:
 
 
 def test_jogging_pins_the_goal_before_torque_on(tmp_path: Path) -> None:
-    servos, hand, result = _run(
-        tmp_path, jog_first=True, plots=False, options=ProcedureOptions(intermediate=1)
-    )
+    servos, hand, result = _run(tmp_path, jog_first=True, plots=False, options=ProcedureOptions(intermediate=1))
     first_torque_on = servos.log.index(("torque", 18, 1))
     assert servos.log[first_torque_on - 1] == ("goal", 18, 2048)  # goal = present, then torque on
     assert load_calibration(tmp_path / "cal.json")["jaw"].to_tick(25.0) == round(2048 + 25 * 4096 / 360)
@@ -151,9 +149,7 @@ def test_relax_switches_torque_off_after_a_jog() -> None:
                 return Relax()
             return super().ask(prompt)
 
-    result = run_procedure(
-        servos, JogThenHand(servos, specs), specs, "one", options=ProcedureOptions(intermediate=0)
-    )
+    result = run_procedure(servos, JogThenHand(servos, specs), specs, "one", options=ProcedureOptions(intermediate=0))
     assert ("goal", 18, 2098) in servos.log
     on = servos.log.index(("torque", 18, 1))
     assert ("torque", 18, 0) in servos.log[on:]  # relaxed before the hand moved it on
@@ -183,9 +179,7 @@ def test_free_points_are_added_and_abort_saves_nothing(tmp_path: Path) -> None:
     servos = FakeServos({18: 2048})
     hand = ScriptedHand(servos, specs)
     hand.extra = [3.3, 17.5]
-    result = run_procedure(
-        servos, hand, specs, "one", options=ProcedureOptions(intermediate=0, free_points=True)
-    )
+    result = run_procedure(servos, hand, specs, "one", options=ProcedureOptions(intermediate=0, free_points=True))
     assert sorted(result.calibration["jaw"].measured_points[:, 0].tolist()) == [0.0, 3.3, 17.5, 25.0]
 
     class Quitter(ScriptedHand):

@@ -13,11 +13,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from servoface.calibration.fileformat import load_calibration
+from servoface.calibration.procedure import Capture, Jog, ProcedureOptions, Prompt, Reply, run_procedure
+from servoface.calibration.spec import ServoSpec
+from servoface.controller.cli.calibrate import BusServoAccess
 
-from calibration.fileformat import load_calibration
-from calibration.procedure import Capture, Jog, ProcedureOptions, Prompt, Reply, run_procedure
-from calibration.spec import ServoSpec
-from controller.cli.calibrate import BusServoAccess
 from tests.calibration.helpers import small_specs
 
 
@@ -29,8 +29,8 @@ def physical_tick(spec: ServoSpec, target: float) -> float:
 
 @pytest.fixture
 def emulated() -> Iterator[tuple[object, object]]:
-    from hardware.bus import open_bus
-    from hardware.emulator import ServoChain
+    from servoface.hardware.bus import open_bus
+    from servoface.hardware.emulator import ServoChain
 
     chain = ServoChain.create(
         ids=[s.servo_id for s in small_specs()], model="XL330-M288", wire_time=False, clock="manual"

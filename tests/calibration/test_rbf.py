@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from calibration.errors import CurveError, NotMonotoneError
-from calibration.rbf import RbfMap
+from servoface.calibration.errors import CurveError, NotMonotoneError
+from servoface.calibration.rbf import RbfMap
 
 
 def _anchor_data(n: int = 5) -> tuple[np.ndarray, np.ndarray]:

@@ -6,14 +6,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from servoface.calibration.curves import LinearCurve, PchipCurve, PiecewiseLinearCurve
+from servoface.calibration.errors import CalibrationError, TargetOutOfRangeError, TickOutOfRangeError
+from servoface.calibration.servo import ServoCalibration
 
-from calibration.curves import LinearCurve, PchipCurve, PiecewiseLinearCurve
-from calibration.errors import CalibrationError, TargetOutOfRangeError, TickOutOfRangeError
-from calibration.servo import ServoCalibration
-
-CRANK = np.array(
-    [[-4.0, 1756.06], [-0.68, 1999.71], [0.0, 2048.0], [2.73, 2243.36], [5.76, 2487.01], [8.0, 2730.67]]
-)
+CRANK = np.array([[-4.0, 1756.06], [-0.68, 1999.71], [0.0, 2048.0], [2.73, 2243.36], [5.76, 2487.01], [8.0, 2730.67]])
 
 
 def _servos() -> list[ServoCalibration]:

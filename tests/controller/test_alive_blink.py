@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from controller.alive import BlinkConfig, BlinkLayer
-from controller.errors import TimelineError
-from controller.timeline import Expression, Movement, Timeline
+from servoface.controller.alive import BlinkConfig, BlinkLayer
+from servoface.controller.errors import TimelineError
+from servoface.controller.timeline import Expression, Movement, Timeline
 
 
 def test_blink_statistics_with_a_seeded_rng() -> None:
@@ -76,9 +75,7 @@ def test_blink_merges_with_a_half_closed_lid_on_a_timeline() -> None:
     closed = blink.start_s + 0.4 * blink.duration_s
     assert tl.sample_aus(closed)["AU45"] == pytest.approx(1.0)
     assert tl.sample_aus(blink.start_s + blink.duration_s + 0.01)["AU45"] == pytest.approx(0.5)
-    assert tl.sample_aus(blink.start_s + 0.05 * blink.duration_s)["AU45"] == pytest.approx(
-        0.5
-    )  # max, not sum
+    assert tl.sample_aus(blink.start_s + 0.05 * blink.duration_s)["AU45"] == pytest.approx(0.5)  # max, not sum
 
 
 def test_bad_blink_config() -> None:

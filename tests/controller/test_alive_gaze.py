@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from controller.alive import GazeConfig, GazeLayer, solve_look_at
-from controller.alive.gaze import (
+from servoface.controller.alive import GazeConfig, GazeLayer, solve_look_at
+from servoface.controller.alive.gaze import (
     clamp_swing,
     direction,
     eye_position_mm,
@@ -18,9 +17,9 @@ from controller.alive.gaze import (
     rotation,
     swing_ratio,
 )
-from controller.errors import TimelineError
-from controller.timeline import Timeline
-from sim.rig import Joint
+from servoface.controller.errors import TimelineError
+from servoface.controller.timeline import Timeline
+from servoface.sim.rig import Joint
 
 CFG = GazeConfig()  # eyes comfortable 18/12 deg, eye limits 35/25, neck 60/30
 
@@ -55,9 +54,7 @@ def test_small_targets_are_taken_by_the_eyes_alone() -> None:
 def test_beyond_the_eye_range_the_neck_takes_the_rest() -> None:
     target = (1000.0, 60.0, 1000.0)  # 45 deg to the head's left
     pose = solve_look_at(target, CFG)
-    assert pose.eye_yaw_deg == pytest.approx(
-        CFG.eye_range_yaw_deg, abs=1e-4
-    )  # eyes at the edge of their range
+    assert pose.eye_yaw_deg == pytest.approx(CFG.eye_range_yaw_deg, abs=1e-4)  # eyes at the edge of their range
     assert pose.head_yaw_deg > 20 and pose.head_yaw_deg < CFG.neck_limit_yaw_deg
     assert aim_error_deg(target, pose) < 1e-4  # the eyes hit the target exactly (parallax included)
     right = solve_look_at((-1000.0, 60.0, 1000.0), CFG)
@@ -118,9 +115,7 @@ def test_au_scales_come_from_the_au_table_and_the_head() -> None:
         )
 
     cfg = gaze_config_for("human", FakeHead())
-    assert cfg.eye_center_mm == pytest.approx((0.0, 70.0, 60.0)) and cfg.neck_pivot_mm == pytest.approx(
-        (0, -10, 0)
-    )
+    assert cfg.eye_center_mm == pytest.approx((0.0, 70.0, 60.0)) and cfg.neck_pivot_mm == pytest.approx((0, -10, 0))
 
 
 def test_gaze_shift_eyes_lead_then_head_follows_with_vor() -> None:

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from controller.alive import IdleConfig, IdleLayer
-from controller.errors import TimelineError
-from controller.timeline import Expression, Movement, Timeline
+from servoface.controller.alive import IdleConfig, IdleLayer
+from servoface.controller.errors import TimelineError
+from servoface.controller.timeline import Expression, Movement, Timeline
 
 
 def test_idle_is_small_smooth_and_deterministic() -> None:

@@ -8,10 +8,9 @@ import sys
 from pathlib import Path
 
 import pytest
-
-from calibration import load_calibration
-from controller.cli import main
-from sim.heads import load_head
+from servoface.calibration import load_calibration
+from servoface.controller.cli import main
+from servoface.sim.heads import load_head
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -55,7 +54,7 @@ DOG_TIMEOUT_S = 25.0
 
 
 def test_check_dog_prints_its_table_and_passes() -> None:
-    cmd = [sys.executable, "-m", "controller.cli", "check", "dog"]
+    cmd = [sys.executable, "-m", "servoface.controller.cli", "check", "dog"]
     try:
         done = subprocess.run(cmd, capture_output=True, text=True, timeout=DOG_TIMEOUT_S, cwd=REPO)
     except subprocess.TimeoutExpired:

@@ -9,10 +9,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import servoface.controller.demo as demo
 from PIL import Image
-
-import controller.demo as demo
-from controller.cli import main
+from servoface.controller.cli import main
 
 SHORT = """
 [script]
@@ -50,9 +49,7 @@ def short_demo(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     return tmp_path / "out"
 
 
-def test_demo_cli_writes_video_sheet_clip_and_report(
-    short_demo: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
+def test_demo_cli_writes_video_sheet_clip_and_report(short_demo: Path, capsys: pytest.CaptureFixture[str]) -> None:
     status = main(["demo", "--out", str(short_demo), "--format", "gif"])
     out, err = capsys.readouterr()
     assert status == 0, out + err

@@ -6,8 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
-
-from controller.cli import main
+from servoface.controller.cli import main
 
 
 def test_play_expression_on_the_emulator(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -50,9 +49,7 @@ def test_play_script_on_the_emulator(tmp_path: Path, capsys: pytest.CaptureFixtu
         (["play", "--emulate"], "what"),
     ],
 )
-def test_bad_arguments_exit_2_with_a_message(
-    argv: list[str], named: str, capsys: pytest.CaptureFixture[str]
-) -> None:
+def test_bad_arguments_exit_2_with_a_message(argv: list[str], named: str, capsys: pytest.CaptureFixture[str]) -> None:
     status: int | str | None
     try:
         status = main(argv)

@@ -10,11 +10,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
-from controller.errors import ControllerError
-from controller.face import Face
-from controller.script import SCRIPTS_DIR
-from hardware.emulator import ServoChain
+from servoface.controller.errors import ControllerError
+from servoface.controller.face import Face
+from servoface.controller.script import SCRIPTS_DIR
+from servoface.hardware.emulator import ServoChain
 
 
 @pytest.fixture(scope="module")
@@ -91,9 +90,7 @@ def test_express_and_neutral(face: Face) -> None:
     face.neutral(transition_s=0.3)
     assert face.pose == {} or all(abs(v) < 1e-9 for v in face.pose.values())
     cal = face.pipeline.calibration
-    assert face.pipeline.last_goals_tick == cal.targets_to_goals(
-        face.pipeline.face.solve({}).actuator_targets
-    )
+    assert face.pipeline.last_goals_tick == cal.targets_to_goals(face.pipeline.face.solve({}).actuator_targets)
 
 
 def test_a_motion_faster_than_the_servos_still_arrives(face: Face) -> None:
@@ -141,17 +138,17 @@ def test_closed_face_refuses_and_torque_is_off() -> None:
 
 
 def test_open_on_a_missing_port_names_it() -> None:
-    from hardware.errors import HardwareError
+    from servoface.hardware.errors import HardwareError
 
     with pytest.raises(HardwareError, match="/dev/does-not-exist"):
         Face.open("human", port="/dev/does-not-exist")
 
 
 def test_open_with_a_servo_missing_names_it_and_switches_no_torque_on() -> None:
-    from controller.face import head_calibration
-    from controller.head_servos import servo_specs
-    from hardware.errors import HardwareError
-    from sim.heads import load_head
+    from servoface.controller.face import head_calibration
+    from servoface.controller.head_servos import servo_specs
+    from servoface.hardware.errors import HardwareError
+    from servoface.sim.heads import load_head
 
     head = load_head("human")
     specs = [s for s in servo_specs(head, head_calibration(head)) if s.servo_id != 9]

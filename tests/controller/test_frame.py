@@ -7,10 +7,9 @@ import math
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
-from controller.au_names import builtin_au_names, canonical_au, default_au_names
-from controller.errors import FrameError
-from controller.frame import AUFrame, FrameValidator, validate_aus
+from servoface.controller.au_names import builtin_au_names, canonical_au, default_au_names
+from servoface.controller.errors import FrameError
+from servoface.controller.frame import AUFrame, FrameValidator, validate_aus
 
 
 def test_valid_human_frame_is_canonical_and_read_only() -> None:
@@ -74,9 +73,7 @@ def test_bad_face_type_and_non_mapping() -> None:
 def test_validator_takes_the_allowed_set_as_a_parameter() -> None:
     only = FrameValidator("human", frozenset({"AU12", "AU6"}))
     assert only(0.1, {"AU12": 0.5}).get("AU12") == 0.5
-    with pytest.raises(
-        FrameError, match="AU1: AU1 is not an AU of the human face; expected one of AU6, AU12"
-    ):
+    with pytest.raises(FrameError, match="AU1: AU1 is not an AU of the human face; expected one of AU6, AU12"):
         only(0.1, {"AU1": 0.5})
     with pytest.raises(FrameError, match=r"poses\.smile\.AU1:"):
         only.pose({"AU1": 0.5}, where="poses.smile")
@@ -115,7 +112,7 @@ def test_allowed_set_without_a_face_is_an_error() -> None:
 
 
 def test_validator_for_a_head_uses_its_au_table(tmp_path) -> None:  # type: ignore[no-untyped-def]
-    from sim.au import au_table_path as table_path
+    from servoface.sim.au import au_table_path as table_path
 
     class BuiltinHead:
         name, face_type, au_table_path = "human", "human", table_path("human")

@@ -6,8 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
-from controller.inputs import (
+from servoface.controller.inputs import (
     InputError,
     load_recording,
     read_blendshape_csv,
@@ -15,7 +14,7 @@ from controller.inputs import (
     read_openface_csv,
     read_pyfeat_csv,
 )
-from controller.inputs.fap import fap_to_aus, read_fap
+from servoface.controller.inputs.fap import fap_to_aus, read_fap
 
 SAMPLES = Path(__file__).resolve().parents[2] / "controller" / "inputs" / "samples"
 OF_HEAD = " frame, face_id, timestamp, confidence, success, pose_Rx, AU01_r, AU12_r, AU45_r, AU12_c"
@@ -34,9 +33,7 @@ def test_openface_sample_scales_and_holds_lost_rows() -> None:
     assert peak == pytest.approx(0.7, abs=0.03)  # 3.5 on OpenFace's 0..5 scale
     lost = rec.frames[28:33]
     assert all(f.aus == rec.frames[27].aus for f in lost)  # "hold": the last good row
-    assert set(rec.frames[10].aus) <= {
-        f"AU{n}" for n in (1, 2, 4, 5, 6, 7, 9, 10, 12, 14, 15, 17, 20, 23, 25, 26, 45)
-    }
+    assert set(rec.frames[10].aus) <= {f"AU{n}" for n in (1, 2, 4, 5, 6, 7, 9, 10, 12, 14, 15, 17, 20, 23, 25, 26, 45)}
 
 
 def test_openface_neutral_policy_decays(tmp_path: Path) -> None:
@@ -140,9 +137,7 @@ def test_fap_sample_and_mapping(tmp_path: Path) -> None:
     mid = rec.sample(0.5)
     assert mid.get("AU12L") > 0.5 and mid.get("AU1R") > 0.4 and mid.get("AU26") > 0.4
     aus = fap_to_aus({12: -128.0, 19: 1024.0, 49: 0.5 / 180 * 3.14159265 * 45 * 1e5})
-    assert (
-        aus["AU15L"] == pytest.approx(0.5) and aus["AU43L"] == 1.0 and aus["AU51"] == pytest.approx(0.5, 1e-3)
-    )
+    assert aus["AU15L"] == pytest.approx(0.5) and aus["AU43L"] == 1.0 and aus["AU51"] == pytest.approx(0.5, 1e-3)
     bad = _write(tmp_path, "bad.fap", "2.1 x 25 1\n" + " ".join(["1"] + ["0"] * 67) + "\n0 abc\n")
     with pytest.raises(InputError, match="line 3, column 2"):
         read_fap(bad)

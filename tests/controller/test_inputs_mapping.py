@@ -7,9 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from controller.inputs import InputError, MessageDecoder, load_blendshape_map, mirror_aus
-from controller.inputs.head_pose import head_pose_aus, matrix_to_ypr_deg, ypr_matrix
+from servoface.controller.inputs import InputError, MessageDecoder, load_blendshape_map, mirror_aus
+from servoface.controller.inputs.head_pose import head_pose_aus, matrix_to_ypr_deg, ypr_matrix
 
 # Transcribed independently from facs-human.md §3 (sided AUs on the subject's own side; AU24 is a midline
 # AU in servoface's set, so both press shapes give AU24; AU29/AU30 are not in servoface's human set).
@@ -78,9 +77,7 @@ def test_eye_look_subject_right_is_out_right_plus_in_left() -> None:
 
 def test_mirror_swaps_sides_and_lateral_head_eye_actions() -> None:
     bmap = load_blendshape_map()
-    plain = bmap.to_aus(
-        {"mouthSmileLeft": 0.7, "browDownRight": 0.3, "eyeLookOutLeft": 0.8, "browInnerUp": 0.2}
-    )
+    plain = bmap.to_aus({"mouthSmileLeft": 0.7, "browDownRight": 0.3, "eyeLookOutLeft": 0.8, "browInnerUp": 0.2})
     mirrored = bmap.to_aus(
         {"mouthSmileLeft": 0.7, "browDownRight": 0.3, "eyeLookOutLeft": 0.8, "browInnerUp": 0.2}, mirror=True
     )
@@ -169,13 +166,10 @@ def test_explicit_aus_override_mapped_ones() -> None:
 
 
 def test_shape_ranges_rescale_per_user_and_round_trip(tmp_path: Path) -> None:
-    from controller.inputs import ShapeRanges
+    from servoface.controller.inputs import ShapeRanges
 
     # a user whose eyeWide never exceeds 0.06 and whose smile rests at 0.1 (mediapipe #4450)
-    samples = [
-        {"eyeWideLeft": 0.06 * k / 20, "mouthSmileLeft": 0.1 + 0.7 * k / 20, "jawOpen": 0.3}
-        for k in range(21)
-    ]
+    samples = [{"eyeWideLeft": 0.06 * k / 20, "mouthSmileLeft": 0.1 + 0.7 * k / 20, "jawOpen": 0.3} for k in range(21)]
     ranges = ShapeRanges.from_samples(samples)
     assert "jawOpen" not in ranges.ranges  # it never moved
     bmap = load_blendshape_map()

@@ -16,10 +16,9 @@ from pathlib import Path
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from controller.cli import main as cli_main
-from controller.face import Face
-from controller.inputs import (
+from servoface.controller.cli import main as cli_main
+from servoface.controller.face import Face
+from servoface.controller.inputs import (
     AUSmoother,
     InputError,
     LineReceiver,
@@ -29,9 +28,9 @@ from controller.inputs import (
     TcpReceiver,
     UdpReceiver,
 )
-from controller.inputs.follow import follow
-from controller.inputs.transports import check_host, parse_address
-from controller.performance import play_timeline
+from servoface.controller.inputs.follow import follow
+from servoface.controller.inputs.transports import check_host, parse_address
+from servoface.controller.performance import play_timeline
 
 
 class FakeClock:
@@ -192,10 +191,7 @@ def test_udp_burst_leaves_no_backlog_the_newest_wins() -> None:
             tx.sendto(json.dumps({"t": k, "aus": {"AU12": k / 100}}).encode(), rx.address)
         assert _wait_for(lambda: src.sample(0.0).get("AU12") == 0.99)
     stats = src.stats
-    assert (
-        stats.messages <= 100
-        and stats.good + stats.bad + stats.superseded + stats.out_of_order == stats.messages
-    )
+    assert stats.messages <= 100 and stats.good + stats.bad + stats.superseded + stats.out_of_order == stats.messages
 
 
 def test_tcp_loopback_lines_split_across_packets() -> None:
@@ -275,7 +271,8 @@ def test_udp_stream_end_to_end_on_the_emulator(face: Face) -> None:
 
 
 def test_recording_plays_through_play_timeline(face: Face) -> None:
-    from controller.inputs import load_recording
+    from servoface.controller.inputs import load_recording
+
     from tests.controller.test_inputs_files import SAMPLES
 
     rec = load_recording(SAMPLES / "arkit_smile.jsonl")
@@ -286,16 +283,10 @@ def test_recording_plays_through_play_timeline(face: Face) -> None:
 
 
 # -- CLI --
-def test_cli_stream_stdin_summary(
-    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
-) -> None:
-    lines = [json.dumps({"t": k / 30, "aus": {"AU12": 0.05 * k}}) for k in range(10)] + [
-        '{"aus": {"AU12": 9}}'
-    ]
+def test_cli_stream_stdin_summary(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    lines = [json.dumps({"t": k / 30, "aus": {"AU12": 0.05 * k}}) for k in range(10)] + ['{"aus": {"AU12": 9}}']
     monkeypatch.setattr("sys.stdin", io.StringIO("\n".join(lines) + "\n"))
-    rc = cli_main(
-        ["stream", "--emulate", "--stdin", "--duration", "0.4", "--dropout-ms", "100", "--ease", "0.1"]
-    )
+    rc = cli_main(["stream", "--emulate", "--stdin", "--duration", "0.4", "--dropout-ms", "100", "--ease", "0.1"])
     out = capsys.readouterr().out
     assert rc == 0
     assert "messages 11: good 10, bad 1" in out and "dropouts 1" in out and "verdicts" in out
@@ -364,20 +355,14 @@ _messages = st.fixed_dictionaries(
         "t": _json_values,
         "aus": st.dictionaries(_names, st.floats(-2, 2) | _json_values, max_size=4),
         "blendshapes": st.dictionaries(_names, st.floats(-0.5, 1.5) | _json_values, max_size=4),
-        "head": st.dictionaries(
-            st.sampled_from(["yaw_deg", "pitch_deg", "matrix", "x"]), _json_values, max_size=3
-        ),
+        "head": st.dictionaries(st.sampled_from(["yaw_deg", "pitch_deg", "matrix", "x"]), _json_values, max_size=3),
         "confidence": _json_values,
     },
 )
 
 
 @settings(max_examples=150, deadline=None)
-@given(
-    st.lists(
-        _messages.map(lambda m: json.dumps(m)) | st.text(max_size=40) | st.binary(max_size=40), max_size=6
-    )
-)
+@given(st.lists(_messages.map(lambda m: json.dumps(m)) | st.text(max_size=40) | st.binary(max_size=40), max_size=6))
 def test_any_input_yields_valid_frames_or_counted_rejects(raw: list[str | bytes]) -> None:
     clock = FakeClock()
     src = StreamSource(MessageDecoder("human", mirror=True), clock=clock)
@@ -420,8 +405,9 @@ def test_cli_stream_udp_follows_datagrams(capsys: pytest.CaptureFixture[str]) ->
 
 
 def test_face_follow_a_recording_and_rejects_bad_duration(face: Face) -> None:
-    from controller.errors import ControllerError
-    from controller.inputs import load_recording
+    from servoface.controller.errors import ControllerError
+    from servoface.controller.inputs import load_recording
+
     from tests.controller.test_inputs_files import SAMPLES
 
     before = len(face.chain.goal_writes())
@@ -448,8 +434,8 @@ def test_a_restarted_sender_is_followed_not_dropped_as_out_of_order() -> None:
 
 
 def test_stream_recorder_writes_a_replayable_jsonl(tmp_path: Path) -> None:
-    from controller.inputs import read_jsonl
-    from controller.inputs.stream import StreamRecorder
+    from servoface.controller.inputs import read_jsonl
+    from servoface.controller.inputs.stream import StreamRecorder
 
     clock = FakeClock()
     recorder = StreamRecorder(tmp_path / "rec.jsonl")

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import pytest
-
-from controller.errors import LoopError
-from controller.loop import FixedRateLoop, Tick
-from controller.timeline import Expression, Movement, Timeline
+from servoface.controller.errors import LoopError
+from servoface.controller.loop import FixedRateLoop, Tick
+from servoface.controller.timeline import Expression, Movement, Timeline
 
 
 class FakeClock:
@@ -162,7 +161,7 @@ def test_ctrl_c_stops_cleanly_inside_stop_on_sigint() -> None:
     import os
     import signal
 
-    from controller.loop import stop_on_sigint
+    from servoface.controller.loop import stop_on_sigint
 
     clock = FakeClock()
 

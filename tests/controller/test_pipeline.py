@@ -9,14 +9,13 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
-
-from controller.benchmarks.pipeline import wire_limit_hz
-from controller.errors import ControllerError
-from controller.face import Face
-from controller.pipeline import Pipeline
-from hardware.wire import cycle_budget
-from sim.errors import SimError
-from sim.gate import limits as lim
+from servoface.controller.benchmarks.pipeline import wire_limit_hz
+from servoface.controller.errors import ControllerError
+from servoface.controller.face import Face
+from servoface.controller.pipeline import Pipeline
+from servoface.hardware.wire import cycle_budget
+from servoface.sim.errors import SimError
+from servoface.sim.gate import limits as lim
 
 
 @pytest.fixture(scope="module")
@@ -45,9 +44,7 @@ def test_a_frame_trace_tells_what_happened(face: Face) -> None:
     assert set(trace.timings_ms) == {"muscle_ms", "calibration_ms", "gate_ms", "bus_ms", "total_ms"}
     assert all(v >= 0 for v in trace.timings_ms.values())
     d = json.loads(json.dumps(trace.as_dict()))
-    assert d["verdict"] == trace.verdict and d["goals_sent"] == {
-        str(k): v for k, v in trace.goals_sent.items()
-    }
+    assert d["verdict"] == trace.verdict and d["goals_sent"] == {str(k): v for k, v in trace.goals_sent.items()}
 
 
 @pytest.mark.parametrize(
@@ -67,9 +64,7 @@ def test_targets_outside_the_calibrated_range_are_clamped_with_reasons(offline: 
     cal = offline.calibration
     asked = {"jaw": cal["jaw"].max_target + 10.0, "lip_corner_l": cal["lip_corner_l"].min_target - 3.0}
     clamped, reasons = offline.clamp_targets(asked)
-    assert (
-        clamped["jaw"] == cal["jaw"].max_target and clamped["lip_corner_l"] == cal["lip_corner_l"].min_target
-    )
+    assert clamped["jaw"] == cal["jaw"].max_target and clamped["lip_corner_l"] == cal["lip_corner_l"].min_target
     assert len(reasons) == 2 and any("jaw" in r and "[target]" in r for r in reasons)
     assert clamped["neck_pan"] == cal["neck_pan"].neutral_target  # unnamed roles sit at neutral
     with pytest.raises(ControllerError, match="jaw"):
@@ -81,10 +76,7 @@ def test_offline_pipeline_runs_the_gate_without_a_bus(offline: Pipeline) -> None
     assert trace.verdict == "clip" and "speed" in trace.checks and trace.bytes_written == 0
     pan = offline.calibration.id_of("neck_pan")
     i = offline.gate.table.index()[pan]
-    assert (
-        abs(trace.goals_sent[pan] - offline.calibration.neutral_goals()[pan])
-        <= offline.gate.table.max_step_tick[i]
-    )
+    assert abs(trace.goals_sent[pan] - offline.calibration.neutral_goals()[pan]) <= offline.gate.table.max_step_tick[i]
     assert offline.hold() is None
 
 

@@ -5,9 +5,8 @@ from __future__ import annotations
 import json
 
 import pytest
-
-from controller.cli import main
-from hardware.wire import cycle_budget
+from servoface.controller.cli import main
+from servoface.hardware.wire import cycle_budget
 
 
 def test_bench_pipeline_prints_figures_against_the_wire_limit(capsys: pytest.CaptureFixture[str]) -> None:
@@ -19,11 +18,7 @@ def test_bench_pipeline_prints_figures_against_the_wire_limit(capsys: pytest.Cap
     assert cycle_budget(24, 1_000_000).limit_hz < fps["limit"] < cycle_budget(21, 1_000_000).limit_hz
     assert fps["ratio"] == pytest.approx(fps["value"] / fps["limit"], rel=1e-3)
     assert "corrupt 0" in fps["note"]
-    stages = {
-        name.rsplit(" ", 1)[-1]: d for name, d in figures.items() if name.startswith("pipeline stage median")
-    }
+    stages = {name.rsplit(" ", 1)[-1]: d for name, d in figures.items() if name.startswith("pipeline stage median")}
     assert set(stages) == {"muscle", "calibration", "gate", "bus", "total"}
-    assert all(
-        stages[s]["value"] < stages["total"]["value"] for s in ("muscle", "calibration", "gate", "bus")
-    )
+    assert all(stages[s]["value"] < stages["total"]["value"] for s in ("muscle", "calibration", "gate", "bus"))
     assert stages["gate"]["limit"] == 1.0 and stages["bus"]["limit"] == pytest.approx(1e3 / fps["limit"])

@@ -8,9 +8,8 @@ import imageio.v2 as imageio
 import numpy as np
 import pytest
 from PIL import Image as PILImage
-
-from controller.cli import main
-from sim.render import egl_missing_reason
+from servoface.controller.cli import main
+from servoface.sim.render import egl_missing_reason
 
 SMALL = ["--size", "96x72", "--quiet"]
 
@@ -57,9 +56,7 @@ def test_unknown_head_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert not out.exists()
 
 
-def test_unknown_expression_exits_2_and_lists_the_library(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
+def test_unknown_expression_exits_2_and_lists_the_library(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "x.png"
     assert main(["preview", "no_such_face", "--head", "human", "-o", str(out), *SMALL]) == 2
     err = capsys.readouterr().err
@@ -68,7 +65,7 @@ def test_unknown_expression_exits_2_and_lists_the_library(
 
 
 def _some_expression(face_type: str) -> str:
-    from sim.expressions import load_library
+    from servoface.sim.expressions import load_library
 
     names = [n for n in load_library(face_type) if n != "neutral"]
     return names[0]
@@ -86,9 +83,7 @@ def test_still_png_at_apex(head: str, tmp_path: Path) -> None:
     assert np.abs(a.astype(int) - n).mean() > 0.5
 
 
-def test_gif_and_mp4_clips_have_the_frames_asked_for(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
+def test_gif_and_mp4_clips_have_the_frames_asked_for(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     _needs_egl()
     name = _some_expression("human")
     gif, mp4 = tmp_path / "clip.gif", tmp_path / "clip.mp4"
@@ -114,7 +109,7 @@ def test_gif_and_mp4_clips_have_the_frames_asked_for(
 
 def test_all_writes_a_labelled_sheet(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     _needs_egl()
-    from sim.expressions import load_library
+    from servoface.sim.expressions import load_library
 
     out = tmp_path / "sheet.png"
     assert main(["preview", "--all", "--head", "dog", "-o", str(out), *SMALL, "--columns", "4"]) == 0

@@ -5,9 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
-from controller.errors import ScriptError
-from controller.script import SCRIPTS_DIR, example_scripts, load_script, parse_script
+from servoface.controller.errors import ScriptError
+from servoface.controller.script import SCRIPTS_DIR, example_scripts, load_script, parse_script
 
 MINIMAL = """
 [script]
@@ -210,9 +209,7 @@ def test_missing_file(tmp_path: Path) -> None:
 
 
 def test_allowed_names_come_from_the_caller() -> None:
-    with pytest.raises(
-        ScriptError, match="poses.smile.AU12: AU12 is not an AU of the human face; expected one of AU6"
-    ):
+    with pytest.raises(ScriptError, match="poses.smile.AU12: AU12 is not an AU of the human face; expected one of AU6"):
         parse_script(MINIMAL, allowed=frozenset({"AU6"}))
 
 

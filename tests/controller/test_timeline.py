@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
-from controller.errors import FrameError, TimelineError
-from controller.timeline import (
+from servoface.controller.errors import FrameError, TimelineError
+from servoface.controller.timeline import (
     EASINGS,
     BlendPolicy,
     BlendRule,
@@ -58,9 +57,7 @@ def test_min_jerk_known_values() -> None:
 
 
 def test_unknown_easing_names_the_field() -> None:
-    with pytest.raises(
-        TimelineError, match=r"movements\[0\]\.easing: unknown easing 'bouncy'; expected one of"
-    ):
+    with pytest.raises(TimelineError, match=r"movements\[0\]\.easing: unknown easing 'bouncy'; expected one of"):
         easing_by_name("bouncy", field="movements[0].easing")
 
 
@@ -192,9 +189,7 @@ def _two_tracks(policy: BlendPolicy, face: str = "human") -> Timeline:
 
 def test_blend_max_is_the_default_for_face_aus() -> None:
     policy = BlendPolicy.for_face("human")
-    out = policy.blend(
-        [("face", {"AU12": 0.6, "AU45": 0.2}), ("blink", {"AU45": 1.0}), ("gesture", {"AU12": 0.3})]
-    )
+    out = policy.blend([("face", {"AU12": 0.6, "AU45": 0.2}), ("blink", {"AU45": 1.0}), ("gesture", {"AU12": 0.3})])
     assert out == {"AU12": 0.6, "AU45": 1.0}
 
 
@@ -275,7 +270,7 @@ def test_property_blending_stays_in_range(contribs: list[tuple[str, dict[str, fl
 
 
 def test_library_clip_for_both_faces() -> None:
-    from controller.timeline.library import library_clip
+    from servoface.controller.timeline.library import library_clip
 
     happy = library_clip("human", "happiness", onset_s=0.2, apex_s=1.0, offset_s=0.2)
     assert happy.duration_s == pytest.approx(1.4)

@@ -7,10 +7,9 @@ import itertools
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
-from controller.errors import TimelineError
-from controller.timeline import EventTiming, Timeline, events_clip, parse_events, recipe_events
-from controller.timeline.dfacs import LONDRA_RECIPES, schedule
+from servoface.controller.errors import TimelineError
+from servoface.controller.timeline import EventTiming, Timeline, events_clip, parse_events, recipe_events
+from servoface.controller.timeline.dfacs import LONDRA_RECIPES, schedule
 
 
 def table_recipe(name: str):  # the thesis order (Table 5.5) with the default intensity
@@ -22,9 +21,7 @@ def overlaps(a: tuple[float, float], b: tuple[float, float]) -> bool:
 
 
 def test_event_notations() -> None:
-    events = parse_events(
-        [14, -9, "AU7", "-au5", {"au": "AU7", "value": -0.3}, {"au": "AU16", "iterations": 3}]
-    )
+    events = parse_events([14, -9, "AU7", "-au5", {"au": "AU7", "value": -0.3}, {"au": "AU16", "iterations": 3}])
     assert [(e.au, e.sign) for e in events] == [
         ("AU14", 1),
         ("AU9", -1),
@@ -123,9 +120,7 @@ def test_attention_eyes_lead_and_ears_rise_before_the_head() -> None:
 
 
 def test_pulse_and_cyclic_events_return_to_where_they_were() -> None:
-    clip = events_clip(
-        parse_events(["AU15", {"au": "AU16", "iterations": 3}]), EventTiming(pulse_s=0.2, cycle_s=0.5)
-    )
+    clip = events_clip(parse_events(["AU15", {"au": "AU16", "iterations": 3}]), EventTiming(pulse_s=0.2, cycle_s=0.5))
     assert clip.sample(0.1, {})["AU15"] == pytest.approx(0.8)
     assert clip.sample(0.2, {})["AU15"] == pytest.approx(0.0)
     lick = clip.onsets()["AU16"]

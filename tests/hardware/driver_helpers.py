@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from hardware.bus import open_bus
-from hardware.driver import Driver
-from hardware.emulator import ServoChain
-from hardware.fault_policy import FaultPolicy
-from hardware.servo_config import ServoSpec
+from servoface.hardware.bus import open_bus
+from servoface.hardware.driver import Driver
+from servoface.hardware.emulator import ServoChain
+from servoface.hardware.fault_policy import FaultPolicy
+from servoface.hardware.servo_config import ServoSpec
 
 LIMITS = {1: (1024, 3072), 2: (1500, 2600), 3: (1024, 3072), 4: (2000, 2100)}
 DT_S = 0.01
@@ -17,9 +17,7 @@ DT_S = 0.01
 def make_driver(
     ids: Sequence[int] = (1, 2, 3, 4), policy: FaultPolicy | None = None, torque: bool = True, **spec_kw: int
 ) -> tuple[ServoChain, Driver]:
-    chain = ServoChain.create(
-        ids=list(ids), model="XL330-M288", baud=1_000_000, wire_time=False, clock="manual"
-    )
+    chain = ServoChain.create(ids=list(ids), model="XL330-M288", baud=1_000_000, wire_time=False, clock="manual")
     bus = open_bus("emulator", chain=chain)
     specs = [
         ServoSpec(

@@ -2,18 +2,16 @@
 
 from __future__ import annotations
 
-from controller.benchmarks import bus as bench
-from hardware.registers import Register
-from hardware.wire import cycle_budget
+from servoface.controller.benchmarks import bus as bench
+from servoface.hardware.registers import Register
+from servoface.hardware.wire import cycle_budget
 
 
 def test_bench_chain_has_zero_return_delay_and_cycles_reach_the_servos() -> None:
     chain, bus = bench._chain_and_bus(4_000_000, wire_time=True)
     try:
         assert {chain.servo(sid).read_register("RETURN_DELAY_TIME") for sid in chain.ids} == {0}
-        best, median, per_cycle, cpu_share = bench.measure_rate_hz(
-            bus, chain.ids, fast=True, windows=2, window_s=0.02
-        )
+        best, median, per_cycle, cpu_share = bench.measure_rate_hz(bus, chain.ids, fast=True, windows=2, window_s=0.02)
         assert best >= median > 0 and per_cycle > 0 and 0 < cpu_share <= 1.5
         assert len(chain.goal_writes()) % bench.N_SERVOS == 0 and chain.goal_writes()
         assert bus.stats.timeouts == 0 and bus.stats.corrupt == 0

@@ -9,17 +9,16 @@ import time
 from collections.abc import Callable, Iterator
 
 import pytest
-
-from hardware.bus import ServoBus, open_bus
-from hardware.emulator import ServoChain
-from hardware.errors import (
+from servoface.hardware.bus import ServoBus, open_bus
+from servoface.hardware.emulator import ServoChain
+from servoface.hardware.errors import (
     BusClosedError,
     BusCorruptError,
     BusTimeoutError,
     HardwareConfigError,
     ServoStatusError,
 )
-from hardware.registers import Register
+from servoface.hardware.registers import Register
 
 SYNC_WRITE, SYNC_READ, FAST_SYNC_READ, BULK_WRITE = 0x83, 0x82, 0x8A, 0x93
 IDS = [1, 2, 3, 4]
@@ -100,9 +99,7 @@ def test_sync_read_returns_each_servos_values(chain_and_bus: tuple[ServoChain, S
     for sid in IDS:
         chain.servo(sid).move_by_hand(1000 + 100 * sid)
     got = bus.sync_read(IDS, [Register.PRESENT_POSITION], fast=fast)
-    assert {sid: v[Register.PRESENT_POSITION] for sid, v in got.items()} == {
-        sid: 1000 + 100 * sid for sid in IDS
-    }
+    assert {sid: v[Register.PRESENT_POSITION] for sid, v in got.items()} == {sid: 1000 + 100 * sid for sid in IDS}
     assert chain.instructions(FAST_SYNC_READ if fast else SYNC_READ)
 
 
@@ -147,9 +144,7 @@ def test_alert_bit_is_recorded_not_raised(chain_and_bus: tuple[ServoChain, Servo
 
 def test_bulk_read_and_write(chain_and_bus: tuple[ServoChain, ServoBus]) -> None:
     chain, bus = chain_and_bus
-    bus.bulk_write(
-        {1: {Register.PROFILE_ACCELERATION: 5, Register.PROFILE_VELOCITY: 50}, 2: {Register.LED: 1}}
-    )
+    bus.bulk_write({1: {Register.PROFILE_ACCELERATION: 5, Register.PROFILE_VELOCITY: 50}, 2: {Register.LED: 1}})
     assert _arrives(lambda: bool(chain.instructions(BULK_WRITE)))
     assert chain.servo(1).read_register("PROFILE_VELOCITY") == 50 and chain.servo(2).read_register("LED") == 1
     for fast in (False, True):

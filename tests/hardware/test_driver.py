@@ -7,11 +7,11 @@ import threading
 
 import numpy as np
 import pytest
+from servoface.hardware.driver import Driver
+from servoface.hardware.driver_thread import DriverThread
+from servoface.hardware.errors import DriverThreadError, GoalRejectedError, ServoConfigMismatch
+from servoface.hardware.servo_config import ServoSpec, configure_servo
 
-from hardware.driver import Driver
-from hardware.driver_thread import DriverThread
-from hardware.errors import DriverThreadError, GoalRejectedError, ServoConfigMismatch
-from hardware.servo_config import ServoSpec, configure_servo
 from tests.hardware.driver_helpers import assert_goals_within_limits, make_driver, run
 
 SYNC_WRITE, SYNC_READ, WRITE = 0x83, 0x82, 0x03
@@ -20,10 +20,7 @@ SYNC_WRITE, SYNC_READ, WRITE = 0x83, 0x82, 0x03
 def test_configure_writes_eeprom_with_torque_off_and_verifies() -> None:
     chain, driver = make_driver(torque=False, return_delay_us=0, profile_velocity=120)
     servo = chain.servo(2)
-    assert (
-        servo.read_register("MIN_POSITION_LIMIT") == 1500
-        and servo.read_register("MAX_POSITION_LIMIT") == 2600
-    )
+    assert servo.read_register("MIN_POSITION_LIMIT") == 1500 and servo.read_register("MAX_POSITION_LIMIT") == 2600
     assert servo.read_register("RETURN_DELAY_TIME") == 0 and servo.read_register("PROFILE_VELOCITY") == 120
     # a servo left with torque on is switched off before EEPROM is touched; unchanged EEPROM is not rewritten
     servo.write_register("TORQUE_ENABLE", 1)
@@ -32,9 +29,7 @@ def test_configure_writes_eeprom_with_torque_off_and_verifies() -> None:
         ServoSpec(2, "XL330-M288", min_position_tick=1500, max_position_tick=2600, profile_velocity=120),
     )
     assert servo.read_register("TORQUE_ENABLE") == 0
-    assert not [
-        w for w in report.written if w in ("MIN_POSITION_LIMIT", "MAX_POSITION_LIMIT", "RETURN_DELAY_TIME")
-    ]
+    assert not [w for w in report.written if w in ("MIN_POSITION_LIMIT", "MAX_POSITION_LIMIT", "RETURN_DELAY_TIME")]
 
 
 def test_wrong_model_is_a_typed_error_naming_the_servo() -> None:
@@ -151,8 +146,8 @@ def test_fast_sync_read_option() -> None:
 
 def test_driver_thread_runs_cycles_in_the_background() -> None:
     chain = None
-    from hardware.bus import open_bus
-    from hardware.emulator import ServoChain
+    from servoface.hardware.bus import open_bus
+    from servoface.hardware.emulator import ServoChain
 
     chain = ServoChain.create(ids=[1, 2], model="XL330-M288", baud=1_000_000, wire_time=False)
     bus = open_bus("emulator", chain=chain)
@@ -186,9 +181,9 @@ def test_driver_thread_runs_cycles_in_the_background() -> None:
 def test_driver_thread_reports_errors_to_callers() -> None:
     import time
 
-    from hardware.bus import open_bus
-    from hardware.emulator import ServoChain
-    from hardware.errors import HardwareError
+    from servoface.hardware.bus import open_bus
+    from servoface.hardware.emulator import ServoChain
+    from servoface.hardware.errors import HardwareError
 
     chain = ServoChain.create(ids=[1], model="XL330-M288", baud=1_000_000, wire_time=False)
     driver = Driver(open_bus("emulator", chain=chain), [ServoSpec(1, "XL330-M288")])
@@ -212,7 +207,7 @@ def test_driver_thread_reports_errors_to_callers() -> None:
 def test_fast_sync_read_falls_back_when_the_firmware_lacks_it(monkeypatch: pytest.MonkeyPatch) -> None:
     """The emulator answers Fast Sync Read on any firmware, so an old firmware's silence is imitated at the
     bus: every Fast Sync Read fails as on such a chain, while everything else goes over the emulated wire."""
-    from hardware.errors import BusTimeoutError
+    from servoface.hardware.errors import BusTimeoutError
 
     chain, driver = make_driver()
     driver.fast_sync_read = True

@@ -6,9 +6,9 @@ Every test also audits the wire: no Goal Position outside a servo's configured l
 from __future__ import annotations
 
 import pytest
+from servoface.hardware.registers import Register
+from servoface.hardware.snapshot import FaultKind
 
-from hardware.registers import Register
-from hardware.snapshot import FaultKind
 from tests.hardware.driver_helpers import assert_goals_within_limits, events_of, make_driver, run
 
 SYNC_READ, REBOOT = 0x82, 0x08
@@ -30,9 +30,7 @@ def test_missing_servo_is_marked_others_continue_and_it_is_reconnected() -> None
     n = len(chain.instructions(SYNC_READ))
     run(chain, driver, GOALS, 0.2)
     assert all(3 not in ids for ids in _sync_read_ids(chain, n))  # excluded from group reads
-    assert all(
-        sid != 3 for t, sid, _ in chain.goal_writes() if t > chain.time_s - 0.15
-    )  # and from goal frames
+    assert all(sid != 3 for t, sid, _ in chain.goal_writes() if t > chain.time_s - 0.15)  # and from goal frames
     snaps = run(chain, driver, GOALS, 1.0)
     assert not snaps[-1][3].missing and snaps[-1][3].torque_on
     assert events_of(driver, FaultKind.RECONNECTED, 3)
@@ -44,9 +42,7 @@ def test_missing_servo_is_marked_others_continue_and_it_is_reconnected() -> None
 def test_transient_reply_faults_are_retried_and_counted_not_fatal(kind: str) -> None:
     chain, driver = make_driver()
     run(chain, driver, GOALS, 0.1)
-    chain.faults.inject(
-        2, kind, duration_s=0.005
-    )  # one cycle's worth (the manual clock stands still within it)
+    chain.faults.inject(2, kind, duration_s=0.005)  # one cycle's worth (the manual clock stands still within it)
     snap = driver.cycle(GOALS)
     assert snap[2].stale and not snap[2].missing
     assert not snap[1].stale and snap[1].position_tick == 2500  # read individually after the group failed
@@ -245,17 +241,16 @@ def test_port_failure_marks_everything_missing_and_reopens() -> None:
 
 
 def test_servo_missing_at_start_is_configured_when_it_appears() -> None:
-    from hardware.bus import open_bus
-    from hardware.driver import Driver
-    from hardware.emulator import ServoChain
-    from hardware.errors import BusTimeoutError
-    from hardware.servo_config import ServoSpec
+    from servoface.hardware.bus import open_bus
+    from servoface.hardware.driver import Driver
+    from servoface.hardware.emulator import ServoChain
+    from servoface.hardware.errors import BusTimeoutError
+    from servoface.hardware.servo_config import ServoSpec
 
     chain = ServoChain.create(ids=[1, 2], model="XL330-M288", wire_time=False, clock="manual")
     chain.faults.inject(2, "disconnect", duration_s=0.3)
     specs = [
-        ServoSpec(i, "XL330-M288", min_position_tick=1000, max_position_tick=3000, profile_velocity=99)
-        for i in (1, 2)
+        ServoSpec(i, "XL330-M288", min_position_tick=1000, max_position_tick=3000, profile_velocity=99) for i in (1, 2)
     ]
     strict = Driver(open_bus("emulator", chain=chain), specs, clock=chain.clock)
     with pytest.raises(BusTimeoutError):
@@ -266,15 +261,13 @@ def test_servo_missing_at_start_is_configured_when_it_appears() -> None:
     snaps = run(chain, driver, {1: 2900, 2: 1100}, 0.2)
     assert snaps[-1][2].missing and snaps[-1][1].position_tick > 2048  # the other one is on its way
     snaps = run(chain, driver, {1: 2900, 2: 1100}, 2.0)
-    assert (
-        snaps[-1][2].torque_on and snaps[-1][2].position_tick == 1100 and snaps[-1][1].position_tick == 2900
-    )
+    assert snaps[-1][2].torque_on and snaps[-1][2].position_tick == 1100 and snaps[-1][1].position_tick == 2900
     assert chain.servo(2).read_register("PROFILE_VELOCITY") == 99 and chain.servo(2).read_register(52) == 1000
     assert_goals_within_limits(chain, driver)
 
 
 def test_alert_bit_on_a_single_transaction_triggers_an_immediate_status_read() -> None:
-    from hardware.fault_policy import FaultPolicy
+    from servoface.hardware.fault_policy import FaultPolicy
 
     chain, driver = make_driver(policy=FaultPolicy(status_hz=0.1))  # polling alone would take 10 s
     run(chain, driver, GOALS, 0.5)  # the first status read is done; the next is 10 s away

@@ -5,8 +5,13 @@ from __future__ import annotations
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
-from hardware.fault_policy import FaultPolicy, ThermalTrend, eased_goal, thermal_level, voltage_state
+from servoface.hardware.fault_policy import (
+    FaultPolicy,
+    ThermalTrend,
+    eased_goal,
+    thermal_level,
+    voltage_state,
+)
 
 
 def test_rising_temperature_predicts_time_to_limit() -> None:

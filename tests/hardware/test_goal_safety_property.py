@@ -7,8 +7,8 @@ import math
 
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from servoface.hardware.errors import GoalRejectedError
 
-from hardware.errors import GoalRejectedError
 from tests.hardware.driver_helpers import LIMITS, assert_goals_within_limits, make_driver
 
 SYNC_WRITE = 0x83
@@ -19,9 +19,7 @@ goal_values = st.one_of(
     st.booleans(),
 )
 frames = st.dictionaries(st.sampled_from([1, 2, 3, 4, 5]), goal_values, max_size=5)
-faults = st.sampled_from(
-    [None, "no_reply", "corrupt_crc", "overload", "disconnect", "late_reply", "obstacle"]
-)
+faults = st.sampled_from([None, "no_reply", "corrupt_crc", "overload", "disconnect", "late_reply", "obstacle"])
 
 
 def _valid(frame: dict) -> bool:  # type: ignore[type-arg]

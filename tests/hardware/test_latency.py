@@ -6,9 +6,8 @@ import warnings
 from pathlib import Path
 
 import pytest
-
-from hardware.dynamixel_bus import DynamixelBus
-from hardware.latency import UsbLatencyWarning, read_latency_timer, sdk_latency_ms, warn_if_high
+from servoface.hardware.dynamixel_bus import DynamixelBus
+from servoface.hardware.latency import UsbLatencyWarning, read_latency_timer, sdk_latency_ms, warn_if_high
 
 
 def _sysfs(tmp_path: Path, tty: str, value: str) -> Path:
@@ -73,7 +72,7 @@ def test_reply_window_runs_on_a_monotonic_clock(monkeypatch: pytest.MonkeyPatch)
 
 
 def test_reply_window_stays_open_while_bytes_are_waiting() -> None:
-    from hardware.emulator import ServoChain
+    from servoface.hardware.emulator import ServoChain
 
     chain = ServoChain.create(ids=[1], wire_time=False)
     bus = DynamixelBus(chain, latency_timer_ms=0)
@@ -88,8 +87,8 @@ def test_reply_window_stays_open_while_bytes_are_waiting() -> None:
 
 
 def test_window_extension_is_bounded() -> None:
-    from hardware.dynamixel_bus import MAX_WINDOW_EXTENSION_MS
-    from hardware.emulator import ServoChain
+    from servoface.hardware.dynamixel_bus import MAX_WINDOW_EXTENSION_MS
+    from servoface.hardware.emulator import ServoChain
 
     chain = ServoChain.create(ids=[1], wire_time=False)
     bus = DynamixelBus(chain, latency_timer_ms=0)

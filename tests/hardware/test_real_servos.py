@@ -7,9 +7,8 @@ skip with the reason when SERVOFACE_PORT is not set. Moves stay inside 1024..307
 from __future__ import annotations
 
 import pytest
-
-from hardware.driver import Driver
-from hardware.scan import scan
+from servoface.hardware.driver import Driver
+from servoface.hardware.scan import scan
 
 pytestmark = pytest.mark.hardware
 

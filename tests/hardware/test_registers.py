@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import pytest
-
-from hardware.registers import (
+from servoface.hardware.registers import (
     BAUD_CODES,
     MODELS,
     Area,

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import pytest
-
-from controller.cli import main
-from hardware.bus import ids_from_spec, open_bus
-from hardware.emulator import ServoChain
-from hardware.scan import scan
+from servoface.controller.cli import main
+from servoface.hardware.bus import ids_from_spec, open_bus
+from servoface.hardware.emulator import ServoChain
+from servoface.hardware.scan import scan
 
 
 def test_scan_prints_a_table_of_the_chain(capsys: pytest.CaptureFixture[str]) -> None:

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import pytest
-
-from hardware.errors import ServoDescriptionError
-from hardware.registers import HardwareErrorBits, OperatingMode, Register
-from hardware.servo_config import ServoSpec, check_specs
+from servoface.hardware.errors import ServoDescriptionError
+from servoface.hardware.registers import HardwareErrorBits, OperatingMode, Register
+from servoface.hardware.servo_config import ServoSpec, check_specs
 
 
 def test_valid_spec_gives_register_values() -> None:

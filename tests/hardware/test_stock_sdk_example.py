@@ -6,15 +6,15 @@ import subprocess
 import sys
 from pathlib import Path
 
-from hardware.bus import open_bus
-from hardware.registers import Register
+from servoface.hardware.bus import open_bus
+from servoface.hardware.registers import Register
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_stock_sdk_script_moves_emulated_servos() -> None:
     emulator = subprocess.Popen(
-        [sys.executable, "-m", "controller.cli", "emulate", "--ids", "1-4", "--model", "XL330-M288"],
+        [sys.executable, "-m", "servoface.controller.cli", "emulate", "--ids", "1-4", "--model", "XL330-M288"],
         cwd=ROOT,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -36,9 +36,7 @@ def test_stock_sdk_script_moves_emulated_servos() -> None:
         # independently: the emulated servos are where the script sent them (2048 - 300), torque on
         with open_bus("dynamixel", port=path, baud=1_000_000) as bus:
             got = bus.sync_read([1, 2, 3, 4], [Register.PRESENT_POSITION, Register.GOAL_POSITION])
-            assert all(
-                v[Register.PRESENT_POSITION] == 1748 == v[Register.GOAL_POSITION] for v in got.values()
-            )
+            assert all(v[Register.PRESENT_POSITION] == 1748 == v[Register.GOAL_POSITION] for v in got.values())
             assert all(bus.read(sid, Register.TORQUE_ENABLE) == 1 for sid in (1, 2, 3, 4))
     finally:
         emulator.terminate()

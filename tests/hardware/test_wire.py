@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import pytest
-
-from hardware.wire import cycle_budget, fast_sync_read_reply_bytes, status_bytes, sync_write_bytes
+from servoface.hardware.wire import cycle_budget, fast_sync_read_reply_bytes, status_bytes, sync_write_bytes
 
 
 @pytest.mark.parametrize(
@@ -28,9 +27,9 @@ def test_return_delay_is_paid_per_status_packet() -> None:
     assert slow.wire_time_s - plain.wire_time_s == pytest.approx(20 * 500e-6)
     fast = cycle_budget(20, 1_000_000, fast=True, return_delay_us=500)
     assert fast.return_delay_s == pytest.approx(500e-6)
-    assert cycle_budget(
-        20, 1_000_000, fast=True, return_delay_us=500, fast_delay_per_block=True
-    ).return_delay_s == (pytest.approx(20 * 500e-6))
+    assert cycle_budget(20, 1_000_000, fast=True, return_delay_us=500, fast_delay_per_block=True).return_delay_s == (
+        pytest.approx(20 * 500e-6)
+    )
 
 
 def test_packet_sizes() -> None:

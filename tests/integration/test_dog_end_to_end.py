@@ -13,15 +13,15 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
+from servoface.controller.face import head_calibration
+from servoface.controller.head_servos import servo_specs, temperature_limits_c
+from servoface.controller.pipeline import FrameTrace, Pipeline
+from servoface.controller.script import SCRIPTS_DIR, load_script
+from servoface.hardware.bus import open_bus
+from servoface.hardware.driver import Driver
+from servoface.hardware.emulator import ServoChain
+from servoface.sim.heads import load_head
 
-from controller.face import head_calibration
-from controller.head_servos import servo_specs, temperature_limits_c
-from controller.pipeline import FrameTrace, Pipeline
-from controller.script import SCRIPTS_DIR, load_script
-from hardware.bus import open_bus
-from hardware.driver import Driver
-from hardware.emulator import ServoChain
-from sim.heads import load_head
 from tests.integration.wire_checks import check_wire
 
 RATE_HZ = 50.0
@@ -71,9 +71,7 @@ def test_the_performance_uses_signed_aus_and_moves_the_dog(dog: DogRun) -> None:
     assert min(values) < 0 < max(values)  # counter AUs (negative DFACS values) and positive ones
     cal = dog.pipeline.calibration
     neutral = cal.neutral_goals()
-    moved = {
-        cal.role_of(sid) for t in dog.traces for sid, g in t.goals_sent.items() if abs(g - neutral[sid]) > 20
-    }
+    moved = {cal.role_of(sid) for t in dog.traces for sid, g in t.goals_sent.items() if abs(g - neutral[sid]) > 20}
     assert {"ear_pan_l", "ear_pan_r", "jaw"} <= moved, moved
     assert any(t.verdict == "accept" for t in dog.traces)
     for t in dog.traces:

@@ -10,12 +10,11 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 import pytest
-
-from controller.face import Face
-from controller.performance import Performance
-from hardware.emulator import ServoChain
-from sim.gate import ServoHealth
-from sim.gate.health import derate
+from servoface.controller.face import Face
+from servoface.controller.performance import Performance
+from servoface.hardware.emulator import ServoChain
+from servoface.sim.gate import ServoHealth
+from servoface.sim.gate.health import derate
 
 
 @dataclass
@@ -47,9 +46,7 @@ def faulted() -> Iterator[Faulted]:
 def test_the_driver_reports_the_fault_and_the_gate_names_the_servo(faulted: Faulted) -> None:
     health = [t for t in faulted.perf.traces if "health" in t.checks]  # from the driver's snapshots
     assert health, "the gate never heard of the overload"
-    assert all(
-        any(f"servo {faulted.servo_id} 'lip_corner_l' overloaded" in r for r in t.reasons) for t in health
-    )
+    assert all(any(f"servo {faulted.servo_id} 'lip_corner_l' overloaded" in r for r in t.reasons) for t in health)
     snap = faulted.face.pipeline.last_snapshot
     assert snap is not None and not snap[faulted.servo_id].faults  # recovered by the end
 
@@ -73,9 +70,7 @@ def test_after_recovery_the_servo_is_walked_back_within_the_caps(faulted: Faulte
     gate = faulted.face.pipeline.gate
     i = gate.table.index()[faulted.servo_id]
     cap, speedup = int(gate.table.max_step_tick[i]), int(gate.table.max_speedup_tick[i])
-    writes = [
-        (t, g) for t, s, g in faulted.chain.goal_writes()[faulted.first_write :] if s == faulted.servo_id
-    ]
+    writes = [(t, g) for t, s, g in faulted.chain.goal_writes()[faulted.first_write :] if s == faulted.servo_id]
     # out of service the driver writes nothing; its recovery re-pins the goal where the servo stands (a
     # safety write, not a motion): check each run of writes on its own, from rest
     gaps = [b[0] - a[0] for a, b in zip(writes, writes[1:], strict=False)]

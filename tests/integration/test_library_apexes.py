@@ -7,10 +7,9 @@ fixed. Both heads are checked with every part pair (the dog's TSS tables take ~1
 from __future__ import annotations
 
 import pytest
-
-from controller.face import Face
-from controller.pipeline import Pipeline
-from sim.expressions import load_library
+from servoface.controller.face import Face
+from servoface.controller.pipeline import Pipeline
+from servoface.sim.expressions import load_library
 
 KNOWN_REFUSED: dict[tuple[str, str], str] = {}  # (head, expression) -> why; all pass since the 13:41 tuning
 

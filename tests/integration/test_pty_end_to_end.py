@@ -11,12 +11,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
-
-from controller.face import Face, head_calibration
-from controller.head_servos import servo_specs
-from controller.performance import Performance
-from hardware.emulator import ServoChain
-from sim.heads import load_head
+from servoface.controller.face import Face, head_calibration
+from servoface.controller.head_servos import servo_specs
+from servoface.controller.performance import Performance
+from servoface.hardware.emulator import ServoChain
+from servoface.sim.heads import load_head
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals need a POSIX system")
 
@@ -88,7 +87,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Run]:
 
 
 def test_the_stock_sdk_talked_to_the_pty(run: Run) -> None:
-    from hardware.dynamixel_bus import DynamixelBus
+    from servoface.hardware.dynamixel_bus import DynamixelBus
 
     bus = run.face.bus
     assert isinstance(bus, DynamixelBus)

@@ -10,15 +10,15 @@ from dataclasses import dataclass
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from servoface.controller.face import Face
+from servoface.controller.performance import Performance, play_timeline
+from servoface.controller.pipeline import Pipeline
+from servoface.controller.script import SCRIPTS_DIR
+from servoface.controller.timeline import ChannelClip, Key, Timeline, min_jerk
+from servoface.hardware.emulator import ServoChain
+from servoface.sim.gate import GateConfig
+from servoface.sim.gate.coupling import CouplingLimit
 
-from controller.face import Face
-from controller.performance import Performance, play_timeline
-from controller.pipeline import Pipeline
-from controller.script import SCRIPTS_DIR
-from controller.timeline import ChannelClip, Key, Timeline, min_jerk
-from hardware.emulator import ServoChain
-from sim.gate import GateConfig
-from sim.gate.coupling import CouplingLimit
 from tests.integration.wire_checks import check_wire
 
 UNSAFE = SCRIPTS_DIR / "unsafe_pose.toml"
@@ -149,13 +149,9 @@ AU_NAMES = [
 
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
-    frames=st.lists(
-        st.dictionaries(st.sampled_from(AU_NAMES), st.floats(0.0, 1.0), max_size=6), min_size=2, max_size=5
-    )
+    frames=st.lists(st.dictionaries(st.sampled_from(AU_NAMES), st.floats(0.0, 1.0), max_size=6), min_size=2, max_size=5)
 )
-def test_any_sequence_of_au_frames_stays_safe_on_the_wire(
-    played: Played, frames: list[dict[str, float]]
-) -> None:
+def test_any_sequence_of_au_frames_stays_safe_on_the_wire(played: Played, frames: list[dict[str, float]]) -> None:
     """Property: whatever valid AU frames come in, back to back (no easing), the wire stays safe."""
     face = played.face
     chain = played.chain

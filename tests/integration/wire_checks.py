@@ -3,16 +3,15 @@
 from __future__ import annotations
 
 import numpy as np
-
-from controller.pipeline import Pipeline
-from hardware.emulator import ServoChain
-from sim.gate import limits as lim
+from servoface.controller.pipeline import Pipeline
+from servoface.hardware.emulator import ServoChain
+from servoface.sim.gate import limits as lim
 
 
 def check_wire(pipeline: Pipeline, chain: ServoChain, start: int = 0) -> int:
     """Every Goal Position write the emulator decoded (from index ``start`` of the log): inside the
     calibration's limits, each step from the same servo's previous goal within the gate's per-frame cap, and
-    each change of step within the gate's acceleration bound (`sim.gate.limits.step_bounds`). Returns how
+    each change of step within the gate's acceleration bound (`servoface.sim.gate.limits.step_bounds`). Returns how
     many goals were checked."""
     table = pipeline.gate.table
     cal = pipeline.calibration
@@ -37,9 +36,7 @@ def check_wire(pipeline: Pipeline, chain: ServoChain, start: int = 0) -> int:
                 cap = int(table.max_step_tick[i])
                 assert abs(step) <= cap, f"{where}: step {step} beyond the cap {cap} tick/frame"
                 lo, hi = lim.step_bounds(last_step, table)
-                assert lo[i] <= step <= hi[i], (
-                    f"{where}: step {step} after {last_step[i]} outside {lo[i]}..{hi[i]}"
-                )
+                assert lo[i] <= step <= hi[i], f"{where}: step {step} after {last_step[i]} outside {lo[i]}..{hi[i]}"
             last_step[i] = step
         last[sid] = tick
     return len(writes) - start

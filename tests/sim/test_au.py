@@ -7,9 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from sim.au import AU_DIR, AUMapping, canonical_au_name, load_au_table
-from sim.errors import ActionUnitValueError, HeadProfileError, UnknownActionUnitError
+from servoface.sim.au import AU_DIR, AUMapping, canonical_au_name, load_au_table
+from servoface.sim.errors import ActionUnitValueError, HeadProfileError, UnknownActionUnitError
 
 HUMAN_REQUIRED = {1, 2, 4, 5, 6, 7, 9, 10, 12, 14, 15, 16, 17, 20, 23, 24, 25, 26, 27, 43, 45}
 HUMAN_REQUIRED |= set(range(51, 59)) | set(range(61, 65))
@@ -80,9 +79,7 @@ def test_the_dog_table_has_dfacs_1_to_19_and_its_counters() -> None:
 
 @pytest.mark.parametrize(("face_type", "muscles", "joints"), [("human", HUMAN_MUSCLES, HUMAN_JOINTS),
                                                                ("dog", DOG_MUSCLES, DOG_JOINTS)])  # fmt: skip
-def test_tables_name_only_face_contract_muscles_and_joints(
-    face_type: str, muscles: set[str], joints: set[str]
-) -> None:
+def test_tables_name_only_face_contract_muscles_and_joints(face_type: str, muscles: set[str], joints: set[str]) -> None:
     mapping = _mapping(face_type)  # raises HeadProfileError on any unknown name
     used_muscles = {mapping.muscle_names[i] for i in np.nonzero(np.abs(mapping.to_muscles).sum(axis=1))[0]}
     used_joints = {mapping.joint_names[i] for i in np.nonzero(np.abs(mapping.to_joints).sum(axis=1))[0]}
@@ -104,9 +101,7 @@ def test_bilateral_au_drives_both_sides_and_a_sided_au_one() -> None:
 def test_antagonists_sum_then_clamp() -> None:
     m = _mapping("human")
     assert _joint(m, {"AU5": 1.0}, "upper_lid_l") == pytest.approx(-15.0)
-    assert _joint(m, {"AU5": 1.0, "AU45": 1.0}, "upper_lid_l") == pytest.approx(
-        55.0
-    )  # clamp happens in FaceModel
+    assert _joint(m, {"AU5": 1.0, "AU45": 1.0}, "upper_lid_l") == pytest.approx(55.0)  # clamp happens in FaceModel
     assert _joint(m, {"AU51": 1.0, "AU52": 0.5}, "neck_pan") == pytest.approx(22.5)
     assert _muscle(m, {"AU12": 1.0, "AU13": 1.0}, "zygomatic_major_l") == 1.0  # contraction limit
     assert _muscle(m, {"AU12": 0.5, "AU12L": 0.3}, "zygomatic_major_l") == pytest.approx(0.8)
@@ -137,9 +132,7 @@ def test_dog_counter_aus_use_their_own_row_or_mirror() -> None:
         ("dog", {"AU16": float("nan")}, ActionUnitValueError, ["AU16"]),
     ],
 )
-def test_bad_aus_raise_typed_errors(
-    face_type: str, aus: dict[str, object], error: type, words: list[str]
-) -> None:
+def test_bad_aus_raise_typed_errors(face_type: str, aus: dict[str, object], error: type, words: list[str]) -> None:
     m = _mapping(face_type)
     with pytest.raises(error) as info:
         m.evaluate(aus)  # type: ignore[arg-type]
@@ -195,6 +188,6 @@ def test_a_table_naming_a_missing_muscle_fails_to_bind(tmp_path: Path) -> None:
 @pytest.mark.parametrize("face_type", ["human", "dog"])
 def test_table_names_match_the_controllers_fallback_sets(face_type: str) -> None:
     """The controller validates frames with these names when it cannot load a table: keep them equal."""
-    from controller.au_names import builtin_au_names
+    from servoface.controller.au_names import builtin_au_names
 
     assert load_au_table(face_type).names() == builtin_au_names(face_type)  # type: ignore[arg-type]

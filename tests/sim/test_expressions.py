@@ -5,9 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
-from sim.errors import ExpressionError
-from sim.expressions import Expression, get_expression, load_library
+from servoface.sim.errors import ExpressionError
+from servoface.sim.expressions import Expression, get_expression, load_library
 
 HUMAN_REQUIRED = {
     "neutral", "happiness", "sadness", "surprise", "fear", "anger", "disgust", "contempt", "blink", "wink",
@@ -111,9 +110,7 @@ def _write(tmp_path: Path, face_type: str, body: str) -> Path:
         ("cat", "", ["face_type"]),
     ],
 )
-def test_library_file_errors_name_the_file_and_key(
-    tmp_path: Path, face_type: str, body: str, words: list[str]
-) -> None:
+def test_library_file_errors_name_the_file_and_key(tmp_path: Path, face_type: str, body: str, words: list[str]) -> None:
     path = _write(tmp_path, face_type, body)
     with pytest.raises(ExpressionError) as info:
         load_library(path)

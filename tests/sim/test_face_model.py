@@ -14,12 +14,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from sim.errors import ActionUnitValueError, HeadProfileError, SimError, UnknownActionUnitError
-from sim.expressions import load_library
-from sim.face_model import FaceModel
-from sim.muscles import LinearMuscle, SphincterMuscle
-from sim.rig import AnchorActuator, Joint, JointActuator, ServoRef, Skin
+from servoface.sim.errors import ActionUnitValueError, HeadProfileError, SimError, UnknownActionUnitError
+from servoface.sim.expressions import load_library
+from servoface.sim.face_model import FaceModel
+from servoface.sim.muscles import LinearMuscle, SphincterMuscle
+from servoface.sim.rig import AnchorActuator, Joint, JointActuator, ServoRef, Skin
 
 
 def _z(x: float, y: float) -> float:
@@ -348,8 +347,7 @@ def test_intensity_scales_the_skin_linearly_below_the_limits(a: float, b: float)
 def test_twin_meets_any_in_range_anchor_targets_exactly(data: st.DataObject) -> None:
     model = _shared_model()
     targets = {
-        act.role: data.draw(st.floats(act.lower_mm, act.upper_mm), label=act.role)
-        for act in model.anchor_actuators
+        act.role: data.draw(st.floats(act.lower_mm, act.upper_mm), label=act.role) for act in model.anchor_actuators
     }
     twin = model.pose_from_targets(targets)
     assert np.all(np.isfinite(twin.skin_offset_mm))

@@ -5,11 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from sim.errors import ActionUnitValueError
-from sim.expressions import load_library
-from sim.face_model import FaceModel, benchmark_solve
-from sim.heads import load_head
+from servoface.sim.errors import ActionUnitValueError
+from servoface.sim.expressions import load_library
+from servoface.sim.face_model import FaceModel, benchmark_solve
+from servoface.sim.heads import load_head
 
 
 @pytest.fixture(scope="module", params=["human", "dog"])

@@ -7,11 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from sim.gate import GateConfig, ServoHealth, TwinGate
-from sim.gate.demo_rig import demo_calibration, demo_head
-from sim.gate.errors import GateConfigError, GateInputError
-from sim.gate.strain import StrainLimits
+from servoface.sim.gate import GateConfig, ServoHealth, TwinGate
+from servoface.sim.gate.demo_rig import demo_calibration, demo_head
+from servoface.sim.gate.errors import GateConfigError, GateInputError
+from servoface.sim.gate.strain import StrainLimits
 
 
 @pytest.fixture(scope="module")
@@ -30,9 +29,7 @@ def fast_gate(cache: Path) -> TwinGate:
     """Rate caps wide open, so limits/collision/strain checks can be reached in one frame."""
     head = demo_head()
     roles = [a.role for a in head.actuators]
-    cfg = GateConfig(
-        cache_dir=cache, max_step_tick={r: 4000 for r in roles}, max_speedup_tick={r: 4000 for r in roles}
-    )
+    cfg = GateConfig(cache_dir=cache, max_step_tick={r: 4000 for r in roles}, max_speedup_tick={r: 4000 for r in roles})
     return TwinGate(head, demo_calibration(head), 1 / 60, cfg)
 
 
@@ -132,12 +129,7 @@ def test_coupling_rule_fires_with_roles_and_shares(fast_gate: TwinGate) -> None:
     v = fast_gate.check(req, n)
     assert v.kind == "clip" and "coupling" in v.checks
     f = next(f for f in v.findings if f.check == "coupling")
-    assert (
-        "lip_corner_l" in f.message
-        and "lip_depressor_l" in f.message
-        and f.value is not None
-        and f.value > 1.0
-    )
+    assert "lip_corner_l" in f.message and "lip_depressor_l" in f.message and f.value is not None and f.value > 1.0
     _, _, targets = fast_gate.twin_pose(v.goals_tick)
     assert targets["lip_corner_l"] / 12.0 + targets["lip_depressor_l"] / 12.0 <= 1.0 + 1e-9
 

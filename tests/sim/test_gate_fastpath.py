@@ -8,14 +8,13 @@ from typing import Any
 
 import numpy as np
 import pytest
-
-from sim.gate import GateConfig, TwinGate
+from servoface.sim.gate import GateConfig, TwinGate
 
 
 def _gate(name: str) -> tuple[TwinGate, Any]:
-    from calibration.fileformat import load_calibration
-    from sim.face_model import FaceModel
-    from sim.heads import load_head
+    from servoface.calibration.fileformat import load_calibration
+    from servoface.sim.face_model import FaceModel
+    from servoface.sim.heads import load_head
 
     head = load_head(name)
     fm = FaceModel(head)
@@ -99,8 +98,7 @@ def test_scale_back_picks_the_last_candidate_the_audit_passes(gate_fm: tuple[Twi
         fracs = np.arange(1, 9) / 8.0
         cands = (a + np.trunc(fracs[:, None] * (b - a)[None, :])).astype(np.int64)
         ok = [
-            not [f for f in gate.audit(dict(zip(t.ids, c.tolist(), strict=True))) if f.check != "limit"]
-            for c in cands
+            not [f for f in gate.audit(dict(zip(t.ids, c.tolist(), strict=True))) if f.check != "limit"] for c in cands
         ]
         expected = max((k for k, good in enumerate(ok) if good), default=None)
         assert gate._last_ok(cands) == expected
@@ -152,16 +150,14 @@ def test_exact_memo_answers_like_the_exact_test(gate_fm: tuple[TwinGate, Any]) -
     for k in range(len(q)):
         for spec in col.specs:
             ta, tb = col.part_transform(spec.a, world[k]), col.part_transform(spec.b, world[k])
-            fresh = col.exact.collide(
-                f"{spec.a}@{spec.tolerance_mm}", f"{spec.b}@{spec.tolerance_mm}", ta, tb
-            )
+            fresh = col.exact.collide(f"{spec.a}@{spec.tolerance_mm}", f"{spec.b}@{spec.tolerance_mm}", ta, tb)
             assert col._collide(spec, world[k]) == fresh
             hits += fresh
     assert hits > 0 or gate.head.name == "human"  # the human's parts never meet inside the joint stops
 
 
 def test_vectorised_coupling_ok_matches_rule_by_rule() -> None:
-    from sim.gate.coupling import CouplingCheck, CouplingLimit
+    from servoface.sim.gate.coupling import CouplingCheck, CouplingLimit
 
     roles = ("a", "b", "c", "d")
     rules = (

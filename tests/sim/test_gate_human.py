@@ -6,23 +6,22 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
-from sim.gate import GateConfig, TwinGate
-from sim.gate.box_lsq import BoxLsq
-from sim.gate.limits import clamp, step_bounds
-from sim.gate.tss_build import summed_reduction
+from servoface.sim.gate import GateConfig, TwinGate
+from servoface.sim.gate.box_lsq import BoxLsq
+from servoface.sim.gate.limits import clamp, step_bounds
+from servoface.sim.gate.tss_build import summed_reduction
 
 
 @pytest.fixture(scope="module")
 def head():  # type: ignore[no-untyped-def]
-    from sim.heads import load_head
+    from servoface.sim.heads import load_head
 
     return load_head("human")
 
 
 @pytest.fixture(scope="module")
 def face_model(head):  # type: ignore[no-untyped-def]
-    from sim.face_model import FaceModel
+    from servoface.sim.face_model import FaceModel
 
     return FaceModel(head)
 
@@ -30,7 +29,7 @@ def face_model(head):  # type: ignore[no-untyped-def]
 @pytest.fixture(scope="module")
 def gate(head, face_model) -> TwinGate:  # type: ignore[no-untyped-def]
     """Tables from the user cache (keyed by geometry, so never stale; the first run builds them)."""
-    from calibration.fileformat import load_calibration
+    from servoface.calibration.fileformat import load_calibration
 
     cal = load_calibration(head.calibration_path)
     return TwinGate(head, cal, 1 / 60, GateConfig(), face_model=face_model)
@@ -76,18 +75,14 @@ def test_face_model_skin_is_exactly_pose_from_targets(gate: TwinGate, face_model
     neutral = {a.role: (a.neutral_deg if a.kind == "joint" else a.neutral_mm) for a in head.actuators}
     for _ in range(25):
         p = rng.uniform([a.lower_mm - 1 for a in anchors], [a.upper_mm + 1 for a in anchors])
-        ref = face_model.pose_from_targets(
-            {**neutral, **{a.role: float(v) for a, v in zip(anchors, p, strict=True)}}
-        )
+        ref = face_model.pose_from_targets({**neutral, **{a.role: float(v) for a, v in zip(anchors, p, strict=True)}})
         full = gate.skin_source.offsets(p)
         assert np.allclose(full, ref.skin_offset_mm, atol=1e-9)
         rows = gate.skin.active_vertices
         part = gate.skin_source.offsets_rows(p, rows)
         assert np.allclose(part, full[rows], atol=1e-12)
         world = gate.tree.world(gate.tree.neutral_deg[None, :])[0]
-        assert [float(x) for x in gate.skin.measure(world, part)] == [
-            float(x) for x in gate.skin.measure(world, full)
-        ]
+        assert [float(x) for x in gate.skin.measure(world, part)] == [float(x) for x in gate.skin.measure(world, full)]
 
 
 def test_box_lsq_matches_the_face_models_fit(face_model) -> None:  # type: ignore[no-untyped-def]
@@ -107,9 +102,7 @@ def _safe(gate: TwinGate, v, last: np.ndarray, last_step: np.ndarray, req: np.nd
     sent = np.array([v.goals_tick[i] for i in t.ids])
     assert np.all((sent >= t.min_tick) & (sent <= t.max_tick))
     lo, hi = step_bounds(last_step, t)
-    assert np.all((sent - last >= lo) & (sent - last <= hi)) and np.all(
-        np.abs(sent - last) <= t.max_step_tick
-    )
+    assert np.all((sent - last >= lo) & (sent - last <= hi)) and np.all(np.abs(sent - last) <= t.max_step_tick)
     assert gate.audit(v.goals_tick) == [], v
     if v.kind == "reject":
         assert np.array_equal(sent, last)
@@ -148,11 +141,7 @@ AU_NAMES = [
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(
-    st.lists(
-        st.dictionaries(st.sampled_from(AU_NAMES), st.floats(0.0, 1.0), max_size=6), min_size=1, max_size=5
-    )
-)
+@given(st.lists(st.dictionaries(st.sampled_from(AU_NAMES), st.floats(0.0, 1.0), max_size=6), min_size=1, max_size=5))
 def test_au_frames_through_the_face_model_only_pass_safe_commands(gate: TwinGate, face_model, frames) -> None:  # type: ignore[no-untyped-def]
     cal = gate.poser.calibration
     t = gate.table
@@ -162,9 +151,7 @@ def test_au_frames_through_the_face_model_only_pass_safe_commands(gate: TwinGate
     last_step = np.zeros(t.n, dtype=np.int64)
     for aus in frames:
         aus = {
-            k: min(max(v, face_model.au_range(k)[0]), face_model.au_range(k)[1])
-            for k, v in aus.items()
-            if k in known
+            k: min(max(v, face_model.au_range(k)[0]), face_model.au_range(k)[1]) for k, v in aus.items() if k in known
         }
         goals = cal.targets_to_goals(face_model.solve(aus).actuator_targets)
         req = np.array([goals[i] for i in t.ids])
@@ -183,9 +170,7 @@ def test_random_goal_vectors_on_the_human_head(gate: TwinGate, steps: list[list[
     last_step = np.zeros(t.n, dtype=np.int64)
     for step in steps:
         req = last + np.array(step)
-        v = gate.check(
-            dict(zip(t.ids, req.tolist(), strict=True)), dict(zip(t.ids, last.tolist(), strict=True))
-        )
+        v = gate.check(dict(zip(t.ids, req.tolist(), strict=True)), dict(zip(t.ids, last.tolist(), strict=True)))
         _safe(gate, v, last, last_step, req)
         sent = np.array([v.goals_tick[i] for i in t.ids])
         last_step, last = sent - last, sent

@@ -8,11 +8,10 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
-from sim.gate import TwinGate, Verdict
-from sim.gate.demo_rig import demo_calibration, demo_head
-from sim.gate.gate import GateConfig
-from sim.gate.limits import clamp, step_bounds
+from servoface.sim.gate import TwinGate, Verdict
+from servoface.sim.gate.demo_rig import demo_calibration, demo_head
+from servoface.sim.gate.gate import GateConfig
+from servoface.sim.gate.limits import clamp, step_bounds
 
 
 @pytest.fixture(scope="module")
@@ -53,9 +52,7 @@ ticks = st.integers(min_value=-200, max_value=4300)
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(st.lists(st.lists(ticks, min_size=7, max_size=7), min_size=1, max_size=6), st.floats(0.0, 1.0))
-def test_random_goal_vectors_only_safe_commands_pass(
-    gate: TwinGate, requests: list[list[int]], near: float
-) -> None:
+def test_random_goal_vectors_only_safe_commands_pass(gate: TwinGate, requests: list[list[int]], near: float) -> None:
     t = gate.table
     gate.reset()
     last = t.neutral_tick.copy()
@@ -63,13 +60,9 @@ def test_random_goal_vectors_only_safe_commands_pass(
     for raw in requests:
         # mix wild vectors with ones near the last command (where accept/clip boundaries live)
         req = np.array(raw, dtype=np.int64)
-        req = np.where(
-            np.abs(req - last) > 600 * near + 40, last + np.sign(req - last) * (600 * near + 40), req
-        )
+        req = np.where(np.abs(req - last) > 600 * near + 40, last + np.sign(req - last) * (600 * near + 40), req)
         req = req.astype(np.int64)
-        v = gate.check(
-            dict(zip(t.ids, req.tolist(), strict=True)), dict(zip(t.ids, last.tolist(), strict=True))
-        )
+        v = gate.check(dict(zip(t.ids, req.tolist(), strict=True)), dict(zip(t.ids, last.tolist(), strict=True)))
         assert_safe(gate, v, last, last_step, req)
         sent = np.array([v.goals_tick[i] for i in t.ids])
         last_step, last = sent - last, sent

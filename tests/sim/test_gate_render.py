@@ -12,17 +12,17 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 
 def test_render_verdict_of_a_clipped_expression() -> None:
-    from sim.render import egl_missing_reason
+    from servoface.sim.render import egl_missing_reason
 
     reason = egl_missing_reason()
     if reason:
         pytest.skip(f"headless EGL rendering unavailable: {reason}")
-    from calibration.fileformat import load_calibration
-    from sim.face_model import FaceModel
-    from sim.gate import GateConfig, TwinGate
-    from sim.gate.render import render_verdict, verdict_targets
-    from sim.heads import load_head
-    from sim.render.images import save_image
+    from servoface.calibration.fileformat import load_calibration
+    from servoface.sim.face_model import FaceModel
+    from servoface.sim.gate import GateConfig, TwinGate
+    from servoface.sim.gate.render import render_verdict, verdict_targets
+    from servoface.sim.heads import load_head
+    from servoface.sim.render.images import save_image
 
     head = load_head("human")
     fm = FaceModel(head)

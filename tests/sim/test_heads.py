@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from sim.head import Head
-from sim.heads import load_head
-from sim.kinematics import neutral_pose, posed_parts, posed_skin_vertices
-from sim.rig import SERVO_MODELS, AnchorActuator, JointActuator
+from servoface.sim.head import Head
+from servoface.sim.heads import load_head
+from servoface.sim.kinematics import neutral_pose, posed_parts, posed_skin_vertices
+from servoface.sim.rig import SERVO_MODELS, AnchorActuator, JointActuator
 
 HUMAN_ROLES = [
     "brow_inner_l", "brow_inner_r", "brow_outer_l", "brow_outer_r", "upper_lid_l", "upper_lid_r",
@@ -129,7 +128,7 @@ def test_anchor_vertices_sit_where_the_profile_says(any_head: Head) -> None:
 
 _DIGEST = """
 import hashlib, numpy as np
-from sim.heads import builtin
+from servoface.sim.heads import builtin
 h = hashlib.sha256()
 for name in sorted(builtin.SKIN_MESHES):
     for arr in builtin.SKIN_MESHES[name]():

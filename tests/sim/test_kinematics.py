@@ -7,10 +7,9 @@ import math
 import numpy as np
 import pytest
 import trimesh
-
-from sim.errors import PoseError
-from sim.head import Head
-from sim.kinematics import (
+from servoface.sim.errors import PoseError
+from servoface.sim.head import Head
+from servoface.sim.kinematics import (
     joint_angles,
     joint_transforms,
     linear_blend,
@@ -19,7 +18,7 @@ from sim.kinematics import (
     posed_skin_vertices,
     rotation_about_axis,
 )
-from sim.rig import HeadPose, Joint, RigidPart, Skin
+from servoface.sim.rig import HeadPose, Joint, RigidPart, Skin
 
 
 def _toy_head() -> Head:
@@ -149,14 +148,12 @@ def test_linear_blend_matches_a_loop() -> None:
     for k in range(3):
         tfs[k, :3, :3] = rotation_about_axis(np.array([[0.0, 0.0, 1.0]]), np.array([0.3 * k]))[0]
         tfs[k, :3, 3] = [k, 0, 0]
-    expected = np.array(
-        [sum(w[i, k] * (tfs[k] @ np.append(v[i], 1.0))[:3] for k in range(3)) for i in range(20)]
-    )
+    expected = np.array([sum(w[i, k] * (tfs[k] @ np.append(v[i], 1.0))[:3] for k in range(3)) for i in range(20)])
     np.testing.assert_allclose(linear_blend(v, w, tfs), expected, atol=1e-12)
 
 
 def test_clamp_to_limits_reports_the_reachable_angles(head: Head) -> None:
-    from sim.kinematics import clamp_to_limits
+    from servoface.sim.kinematics import clamp_to_limits
 
     assert clamp_to_limits(head, {"jaw": 90.0, "eye_pan_l": -10.0}) == {"jaw": 25.0, "eye_pan_l": -10.0}
 

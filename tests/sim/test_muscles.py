@@ -8,12 +8,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from sim.muscles.eyelid import EyelidMuscle
-from sim.muscles.field import MuscleField
-from sim.muscles.linear import LinearMuscle, angular_factor, radial_factor
-from sim.muscles.sheet import SheetMuscle, band_factor, parallel_factor
-from sim.muscles.sphincter import SphincterMuscle, sphincter_falloff
+from servoface.sim.muscles.eyelid import EyelidMuscle
+from servoface.sim.muscles.field import MuscleField
+from servoface.sim.muscles.linear import LinearMuscle, angular_factor, radial_factor
+from servoface.sim.muscles.sheet import SheetMuscle, band_factor, parallel_factor
+from servoface.sim.muscles.sphincter import SphincterMuscle, sphincter_falloff
 
 S = math.sqrt(0.5)  # cos 45° = 0.70710678...
 
@@ -189,9 +188,7 @@ def test_fanned_sheet_follows_each_fibre() -> None:
     ("s_maj", "s_min", "printed", "corrected"),
     [(0, 0, 1.0, 1.0), (2, 0, -1.0, 0.0), (0, 1, 0.5, 0.0), (1, 0.5, -0.031, 0.293)],
 )
-def test_sphincter_check_values_of_the_sheet(
-    s_maj: float, s_min: float, printed: float, corrected: float
-) -> None:
+def test_sphincter_check_values_of_the_sheet(s_maj: float, s_min: float, printed: float, corrected: float) -> None:
     assert float(sphincter_falloff(s_maj, s_min, 2.0, 1.0, "printed")) == pytest.approx(printed, abs=1e-3)
     assert float(sphincter_falloff(s_maj, s_min, 2.0, 1.0)) == pytest.approx(corrected, abs=1e-3)
 

@@ -8,10 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-
-from sim.errors import HeadMeshError, HeadProfileError
-from sim.heads import builtin_profile_dir, load_head
-from sim.profile import load_profile
+from servoface.sim.errors import HeadMeshError, HeadProfileError
+from servoface.sim.heads import builtin_profile_dir, load_head
+from servoface.sim.profile import load_profile
 
 
 def _copy(tmp_path: Path, name: str = "human") -> Path:
@@ -44,9 +43,7 @@ def test_copied_builtin_folder_loads_with_user_meshes(tmp_path: Path) -> None:
     head = load_head(folder)
     assert head.name == "my_head" and head.profile_dir == folder
     assert head.calibration_path == folder / "calibration.json"
-    np.testing.assert_allclose(
-        head.part("jaw").mesh.bounds, load_head("human").part("jaw").mesh.bounds, atol=1e-3
-    )
+    np.testing.assert_allclose(head.part("jaw").mesh.bounds, load_head("human").part("jaw").mesh.bounds, atol=1e-3)
     assert len(head.skin.vertices_mm) == len(skin.vertices_mm)
     assert len(head.actuators) == 21
 

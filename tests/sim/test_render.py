@@ -8,12 +8,11 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 import trimesh
-
-from sim.errors import RenderError
-from sim.render import HeadRenderer, MeshItem, egl_missing_reason, parse_size
-from sim.render.camera import BACKGROUND_RGB
-from sim.render.materials import eye_vertex_colors, srgb_to_linear
-from sim.render.normals import VertexNormals
+from servoface.sim.errors import RenderError
+from servoface.sim.render import HeadRenderer, MeshItem, egl_missing_reason, parse_size
+from servoface.sim.render.camera import BACKGROUND_RGB
+from servoface.sim.render.materials import eye_vertex_colors, srgb_to_linear
+from servoface.sim.render.normals import VertexNormals
 
 W, H = 160, 120
 SKIN = (0.86, 0.70, 0.60, 1.0)
@@ -184,7 +183,7 @@ def test_colours_are_linearised_and_eyes_painted() -> None:
 
 
 def test_missing_egl_is_a_render_error_with_an_install_hint(monkeypatch: pytest.MonkeyPatch) -> None:
-    import sim.render.backend as backend
+    import servoface.sim.render.backend as backend
 
     monkeypatch.setenv("PYOPENGL_PLATFORM", "egl")
     monkeypatch.setattr(backend.ctypes.util, "find_library", lambda name: None)
@@ -195,7 +194,7 @@ def test_missing_egl_is_a_render_error_with_an_install_hint(monkeypatch: pytest.
 
 def test_the_key_light_is_the_single_brightest() -> None:
     """The shader gives the specular highlight to the brightest light; it must be the key, uniquely."""
-    from sim.render.camera import LIGHTS
+    from servoface.sim.render.camera import LIGHTS
 
     intensities = sorted((light.intensity for light in LIGHTS), reverse=True)
     key = next(light for light in LIGHTS if light.name == "key")
@@ -207,7 +206,7 @@ def test_lean_forward_pass_draws_exactly_what_pyrenders_pass_draws(renderer: Hea
     flap = trimesh.Trimesh(BALL.vertices, BALL.faces[BALL.triangles_center[:, 2] > 30.0], process=False)
     items = [*_face(), glass, MeshItem(flap, (0.3, 0.5, 0.8, 1.0), _translate(0, 0, 20), "open_flap")]
     skin = (BALL.vertices * 0.5, BALL.faces, SKIN)
-    gl_renderer = renderer._gl._osr._renderer  # the subclassed pyrender Renderer (sim.render.backend)
+    gl_renderer = renderer._gl._osr._renderer  # the subclassed pyrender Renderer (servoface.sim.render.backend)
     lean, _ = renderer.render_posed(items, skin, box_mm=BOX)
     gl_renderer.lean_forward_pass = False
     try:

@@ -8,11 +8,10 @@ from typing import Any
 
 import numpy as np
 import pytest
-
-from sim.render import HeadRenderer, egl_missing_reason
-from sim.render.camera import BACKGROUND_RGB, default_view
-from sim.render.clips import library_sheet, pick_expression, render_aus
-from sim.render.twin import face_model, render_target_vs_gated, render_targets
+from servoface.sim.render import HeadRenderer, egl_missing_reason
+from servoface.sim.render.camera import BACKGROUND_RGB, default_view
+from servoface.sim.render.clips import library_sheet, pick_expression, render_aus
+from servoface.sim.render.twin import face_model, render_target_vs_gated, render_targets
 
 W, H = 160, 120
 # mean absolute difference (0..255 per channel) over the face region that two expressions must exceed.
@@ -33,7 +32,7 @@ def renderer() -> Iterator[HeadRenderer]:
 
 @pytest.fixture(scope="module")
 def heads() -> dict[str, Any]:
-    from sim.heads import load_head
+    from servoface.sim.heads import load_head
 
     return {name: load_head(name) for name in ("human", "dog")}
 
@@ -47,7 +46,7 @@ def _background_mask(img: np.ndarray) -> np.ndarray:
 def test_neutral_face_fills_the_frame_in_skin_colour_with_dark_eyes(
     renderer: HeadRenderer, heads: dict[str, Any], name: str
 ) -> None:
-    from sim.kinematics import neutral_pose
+    from servoface.sim.kinematics import neutral_pose
 
     head = heads[name]
     img = renderer.render(head, neutral_pose(head))
@@ -65,7 +64,7 @@ def test_neutral_face_fills_the_frame_in_skin_colour_with_dark_eyes(
 def test_depth_is_nearer_at_the_face_than_the_background(
     renderer: HeadRenderer, heads: dict[str, Any], name: str
 ) -> None:
-    from sim.kinematics import neutral_pose
+    from servoface.sim.kinematics import neutral_pose
 
     head = heads[name]
     color, depth = renderer.render_with_depth(head, neutral_pose(head))
@@ -89,7 +88,7 @@ def _diff(a: np.ndarray, b: np.ndarray, region: np.ndarray) -> float:
 def test_every_expression_is_visibly_different_from_neutral_and_the_others(
     renderer: HeadRenderer, heads: dict[str, Any], name: str
 ) -> None:
-    from sim.expressions import load_library
+    from servoface.sim.expressions import load_library
 
     head = heads[name]
     library = load_library(head.face_type)
@@ -108,10 +107,8 @@ def test_every_expression_is_visibly_different_from_neutral_and_the_others(
     assert not too_close, f"{name}: expressions too alike (mean abs diff over the face <= {MIN_PAIR_DIFF})"
 
 
-def test_library_sheet_puts_neutral_first_and_labels_every_cell(
-    renderer: HeadRenderer, heads: dict[str, Any]
-) -> None:
-    from sim.expressions import load_library
+def test_library_sheet_puts_neutral_first_and_labels_every_cell(renderer: HeadRenderer, heads: dict[str, Any]) -> None:
+    from servoface.sim.expressions import load_library
 
     library = load_library("human")
     sheet, names = library_sheet(renderer, heads["human"], library, columns=5)

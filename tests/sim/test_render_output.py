@@ -8,10 +8,9 @@ import imageio.v2 as imageio
 import numpy as np
 import pytest
 from PIL import Image as PILImage
-
-from sim.render.images import contact_sheet, label_height, render_side_by_side, with_label
-from sim.render.progress import progress
-from sim.render.video import there_and_back, write_gif, write_mp4
+from servoface.sim.render.images import contact_sheet, label_height, render_side_by_side, with_label
+from servoface.sim.render.progress import progress
+from servoface.sim.render.video import there_and_back, write_gif, write_mp4
 
 
 def _img(value: int, h: int = 30, w: int = 40) -> np.ndarray:

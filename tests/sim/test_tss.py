@@ -7,21 +7,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-
-from sim.gate.collision import PartCollisions, auto_pairs
-from sim.gate.demo_rig import demo_head
-from sim.gate.fk import JointTree
-from sim.gate.spheres import cover_spheres
-from sim.gate.tss_build import TssParams, build_or_load, summed_reduction
+from servoface.sim.gate.collision import PartCollisions, auto_pairs
+from servoface.sim.gate.demo_rig import demo_head
+from servoface.sim.gate.fk import JointTree
+from servoface.sim.gate.spheres import cover_spheres
+from servoface.sim.gate.tss_build import TssParams, build_or_load, summed_reduction
 
 
 @pytest.fixture(scope="module")
 def demo_collisions(tmp_path_factory: pytest.TempPathFactory) -> PartCollisions:
     head = demo_head()
     tree = JointTree(head.joints)
-    return PartCollisions(
-        head, tree, auto_pairs(head, tree), TssParams(), tmp_path_factory.getbasetemp() / "tss-demo"
-    )
+    return PartCollisions(head, tree, auto_pairs(head, tree), TssParams(), tmp_path_factory.getbasetemp() / "tss-demo")
 
 
 @pytest.mark.parametrize(
@@ -101,10 +98,7 @@ def test_cache_reused_and_rebuilt_when_a_mesh_changes(tmp_path: Path) -> None:
     assert len(list(tmp_path.glob("demo-skull-jaw-*.npz"))) == 2
     # joint limits are part of the key as well
     wider = JointTree(
-        [
-            j if j.name != "jaw" else type(j)(j.name, j.parent, j.pivot_mm, j.axis, -12.0, 25.0)
-            for j in head.joints
-        ]
+        [j if j.name != "jaw" else type(j)(j.name, j.parent, j.pivot_mm, j.axis, -12.0, 25.0) for j in head.joints]
     )
     assert (
         build_or_load(wider, "demo", skull, jaw, skull.mesh, jaw.mesh, 0.0, params, tmp_path).table.key
@@ -113,8 +107,8 @@ def test_cache_reused_and_rebuilt_when_a_mesh_changes(tmp_path: Path) -> None:
 
 
 def test_corrupt_cache_file_is_a_clear_error(tmp_path: Path) -> None:
-    from sim.gate.errors import TssCacheError
-    from sim.gate.tss_build import pair_key
+    from servoface.sim.gate.errors import TssCacheError
+    from servoface.sim.gate.tss_build import pair_key
 
     head = demo_head()
     tree = JointTree(head.joints)

@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from sim.gate.collision import PartCollisions, auto_pairs
-from sim.gate.fk import JointTree
-from sim.gate.tss_build import TssParams, default_cache_dir, summed_reduction
+from servoface.sim.gate.collision import PartCollisions, auto_pairs
+from servoface.sim.gate.fk import JointTree
+from servoface.sim.gate.tss_build import TssParams, default_cache_dir, summed_reduction
 
 
 @pytest.fixture(scope="module")
 def dog_collisions() -> PartCollisions:
-    from sim.heads import load_head
+    from servoface.sim.heads import load_head
 
     head = load_head("dog")
     tree = JointTree(head.joints)
@@ -33,9 +32,7 @@ def test_dog_broad_phase_misses_no_exact_collision(dog_collisions: PartCollision
     q = rng.uniform(tree.lower_deg, tree.upper_deg, size=(250, len(tree.names)))
     world = tree.world(q)
     flags = (
-        col.broad.flag(world, q)
-        if batched
-        else np.array([col.broad.flag(w, a) for w, a in zip(world, q, strict=True)])
+        col.broad.flag(world, q) if batched else np.array([col.broad.flag(w, a) for w, a in zip(world, q, strict=True)])
     )
     found = 0
     for k in range(len(q)):

@@ -1,6 +1,6 @@
 """Write the small synthetic sample files in this folder (deterministic; no tracker, no downloads).
 
-    python -m controller.inputs.samples.generate
+    python -m servoface.controller.inputs.samples.generate
 
 - ``openface_smile.csv``: OpenFace 2.x FeatureExtraction layout (leading spaces in the header, gaze/pose
   columns, AUxx_r and AUxx_c), 30 fps, 2 s: a smile (AU6 + AU12) rises and falls; tracking is lost

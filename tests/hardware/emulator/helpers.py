@@ -4,13 +4,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from hardware.emulator import EmulatedSerial, Packet, ServoChain, build_instruction
-from hardware.emulator.packet import PacketReceiver
+from servoface.hardware.emulator import EmulatedSerial, Packet, ServoChain, build_instruction
+from servoface.hardware.emulator.packet import PacketReceiver
 
 
-def quick_chain(
-    ids: Any = range(1, 4), model: str = "XL330-M288", **kw: Any
-) -> tuple[ServoChain, EmulatedSerial]:
+def quick_chain(ids: Any = range(1, 4), model: str = "XL330-M288", **kw: Any) -> tuple[ServoChain, EmulatedSerial]:
     """A manual-clock chain without wire time, and its serial endpoint."""
     kw.setdefault("wire_time", False)
     kw.setdefault("clock", "manual")

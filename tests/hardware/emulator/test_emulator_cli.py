@@ -10,8 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
-
-from controller.cli.emulate import parse_ids
+from servoface.controller.cli.emulate import parse_ids
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -26,7 +25,7 @@ def test_parse_ids_ranges_and_lists() -> None:
 
 def _start(*args: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        [sys.executable, "-m", "controller.cli", "emulate", *args],
+        [sys.executable, "-m", "servoface.controller.cli", "emulate", *args],
         cwd=ROOT,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -37,8 +36,7 @@ def _start(*args: str) -> subprocess.Popen[str]:
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_prints_path_first_then_serves_until_signal(sig: int) -> None:
     import serial
-
-    from hardware.emulator import build_instruction
+    from servoface.hardware.emulator import build_instruction
 
     proc = _start("--ids", "1-3,7", "--model", "XL430-W250", "--baud", "1000000")
     try:
@@ -60,9 +58,7 @@ def test_prints_path_first_then_serves_until_signal(sig: int) -> None:
             proc.wait()
 
 
-@pytest.mark.parametrize(
-    "args", [["--ids", "1-x"], ["--model", "XL999"], ["--baud", "12345"], ["--ids", "0-300"]]
-)
+@pytest.mark.parametrize("args", [["--ids", "1-x"], ["--model", "XL999"], ["--baud", "12345"], ["--ids", "0-300"]])
 def test_invalid_arguments_exit_2_with_a_message(args: list[str]) -> None:
     proc = _start(*args)
     out, err = proc.communicate(timeout=20)

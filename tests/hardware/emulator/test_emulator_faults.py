@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import pytest
+from servoface.hardware.emulator import EmulatorConfigError, ServoChain, build_instruction
+from servoface.hardware.emulator.packet import PacketReceiver
 
-from hardware.emulator import EmulatorConfigError, ServoChain, build_instruction
-from hardware.emulator.packet import PacketReceiver
 from tests.hardware.emulator.helpers import quick_chain, sdk_port, transact
 
 COMM_SUCCESS, COMM_RX_TIMEOUT, COMM_RX_CORRUPT = 0, -3001, -3002

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from hardware.emulator import Instruction as I
-from hardware.emulator.crc import crc16
-from hardware.emulator.packet import BROADCAST_ID
+from servoface.hardware.emulator import Instruction as I
+from servoface.hardware.emulator.crc import crc16
+from servoface.hardware.emulator.packet import BROADCAST_ID
+
 from tests.hardware.emulator.helpers import le, quick_chain, transact
 
 OK, RESULT_FAIL, INSTRUCTION, CRC, RANGE, LENGTH, LIMIT, ACCESS = 0, 1, 2, 3, 4, 5, 6, 7
@@ -142,7 +143,7 @@ def test_fast_sync_read_layout() -> None:
     chain, ser = quick_chain(ids=[1, 2, 3])
     ser.write(
         bytes(
-            __import__("hardware.emulator", fromlist=["x"]).build_instruction(
+            __import__("servoface.hardware.emulator", fromlist=["x"]).build_instruction(
                 BROADCAST_ID, I.FAST_SYNC_READ, rd(132, 4) + bytes((2, 1, 3))
             )
         )
@@ -162,12 +163,10 @@ def test_fast_sync_read_layout() -> None:
 
 
 def test_fast_bulk_read_layout() -> None:
-    from hardware.emulator import build_instruction
+    from servoface.hardware.emulator import build_instruction
 
     chain, ser = quick_chain(ids=[1, 2])
-    ser.write(
-        build_instruction(BROADCAST_ID, I.FAST_BULK_READ, bytes((1,)) + rd(146, 1) + bytes((2,)) + rd(132, 4))
-    )
+    ser.write(build_instruction(BROADCAST_ID, I.FAST_BULK_READ, bytes((1,)) + rd(146, 1) + bytes((2,)) + rd(132, 4)))
     raw = ser.read(1000)
     assert raw[5] | raw[6] << 8 == 1 + (1 + 4) + (4 + 4)
     assert raw[8:11] == bytes((0, 1, 25)) and raw[13:15] == bytes((0, 2))
@@ -177,10 +176,10 @@ def test_fast_bulk_read_layout() -> None:
 def test_error_byte_cases() -> None:
     chain, ser = quick_chain(ids=[1])
     servo = chain.servo(1)
-    bad = bytearray(__import__("hardware.emulator", fromlist=["x"]).build_instruction(1, I.READ, rd(132, 4)))
+    bad = bytearray(__import__("servoface.hardware.emulator", fromlist=["x"]).build_instruction(1, I.READ, rd(132, 4)))
     bad[-1] ^= 0x55
     ser.write(bytes(bad))
-    from hardware.emulator.packet import PacketReceiver
+    from servoface.hardware.emulator.packet import PacketReceiver
 
     (st,) = PacketReceiver().feed(ser.read(100))
     assert st.error == CRC

@@ -5,10 +5,9 @@ from __future__ import annotations
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
-from hardware.emulator import PacketError, build_instruction, build_status, parse_packet
-from hardware.emulator.crc import crc16, crc16_bitwise
-from hardware.emulator.packet import PacketReceiver, stuff, unstuff
+from servoface.hardware.emulator import PacketError, build_instruction, build_status, parse_packet
+from servoface.hardware.emulator.crc import crc16, crc16_bitwise
+from servoface.hardware.emulator.packet import PacketReceiver, stuff, unstuff
 
 # (bytes after FF FF FD 00, expected CRC_L CRC_H) - the 15 examples of the e-manual (reference sheet §1)
 VECTORS = [
@@ -61,9 +60,7 @@ def test_stuffing_inserts_fd_after_header_pattern() -> None:
     assert parse_packet(packet).params == b"\x74\x00\xff\xff\xfd\x00"
 
 
-@given(
-    st.lists(st.sampled_from([b"\xff", b"\xfd", b"\x00", b"\xff\xff\xfd", b"\xfd\xfd", b"\x55"]), max_size=40)
-)
+@given(st.lists(st.sampled_from([b"\xff", b"\xfd", b"\x00", b"\xff\xff\xfd", b"\xfd\xfd", b"\x55"]), max_size=40))
 def test_stuff_unstuff_round_trip(parts: list[bytes]) -> None:
     body = b"".join(parts)
     stuffed = stuff(body)
@@ -100,9 +97,7 @@ def test_build_parse_round_trip_and_sdk_agrees(pid: int, inst: int, parts: list[
 def test_receiver_finds_packets_across_arbitrary_splits(garbage: bytes, cuts: list[int]) -> None:
     garbage = garbage.replace(b"\xff", b"\x00")
     stream = (
-        garbage
-        + build_instruction(1, 0x02, b"\x84\x00\x04\x00")
-        + build_instruction(0xFE, 0x83, b"\xff\xff\xfd" * 3)
+        garbage + build_instruction(1, 0x02, b"\x84\x00\x04\x00") + build_instruction(0xFE, 0x83, b"\xff\xff\xfd" * 3)
     )
     receiver = PacketReceiver()
     found = []

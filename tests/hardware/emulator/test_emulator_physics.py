@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import pytest
-
-from hardware.emulator import EmulatorConfigError, ServoChain
-from hardware.emulator.servo_motion import ACC_UNIT_TICK_S2, VEL_UNIT_TICK_S
+from servoface.hardware.emulator import EmulatorConfigError, ServoChain
+from servoface.hardware.emulator.servo_motion import ACC_UNIT_TICK_S2, VEL_UNIT_TICK_S
 
 
 def one(model: str = "XL330-M288") -> tuple[ServoChain, object]:

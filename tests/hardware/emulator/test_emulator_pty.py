@@ -8,9 +8,8 @@ import time
 
 import pytest
 import serial
-
-from hardware.emulator import ServoChain, build_instruction
-from hardware.emulator.packet import PacketReceiver
+from servoface.hardware.emulator import ServoChain, build_instruction
+from servoface.hardware.emulator.packet import PacketReceiver
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals need a POSIX system")
 

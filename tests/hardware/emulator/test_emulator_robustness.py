@@ -4,9 +4,8 @@ from __future__ import annotations
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from hardware.emulator import ServoChain, build_instruction
-from hardware.emulator.packet import PacketReceiver
+from servoface.hardware.emulator import ServoChain, build_instruction
+from servoface.hardware.emulator.packet import PacketReceiver
 
 INSTRUCTIONS = [
     0x01,

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import dynamixel_sdk as sdk
+from servoface.hardware.emulator import ServoChain
 
-from hardware.emulator import ServoChain
 from tests.hardware.emulator.helpers import sdk_port
 
 OK = 0

@@ -5,8 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
-from hardware.emulator import MODELS, EmulatorConfigError, RegisterError, get_model
+from servoface.hardware.emulator import MODELS, EmulatorConfigError, RegisterError, get_model
 
 # (register, address, size) shared by all four models (reference sheet §3)
 SHARED = [
@@ -109,10 +108,7 @@ def test_lookup_errors_name_the_key() -> None:
     assert get_model("mx-28").name == "MX-28(2.0)"
 
 
-SDK_TABLES = (
-    Path(__file__).resolve().parents[3]
-    / ".venv/lib/python3.11/site-packages/dynamixel_easy_sdk/control_table"
-)
+SDK_TABLES = Path(__file__).resolve().parents[3] / ".venv/lib/python3.11/site-packages/dynamixel_easy_sdk/control_table"
 SDK_FILES = {
     "XL330-M288": "xl330_m288_fw52.model",
     "XL430-W250": "xl430_w250.model",

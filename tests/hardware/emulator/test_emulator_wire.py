@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import pytest
+from servoface.hardware.emulator import ServoChain, build_instruction
+from servoface.hardware.emulator.packet import BROADCAST_ID
 
-from hardware.emulator import ServoChain, build_instruction
-from hardware.emulator.packet import BROADCAST_ID
 from tests.hardware.emulator.helpers import le
 
 BYTE_1M = 10e-6
@@ -96,7 +96,7 @@ def test_sdk_against_real_clock_with_wire_time() -> None:
 
 
 def test_closed_endpoint_raises() -> None:
-    from hardware.emulator import PortClosedError
+    from servoface.hardware.emulator import PortClosedError
 
     chain = ServoChain.create(ids=[1], wire_time=False)
     ser = chain.open_serial()
@@ -117,7 +117,7 @@ def test_packet_delivery_hands_over_whole_status_packets() -> None:
 
 
 def test_closed_chain_closes_its_endpoints() -> None:
-    from hardware.emulator import PortClosedError
+    from servoface.hardware.emulator import PortClosedError
 
     chain = ServoChain.create(ids=[1], wire_time=False)
     ser = chain.open_serial()
