@@ -1,0 +1,97 @@
+"""Opening a head for the service: the head profile, its calibration, the bus (a port or the emulated
+chain), the configured driver with torque on and goals pinned, and the pipeline on top."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from servoface.calibration import HeadCalibration, load_calibration
+from servoface.controller.errors import ControllerError
+from servoface.controller.head_servos import servo_specs, temperature_limits_c
+from servoface.controller.pipeline import Pipeline
+from servoface.hardware.bus import ServoBus, open_bus
+from servoface.hardware.driver import Driver
+from servoface.sim.head import Head
+from servoface.sim.heads import load_head
+
+
+def head_calibration(head: Head, calibration: HeadCalibration | str | Path | None = None) -> HeadCalibration:
+    """The calibration given, or the one the head profile names."""
+    if isinstance(calibration, HeadCalibration):
+        return calibration
+    path = calibration if calibration is not None else head.calibration_path
+    if path is None:
+        raise ControllerError(
+            f"head {head.name!r} names no calibration file; run `servoface calibrate --head ...` first"
+        )
+    return load_calibration(path)
+
+
+@dataclass
+class OpenedHead:
+    """What :func:`open_head` built; ``chain`` is the emulated chain when emulating (else None)."""
+
+    head: Head
+    pipeline: Pipeline
+    driver: Driver
+    bus: ServoBus
+    chain: Any = None
+
+    def close(self) -> None:
+        """Close the bus and the emulator (for a head never handed to a service)."""
+        try:
+            self.bus.close()
+        finally:
+            if self.chain is not None:
+                self.chain.close()
+
+
+def open_head(
+    head: str | Path | Head = "human",
+    *,
+    port: str | None = None,
+    baud: int = 1_000_000,
+    emulate: bool = False,
+    wire_time: bool = True,
+    rate_hz: float = 50.0,
+    calibration: HeadCalibration | str | Path | None = None,
+    fast_sync_read: bool = False,
+) -> OpenedHead:
+    """Open ``head`` on ``port`` or on the emulator: servos configured from the profile and calibration
+    (EEPROM only with torque off, limits written as a hardware backstop), torque on with goals pinned to
+    present positions, and the pipeline starting from where the servos are."""
+    if (port is None) == (not emulate):
+        raise ControllerError("Face.open: give exactly one of port='/dev/ttyUSB0' or emulate=True")
+    the_head = head if isinstance(head, Head) else load_head(head)
+    cal = head_calibration(the_head, calibration)
+    specs = servo_specs(the_head, cal)
+    chain = None
+    if emulate:
+        from servoface.hardware.emulator import ServoChain
+
+        chain = ServoChain.create([(s.servo_id, s.model) for s in specs], baud=baud, wire_time=wire_time)
+        for s in specs:  # the head powers up at rest
+            chain.servo(s.servo_id).move_by_hand(cal.by_id(s.servo_id).neutral_tick)
+        bus = open_bus("dynamixel", port=chain, baud=baud)
+    else:
+        bus = open_bus("dynamixel", port=port, baud=baud)
+    try:
+        driver = Driver(bus, specs, fast_sync_read=fast_sync_read)
+        driver.configure()
+        driver.torque_on()
+        pipeline = Pipeline(
+            the_head, cal, driver=driver, rate_hz=rate_hz, temperature_limits_c=temperature_limits_c(specs)
+        )
+        snapshot = driver.read_state()
+        lo_hi = cal.position_limits_tick()
+        present = {sid: min(max(tick, lo_hi[sid][0]), lo_hi[sid][1]) for sid, tick in snapshot.positions_tick().items()}
+        pipeline.pin_to(present)
+        pipeline.last_snapshot = snapshot
+    except BaseException:
+        bus.close()
+        if chain is not None:
+            chain.close()
+        raise
+    return OpenedHead(the_head, pipeline, driver, bus, chain)

@@ -1,0 +1,757 @@
+"""`HeadService`: one runtime owns a head; every front end drives it with commands.
+
+The service owns the :class:`~servoface.controller.pipeline.Pipeline`, its driver and the one fixed-rate
+loop thread that talks to the bus. Each frame the loop (1) applies an e-stop at once if one was asked for,
+(2) applies the commands submitted since the last frame, in order, (3) starts the sources whose start time
+has come, (4) samples every track and mixes them per AU (:mod:`.tracks`), (5) runs the mix through the
+pipeline (muscle model -> calibration -> twin gate -> one Sync Write), (6) completes the commands whose
+motion finished, and (7) offers the frame, telemetry, faults and status changes to the observers.
+
+Commands are methods callable from any thread. Each is validated in the caller's thread (a bad one raises
+:class:`~servoface.controller.errors.ControllerError` at once and changes nothing) and returns a
+:class:`~servoface.controller.service.handles.CommandHandle`. Times (``at_s``) are on the service clock
+(:meth:`now_s`). See the README section "The head service" for tracks, priorities and front ends.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from servoface.controller.errors import ControllerError
+from servoface.controller.frame import FrameValidator
+from servoface.controller.loop import FixedRateLoop, LoopStats, Tick
+from servoface.controller.pipeline import FrameTrace, Pipeline
+from servoface.controller.service.clock import ServiceClock, check_duration_s, check_time_s
+from servoface.controller.service.commands import (
+    check_point_mm,
+    check_then,
+    expression_apex,
+    play_source,
+    pose_source,
+)
+from servoface.controller.service.errors import EStopLatchedError, ServiceClosedError, ServiceError
+from servoface.controller.service.handles import CommandHandle, Status
+from servoface.controller.service.observers import FrameSummary, ObserverHub, ServiceEvent, Subscription
+from servoface.controller.service.slots import Slot, TrackTable, TrackView
+from servoface.controller.service.sources import (
+    AliveSource,
+    ClipSource,
+    FollowSource,
+    GazeSource,
+    Source,
+    transition_clip,
+)
+from servoface.controller.service.tracks import DEFAULT_TRACKS, Mixer, TrackSpec
+from servoface.controller.timeline.blend import BlendRule
+from servoface.hardware.driver import Driver
+from servoface.hardware.errors import HardwareError
+from servoface.hardware.snapshot import ChainSnapshot
+from servoface.sim.errors import SimError
+from servoface.sim.head import Head
+
+ALIVE_TRACKS = frozenset({"blink", "idle"})
+TORQUE_RETRIES = 3
+UNREACHED_TICK = 25  # a servo further than this from its last goal after the stop is reported
+
+
+@dataclass(frozen=True)
+class StopReport:
+    """How the service stopped: eased to neutral, torque off on every servo, who did not get there."""
+
+    eased: bool
+    torque_off: bool
+    unreached_tick: dict[int, int] = field(default_factory=dict)  # servo id -> |present - goal| ticks
+    error: str = ""
+
+
+@dataclass(frozen=True)
+class ServiceStatus:
+    """The service at a glance (after the last frame)."""
+
+    t_s: float
+    running: bool
+    estop_latched: bool
+    torque_on: bool
+    frames: int
+    late: int
+    missed: int
+    tracks: dict[str, TrackView]
+    error: str = ""
+
+
+class HeadService:
+    """Owns ``pipeline`` (and its driver) and runs the loop thread. Build one with :meth:`open` or from
+    parts; ``start=False`` leaves the thread to :meth:`start`. The driver is handed over to the loop thread,
+    so after ``start`` only the service touches the bus."""
+
+    def __init__(
+        self,
+        head: Head,
+        pipeline: Pipeline,
+        *,
+        tracks: Sequence[TrackSpec] = DEFAULT_TRACKS,
+        priority: Sequence[str] | None = None,
+        rules: Mapping[str, BlendRule | str] | None = None,
+        validator: FrameValidator | None = None,
+        clock: Callable[[], float] = time.monotonic,
+        sleep: Callable[[float], None] | None = None,
+        torque_on: bool | None = None,
+        start: bool = True,
+        name: str = "servoface-head",
+    ) -> None:
+        self.head = head
+        self.pipeline = pipeline
+        self.driver: Driver | None = pipeline.driver
+        self.rate_hz = float(pipeline.rate_hz)
+        self.period_s = 1.0 / self.rate_hz
+        self.validator = validator or FrameValidator(head.face_type)
+        self.mixer = Mixer(head.face_type, tracks, priority, rules)
+        self.tracks = TrackTable(self.mixer)
+        self.clock = ServiceClock(clock)
+        self.observers = ObserverHub()
+        self._lock = threading.Lock()
+        self._inbox: deque[tuple[CommandHandle, Callable[[float], None]]] = deque()
+        self._wake = threading.Event()
+        self._estop_requested = threading.Event()
+        self._estop_handle: CommandHandle | None = None
+        self._latched = False
+        self._torque_on = self.driver is not None if torque_on is None else bool(torque_on)
+        self._torque_wanted = self._torque_on
+        self._closing = False
+        self._stop_requested = False
+        self.error: BaseException | None = None
+        self.report: StopReport | None = None
+        self._frame_cond = threading.Condition()
+        self._last_trace: FrameTrace | None = None
+        self._prev_sent: dict[int, int] | None = None
+        self._last_snapshot_seen: ChainSnapshot | None = None
+        self._view: dict[str, TrackView] = self.tracks.view(0.0)
+        self._sleep_fn = sleep
+        self.loop = FixedRateLoop(self._frame, self.rate_hz, clock=self.clock, sleep=self._sleep, max_sleep_s=0.05)
+        if self.driver is not None:
+            self.driver.hand_over()  # the loop thread becomes its owner
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        self._started = False
+        if start:
+            self.start()
+
+    # -- life --------------------------------------------------------------------------------------
+    def start(self) -> HeadService:
+        with self._lock:
+            if self._started:
+                raise ServiceError("this service is already started")
+            self._started = True
+        self._thread.start()
+        return self
+
+    @property
+    def running(self) -> bool:
+        return self._thread.is_alive()
+
+    def now_s(self) -> float:
+        """Now on the service clock (seconds since the service was made, monotonic)."""
+        return self.clock.now_s()
+
+    def __enter__(self) -> HeadService:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.shutdown()
+
+    # -- observing ---------------------------------------------------------------------------------
+    def subscribe(self, kind: str, *, rate_hz: float | None = None, maxlen: int = 256) -> Subscription[Any]:
+        """A bounded drop-oldest queue of ``kind`` items (see :mod:`.observers`)."""
+        return self.observers.subscribe(kind, rate_hz=rate_hz, maxlen=maxlen)
+
+    def status(self) -> ServiceStatus:
+        s = self.loop.stats
+        return ServiceStatus(
+            self.now_s(),
+            self.running,
+            self._latched,
+            self._torque_on,
+            s.frames,
+            s.late,
+            s.missed,
+            dict(self._view),
+            "" if self.error is None else f"{type(self.error).__name__}: {self.error}",
+        )
+
+    @property
+    def loop_stats(self) -> LoopStats:
+        return self.loop.stats
+
+    def telemetry(self) -> ChainSnapshot | None:
+        """The driver's snapshot after the last frame (None offline or before the first)."""
+        return self.pipeline.last_snapshot
+
+    @property
+    def last_trace(self) -> FrameTrace | None:
+        return self._last_trace
+
+    def wait_frame(self, after_index: int = -1, timeout_s: float = 1.0) -> FrameTrace | None:
+        """The first frame whose index is above ``after_index`` (None on timeout or a stopped loop)."""
+        deadline = time.monotonic() + timeout_s
+        with self._frame_cond:
+            while True:
+                last = self._last_trace
+                if last is not None and last.index > after_index:
+                    return last
+                left = deadline - time.monotonic()
+                if left <= 0 or not self.running:
+                    return None
+                self._frame_cond.wait(min(left, 0.05))
+
+    def wait_settled(self, after_index: int = -1, timeout_s: float = 2.0) -> bool:
+        """Wait for a frame (after ``after_index``) the gate passed whole, or one that made no progress
+        (a pose the gate keeps refusing): the servos are where the mix asks, or as close as allowed."""
+        deadline = time.monotonic() + timeout_s
+        with self._frame_cond:
+            while True:
+                last = self._last_trace
+                if last is not None and last.index > after_index:
+                    if last.goals_sent == last.goals_requested or last.goals_sent == self._prev_sent:
+                        return True
+                left = deadline - time.monotonic()
+                if left <= 0 or not self.running or not self._motion_allowed():
+                    return False
+                self._frame_cond.wait(min(left, 0.05))
+
+    # -- submitting --------------------------------------------------------------------------------
+    def _submit(
+        self, kind: str, apply: Callable[[CommandHandle, float], None], *, track: str | None = None,
+        at_s: float | None = None, motion: bool = True, internal: bool = False,
+    ) -> CommandHandle:  # fmt: skip
+        handle = CommandHandle(kind, track, at_s)
+        with self._lock:
+            if (self._closing and not internal) or self._stop_requested or not self._started:
+                state = "shut down" if self._started else "not started"
+                raise ServiceClosedError(f"{kind}: the head service is {state}")
+            if self.error is not None:
+                raise ServiceClosedError(f"{kind}: the head service stopped on an error: {self.error}")
+            if motion and self._latched:
+                raise EStopLatchedError(f"{kind}: the e-stop is latched; clear_estop() then torque_on() first")
+            if motion and not self._torque_wanted and self.driver is not None:
+                raise ServiceError(f"{kind}: torque is off; torque_on() first")
+            self._inbox.append((handle, lambda t: apply(handle, t)))
+        return handle
+
+    def _track(self, track: object) -> str:
+        if not isinstance(track, str) or track not in self.tracks.slots:
+            raise ServiceError(f"track: expected one of {list(self.tracks.slots)}, got {track!r}")
+        return track
+
+    def _start_time(self, at_s: object) -> float | None:
+        return None if at_s is None else check_time_s(at_s, field="at_s")
+
+    def _place(
+        self, kind: str, track: str, at_s: float | None, source_for: Callable[[Slot, float], Source]
+    ) -> CommandHandle:
+        """Schedule a source on ``track`` at ``at_s`` (None: the next frame); ``source_for(slot, t0_s)``
+        builds it at its start (from what the track has then, where that matters)."""
+
+        def apply(handle: CommandHandle, t_s: float) -> None:
+            def activate(slot: Slot, t0_s: float) -> None:
+                slot.install(source_for(slot, t0_s), handle, t0_s, self._notify)
+
+            self.tracks.schedule(track, t_s if at_s is None else at_s, handle, activate)
+
+        return self._submit(kind, apply, track=track, at_s=at_s)
+
+    def play(
+        self,
+        what: Any,
+        *,
+        track: str = "face",
+        at_s: float | None = None,
+        duration_s: float | None = None,
+        then: str = "hold",
+    ) -> CommandHandle:
+        """Play a script (a Script, a .toml path or a shipped name), a Timeline, a Recording or a Clip on
+        ``track`` from ``at_s`` (service time; None = the next frame), for at most ``duration_s``; at the
+        end hold the last pose (``then="hold"``) or release the track (``"release"``). Done at its end."""
+        the_track = self._track(track)
+        source, _ = play_source(self.head, self.validator, what, duration_s, check_then(then))
+        return self._place("play", the_track, self._start_time(at_s), lambda slot, t0: source)
+
+    def express(
+        self,
+        name: str,
+        *,
+        intensity: float = 1.0,
+        transition_s: float = 0.5,
+        hold_s: float = 1.0,
+        track: str = "face",
+        at_s: float | None = None,
+    ) -> CommandHandle:
+        """Move ``track`` to a named expression's apex (scaled by ``intensity``) over ``transition_s`` and
+        hold it; done after ``hold_s`` (the pose stays until something else plays there)."""
+        apex = expression_apex(self.head, name, intensity)
+        source = pose_source(self.validator, apex, transition_s, hold_s, self.period_s, name=str(name))
+        return self._place("express", self._track(track), self._start_time(at_s), lambda slot, t0: source)
+
+    def set_aus(
+        self,
+        aus: Mapping[str, float],
+        *,
+        track: str = "studio",
+        transition_s: float = 0.3,
+        hold_s: float = 0.0,
+        merge: bool = False,
+        at_s: float | None = None,
+    ) -> CommandHandle:
+        """Set ``track``'s AUs to ``aus`` over ``transition_s`` (minimum jerk); AUs the track had and
+        ``aus`` does not name go to 0, or stay with ``merge=True`` (one slider moved). Done after the
+        transition and ``hold_s``; the pose stays. On "studio" (an override track) the AUs set win outright."""
+        source = pose_source(self.validator, aus, transition_s, hold_s, self.period_s)
+        the_track, start = self._track(track), self._start_time(at_s)
+        if not merge:
+            return self._place("set_aus", the_track, start, lambda slot, t0: source)
+        wanted = self.validator.pose(dict(aus), where="set_aus")
+        transition = max(float(transition_s), self.period_s)
+        hold = float(hold_s)
+
+        def merged(slot: Slot, t0_s: float) -> Source:  # the track's targets, with these AUs changed
+            clip = transition_clip({**slot.targets(t0_s), **wanted}, transition, hold, name="set_aus")
+            return ClipSource(clip, "set_aus")
+
+        return self._place("set_aus", the_track, start, merged)
+
+    def clear_aus(
+        self,
+        names: Sequence[str] | None = None,
+        *,
+        track: str = "studio",
+        transition_s: float = 0.3,
+        at_s: float | None = None,
+    ) -> CommandHandle:
+        """Release ``names`` on ``track`` (None: all of them, the track empties) over ``transition_s``."""
+        the_track = self._track(track)
+        transition = max(check_duration_s(transition_s, field="transition_s"), self.period_s)
+        if names is None:
+            return self._place("clear_aus", the_track, self._start_time(at_s), lambda slot, t0: _release(transition))
+        gone = set(self.validator.pose({n: 0.0 for n in names}, where="clear_aus"))
+
+        def source_for(slot: Slot, t0_s: float) -> Source:  # built at the start, from the track's targets
+            keep = {au: v for au, v in slot.targets(t0_s).items() if au not in gone}
+            return ClipSource(transition_clip(keep, transition, 0.0, name="clear_aus"), "clear_aus")
+
+        return self._place("clear_aus", the_track, self._start_time(at_s), source_for)
+
+    def look_at(
+        self, point_mm: tuple[float, float, float] | None, *, track: str = "gaze", at_s: float | None = None
+    ) -> CommandHandle:
+        """Shift the gaze to ``point_mm`` (head frame, mm: +x the head's left, +y up, +z ahead; None =
+        straight ahead): the eyes saccade, the neck follows, the eyes counter-rotate. Done when it lands."""
+        the_track = self._track(track)
+        target = None if point_mm is None else check_point_mm(point_mm)
+        face_type = self.head.face_type
+
+        def apply(handle: CommandHandle, t_s: float) -> None:
+            def activate(slot: Slot, t0_s: float) -> None:
+                if not isinstance(slot.source, GazeSource):
+                    slot.install(GazeSource(face_type), handle, t0_s, self._notify)
+                else:
+                    slot.replace(handle, t0_s, self._notify, f"gaze moved on by #{handle.id}")
+                assert isinstance(slot.source, GazeSource)
+                slot.source.look_at(t0_s, target)
+
+            self.tracks.schedule(the_track, t_s if at_s is None else at_s, handle, activate)
+
+        return self._submit("look_at", apply, track=the_track, at_s=self._start_time(at_s))
+
+    def follow(
+        self,
+        source: Any,
+        *,
+        track: str = "stream",
+        duration_s: float | None = None,
+        until: Callable[[], bool] | None = None,
+        then: str = "hold",
+        at_s: float | None = None,
+    ) -> CommandHandle:
+        """Follow a live source (``StreamSource``) on ``track`` every frame for ``duration_s`` (None: until
+        stopped) or until ``until()`` is true (checked each frame on the loop thread: keep it cheap)."""
+        the_track = self._track(track)
+        if not callable(getattr(source, "sample", None)):
+            raise ServiceError(f"follow: source must have sample(t_s) -> AUFrame, got {source!r}")
+        theirs = getattr(source, "face_type", None)
+        if theirs is not None and theirs != self.head.face_type:
+            raise ServiceError(f"follow: the source is for a {theirs} face; head is {self.head.face_type}")
+        limit = None if duration_s is None else check_duration_s(duration_s, field="duration_s", allow_zero=False)
+        if until is not None and not callable(until):
+            raise ServiceError(f"follow: until must be a callable returning bool, got {until!r}")
+        mode = check_then(then)
+        return self._place(
+            "follow", the_track, self._start_time(at_s), lambda slot, t0: FollowSource(source, limit, until, mode)
+        )
+
+    def speak(self, what: Any, *, at_s: float | None = None, duration_s: float | None = None) -> CommandHandle:
+        """The speech slot: play visemes (a Clip, Timeline or Script) on the "speech" track, which owns the
+        AUs it drives (the mouth) while the other tracks keep the rest of the face."""
+        return self.play(what, track="speech", at_s=at_s, duration_s=duration_s, then="release")
+
+    def set_alive(self, *, blink: bool | None = None, idle: bool | None = None, seed: int = 0) -> CommandHandle:
+        """Switch the alive layers on or off (None: leave as is): spontaneous blinks, idle head/eye motion."""
+        from servoface.controller.alive import BlinkLayer, IdleLayer
+
+        for name, value in (("blink", blink), ("idle", idle)):
+            if value is not None and not isinstance(value, bool):
+                raise ServiceError(f"set_alive: {name} must be True, False or None, got {value!r}")
+        if isinstance(seed, bool) or not isinstance(seed, int):
+            raise ServiceError(f"set_alive: seed must be an integer, got {seed!r}")
+        layers = {"blink": BlinkLayer(self.head.face_type, seed), "idle": IdleLayer(self.head.face_type, seed)}
+
+        def apply(handle: CommandHandle, t_s: float) -> None:
+            for name, value in (("blink", blink), ("idle", idle)):
+                if value is None or name not in self.tracks.slots:
+                    continue
+                slot = self.tracks.slots[name]
+                if value:
+                    slot.install(AliveSource(layers[name], name), handle, t_s, self._notify)
+                elif slot.source is not None:
+                    slot.install(_release(self.period_s * 5), handle, t_s, self._notify)
+            if handle._set(Status.DONE, t_s):
+                self._notify(handle)
+
+        return self._submit("set_alive", apply)
+
+    def stop(self, track: str, *, release_s: float = 0.3, hold: bool = False) -> CommandHandle:
+        """Stop what plays on ``track`` (and what is scheduled there): release it to nothing over
+        ``release_s`` (0: at once), or with ``hold=True`` freeze it where it is."""
+        the_track = self._track(track)
+        release = check_duration_s(release_s, field="release_s")
+
+        def apply(handle: CommandHandle, t_s: float) -> None:
+            slot = self.tracks.slots[the_track]
+            for p in slot.pending:
+                if p.handle._set(Status.CANCELLED, t_s, f"stopped by #{handle.id}"):
+                    self._notify(p.handle)
+            slot.pending.clear()
+            if slot.source is None:
+                pass
+            elif hold:
+                pose = dict(slot.last)
+                slot.install(ClipSource(transition_clip(pose, 0.0, 0.0, merge=True, name="hold"), "hold"),
+                             handle, t_s, self._notify)  # fmt: skip
+            elif release <= 0:
+                slot.clear(t_s, f"stopped by #{handle.id}", self._notify)
+            else:
+                slot.install(_release(release), handle, t_s, self._notify)
+                return  # done when the release has finished
+            if handle._set(Status.DONE, t_s):
+                self._notify(handle)
+
+        return self._submit("stop", apply, track=the_track, motion=False)
+
+    def neutral(self, transition_s: float = 0.6) -> CommandHandle:
+        """Release every track (alive layers too) to neutral over ``transition_s``; done when all are."""
+        transition = max(check_duration_s(transition_s, field="transition_s"), self.period_s)
+        return self._submit("neutral", lambda h, t: self._apply_neutral(h, t, transition))
+
+    def _apply_neutral(self, handle: CommandHandle, t_s: float, transition_s: float) -> None:
+        busy = False
+        for slot in self.tracks.slots.values():
+            for p in slot.pending:
+                if p.handle._set(Status.CANCELLED, t_s, f"neutral #{handle.id}"):
+                    self._notify(p.handle)
+            slot.pending.clear()
+            if slot.source is not None:
+                slot.install(_release(transition_s), handle, t_s, self._notify)
+                busy = True
+        if handle._set(Status.RUNNING, t_s):
+            self._notify(handle)
+        if not busy and handle._set(Status.DONE, t_s):
+            self._notify(handle)
+
+    def torque_on(self) -> CommandHandle:
+        """Torque on: every goal pinned to where its servo is first; then the head eases (under the gate's
+        caps) to the mixed pose. Refused while the e-stop is latched."""
+        with self._lock:
+            if self._latched:
+                raise EStopLatchedError("torque_on: the e-stop is latched; clear_estop() first")
+            self._torque_wanted = True
+        return self._submit("torque_on", self._apply_torque_on, motion=False)
+
+    def torque_off(self) -> CommandHandle:
+        """Torque off on every servo (the head goes limp); every track is cleared."""
+        with self._lock:
+            self._torque_wanted = False
+        return self._submit("torque_off", self._apply_torque_off, motion=False)
+
+    def estop(self, reason: str = "") -> CommandHandle:
+        """Emergency stop, from any thread: the loop stops sending goals at once (the servos hold their
+        last goal), clears every track and turns torque off on every servo; latched until
+        :meth:`clear_estop`. Done when torque is off. Never refused."""
+        handle = CommandHandle("estop")
+        handle.detail = str(reason)
+        with self._lock:
+            first = not self._latched
+            self._latched = True
+            self._torque_wanted = False
+            if first or self._estop_handle is None:
+                self._estop_handle = handle
+            else:
+                return self._estop_handle
+        self._estop_requested.set()
+        self._wake.set()
+        if not self.running:  # no loop to do it: the owner is gone; report it as failed
+            handle._set(Status.FAILED, self.now_s(), "the loop is not running")
+        return handle
+
+    @property
+    def estop_latched(self) -> bool:
+        return self._latched
+
+    def clear_estop(self) -> CommandHandle:
+        """Unlatch the e-stop (torque stays off: call :meth:`torque_on` to move again)."""
+        with self._lock:
+            pending = self._estop_handle
+        if pending is not None:
+            pending.wait(1.0)
+
+        def apply(handle: CommandHandle, t_s: float) -> None:
+            with self._lock:
+                self._latched = False
+                self._estop_handle = None
+            self.observers.offer("fault", ServiceEvent(t_s, "estop_cleared"))
+            if handle._set(Status.DONE, t_s):
+                self._notify(handle)
+
+        return self._submit("clear_estop", apply, motion=False)
+
+    # -- the loop thread ---------------------------------------------------------------------------
+    def _notify(self, handle: CommandHandle) -> None:
+        if self.observers.wants("playback"):
+            self.observers.offer("playback", handle._event())
+
+    def _motion_allowed(self) -> bool:
+        return not self._latched and (self._torque_on or self.driver is None)
+
+    def _sleep(self, dt_s: float) -> None:
+        if self._sleep_fn is not None:
+            self._sleep_fn(dt_s)
+            woke = self._wake.is_set()
+        else:
+            woke = self._wake.wait(dt_s)
+        if woke:
+            self._wake.clear()
+            if self._estop_requested.is_set():
+                self._apply_estop(self.clock.now_s())
+
+    def _run(self) -> None:
+        try:
+            self.loop.run()
+        except BaseException as err:  # an unexpected crash still goes through the stop below
+            self.error = err
+        finally:
+            self._finish()
+
+    def _frame(self, tick: Tick) -> bool | None:
+        t = tick.due_s
+        if self._estop_requested.is_set():
+            self._apply_estop(t)
+        if not self._drain(t) or self._stop_requested:
+            return False
+        trace: FrameTrace | None = None
+        try:
+            if self._motion_allowed():
+                self.tracks.activate_due(t, self._notify)
+                aus = self.tracks.sample(t, self._notify)
+                try:
+                    frame = self.validator(t, aus)
+                except ControllerError as err:  # cannot happen with validated sources; hold, say so
+                    self.observers.offer("fault", ServiceEvent(t, "bad_mix", str(err)))
+                    self.pipeline.hold()
+                else:
+                    trace = self.pipeline.step(frame, t, late_s=tick.late_s)
+                self.tracks.advance(t, self._notify)
+            elif self.driver is not None:  # torque off / e-stop: no goals, telemetry goes on
+                self.pipeline.last_snapshot = self.driver.read_state()
+        except HardwareError as err:
+            self._bus_failed(t, err)
+            return False
+        except (ControllerError, SimError) as err:
+            self.observers.offer("fault", ServiceEvent(t, "frame_error", str(err)))
+        self._publish(t, tick, trace)
+        return None
+
+    def _drain(self, t_s: float) -> bool:
+        while True:
+            try:
+                handle, apply = self._inbox.popleft()
+            except IndexError:
+                return True
+            if handle.status.final:
+                continue
+            try:
+                apply(t_s)
+            except HardwareError as err:
+                handle._set(Status.FAILED, t_s, str(err), err)
+                self._bus_failed(t_s, err)
+                return False
+            except ControllerError as err:
+                if handle._set(Status.FAILED, t_s, str(err), err):
+                    self._notify(handle)
+
+    def _publish(self, t_s: float, tick: Tick, trace: FrameTrace | None) -> None:
+        hub = self.observers
+        if trace is not None:
+            hub.offer("trace", trace, t_s)
+            hub.offer_lazy(
+                "frame",
+                lambda: FrameSummary(
+                    trace.index, t_s, trace.verdict, trace.checks, trace.reasons, dict(trace.timings_ms),
+                    tick.late_s, tick.missed_before,
+                ),
+                t_s,
+            )  # fmt: skip
+        snap = self.pipeline.last_snapshot
+        if snap is not None and snap is not self._last_snapshot_seen:
+            self._last_snapshot_seen = snap
+            hub.offer("telemetry", snap, t_s)
+            for event in snap.events:
+                hub.offer("fault", event, t_s)
+        self._view = self.tracks.view(t_s)
+        with self._frame_cond:
+            if trace is not None:
+                self._prev_sent = None if self._last_trace is None else self._last_trace.goals_sent
+                self._last_trace = trace
+            self._frame_cond.notify_all()
+
+    def _torque_off_all(self) -> bool:
+        """Torque off on every servo, retrying; True when every write went through."""
+        if self.driver is None:
+            return True
+        for _ in range(TORQUE_RETRIES):
+            try:
+                self.driver.torque_off()
+                self._torque_on = False
+                return True
+            except HardwareError:
+                continue
+        self._torque_on = False
+        return False
+
+    def _apply_estop(self, t_s: float) -> None:
+        self._estop_requested.clear()
+        handle = self._estop_handle
+        kept: deque[tuple[CommandHandle, Callable[[float], None]]] = deque()
+        while self._inbox:  # commands submitted before the e-stop are void; clear/torque ones stay
+            item = self._inbox.popleft()
+            if item[0].kind in ("clear_estop", "torque_off", "stop"):
+                kept.append(item)
+            elif item[0]._set(Status.CANCELLED, t_s, "e-stop"):
+                self._notify(item[0])
+        self._inbox.extendleft(reversed(kept))
+        self.tracks.clear_all(t_s, "e-stop", self._notify)
+        ok = self._torque_off_all()
+        detail = "torque off" if ok else "torque off FAILED on some servos"
+        self.observers.offer("fault", ServiceEvent(t_s, "estop", f"{detail}; {handle.detail if handle else ''}"))
+        if handle is not None:
+            handle._set(Status.DONE if ok else Status.FAILED, self.clock.now_s(), detail)
+            self._notify(handle)
+
+    def _apply_torque_on(self, handle: CommandHandle, t_s: float) -> None:
+        if self._latched:
+            raise EStopLatchedError("torque_on: the e-stop is latched")
+        if self.driver is not None:
+            self.driver.torque_on()
+            snapshot = self.driver.read_state()
+            lo_hi = self.pipeline.calibration.position_limits_tick()
+            present = {s: min(max(p, lo_hi[s][0]), lo_hi[s][1]) for s, p in snapshot.positions_tick().items()}
+            self.pipeline.pin_to(present)
+            self.pipeline.gate.reset()
+            self.pipeline.last_snapshot = snapshot
+        self._torque_on = True
+        if handle._set(Status.DONE, t_s):
+            self._notify(handle)
+
+    def _apply_torque_off(self, handle: CommandHandle, t_s: float) -> None:
+        self.tracks.clear_all(t_s, f"torque off #{handle.id}", self._notify)
+        ok = self._torque_off_all()
+        handle._set(Status.DONE if ok else Status.FAILED, t_s, "" if ok else "torque off failed on some servos")
+        self._notify(handle)
+
+    def _bus_failed(self, t_s: float, err: HardwareError) -> None:
+        self.error = err
+        self.observers.offer("fault", ServiceEvent(t_s, "bus_failure", str(err)))
+
+    # -- stopping ----------------------------------------------------------------------------------
+    def shutdown(self, *, ease_s: float = 0.8, timeout_s: float = 10.0) -> StopReport:
+        """The safe stop: ease every track to neutral (``ease_s``; skipped after an e-stop or a bus
+        failure), torque off on every servo (with retries), close the bus. Returns what happened; safe to
+        call twice and from any thread but the loop's."""
+        # TODO(safe-stops): delegate to controller/safe_stop.py once it is on main (one stop path).
+        with self._lock:
+            already = self._closing
+            self._closing = True
+        if already:
+            self._thread.join(timeout_s) if self._started else None
+            return self.report or StopReport(False, False, error="shutdown still in progress")
+        eased = False
+        if self.running and self._motion_allowed() and self.driver is not None and ease_s > 0:
+            try:
+                ease = max(float(ease_s), self.period_s)
+                handle = self._submit("neutral", lambda h, t: self._apply_neutral(h, t, ease), internal=True)
+                after = self._last_trace.index if self._last_trace is not None else -1
+                eased = handle.wait(ease + 2.0) is Status.DONE
+                eased = self.wait_settled(after, timeout_s=2.0) and eased
+            except ServiceError:
+                eased = False
+        with self._lock:
+            self._stop_requested = True
+        self._wake.set()
+        if self._started:
+            self._thread.join(timeout_s)
+        else:
+            self._finish()
+        report = self.report or StopReport(eased, False, error="the loop thread did not stop in time")
+        self.report = StopReport(eased, report.torque_off, report.unreached_tick, report.error)
+        return self.report
+
+    def _finish(self) -> None:
+        """On the loop thread as it exits: torque off, close the bus, end every command and observer."""
+        t = self.clock.now_s()
+        self._closing = True
+        with self._lock:
+            self._stop_requested = True
+            inbox = list(self._inbox)
+            self._inbox.clear()
+        for handle, _ in inbox:
+            if handle._set(Status.CANCELLED, t, "service stopped"):
+                self._notify(handle)
+        why = "service stopped" if self.error is None else f"service stopped: {self.error}"
+        for slot in self.tracks.slots.values():
+            for p in slot.pending:
+                p.handle._set(Status.FAILED if self.error else Status.CANCELLED, t, why, self.error)
+            slot.pending.clear()
+            if slot.handle is not None:
+                slot.handle._set(Status.FAILED if self.error else Status.CANCELLED, t, why, self.error)
+        unreached: dict[int, int] = {}
+        torque_ok = True
+        if self.driver is not None:
+            snap = self.pipeline.last_snapshot
+            if snap is not None:
+                goals = self.pipeline.last_goals_tick
+                for sid, pos in snap.positions_tick().items():
+                    if sid in goals and abs(int(pos) - int(goals[sid])) > UNREACHED_TICK:
+                        unreached[sid] = abs(int(pos) - int(goals[sid]))
+            torque_ok = self._torque_off_all()
+            try:
+                self.driver.close(torque_off=False)
+            except HardwareError:
+                pass
+        self.report = StopReport(False, torque_ok, unreached, "" if self.error is None else str(self.error))
+        with self._frame_cond:
+            self._frame_cond.notify_all()
+        self.observers.close_all()
+
+
+def _release(transition_s: float) -> ClipSource:
+    return ClipSource(transition_clip({}, transition_s, 0.0, name="release"), "release")
