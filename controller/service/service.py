@@ -246,20 +246,20 @@ class HeadService:
             raise ServiceError(f"track: expected one of {list(self.tracks.slots)}, got {track!r}")
         return track
 
-    def _start_time(self, at_s: object) -> float | None:
-        return None if at_s is None else check_time_s(at_s, field="at_s")
+    def _start_time(self, at_s: object) -> float:
+        """``at_s`` checked, or now (the submit time: a transition starts when it was asked for, so the
+        first frame after it is already on its way)."""
+        return self.now_s() if at_s is None else check_time_s(at_s, field="at_s")
 
-    def _place(
-        self, kind: str, track: str, at_s: float | None, source_for: Callable[[Slot, float], Source]
-    ) -> CommandHandle:
-        """Schedule a source on ``track`` at ``at_s`` (None: the next frame); ``source_for(slot, t0_s)``
+    def _place(self, kind: str, track: str, at_s: float, source_for: Callable[[Slot, float], Source]) -> CommandHandle:
+        """Schedule a source on ``track`` from ``at_s`` (service time); ``source_for(slot, t0_s)``
         builds it at its start (from what the track has then, where that matters)."""
 
         def apply(handle: CommandHandle, t_s: float) -> None:
             def activate(slot: Slot, t0_s: float) -> None:
                 slot.install(source_for(slot, t0_s), handle, t0_s, self._notify)
 
-            self.tracks.schedule(track, t_s if at_s is None else at_s, handle, activate)
+            self.tracks.schedule(track, at_s, handle, activate)
 
         return self._submit(kind, apply, track=track, at_s=at_s)
 
@@ -292,7 +292,7 @@ class HeadService:
         """Move ``track`` to a named expression's apex (scaled by ``intensity``) over ``transition_s`` and
         hold it; done after ``hold_s`` (the pose stays until something else plays there)."""
         apex = expression_apex(self.head, name, intensity)
-        source = pose_source(self.validator, apex, transition_s, hold_s, self.period_s, name=str(name))
+        source = pose_source(self.validator, apex, transition_s, hold_s, 0.0, name=str(name))
         return self._place("express", self._track(track), self._start_time(at_s), lambda slot, t0: source)
 
     def set_aus(
@@ -308,13 +308,12 @@ class HeadService:
         """Set ``track``'s AUs to ``aus`` over ``transition_s`` (minimum jerk); AUs the track had and
         ``aus`` does not name go to 0, or stay with ``merge=True`` (one slider moved). Done after the
         transition and ``hold_s``; the pose stays. On "studio" (an override track) the AUs set win outright."""
-        source = pose_source(self.validator, aus, transition_s, hold_s, self.period_s)
+        source = pose_source(self.validator, aus, transition_s, hold_s, 0.0)
         the_track, start = self._track(track), self._start_time(at_s)
         if not merge:
             return self._place("set_aus", the_track, start, lambda slot, t0: source)
         wanted = self.validator.pose(dict(aus), where="set_aus")
-        transition = max(float(transition_s), self.period_s)
-        hold = float(hold_s)
+        transition, hold = float(transition_s), float(hold_s)
 
         def merged(slot: Slot, t0_s: float) -> Source:  # the track's targets, with these AUs changed
             clip = transition_clip({**slot.targets(t0_s), **wanted}, transition, hold, name="set_aus")
@@ -361,9 +360,10 @@ class HeadService:
                 assert isinstance(slot.source, GazeSource)
                 slot.source.look_at(t0_s, target)
 
-            self.tracks.schedule(the_track, t_s if at_s is None else at_s, handle, activate)
+            self.tracks.schedule(the_track, start, handle, activate)
 
-        return self._submit("look_at", apply, track=the_track, at_s=self._start_time(at_s))
+        start = self._start_time(at_s)
+        return self._submit("look_at", apply, track=the_track, at_s=start)
 
     def follow(
         self,
