@@ -35,12 +35,17 @@ class DemoOutputs:
 
 
 def settle_error_tick(face: Face, settle_s: float = 0.6) -> dict[int, int]:
-    """Hold the last command for ``settle_s``, then |present - goal| per servo (ticks)."""
+    """Hold the last command for ``settle_s``, then |present - goal| per servo (ticks), from the
+    positions the head service read on its last frame."""
     face.hold(settle_s)
-    driver = face.driver
-    if driver is None:
+    if face.driver is None:
         return {}
-    snapshot = driver.read_state()
+    svc = face.service
+    last = svc.last_trace
+    svc.wait_frame(-1 if last is None else last.index)  # one more cycle: positions read after the hold
+    snapshot = svc.telemetry()
+    if snapshot is None:
+        return {}
     goals = face.pipeline.last_goals_tick
     return {sid: abs(int(pos) - int(goals[sid])) for sid, pos in snapshot.positions_tick().items() if sid in goals}
 
@@ -83,7 +88,8 @@ def render_performance(
                 label = "gated" if trace.verdict == "accept" else f"gated ({trace.verdict})"
                 if progress is not None:
                     progress(i + 1, len(picks))
-                yield render_side_by_side(left, right, (f"target  t={trace.t_s:5.2f}s", label))
+                t_local = trace.t_s - traces[0].t_s  # service time -> time into the performance
+                yield render_side_by_side(left, right, (f"target  t={t_local:5.2f}s", label))
 
         writer = write_mp4 if path.suffix.lower() == ".mp4" else write_gif
         return writer(frames(), path, fps)
@@ -144,48 +150,51 @@ def run_demo(
         say(f"playing {script.title!r} ({script.end_s:.1f} s at {rate_hz:g} Hz)")
         perf = face.play(script)
         errors = settle_error_tick(face)
-        stats = face.driver.bus.stats if face.driver is not None else None
-        say("rendering the twin video, the contact sheet and the most clipped frame")
-        video = out_dir / f"twin.{video_format}"
-        n_video = render_performance(face, perf, video)
-        sheet = out_dir / "sheet.png"
-        names = write_sheet(face, sheet)
-        clipped_png = write_clipped_frame(face, perf, out_dir / "clipped.png")
-        summary = perf.summary()
-        loop = summary.get("loop", {})
-        report: dict[str, Any] = {
-            "head": head,
-            "script": str(DEMO_SCRIPTS[head].name),
-            "machine": f"{platform.machine()} {os.cpu_count()} cpu, Python {platform.python_version()}",
-            "bus": {
-                "interface": "emulator (in-process, wire time on)",
-                "baud": baud,
-                "servos": len(face.head.actuators),
-                "transactions": getattr(stats, "transactions", None),
-                "bytes_written": getattr(stats, "bytes_written", None),
-            },
-            "frames": summary["frames"],
-            "verdicts": summary["verdicts"],
-            "loop": {
-                "target_hz": rate_hz,
-                "achieved_hz": loop.get("achieved_hz"),
-                "late_frames": loop.get("late"),
-                "missed_frames": loop.get("missed"),
-                "overruns": loop.get("overruns"),
-            },
-            "median_stage_ms": summary.get("median_stage_ms", {}),
-            "max_goal_error_tick": max(errors.values()) if errors else None,
-            "goal_error_tick": {str(k): v for k, v in sorted(errors.items())},
-            "clip_reasons": _reason_counts(perf),
-            "outputs": {
-                "video": video.name,
-                "video_frames": n_video,
-                "sheet": sheet.name,
-                "sheet_expressions": names,
-                "clipped_frame": clipped_png.name if clipped_png else None,
-            },
-            "open_s": round(t_open, 3),
-        }
+        stats = face.driver.bus.stats.copy() if face.driver is not None else None
+        transactions = getattr(stats, "transactions", None)
+        written = getattr(stats, "bytes_written", None)
+    # the service has stopped (eased, torque off, port closed): the twin and the renderer are ours alone now
+    say("rendering the twin video, the contact sheet and the most clipped frame")
+    video = out_dir / f"twin.{video_format}"
+    n_video = render_performance(face, perf, video)
+    sheet = out_dir / "sheet.png"
+    names = write_sheet(face, sheet)
+    clipped_png = write_clipped_frame(face, perf, out_dir / "clipped.png")
+    summary = perf.summary()
+    loop = summary.get("loop", {})
+    report: dict[str, Any] = {
+        "head": head,
+        "script": str(DEMO_SCRIPTS[head].name),
+        "machine": f"{platform.machine()} {os.cpu_count()} cpu, Python {platform.python_version()}",
+        "bus": {
+            "interface": "emulator (in-process, wire time on)",
+            "baud": baud,
+            "servos": len(face.head.actuators),
+            "transactions": transactions,
+            "bytes_written": written,
+        },
+        "frames": summary["frames"],
+        "verdicts": summary["verdicts"],
+        "loop": {
+            "target_hz": rate_hz,
+            "achieved_hz": loop.get("achieved_hz"),
+            "late_frames": loop.get("late"),
+            "missed_frames": loop.get("missed"),
+            "overruns": loop.get("overruns"),
+        },
+        "median_stage_ms": summary.get("median_stage_ms", {}),
+        "max_goal_error_tick": max(errors.values()) if errors else None,
+        "goal_error_tick": {str(k): v for k, v in sorted(errors.items())},
+        "clip_reasons": _reason_counts(perf),
+        "outputs": {
+            "video": video.name,
+            "video_frames": n_video,
+            "sheet": sheet.name,
+            "sheet_expressions": names,
+            "clipped_frame": clipped_png.name if clipped_png else None,
+        },
+        "open_s": round(t_open, 3),
+    }
     report["wall_s"] = round(time.perf_counter() - t0, 3)
     report_path = out_dir / "report.json"
     report_path.write_text(json.dumps(report, indent=2) + "\n")

@@ -10,68 +10,96 @@ play a script, look at a point, close safely.
         face.play("controller/scripts/human_performance.toml")
     # leaving the block eases to neutral, turns torque off and closes the port
 
-Every call runs the fixed-rate loop in the calling thread (which therefore owns the bus) until its motion
-is done; every frame passes the twin gate. ``face.traces`` keeps the recent frame traces.
+`Face` is a blocking convenience on top of the head service (:mod:`servoface.controller.service`): the
+first motion starts ``face.service`` (its loop thread then owns the bus), every call submits one command on
+the service's "face" track and waits for it (and for the servos to settle) before it returns; every frame
+passes the twin gate. Other front ends may drive ``face.service`` at the same time (a tracker on the gaze
+track, an e-stop from any thread). ``face.traces`` keeps the recent frame traces of the calls;
+``with face.service.paused_loop():`` hands the bus to the caller for work on ``face.pipeline`` by hand.
 """
 
 from __future__ import annotations
 
 import math
 import numbers
+import signal
+import threading
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from servoface.calibration import HeadCalibration, load_calibration
+from servoface.calibration import HeadCalibration
 from servoface.controller.alive.gaze import gaze_config_for, solve_look_at
 from servoface.controller.alive.gaze_layer import angles_to_aus
 from servoface.controller.errors import ControllerError
-from servoface.controller.frame import AUFrame, FrameValidator
-from servoface.controller.head_servos import servo_specs, temperature_limits_c
-from servoface.controller.performance import Performance, Samples, play_timeline
+from servoface.controller.frame import FrameValidator
+from servoface.controller.loop import LoopStats
+from servoface.controller.performance import Performance, Samples
 from servoface.controller.pipeline import FrameTrace, Pipeline
 from servoface.controller.script import Script, load_script
-from servoface.controller.timeline import ChannelClip, Key, Timeline, min_jerk
-from servoface.hardware.bus import ServoBus, open_bus
+from servoface.controller.service import CommandHandle, HeadService, Status, head_calibration, open_head
+from servoface.hardware.bus import ServoBus
 from servoface.hardware.driver import Driver
-from servoface.sim.expressions import load_library
 from servoface.sim.head import Head
 from servoface.sim.heads import load_head
 
+__all__ = ["SETTLE_MAX_S", "Face", "head_calibration"]
+
 _GAZE_AUS = frozenset({"AU51", "AU52", "AU53", "AU54", "AU55", "AU56", "AU61", "AU62", "AU63", "AU64"})
 _DOG_GAZE_AUS = frozenset({"AU9", "AU10", "AU11", "AU12", "AU13"})
+TRACK = "face"
+
+SETTLE_MAX_S = 2.0  # longest a call keeps walking the servos to its final frame after its motion ends
 
 
-def head_calibration(head: Head, calibration: HeadCalibration | str | Path | None = None) -> HeadCalibration:
-    """The calibration given, or the one the head profile names."""
-    if isinstance(calibration, HeadCalibration):
-        return calibration
-    path = calibration if calibration is not None else head.calibration_path
-    if path is None:
-        raise ControllerError(
-            f"head {head.name!r} names no calibration file; run `servoface calibrate --head ...` first"
-        )
-    return load_calibration(path)
+class _Interrupt:
+    """Ctrl-C during a blocking call: the first stops the call (the face holds where it is), a second
+    raises KeyboardInterrupt as usual. Only in the main thread; the previous handler comes back after."""
+
+    def __init__(self) -> None:
+        self.pressed = threading.Event()
+
+    @contextmanager
+    def armed(self) -> Iterator[_Interrupt]:
+        if threading.current_thread() is not threading.main_thread():
+            yield self
+            return
+        previous = signal.getsignal(signal.SIGINT)
+
+        def handler(signum: int, frame: Any) -> None:
+            if self.pressed.is_set():
+                raise KeyboardInterrupt
+            self.pressed.set()
+
+        signal.signal(signal.SIGINT, handler)
+        try:
+            yield self
+        finally:
+            signal.signal(signal.SIGINT, previous)
 
 
-SETTLE_MAX_S = 2.0  # longest a call keeps walking the servos to its final frame after the timeline ends
-SETTLE_CHUNK_S = 0.1
-
-
-class _Still:
-    """The same AU frame at every time (holding a pose on the loop)."""
-
-    def __init__(self, frame: AUFrame) -> None:
-        self._aus = dict(frame.aus)
-
-    def sample(self, t_s: float) -> AUFrame:
-        return AUFrame(t_s, self._aus)
+def _stats_of(traces: list[FrameTrace], rate_hz: float, missed: int, overruns: int) -> LoopStats:
+    """Loop statistics of one call, from its frames (the service's loop runs on between calls)."""
+    stats = LoopStats(rate_hz)
+    period = 1.0 / rate_hz
+    for trace in traces:
+        stats.lateness_s.add(trace.late_s)
+        stats.recent_lateness_s.append(trace.late_s)
+        stats.callback_s.add(trace.timings_ms.get("total_ms", 0.0) / 1e3)
+        if trace.late_s > period / 4:
+            stats.late += 1
+    stats.frames = len(traces)
+    stats.missed, stats.overruns = max(0, missed), max(0, overruns)
+    if traces:
+        stats.elapsed_s = traces[-1].t_s - traces[0].t_s + period
+    return stats
 
 
 class Face:
-    """A head driven through the whole pipeline. Build it with `Face.open`."""
+    """A head driven through the whole pipeline by its head service. Build it with `Face.open`."""
 
     def __init__(
         self,
@@ -92,7 +120,17 @@ class Face:
         self.pose: dict[str, float] = {}
         self.t_s = 0.0
         self.traces: deque[FrameTrace] = deque(maxlen=history)
+        self._history = history
+        self._service: HeadService | None = None
         self._closed = False
+
+    @property
+    def service(self) -> HeadService:
+        """The head service that runs this face (started on first use; it then owns the bus)."""
+        self._check_open()
+        if self._service is None:
+            self._service = HeadService(self.head, self.pipeline)
+        return self._service
 
     # -- opening ------------------------------------------------------------------------------------
     @classmethod
@@ -114,45 +152,17 @@ class Face:
         written as a hardware backstop), torque goes on with goals pinned to present positions, and the
         pipeline starts from where the servos are.
         """
-        if (port is None) == (not emulate):
-            raise ControllerError("Face.open: give exactly one of port='/dev/ttyUSB0' or emulate=True")
-        the_head = head if isinstance(head, Head) else load_head(head)
-        cal = head_calibration(the_head, calibration)
-        specs = servo_specs(the_head, cal)
-        chain = None
-        if emulate:
-            from servoface.hardware.emulator import ServoChain
-
-            chain = ServoChain.create([(s.servo_id, s.model) for s in specs], baud=baud, wire_time=wire_time)
-            for s in specs:  # the head powers up at rest
-                chain.servo(s.servo_id).move_by_hand(cal.by_id(s.servo_id).neutral_tick)
-            bus = open_bus("dynamixel", port=chain, baud=baud)
-        else:
-            bus = open_bus("dynamixel", port=port, baud=baud)
-        try:
-            driver = Driver(bus, specs, fast_sync_read=fast_sync_read)
-            driver.configure()
-            driver.torque_on()
-            pipeline = Pipeline(
-                the_head,
-                cal,
-                driver=driver,
-                rate_hz=rate_hz,
-                temperature_limits_c=temperature_limits_c(specs),
-            )
-            snapshot = driver.read_state()
-            lo_hi = cal.position_limits_tick()
-            present = {
-                sid: min(max(tick, lo_hi[sid][0]), lo_hi[sid][1]) for sid, tick in snapshot.positions_tick().items()
-            }
-            pipeline.pin_to(present)
-            pipeline.last_snapshot = snapshot
-        except BaseException:
-            bus.close()
-            if chain is not None:
-                chain.close()
-            raise
-        return cls(the_head, pipeline, driver=driver, bus=bus, chain=chain)
+        opened = open_head(
+            head,
+            port=port,
+            baud=baud,
+            emulate=emulate,
+            wire_time=wire_time,
+            rate_hz=rate_hz,
+            calibration=calibration,
+            fast_sync_read=fast_sync_read,
+        )
+        return cls(opened.head, opened.pipeline, driver=opened.driver, bus=opened.bus, chain=opened.chain)
 
     @classmethod
     def offline(
@@ -167,53 +177,42 @@ class Face:
         return cls(the_head, Pipeline(the_head, head_calibration(the_head, calibration), rate_hz=rate_hz))
 
     # -- motion -------------------------------------------------------------------------------------
-    def _run(self, timeline: Timeline | Script, duration_s: float) -> Performance:
-        self._check_open()
-        perf = play_timeline(
-            self.pipeline,
-            timeline,
-            duration_s,
-            start_s=0.0,
-            on_frame=self.traces.append,
-            keep_traces=True,
-            stop_on_interrupt=True,
-        )
+    def _perform(self, submit: Callable[[HeadService], CommandHandle], duration_s: float) -> Performance:
+        """Submit one command, wait for it and for the servos to settle; the call's frames and stats."""
+        svc = self.service
+        rate = svc.rate_hz
+        expected = int((duration_s + SETTLE_MAX_S) * rate) + 200
+        sub = svc.subscribe("trace", maxlen=max(expected, 1000))
+        stats0 = svc.loop_stats
+        missed0, overruns0 = stats0.missed, stats0.overruns
+        interrupt = _Interrupt()
+        try:
+            with interrupt.armed():
+                handle = submit(svc)  # a bad command raises here; nothing was queued
+                while not handle.wait(0.1).final and not interrupt.pressed.is_set():
+                    pass
+                if interrupt.pressed.is_set() and not handle.done():
+                    svc.stop(TRACK, hold=True).wait(2.0)
+                elif handle.status is Status.DONE:
+                    last = svc.last_trace
+                    svc.wait_settled(-1 if last is None else last.index - 1, timeout_s=SETTLE_MAX_S)
+        finally:
+            sub.close()
+        if handle.status is Status.FAILED:
+            raise handle.error if handle.error is not None else ControllerError(handle.detail)
+        if svc.error is not None:
+            raise svc.error
+        started = handle.started_s if handle.started_s is not None else float("inf")
+        traces = [t for t in sub.drain() if t.t_s >= started - 1e-9]
+        stats1 = svc.loop_stats
+        missed = stats1.missed - missed0 if stats1 is stats0 else stats1.missed
+        overruns = stats1.overruns - overruns0 if stats1 is stats0 else stats1.overruns
+        perf = Performance(traces, _stats_of(traces, rate, missed, overruns), rate, interrupt.pressed.is_set())
+        self.traces.extend(traces)
         self.t_s += duration_s
-        if perf.traces:
-            self.pose = dict(perf.traces[-1].aus)
-            self._settle(perf)
+        if traces:
+            self.pose = {au: v for au, v in traces[-1].aus.items() if abs(v) > 1e-12}
         return perf
-
-    def _settle(self, perf: Performance, max_s: float = SETTLE_MAX_S) -> None:
-        """Keep sending the final frame while the gate is still walking the servos towards it.
-
-        A motion faster than the servos' rate caps, or frames skipped on a busy machine, leave the last
-        frame clipped short of its goal; without this the call would return (and `close` turn torque off)
-        with the head somewhere on the way. Stops when the gate passes the frame whole, makes no progress
-        (a pose it refuses), or after ``max_s``.
-        """
-        period_s = 1.0 / self.pipeline.rate_hz
-        final = perf.traces[-1]
-        frame = AUFrame(final.t_s, final.aus)
-        source = _Still(frame)
-        waited = 0.0
-        while not perf.interrupted and waited < max_s:
-            last = perf.traces[-1]
-            previous = perf.traces[-2].goals_sent if len(perf.traces) > 1 else None
-            if last.goals_sent == last.goals_requested or last.goals_sent == previous:
-                return
-            more = play_timeline(
-                self.pipeline,
-                source,
-                SETTLE_CHUNK_S,
-                start_s=final.t_s + period_s,
-                on_frame=self.traces.append,
-                keep_traces=True,
-                stop_on_interrupt=True,
-            )
-            perf.traces.extend(more.traces)
-            perf.interrupted = more.interrupted
-            waited += SETTLE_CHUNK_S
 
     def set_aus(self, aus: Mapping[str, float], *, transition_s: float = 0.4, hold_s: float = 0.0) -> Performance:
         """Move to the AU pose ``aus`` (AUs not named go to 0) over ``transition_s``, then hold."""
@@ -222,26 +221,17 @@ class Face:
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
                 raise ControllerError(f"set_aus: {name} must be a finite number of seconds >= 0, got {value!r}")
         transition = max(float(transition_s), 1.0 / self.pipeline.rate_hz)
-        duration = transition + float(hold_s)
-        timeline = Timeline(self.head.face_type, initial_pose=self.pose)
-        channels = {
-            au: (Key(0.0, None), Key(transition, value, min_jerk), Key(duration, value)) for au, value in pose.items()
-        }
-        clip = ChannelClip(
-            channels,
-            duration,
-            unlisted="to_zero",
-            release_s=transition,
-            release_easing=min_jerk,
-            name="set_aus",
+        return self._perform(
+            lambda svc: svc.set_aus(pose, track=TRACK, transition_s=transition, hold_s=float(hold_s)),
+            transition + float(hold_s),
         )
-        timeline.play(clip)
-        return self._run(timeline, duration)
 
     def express(
         self, name: str, *, intensity: float = 1.0, transition_s: float = 0.5, hold_s: float = 1.0
     ) -> Performance:
         """Move to a named expression's apex (scaled by ``intensity``) and hold it."""
+        from servoface.sim.expressions import load_library
+
         library = load_library(self.head.expressions_path or self.head.face_type)
         if name not in library:
             raise ControllerError(f"unknown expression {name!r}; known: {sorted(library)}")
@@ -278,16 +268,24 @@ class Face:
         pose.update({au: v for au, v in gaze_aus.items() if abs(v) > 1e-9})
         return self.set_aus(pose, transition_s=transition_s)
 
-    def play(self, script: Script | str | Path, *, duration_s: float | None = None) -> Performance:
+    def play(self, script: Script | str | Path | Any, *, duration_s: float | None = None) -> Performance:
         """Play a timeline script to its end (or for ``duration_s`` at most): a TOML file, a shipped
-        script by name (``"human_performance"``, see ``servoface list scripts``) or a loaded Script."""
-        loaded = script if isinstance(script, Script) else load_script(script)
-        if loaded.face_type != self.head.face_type:
+        script by name (``"human_performance"``, see ``servoface list scripts``) or a loaded Script; or a
+        recording (``servoface.controller.inputs.load_recording``) to its end."""
+        loaded = script if not isinstance(script, str | Path) else load_script(script)
+        end_s = getattr(loaded, "end_s", None)
+        if end_s is None:
+            end_s = getattr(loaded, "duration_s", None)
+        if end_s is None or not callable(getattr(loaded, "sample", None)):
             raise ControllerError(
-                f"script {loaded.source} is for a {loaded.face_type} face; "
-                f"head {self.head.name!r} is {self.head.face_type}"
+                f"play: expected a script (path, shipped name or Script) or a recording, got {script!r}"
             )
-        end_s = loaded.end_s
+        if getattr(loaded, "face_type", self.head.face_type) != self.head.face_type:
+            where = getattr(loaded, "source", "") or type(loaded).__name__
+            raise ControllerError(
+                f"script {where} is for a {loaded.face_type} face; head {self.head.name!r} is {self.head.face_type}"
+            )
+        end_s = float(end_s)
         if duration_s is not None:
             if (
                 isinstance(duration_s, bool)
@@ -296,22 +294,23 @@ class Face:
             ):
                 raise ControllerError(f"play: duration_s must be a positive number of seconds, got {duration_s!r}")
             end_s = min(end_s, float(duration_s))
-        return self._run(loaded, end_s)
+        limit = end_s if end_s > 0 else None
+        return self._perform(lambda svc: svc.play(loaded, track=TRACK, duration_s=limit), end_s)
 
-    def follow(self, source: Samples, duration_s: float | None = None) -> Performance:
+    def follow(
+        self, source: Samples, duration_s: float | None = None, *, until: Callable[[], bool] | None = None
+    ) -> Performance:
         """Follow a live source (``servoface.controller.inputs.StreamSource``) or a recording for ``duration_s``
-        (None = until Ctrl-C); the source's dropout policy decides what a gap in the data looks like."""
-        from servoface.controller.inputs.follow import follow
-
+        (None = until Ctrl-C, or until ``until()`` is true); the source's dropout policy decides what a gap
+        in the data looks like."""
         self._check_open()
         if duration_s is not None and not (isinstance(duration_s, int | float) and 0 < duration_s < math.inf):
             raise ControllerError(
                 f"follow: duration_s must be a positive number of seconds or None, got {duration_s!r}"
             )
-        perf = follow(self.pipeline, source, duration_s, on_frame=self.traces.append, stop_on_interrupt=True)
+        perf = self._perform(lambda svc: svc.follow(source, track=TRACK, duration_s=duration_s, until=until), 0.0)
         if perf.traces:
-            self.t_s += perf.traces[-1].t_s
-            self.pose = dict(perf.traces[-1].aus)
+            self.t_s += perf.traces[-1].t_s - perf.traces[0].t_s
         return perf
 
     def hold(self, seconds: float) -> Performance:
@@ -323,21 +322,25 @@ class Face:
             raise ControllerError("this Face is closed")
 
     def close(self, *, ease_s: float = 0.8) -> None:
-        """Ease to neutral, turn torque off, close the port (and the emulator). Safe to call twice."""
+        """The safe stop: ease to neutral, turn torque off, close the port (and the emulator). Safe to call
+        twice. Goes through the head service's shutdown (started here if no call started it)."""
+        # TODO(safe-stops): the service's shutdown will delegate to controller/safe_stop.py (one path).
         if self._closed:
             return
         try:
-            if self.driver is not None and ease_s > 0:
+            if self.driver is not None or self._service is not None:
                 try:
-                    self.neutral(ease_s)
-                except Exception:  # a broken bus must not keep the torque on
-                    pass
+                    service = self.service
+                except ControllerError:
+                    service = None
+                if service is not None:
+                    service.shutdown(ease_s=max(0.0, float(ease_s)))
         finally:
             self._closed = True
             try:
-                if self.driver is not None:
+                if self._service is None and self.driver is not None:  # never reached the service
                     self.driver.close(torque_off=True)
-                elif self.bus is not None:
+                elif self._service is None and self.bus is not None:
                     self.bus.close()
             finally:
                 if self.chain is not None:

@@ -85,15 +85,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         with face:
             if recording is not None:
-                from servoface.controller.performance import play_timeline
-
-                perf = play_timeline(
-                    face.pipeline,
-                    recording,
-                    recording.duration_s if args.duration is None else min(recording.duration_s, args.duration),
-                    on_frame=face.traces.append,
-                    stop_on_interrupt=True,
-                )
+                perf = face.play(recording, duration_s=args.duration)
             elif is_script:
                 perf = face.play(what, duration_s=args.duration)
             else:

@@ -72,7 +72,6 @@ def run(args: argparse.Namespace) -> int:
         TcpReceiver,
         UdpReceiver,
     )
-    from servoface.controller.inputs.follow import follow
     from servoface.controller.inputs.smoothing import AUSmoother
     from servoface.controller.inputs.stream import StreamRecorder
     from servoface.controller.inputs.transports import parse_address
@@ -147,15 +146,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         with face, receiver:
-            perf = follow(
-                face.pipeline,
-                source,
-                args.duration,
-                on_frame=face.traces.append,
-                until=stdin_done,
-                keep_traces=True,
-                stop_on_interrupt=True,
-            )
+            perf = face.follow(source, args.duration, until=stdin_done)
     except (ControllerError, SimError, ValueError) as err:
         return _fail(str(err))
     except HardwareError as err:

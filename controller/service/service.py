@@ -18,7 +18,8 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -135,8 +136,12 @@ class HeadService:
         self.loop = FixedRateLoop(self._frame, self.rate_hz, clock=self.clock, sleep=self._sleep, max_sleep_s=0.05)
         if self.driver is not None:
             self.driver.hand_over()  # the loop thread becomes its owner
+        self._name = name
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self._started = False
+        self._pausing = False
+        self._paused = False
+        self._resumed = False
         if start:
             self.start()
 
@@ -152,6 +157,52 @@ class HeadService:
     @property
     def running(self) -> bool:
         return self._thread.is_alive()
+
+    @property
+    def paused(self) -> bool:
+        return self._paused
+
+    def pause(self, timeout_s: float = 5.0) -> None:
+        """Stop the loop at a frame boundary and release the bus to the caller's thread (manual work on
+        ``pipeline`` / ``driver``: a calibration step, a test). Nothing is sent while paused; the servos
+        hold their last goal. Commands submitted meanwhile (and an e-stop) apply when it resumes, the
+        e-stop first. Not from the loop thread."""
+        if threading.current_thread() is self._thread:
+            raise ServiceError("pause: not from the loop thread")
+        with self._lock:
+            if self._paused or not self._started or self._closing:
+                return
+            self._pausing = True
+        self.loop.stop()
+        self._wake.set()
+        self._thread.join(timeout_s)
+        if self._thread.is_alive():
+            raise ServiceError(f"pause: the loop did not stop within {timeout_s} s")
+        with self._lock:
+            self._pausing, self._paused = False, True
+
+    def resume(self) -> None:
+        """Give the bus back to the loop and go on (call from the thread that paused or used the driver)."""
+        with self._lock:
+            if not self._paused:
+                return
+            if self.driver is not None:
+                self.driver.hand_over()
+            self._paused = False
+            self._resumed = True
+            self._thread = threading.Thread(target=self._run, name=self._name, daemon=True)
+        self._thread.start()
+
+    @contextmanager
+    def paused_loop(self) -> Iterator[HeadService]:
+        """``with service.paused_loop(): ...`` pauses for the block and resumes after it."""
+        was = self._paused
+        self.pause()
+        try:
+            yield self
+        finally:
+            if not was:
+                self.resume()
 
     def now_s(self) -> float:
         """Now on the service clock (seconds since the service was made, monotonic)."""
@@ -500,7 +551,7 @@ class HeadService:
                 return self._estop_handle
         self._estop_requested.set()
         self._wake.set()
-        if not self.running:  # no loop to do it: the owner is gone; report it as failed
+        if not self.running and not self._paused:  # no loop to do it: the owner is gone; report it
             handle._set(Status.FAILED, self.now_s(), "the loop is not running")
         return handle
 
@@ -546,16 +597,26 @@ class HeadService:
 
     def _run(self) -> None:
         try:
+            if self._estop_requested.is_set():  # pressed while paused
+                self._apply_estop(self.clock.now_s())
+            if self._resumed:
+                self._repin()
             self.loop.run()
         except BaseException as err:  # an unexpected crash still goes through the stop below
             self.error = err
         finally:
-            self._finish()
+            if self._pausing and self.error is None and not self._stop_requested:
+                if self.driver is not None:
+                    self.driver.hand_over()
+            else:
+                self._finish()
 
     def _frame(self, tick: Tick) -> bool | None:
         t = tick.due_s
         if self._estop_requested.is_set():
             self._apply_estop(t)
+        if self._pausing:  # (loop.stop() alone could be undone by a run() that is only starting)
+            return False
         if not self._drain(t) or self._stop_requested:
             return False
         trace: FrameTrace | None = None
@@ -657,6 +718,26 @@ class HeadService:
             handle._set(Status.DONE if ok else Status.FAILED, self.clock.now_s(), detail)
             self._notify(handle)
 
+    def _repin(self) -> None:
+        """After a pause the bus may have carried other goals: take what the driver last put on the wire
+        (or, for a servo without one, where it is) as the last command, so the first frame is rate-checked
+        from there and never jumps."""
+        self._resumed = False
+        if self.driver is None:
+            return
+        snapshot = self.driver.read_state()
+        lo_hi = self.pipeline.calibration.position_limits_tick()
+        goals: dict[int, int] = {}
+        for sid, state in snapshot.servos.items():
+            if sid not in lo_hi:
+                continue
+            tick = state.goal_tick if state.goal_tick is not None else state.position_tick
+            if tick is not None:
+                goals[sid] = min(max(int(tick), lo_hi[sid][0]), lo_hi[sid][1])
+        self.pipeline.pin_to(goals)
+        self.pipeline.gate.reset()
+        self.pipeline.last_snapshot = snapshot
+
     def _apply_torque_on(self, handle: CommandHandle, t_s: float) -> None:
         if self._latched:
             raise EStopLatchedError("torque_on: the e-stop is latched")
@@ -691,6 +772,8 @@ class HeadService:
         with self._lock:
             already = self._closing
             self._closing = True
+        if self._paused:
+            self.resume()
         if already:
             self._thread.join(timeout_s) if self._started else None
             return self.report or StopReport(False, False, error="shutdown still in progress")

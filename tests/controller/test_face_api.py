@@ -57,15 +57,18 @@ BAD_CALLS: list[tuple[str, Any, str]] = [
 
 @pytest.mark.parametrize("what,call,named", BAD_CALLS, ids=[c[0] for c in BAD_CALLS])
 def test_bad_input_raises_and_sends_nothing(face: Face, what: str, call: Any, named: str) -> None:
-    before = _bus_state(face)
-    last = dict(face.pipeline.last_goals_tick)
-    pose = dict(face.pose)
-    n_traces = len(face.traces)
-    with pytest.raises(ControllerError) as err:
-        call(face)
-    assert named in str(err.value), f"{what}: message does not name {named!r}: {err.value}"
-    assert _bus_state(face) == before, f"{what}: something reached the bus"
-    assert face.pipeline.last_goals_tick == last and face.pose == pose and len(face.traces) == n_traces
+    face.hold(0.0)  # the head service runs; paused, its loop sends nothing while we watch the wire
+    with face.service.paused_loop():
+        before = _bus_state(face)
+        last = dict(face.pipeline.last_goals_tick)
+        pose = dict(face.pose)
+        n_traces = len(face.traces)
+        with pytest.raises(ControllerError) as err:
+            call(face)
+        assert named in str(err.value), f"{what}: message does not name {named!r}: {err.value}"
+        assert _bus_state(face) == before, f"{what}: something reached the bus"
+        assert face.pipeline.last_goals_tick == last and face.pose == pose and len(face.traces) == n_traces
+        assert not face.service._inbox, f"{what}: a command was queued"
 
 
 def test_set_aus_moves_through_the_gate_and_the_bus(face: Face) -> None:
@@ -73,7 +76,12 @@ def test_set_aus_moves_through_the_gate_and_the_bus(face: Face) -> None:
     perf = face.set_aus({"AU1": 0.4, "AU2": 0.4}, transition_s=0.2, hold_s=0.06)
     assert perf.traces and face.pose == {"AU1": 0.4, "AU2": 0.4}
     n = len(face.head.actuators)
-    assert len(face.chain.goal_writes()) - writes0 == len(perf.traces) * n  # one sync write per frame
+    wire: dict[float, dict[int, int]] = {}  # one Sync Write per frame: the goals of each, by arrival time
+    for t, sid, tick in face.chain.goal_writes()[writes0:]:
+        wire.setdefault(t, {})[sid] = tick
+    assert all(len(g) == n for g in wire.values())
+    sent = list(wire.values())
+    assert all(trace.goals_sent in sent for trace in perf.traces)  # every frame of the call went out whole
     last = perf.traces[-1]
     assert last.aus["AU1"] == pytest.approx(0.4) and last.goals_sent == face.pipeline.last_goals_tick
     brow = face.pipeline.calibration.id_of("brow_inner_l")

@@ -134,7 +134,8 @@ def test_servos_end_where_the_gate_last_sent(run: Run) -> None:
     assert max(errors.values()) <= 1, f"present vs goal (tick): {errors}"
     # and the driver's own read over the pty agrees with the emulator's registers
     assert run.face.driver is not None
-    snap = run.face.driver.read_state()
+    with run.face.service.paused_loop():  # the bus is the head service's; borrow it for one read
+        snap = run.face.driver.read_state()
     read = snap.positions_tick()
     assert all(abs(read[sid] - run.positions_tick[sid]) <= 1 for sid in goals)
 

@@ -155,12 +155,13 @@ def test_any_sequence_of_au_frames_stays_safe_on_the_wire(played: Played, frames
     """Property: whatever valid AU frames come in, back to back (no easing), the wire stays safe."""
     face = played.face
     chain = played.chain
-    before = len(chain.goal_writes())
-    for aus in frames:
-        trace = face.pipeline.step(aus)
-        assert trace.verdict in ("accept", "clip", "reject")
-    assert len(chain.goal_writes()) == before + len(frames) * len(face.head.actuators)
-    check_wire(face.pipeline, chain)
+    with face.service.paused_loop():  # frames by hand: the head service lends us the bus
+        before = len(chain.goal_writes())
+        for aus in frames:
+            trace = face.pipeline.step(aus)
+            assert trace.verdict in ("accept", "clip", "reject")
+        assert len(chain.goal_writes()) == before + len(frames) * len(face.head.actuators)
+        check_wire(face.pipeline, chain)
 
 
 def test_a_coupling_rule_given_to_the_gate_clips_and_is_named(played: Played) -> None:
@@ -188,7 +189,8 @@ def test_a_coupling_rule_given_to_the_gate_clips_and_is_named(played: Played) ->
             name="brows_and_smile",
         )
     )
-    perf = play_timeline(strict, timeline, 0.6)
+    with face.service.paused_loop():  # a second pipeline on the same bus: the service lends it
+        perf = play_timeline(strict, timeline, 0.6)
     coupled = [t for t in perf.traces if "coupling" in t.checks]
     assert coupled, perf.summary()
     assert all(any(f"rule '{rule.name}'" in r for r in t.reasons) for t in coupled)
