@@ -17,16 +17,16 @@ from servoface.sim.head import Head
 
 
 def check_then(then: object) -> Then:
-    if then not in ("hold", "release"):
-        raise ServiceError(f"then: expected 'hold' (keep the last pose) or 'release' (empty the track), got {then!r}")
-    return then  # type: ignore[return-value]
+    if then == "hold" or then == "release":
+        return then
+    raise ServiceError(f"then: expected 'hold' (keep the last pose) or 'release' (empty the track), got {then!r}")
 
 
 def check_point_mm(point_mm: object, *, field: str = "point_mm") -> tuple[float, float, float]:
     """Three finite real numbers (x, y, z) in mm, else ServiceError naming ``field``."""
     values: tuple[Any, ...]
     try:
-        values = tuple(point_mm)  # type: ignore[call-overload]
+        values = tuple(point_mm)  # type: ignore[arg-type]
     except TypeError:
         values = ()
     if len(values) != 3 or not all(
@@ -99,12 +99,12 @@ def play_source(
     if hasattr(what, "duration_s") and hasattr(what, "end_pose") and hasattr(what, "targets"):
         for au, value in what.targets():
             validator.pose({au: value}, where=str(getattr(what, "name", "clip")))
-        return ClipSource(what), None  # type: ignore[arg-type]
+        return ClipSource(what), None
     if hasattr(what, "sample") and hasattr(what, "duration_s"):  # a Recording
         _check_face("recording", what, head.face_type, head)
         length = float(what.duration_s)
         end = length if limit is None else min(length, limit)
-        return SamplesSource(what, end, str(getattr(what, "source", "") or "recording"), then), end  # type: ignore[arg-type]
+        return SamplesSource(what, end, str(getattr(what, "source", "") or "recording"), then), end
     raise ServiceError(
         f"play: expected a Script, a script path or shipped name, a Timeline, a Recording or a Clip, got {what!r}"
     )
