@@ -16,8 +16,8 @@ from servoface.controller.service.sources import ClipSource, SamplesSource, Sour
 from servoface.sim.head import Head
 
 
-def check_then(then: object) -> Then:
-    if then == "hold" or then == "release":
+def check_then(then: object) -> Then | None:
+    if then is None or then == "hold" or then == "release":
         return then
     raise ServiceError(f"then: expected 'hold' (keep the last pose) or 'release' (empty the track), got {then!r}")
 
@@ -78,10 +78,12 @@ def _check_face(kind: str, what: object, face_type: str, head: Head) -> None:
 
 
 def play_source(
-    head: Head, validator: FrameValidator, what: object, duration_s: object, then: Then
+    head: Head, validator: FrameValidator, what: object, duration_s: object, then: Then | None
 ) -> tuple[Source, float | None]:
     """The source for ``play(what)``: a Script (or a script file / shipped script name), a Timeline, a
-    Recording, or a timeline Clip. Returns the source and its length (None: a clip's own)."""
+    Recording, or a timeline Clip. Returns the source and its length (None: a clip's own). ``then`` None:
+    a script, timeline or recording holds its last frame, a clip does what its ``holds`` says."""
+    timed: Then = then or "hold"
     from servoface.controller.script import Script, load_script
     from servoface.controller.timeline import Timeline
 
@@ -91,20 +93,20 @@ def play_source(
     if isinstance(what, Script):
         _check_face("script", what, head.face_type, head)
         end = what.end_s if limit is None else min(what.end_s, limit)
-        return SamplesSource(what, end, what.title or Path(what.source).stem, then), end
+        return SamplesSource(what, end, what.title or Path(what.source).stem, timed), end
     if isinstance(what, Timeline):
         _check_face("timeline", what, head.face_type, head)
         end = what.end_s if limit is None else min(what.end_s, limit)
-        return SamplesSource(what, end, "timeline", then), end
+        return SamplesSource(what, end, "timeline", timed), end
     if hasattr(what, "duration_s") and hasattr(what, "end_pose") and hasattr(what, "targets"):
         for au, value in what.targets():
             validator.pose({au: value}, where=str(getattr(what, "name", "clip")))
-        return ClipSource(what), None
+        return ClipSource(what, then=then), None
     if hasattr(what, "sample") and hasattr(what, "duration_s"):  # a Recording
         _check_face("recording", what, head.face_type, head)
         length = float(what.duration_s)
         end = length if limit is None else min(length, limit)
-        return SamplesSource(what, end, str(getattr(what, "source", "") or "recording"), then), end
+        return SamplesSource(what, end, str(getattr(what, "source", "") or "recording"), timed), end
     raise ServiceError(
         f"play: expected a Script, a script path or shipped name, a Timeline, a Recording or a Clip, got {what!r}"
     )

@@ -321,11 +321,12 @@ class HeadService:
         track: str = "face",
         at_s: float | None = None,
         duration_s: float | None = None,
-        then: str = "hold",
+        then: str | None = None,
     ) -> CommandHandle:
         """Play a script (a Script, a .toml path or a shipped name), a Timeline, a Recording or a Clip on
         ``track`` from ``at_s`` (service time; None = the next frame), for at most ``duration_s``; at the
-        end hold the last pose (``then="hold"``) or release the track (``"release"``). Done at its end."""
+        end hold the last pose (``then="hold"``, the default but for a clip, which does what its ``holds``
+        says) or release the track (``"release"``). Done at its end."""
         the_track = self._track(track)
         source, _ = play_source(self.head, self.validator, what, duration_s, check_then(then))
         return self._place("play", the_track, self._start_time(at_s), lambda slot, t0: source)
@@ -437,7 +438,7 @@ class HeadService:
         limit = None if duration_s is None else check_duration_s(duration_s, field="duration_s", allow_zero=False)
         if until is not None and not callable(until):
             raise ServiceError(f"follow: until must be a callable returning bool, got {until!r}")
-        mode = check_then(then)
+        mode = check_then(then) or "hold"
         return self._place(
             "follow", the_track, self._start_time(at_s), lambda slot, t0: FollowSource(source, limit, until, mode)
         )
@@ -797,6 +798,20 @@ class HeadService:
         report = self.report or StopReport(eased, False, error="the loop thread did not stop in time")
         self.report = StopReport(eased, report.torque_off, report.unreached_tick, report.error)
         return self.report
+
+    def shutdown_async(self, *, ease_s: float = 0.8) -> CommandHandle:
+        """:meth:`shutdown` on a helper thread; the handle is done when the head is stopped (failed if
+        torque-off was not confirmed). For front ends that must not block (a network request)."""
+        handle = CommandHandle("shutdown")
+
+        def run() -> None:
+            report = self.shutdown(ease_s=ease_s)
+            ok = report.torque_off and not report.error
+            handle._set(Status.DONE if ok else Status.FAILED, self.now_s(), report.error or "")
+
+        handle._set(Status.RUNNING, self.now_s())
+        threading.Thread(target=run, name=f"{self._name}-shutdown", daemon=True).start()
+        return handle
 
     def _finish(self) -> None:
         """On the loop thread as it exits: torque off, close the bus, end every command and observer."""

@@ -48,9 +48,11 @@ class ClipSource:
 
     uses_below = False
 
-    def __init__(self, clip: Clip, name: str | None = None) -> None:
+    def __init__(self, clip: Clip, name: str | None = None, then: Then | None = None) -> None:
+        """``then`` "hold" / "release" overrides the clip's own ``holds`` (None: keep it)."""
         self.clip = clip
         self.name = name or clip.name
+        self.holds = clip.holds if then is None else then == "hold"
         self._t0 = 0.0
         self._from: dict[str, float] = {}
         self._end: dict[str, float] | None = None
@@ -62,7 +64,7 @@ class ClipSource:
         local = t_s - self._t0
         if local < self.clip.duration_s:
             return self.clip.sample(max(0.0, local), self._from)
-        if not self.clip.holds:
+        if not self.holds:
             return {}
         if self._end is None:
             self._end = self.clip.end_pose(self._from)
@@ -70,12 +72,12 @@ class ClipSource:
 
     def target_pose(self) -> dict[str, float]:
         """The pose the clip ends on (from where it started)."""
-        return self.clip.end_pose(self._from) if self.clip.holds else {}
+        return self.clip.end_pose(self._from) if self.holds else {}
 
     def state(self, t_s: float) -> State:
         if t_s - self._t0 < self.clip.duration_s - 1e-9:
             return "running"
-        return "holding" if self.clip.holds else "ended"
+        return "holding" if self.holds else "ended"
 
 
 def transition_clip(

@@ -91,3 +91,37 @@ def test_a_newer_command_on_a_track_takes_over_from_where_it_is(running: Running
     assert "taken over" in first.detail
     assert svc.last_trace.aus.get("AU2", 0.0) == pytest.approx(0.0, abs=1e-9)
     assert svc.last_trace.aus["AU4"] == pytest.approx(0.4)
+
+
+def test_speech_owns_the_mouth_while_an_expression_holds_the_rest(running: Running) -> None:
+    from servoface.controller.timeline import ChannelClip, Key
+
+    svc = running.service
+    assert svc.express("happiness", transition_s=0.2, hold_s=0.0).wait(5.0) is Status.DONE
+    apex = dict(svc.last_trace.aus)
+    assert apex.get("AU25", 0.0) > 0.0  # the smile parts the lips
+    viseme = ChannelClip({"AU25": (Key(0.0, 0.05), Key(0.6, 0.05)), "AU26": (Key(0.0, 0.3), Key(0.6, 0.3))}, 0.6)
+    sub = svc.subscribe("trace", maxlen=200)
+    spoken = svc.speak(viseme)
+    assert spoken.wait(5.0) is Status.DONE
+    during = [t for t in sub.drain() if spoken.started_s + 0.05 <= t.t_s <= spoken.finished_s - 0.05]
+    assert during
+    for trace in during:  # override: the speech track's AU25 wins (lower than the smile's), AU26 is its own
+        assert trace.aus["AU25"] == pytest.approx(0.05) and trace.aus["AU26"] == pytest.approx(0.3)
+        for au, value in apex.items():
+            if au not in ("AU25", "AU26"):
+                assert trace.aus.get(au, 0.0) == pytest.approx(value), au
+    after = svc.wait_frame(svc.last_trace.index + 2)
+    assert after is not None and after.aus["AU25"] == pytest.approx(apex["AU25"])  # released at its end
+
+
+def test_a_gaze_target_sums_with_a_head_turn_on_the_face_track(running: Running) -> None:
+    svc = running.service
+    assert svc.set_aus({"AU51": 0.2, "AU12": 0.3}, track="face", transition_s=0.1).wait(5.0) is Status.DONE
+    look = svc.look_at((250.0, 0.0, 600.0))
+    assert look.wait(5.0) is Status.DONE
+    gaze = svc.status().tracks["gaze"].aus
+    frame = svc.wait_frame(svc.last_trace.index)
+    assert frame is not None and gaze.get("AU51", 0.0) > 0.0
+    assert frame.aus["AU51"] == pytest.approx(min(1.0, 0.2 + gaze["AU51"]))  # sum on head turns
+    assert frame.aus["AU61"] == pytest.approx(gaze["AU61"]) and frame.aus["AU12"] == pytest.approx(0.3)

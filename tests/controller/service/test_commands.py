@@ -129,3 +129,31 @@ def test_alive_layers_blink_on_their_track(running: Running) -> None:
     assert any(a.get("AU45", 0.0) > 0.5 for a in aus)
     assert any(abs(a.get("AU51", 0.0)) + abs(a.get("AU52", 0.0)) > 1e-4 for a in aus)  # idle head motion
     assert svc.set_alive(blink=False, idle=False).wait(2.0) is Status.DONE
+
+
+def test_torque_off_clears_the_tracks_and_torque_on_pins_first(running: Running) -> None:
+    from servoface.controller.service import ServiceError
+
+    svc, chain = running.service, running.chain
+    assert svc.set_aus({"AU12": 0.4}, track="face", transition_s=0.1).wait(5.0) is Status.DONE
+    assert svc.torque_off().wait(2.0) is Status.DONE
+    assert all(not chain.servo(s).torque_on for s in chain.ids)
+    assert svc.status().tracks["face"].state == "empty"
+    with pytest.raises(ServiceError, match="torque is off"):
+        svc.set_aus({"AU12": 0.4})
+    writes = len(chain.goal_writes())
+    svc.wait_frame(svc.status().frames + 3, timeout_s=0.5)
+    assert len(chain.goal_writes()) == writes  # no goals while limp
+    assert svc.torque_on().wait(2.0) is Status.DONE
+    assert all(chain.servo(s).torque_on for s in chain.ids)
+    assert svc.set_aus({"AU12": 0.4}, track="face", transition_s=0.1).wait(5.0) is Status.DONE
+
+
+def test_shutdown_async_returns_a_handle() -> None:
+    running = start_service()
+    try:
+        handle = running.service.shutdown_async(ease_s=0.2)
+        assert handle.wait(15.0) is Status.DONE and running.service.report is not None
+        assert all(not running.chain.servo(s).torque_on for s in running.chain.ids)
+    finally:
+        running.chain.close()
