@@ -25,6 +25,10 @@ def dispatch(
     out = Outcome([], [], [])
     for servo in listeners:
         servo.heard(t_s)
+    if packet.id != BROADCAST_ID or packet.instruction in _STATE_BROADCASTS:
+        # every instruction acts on the servo as it is when the packet arrives: physics first
+        for servo in listeners if packet.id == BROADCAST_ID else by_id.get(packet.id, ()):
+            servo.advance(t_s)
     inst = packet.instruction
     pid = packet.id
     params = packet.params
@@ -299,6 +303,23 @@ def _bulk_write(
             if addr <= 8 and addr + length > 7:
                 out.ids_changed = True
 
+
+# broadcast instructions whose handlers look at (or change) live servo state
+_STATE_BROADCASTS = frozenset(
+    {
+        Instruction.WRITE,
+        Instruction.REG_WRITE,
+        Instruction.ACTION,
+        Instruction.CLEAR,
+        Instruction.REBOOT,
+        Instruction.SYNC_READ,
+        Instruction.BULK_READ,
+        Instruction.SYNC_WRITE,
+        Instruction.BULK_WRITE,
+        Instruction.FAST_SYNC_READ,
+        Instruction.FAST_BULK_READ,
+    }
+)
 
 _HANDLERS: dict[int, Callable[..., None]] = {
     Instruction.PING: _ping,

@@ -257,6 +257,7 @@ class EmulatedServo(ServoMotion):
         self.motor.pos += shift
         self.motor.target += shift
         self._plan_key = ()
+        self._live_dirty = True  # Present Position (132) shows the cleared value at once
 
     # ----------------------------------------------------------------- reads
     def read_bytes(self, address: int, length: int) -> tuple[int, bytes]:
