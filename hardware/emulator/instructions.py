@@ -16,6 +16,7 @@ from servoface.hardware.emulator.packet import BROADCAST_ID, ErrorNumber, Instru
 from servoface.hardware.emulator.servo import EmulatedServo
 
 CLEAR_MULTI_TURN = b"\x01\x44\x58\x4c\x22"
+BACKUP_KEY = b"CTRL"  # 0x43 0x54 0x52 0x4C after P1 of Control Table Backup
 
 
 def dispatch(
@@ -215,8 +216,23 @@ def _backup(
     by_id: dict[int, list[EmulatedServo]],
     targets: list[EmulatedServo],
 ) -> None:
+    option = params[0] if len(params) == 5 and bytes(params[1:]) == BACKUP_KEY else -1
     for servo in targets:
-        status(out, servo, Instruction.CONTROL_TABLE_BACKUP, 0)
+        if option not in (0x01, 0x02):
+            err = int(ErrorNumber.DATA_RANGE)
+        elif servo.torque_on:  # "works properly only if Torque Enable is 0"
+            err = int(ErrorNumber.ACCESS)
+        elif option == 0x01:
+            servo.backup_control_table()
+            err = 0
+        elif servo.backup is None:
+            err = int(ErrorNumber.RESULT_FAIL)  # nothing stored to restore from
+        else:
+            servo.restore_eeprom()
+            out.reboot.append(servo)  # "after processing packets, DYNAMIXEL reboots itself"
+            out.ids_changed = True
+            err = 0
+        status(out, servo, Instruction.CONTROL_TABLE_BACKUP, err)
 
 
 def _sync_read(
