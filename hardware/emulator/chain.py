@@ -9,6 +9,7 @@ readable at once (fast unit tests).
 from __future__ import annotations
 
 import threading
+import time
 from collections import deque
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
@@ -26,6 +27,10 @@ if TYPE_CHECKING:
     from servoface.hardware.emulator.serial_port import EmulatedSerial
 
 REBOOT_SILENCE_S = 0.1  # a rebooting servo hears nothing for this long
+# How far the host may write ahead of the wire before write() blocks: the transmit buffer of an FT232H-class
+# USB adapter (the U2D2 family) is 1 KB (FTDI FT232H datasheet); a Linux usb-serial port adds up to a page
+# (4 KB) of kernel fifo on top, and a pty adds its own kernel buffer (about 18 KB measured here).
+TX_BUFFER_BYTES = 1024
 GOAL_ADDRESS = 116
 
 
@@ -42,7 +47,11 @@ class ServoChain:
         log_limit: int | None = 1_000_000,
         delivery: str = "byte",
         goal_limit: str = "reject",
+        tx_buffer_bytes: int = TX_BUFFER_BYTES,
     ) -> None:
+        if int(tx_buffer_bytes) < 0:
+            raise EmulatorConfigError(f"tx_buffer_bytes {tx_buffer_bytes}: expected >= 0")
+        self.tx_buffer_bytes = int(tx_buffer_bytes)
         if clock is None or clock == "real":
             self._clock: Callable[[], float] = RealClock()
         elif clock == "manual":
@@ -105,6 +114,7 @@ class ServoChain:
         log_limit: int | None = 1_000_000,
         delivery: str = "byte",
         goal_limit: str = "reject",
+        tx_buffer_bytes: int = TX_BUFFER_BYTES,
     ) -> ServoChain:
         """A chain of servos: ``ids`` are ints (all of ``model``) or ``(id, model)`` pairs.
 
@@ -113,7 +123,9 @@ class ServoChain:
         each arrives) or "packet" (each status packet readable whole when its last byte arrives).
         ``goal_limit``: a Goal Position outside Min/Max Position Limit (position mode) gets a Data Limit
         Error and is not stored ("reject"), or is accepted and the motion clamped to the limit ("clamp");
-        the e-manual leaves this open, so tests can check a driver against both.
+        the e-manual leaves this open, so tests can check a driver against both. ``tx_buffer_bytes``: how
+        far the host may write ahead of the wire before the in-process port's ``write()`` blocks (the pty
+        stops reading instead, so the client blocks once the kernel's pty buffer is full too).
         """
         specs: list[tuple[int, ModelSpec]] = []
         for item in ids:
@@ -130,6 +142,7 @@ class ServoChain:
             log_limit=log_limit,
             delivery=delivery,
             goal_limit=goal_limit,
+            tx_buffer_bytes=tx_buffer_bytes,
         )
 
     # ----------------------------------------------------------------- clock and servos
@@ -191,11 +204,42 @@ class ServoChain:
             now = self._clock()
             n = len(data)
             byte_s = 10.0 / host_baud if self.wire_time and host_baud > 0 else 0.0
-            t_rx = max(now, self._tx_free_s) + n * byte_s
+            start = max(now, self._tx_free_s)
+            t_rx = start + n * byte_s
             self._tx_free_s = t_rx
-            for packet in self._receiver.feed(data, now):
+            for packet in self._receiver.feed(data, start, t_rx):
                 self._handle(packet, t_rx, host_baud)
             return n
+
+    def tx_backlog_s(self) -> float:
+        """How long the host -> servos line stays busy with bytes already written (0 when idle)."""
+        with self.lock:
+            return max(0.0, self._tx_free_s - self._clock())
+
+    def tx_room_bytes(self, host_baud: int) -> int | None:
+        """How many more bytes fit ahead of the wire before writing must wait (None: no wire time)."""
+        if not self.wire_time or host_baud <= 0:
+            return None
+        backlog_bytes = self.tx_backlog_s() * host_baud / 10.0
+        return max(0, int(self.tx_buffer_bytes - backlog_bytes))
+
+    def wait_tx(self, host_baud: int, *, drain: bool = False) -> None:
+        """Block until the bytes ahead of the wire fit the transmit buffer (``drain``: until all are sent),
+        as a real port's ``write()`` (``flush()``) does. A manual clock is moved on instead of sleeping;
+        another callable clock cannot be waited on and does not block."""
+        if not self.wire_time or host_baud <= 0:
+            return
+        limit_s = 0.0 if drain else self.tx_buffer_bytes * 10.0 / host_baud
+        while True:
+            wait_s = self.tx_backlog_s() - limit_s
+            if wait_s <= 0:
+                return
+            if isinstance(self._clock, ManualClock):
+                self.advance(wait_s)
+                return
+            if not isinstance(self._clock, RealClock):
+                return
+            time.sleep(wait_s)
 
     def _listeners(self, t_s: float, host_baud: int) -> list[EmulatedServo]:
         faults = self.faults
@@ -310,6 +354,16 @@ class ServoChain:
                 else:
                     seg[3] = max(seg[3], arrived)
                     break
+
+    def rx_burst_times_s(self) -> tuple[float, float] | None:
+        """(when the next unread reply byte arrives, when the last pending one has arrived), or None."""
+        with self.lock:
+            if not self._rx:
+                return None
+            data, start, byte_s, done, whole = self._rx[0]
+            first = float(start + (len(data) if whole else done + 1) * byte_s)
+            data, start, byte_s, _, _ = self._rx[-1]
+            return first, float(start + len(data) * byte_s)
 
     def next_reply_time_s(self) -> float | None:
         """When the next unread reply byte arrives (None if nothing is pending)."""
