@@ -21,6 +21,7 @@ from servoface.hardware.emulator.instructions import dispatch
 from servoface.hardware.emulator.models import ModelSpec, baud_code_for, get_model
 from servoface.hardware.emulator.packet import MAX_ID, Packet, PacketReceiver
 from servoface.hardware.emulator.packet_log import LogEntry, register_writes
+from servoface.hardware.emulator.realism import Realism
 from servoface.hardware.emulator.servo import EmulatedServo
 
 if TYPE_CHECKING:
@@ -48,7 +49,9 @@ class ServoChain:
         delivery: str = "byte",
         goal_limit: str = "reject",
         tx_buffer_bytes: int = TX_BUFFER_BYTES,
+        realism: Realism | bool | dict[str, Any] | None = None,
     ) -> None:
+        self.realism = Realism.coerce(realism)
         if int(tx_buffer_bytes) < 0:
             raise EmulatorConfigError(f"tx_buffer_bytes {tx_buffer_bytes}: expected >= 0")
         self.tx_buffer_bytes = int(tx_buffer_bytes)
@@ -86,7 +89,15 @@ class ServoChain:
             seen.add(sid)
             code = baud_code_for(self.baud, spec)
             self.servos.append(
-                EmulatedServo(sid, spec, baud_code=code, clock=self._clock, faults=self.faults, lock=self.lock)
+                EmulatedServo(
+                    sid,
+                    spec,
+                    baud_code=code,
+                    clock=self._clock,
+                    faults=self.faults,
+                    lock=self.lock,
+                    realism=self.realism,
+                )
             )
         self._by_id: dict[int, list[EmulatedServo]] = {}
         self._silence_until_s = -1.0
@@ -115,6 +126,7 @@ class ServoChain:
         delivery: str = "byte",
         goal_limit: str = "reject",
         tx_buffer_bytes: int = TX_BUFFER_BYTES,
+        realism: Realism | bool | dict[str, Any] | None = None,
     ) -> ServoChain:
         """A chain of servos: ``ids`` are ints (all of ``model``) or ``(id, model)`` pairs.
 
@@ -125,7 +137,10 @@ class ServoChain:
         Error and is not stored ("reject"), or is accepted and the motion clamped to the limit ("clamp");
         the e-manual leaves this open, so tests can check a driver against both. ``tx_buffer_bytes``: how
         far the host may write ahead of the wire before the in-process port's ``write()`` blocks (the pty
-        stops reading instead, so the client blocks once the kernel's pty buffer is full too).
+        stops reading instead, so the client blocks once the kernel's pty buffer is full too). ``realism``:
+        off (None, default), True (the documented default magnitudes), a dict of overrides (e.g.
+        ``{"seed": 3, "backlash_tick": 6}``) or a :class:`Realism`: non-ideal servos (backlash, load- and
+        speed-dependent settling error and lag, encoder noise, temperature-dependent current).
         """
         specs: list[tuple[int, ModelSpec]] = []
         for item in ids:
@@ -143,6 +158,7 @@ class ServoChain:
             delivery=delivery,
             goal_limit=goal_limit,
             tx_buffer_bytes=tx_buffer_bytes,
+            realism=realism,
         )
 
     # ----------------------------------------------------------------- clock and servos

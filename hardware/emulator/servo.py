@@ -18,6 +18,7 @@ from servoface.hardware.emulator.faults import FaultSchedule
 from servoface.hardware.emulator.indirect import IndirectMap
 from servoface.hardware.emulator.models import BAUD_CODES, HW_INPUT_VOLTAGE, TICKS_PER_REV, ModelSpec
 from servoface.hardware.emulator.packet import ErrorNumber
+from servoface.hardware.emulator.realism import Realism
 from servoface.hardware.emulator.servo_motion import (
     A_DRIVE,
     A_GOAL_POS,
@@ -70,6 +71,7 @@ class EmulatedServo(ServoMotion):
         clock: Callable[[], float],
         faults: FaultSchedule,
         lock: threading.RLock | None = None,
+        realism: Realism | None = None,
     ) -> None:
         self.uid = uid
         self._lock = lock if lock is not None else threading.RLock()
@@ -83,7 +85,7 @@ class EmulatedServo(ServoMotion):
         self.on_change: Callable[[EmulatedServo], None] | None = None  # chain hook: id/baud/silence changed
         self.mem = bytearray()
         self.backup: bytes | None = None  # Control Table Backup (0x20): the image RAM Restore brings back
-        self._init_motion(spec, clock)
+        self._init_motion(spec, clock, realism)
         self._indirect = IndirectMap(spec.table)
         self._indirect_lo = self._indirect.data_lo
         self._indirect_hi = self._indirect.data_hi
@@ -142,14 +144,14 @@ class EmulatedServo(ServoMotion):
         """Present Position now (ticks)."""
         with self._lock:
             self.advance()
-            return round(self._to_present(self.motor.pos))
+            return round(self._to_present(self.physical_tick))
 
     @property
     def shaft_tick(self) -> float:
         """Physical shaft angle in ticks (differs from Present Position by homing offset and reverse)."""
         with self._lock:
             self.advance()
-            return self.motor.pos
+            return self.physical_tick
 
     @property
     def temperature_c(self) -> float:
@@ -196,6 +198,8 @@ class EmulatedServo(ServoMotion):
         if self.torque_on:
             raise EmulatorConfigError(f"servo {self.id}: move_by_hand needs torque off (the motor holds its goal)")
         self.motor.pos = self.motor.target = self._to_shaft(float(present_tick))
+        if self._real is not None:
+            self._real.reset(self.motor.pos)
         self._plan_key = ()
         self._live_dirty = True
         self.motor.vel = 0.0
