@@ -165,7 +165,8 @@ def run(args: argparse.Namespace) -> int:
             extras = [" (no wire time)" if args.no_wire_time else "", " with realism" if args.realism else ""]
             faults = f"; {len(args.fault)} scripted fault(s)" if args.fault else ""
             print(
-                f"# serving {what}: {_summary(pairs)} at {args.baud} bps{''.join(extras)}{faults}; Ctrl-C to stop",
+                f"# serving {what}: {_summary(pairs)} at {args.baud} bps{''.join(extras)}{faults}; "
+                f"pty thread {chain.pty_priority}; Ctrl-C to stop",
                 file=sys.stderr,
                 flush=True,
             )

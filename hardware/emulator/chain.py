@@ -396,16 +396,25 @@ class ServoChain:
 
         return EmulatedSerial(self, port=port)
 
-    def serve_pty(self) -> str:
-        """Serve the chain on a pseudo-terminal from a background thread; returns the slave device path."""
+    def serve_pty(self, *, realtime: bool = True) -> str:
+        """Serve the chain on a pseudo-terminal from a background thread; returns the slave device path.
+
+        ``realtime``: ask for real-time scheduling of the serving thread where the system allows it (replies
+        then keep to the SDK's reply window on a loaded machine); :attr:`pty_priority` says what it got."""
         from servoface.hardware.emulator.pty_transport import PtyServer
 
         with self.lock:
             if self._pty is None:
-                server = PtyServer(self)
+                server = PtyServer(self, realtime=realtime)
                 server.start()
                 self._pty = server
             return self._pty.path  # type: ignore[attr-defined,no-any-return]
+
+    @property
+    def pty_priority(self) -> str | None:
+        """The pty thread's scheduling ("real-time (SCHED_RR 10)" or "normal (...)"); None without a pty."""
+        server = self._pty
+        return None if server is None else str(server.priority)  # type: ignore[attr-defined]
 
     def close(self) -> None:
         """Stop the pty thread (if any). The in-process endpoints stop working."""
