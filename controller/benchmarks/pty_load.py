@@ -1,10 +1,8 @@
 """`servoface bench pty [--minutes M] [--quick]`: a sync-read loop over the pty under CPU load.
 
 The emulator runs as its own process (`servoface emulate`, 24 x XL330-M288 at 1 Mbps, Return Delay Time 0)
-and a client drives it through the pseudo-terminal, as a user's program would: servoface's Dynamixel bus
-(the stock SDK's packets, CRC and reply window, as `servoface play --port` uses it; the figure with the goal)
-and, for comparison, the bare SDK groups (whose busy-wait reply window a descheduled client misses by
-itself, whatever the far end does). Meanwhile 8
+and servoface's Dynamixel bus drives it through the pseudo-terminal (the stock SDK's packets, CRC and reply
+window, as `servoface play --port` uses it). Meanwhile 8
 busy processes (pure Python spin loops, one per ``LOAD_PROCESSES``) keep every core of the machine
 runnable, so the emulator has to be scheduled inside the SDK's ~34 ms reply window against them. Each cycle
 is one Sync Write of Goal Position and one read of Present Position, alternating Sync Read and Fast Sync
@@ -30,7 +28,6 @@ BAUD = 1_000_000
 LOAD_PROCESSES = 8
 DEFAULT_MINUTES = 2.0
 QUICK_MINUTES = 0.15
-SDK_NOTE = "; bare SDK: no goal, its busy-wait window times out when the client itself is descheduled"
 
 
 def _burners(n: int) -> list[subprocess.Popen[bytes]]:
@@ -60,21 +57,15 @@ def _emulator() -> tuple[subprocess.Popen[str], str]:
     return proc, path
 
 
-def _sdk_groups(path: str) -> tuple[Any, Any, Any, Any]:
-    import dynamixel_sdk as sdk
+def _open_bus(path: str) -> Any:
+    """servoface's Dynamixel bus on ``path``, Return Delay Time 0 on every servo."""
+    from servoface.hardware.bus import open_bus
+    from servoface.hardware.registers import Register
 
-    port = sdk.PortHandler(path)
-    if not port.openPort() or not port.setBaudRate(BAUD):
-        raise RuntimeError(f"cannot open {path} at {BAUD} bps")
-    ph = sdk.PacketHandler(2.0)
+    bus = open_bus("dynamixel", port=path, baud=BAUD)
     for sid in range(1, N_SERVOS + 1):
-        ph.write1ByteTxRx(port, sid, 9, 0)  # Return Delay Time 0
-    read = sdk.GroupSyncRead(port, ph, 132, 4)
-    write = sdk.GroupSyncWrite(port, ph, 116, 4)
-    for sid in range(1, N_SERVOS + 1):
-        read.addParam(sid)
-        write.addParam(sid, bytes(4))
-    return port, ph, read, write
+        bus.write(sid, Register.RETURN_DELAY_TIME, 0)
+    return bus
 
 
 def _bus_cycle(bus: Any, ids: list[int], n: int) -> tuple[str, bool]:
@@ -91,40 +82,15 @@ def _bus_cycle(bus: Any, ids: list[int], n: int) -> tuple[str, bool]:
     return ("fast" if fast else "sync"), True
 
 
-def _sdk_cycle(groups: tuple[Any, Any, Any, Any], n: int) -> tuple[str, bool]:
-    """One Sync Write + read with the bare stock SDK (its busy loop, its reply window); (kind, ok)."""
-    import dynamixel_sdk as sdk
-
-    _, _, read, write = groups
-    for sid in range(1, N_SERVOS + 1):
-        write.changeParam(sid, (2048 + (n & 1) * 8).to_bytes(4, "little"))
-    write.txPacket()
-    fast = bool(n & 1)
-    try:
-        result = read.fastSyncRead() if fast else read.txRxPacket()
-    except IndexError:  # dynamixel-sdk 4.1.0 indexes a stray late status packet as a fast reply
-        result = sdk.COMM_RX_CORRUPT
-    return ("fast" if fast else "sync"), result == sdk.COMM_SUCCESS
-
-
-def loop_under_load(minutes: float, load_processes: int = LOAD_PROCESSES, client: str = "bus") -> dict[str, float]:
-    """Run the loop for ``minutes`` with ``client`` "bus" (servoface's Dynamixel bus over the stock SDK, as
-    `servoface play --port` uses it) or "sdk" (bare SDK groups); returns counts, rate and load averages."""
-    from servoface.hardware.bus import open_bus
-    from servoface.hardware.registers import Register
-
+def loop_under_load(minutes: float, load_processes: int = LOAD_PROCESSES) -> dict[str, float]:
+    """Run the loop for ``minutes`` through servoface's Dynamixel bus (the stock SDK's packets, CRC and
+    reply window, as `servoface play --port` uses it); returns counts, rate and load averages."""
     emulator, path = _emulator()
     burners: list[subprocess.Popen[bytes]] = []
     bus: Any = None
-    groups: Any = None
     ids = list(range(1, N_SERVOS + 1))
     try:
-        if client == "bus":
-            bus = open_bus("dynamixel", port=path, baud=BAUD)
-            for sid in ids:
-                bus.write(sid, Register.RETURN_DELAY_TIME, 0)
-        else:
-            groups = _sdk_groups(path)
+        bus = _open_bus(path)
         burners = _burners(load_processes)
         time.sleep(2.0)  # let the load settle in
         load_start = os.getloadavg()[0]
@@ -133,7 +99,7 @@ def loop_under_load(minutes: float, load_processes: int = LOAD_PROCESSES, client
         end = t0 + minutes * 60.0
         n = 0
         while time.perf_counter() < end:
-            kind, ok = _bus_cycle(bus, ids, n) if bus is not None else _sdk_cycle(groups, n)
+            kind, ok = _bus_cycle(bus, ids, n)
             counts[kind] += 1
             if not ok:
                 counts[kind + "_failed"] += 1
@@ -144,8 +110,6 @@ def loop_under_load(minutes: float, load_processes: int = LOAD_PROCESSES, client
         _stop(burners)
         if bus is not None:
             bus.close()
-        if groups is not None:
-            groups[0].closePort()
         _stop([emulator])
     return {**counts, "cycles": float(n), "elapsed_s": elapsed, "load_start": load_start, "load_end": load_end}
 
@@ -156,13 +120,13 @@ def pty_cost_per_cycle(cycles: int = 300) -> tuple[float, float]:
 
     chain = ServoChain.create(ids=range(1, N_SERVOS + 1), baud=BAUD)
     try:
-        port, _, read, write = _sdk_groups(chain.serve_pty())
+        bus = _open_bus(chain.serve_pty())
         server: Any = chain._pty  # noqa: SLF001 - the benchmark reads the server's own counters
+        ids = list(range(1, N_SERVOS + 1))
         w0, n0 = server.wakeups, server.writes
-        for _ in range(cycles):
-            write.txPacket()
-            read.txRxPacket()
-        port.closePort()
+        for n in range(cycles):
+            _bus_cycle(bus, ids, 2 * n)  # plain Sync Read
+        bus.close()
         return (server.wakeups - w0) / cycles, (server.writes - n0) / cycles
     finally:
         chain.close()
@@ -173,29 +137,23 @@ def run(quick: bool = False, minutes: float | None = None) -> Iterator[Figure]:
     yield Figure("pty server wake-ups per cycle (24 servos)", wake, "1/cycle", note="select() calls; was ~49")
     yield Figure("pty server writes per cycle (24 servos)", writes, "1/cycle", note="write() calls; was ~47")
     duration = minutes if minutes is not None else QUICK_MINUTES if quick else DEFAULT_MINUTES
+    r = loop_under_load(duration)
+    load = f"+{LOAD_PROCESSES} busy processes, load avg {r['load_start']:.1f} -> {r['load_end']:.1f}"
+    failed = r["sync_failed"] + r["fast_failed"]
+    yield Figure(
+        f"pty read failures in {duration:g} min under load",
+        failed,
+        "reads",
+        goal=0,
+        better="lower",
+        note=f"{load}; {int(r['sync'])} sync ({int(r['sync_failed'])} failed), "
+        f"{int(r['fast'])} fast ({int(r['fast_failed'])} failed)",
+    )
     budget = cycle_budget(N_SERVOS, BAUD)
-    for client, label, goal in (("bus", "servoface bus", 0.0), ("sdk", "bare stock SDK", None)):
-        r = loop_under_load(duration, client=client)
-        load = f"+{LOAD_PROCESSES} busy processes, load avg {r['load_start']:.1f} -> {r['load_end']:.1f}"
-        failed = r["sync_failed"] + r["fast_failed"]
-        yield Figure(
-            f"pty read failures, {duration:g} min under load ({label})",
-            failed,
-            "reads",
-            goal=goal,
-            better="lower",
-            note=f"{load}; {int(r['sync'])} sync ({int(r['sync_failed'])} failed), "
-            f"{int(r['fast'])} fast ({int(r['fast_failed'])} failed)"
-            + (
-                ""
-                if client == "bus"
-                else "; the SDK's own busy-wait window, no goal: its client misses it when descheduled"
-            ),
-        )
-        yield Figure(
-            f"pty cycle rate under load ({label}, SW + SR/FSR)",
-            r["cycles"] / r["elapsed_s"],
-            "Hz",
-            limit=budget.limit_hz,
-            note=f"{load}; {os.cpu_count()} cores",
-        )
+    yield Figure(
+        "pty cycle rate under load (SW + SR/FSR, 24 servos)",
+        r["cycles"] / r["elapsed_s"],
+        "Hz",
+        limit=budget.limit_hz,
+        note=f"{load}; {os.cpu_count()} cores",
+    )
