@@ -29,3 +29,14 @@ def dog_head():  # type: ignore[no-untyped-def]
     from servoface.testing import load_head_and_calibration
 
     return load_head_and_calibration("dog")[0]
+
+
+# ---- packaging fixtures: servoface's wheel in a fresh venv outside the repo, built once per session ----
+@_pytest.fixture(scope="session")
+def wheel_venv(tmp_path_factory):  # type: ignore[no-untyped-def]
+    """(venv python, base folder, environment): the wheel is in base/dist, the venv in base/venv."""
+    from tests.wheel_venv import build
+
+    base = tmp_path_factory.mktemp("wheel")
+    python, env = build(base)
+    return python, base, env

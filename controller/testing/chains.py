@@ -90,7 +90,7 @@ class LocalChain:
 
     @property
     def time_s(self) -> float:
-        return self.chain.time_s
+        return float(self.chain.time_s)
 
     def advance(self, dt_s: float) -> None:
         self.chain.advance(dt_s)
@@ -108,7 +108,7 @@ class LocalChain:
         """Schedule an emulator fault (``servoface.hardware.emulator.FAULT_KINDS``) on ``servo_id``, from
         chain time ``at_s`` or ``after_s`` from now (default now), for ``duration_s`` (None = until cleared)."""
         start = fault_start_s(self.time_s, at_s, after_s)
-        self.chain.faults.inject(servo_id, kind, start_s=start, duration_s=duration_s, **options)  # type: ignore[arg-type]
+        self.chain.faults.inject(servo_id, kind, start_s=start, duration_s=duration_s, **options)
 
     def clear_faults(self, servo_id: int | None = None, kind: str | None = None) -> None:
         self.chain.faults.clear(servo_id, kind)
@@ -129,10 +129,11 @@ class LocalChain:
         self.chain.servo(servo_id).write_register(name, value)
 
     def record(self) -> WireRecord:
-        return self.chain.record("in-process emulator")
+        record: WireRecord = self.chain.record("in-process emulator")
+        return record
 
     def goal_writes(self) -> list[tuple[float, int, int]]:
-        return self.record().goal_writes()
+        return list(self.record().goal_writes())
 
     def close(self) -> None:
         self.chain.close()

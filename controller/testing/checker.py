@@ -30,7 +30,8 @@ class WireChecker:
 
     def goals(self, record: WireRecord | None = None) -> list[tuple[float, int, int]]:
         """(t_s, servo_id, goal_tick) of every goal the servos received, in wire order."""
-        return (record or self.record()).goal_writes()
+        rec: WireRecord = record or self.record()
+        return list(rec.goal_writes())
 
     def _ids(self, ids: Iterable[int] | None, record: WireRecord) -> list[int]:
         return sorted(record.end) if ids is None else [int(i) for i in ids]
@@ -109,7 +110,9 @@ class WireChecker:
         the twin's actuator targets (deg/mm, shown in the message)."""
         pipeline = face.pipeline
         goals = dict(pipeline.last_goals_tick)
-        rec = self._positions(goals, tolerance_tick, within_s, "the twin has it at", "positions against the twin", pipeline)
+        rec = self._positions(
+            goals, tolerance_tick, within_s, "the twin has it at", "positions against the twin", pipeline
+        )
         return rec
 
     def _positions(
@@ -137,7 +140,8 @@ def _with_targets(violations: list[str], rec: WireRecord, goals: Mapping[int, in
     except Exception:  # noqa: BLE001 - the targets only decorate a failure that is already being reported
         return violations
     notes = [
-        f"  '{role}': stands at {stands[role]:.2f} {cal[role].unit}, the twin's target {twin[role]:.2f} {cal[role].unit}"
+        f"  '{role}': stands at {stands[role]:.2f} {cal[role].unit}, "
+        f"the twin's target {twin[role]:.2f} {cal[role].unit}"
         for role in sorted(stands)
         if role in twin and abs(stands[role] - twin[role]) > cal[role].target_resolution()
     ]

@@ -17,7 +17,19 @@ DEFAULT_IDS = (1, 2, 3, 4)
 DEFAULT_MODEL = "XL330-M288"
 DEFAULT_LIMITS_TICK = (1024, 3072)
 MARKER_KEYS = frozenset(
-    {"head", "servos", "model", "transport", "clock", "wire_time", "baud", "goal_limit", "rate_hz", "limits_tick", "faults"}
+    {
+        "head",
+        "servos",
+        "model",
+        "transport",
+        "clock",
+        "wire_time",
+        "baud",
+        "goal_limit",
+        "rate_hz",
+        "limits_tick",
+        "faults",
+    }
 )
 INI_KEYS = ("head", "servos", "model", "transport", "clock")
 
@@ -43,12 +55,17 @@ class FaultPlan:
             extra = set(item) - {"servo_id", "kind", "after_s", "duration_s", "delay_s", "drop_bytes"}
             if extra or "servo_id" not in item or "kind" not in item:
                 raise TestKitConfigError(
-                    f"{where}: expected {{servo_id, kind, after_s?, duration_s?, delay_s?, drop_bytes?}}, got {dict(item)!r}"
+                    f"{where}: expected {{servo_id, kind, after_s?, duration_s?, delay_s?, drop_bytes?}}, "
+                    f"got {dict(item)!r}"
                 )
             opts = {k: float(item[k]) for k in ("delay_s", "drop_bytes") if k in item}
-            plan = cls(int(item["servo_id"]), str(item["kind"]), float(item.get("after_s", 0.0)), item.get("duration_s"), opts)
+            plan = cls(
+                int(item["servo_id"]), str(item["kind"]), float(item.get("after_s", 0.0)), item.get("duration_s"), opts
+            )
         elif isinstance(item, tuple | list) and 2 <= len(item) <= 4:
-            plan = cls(int(item[0]), str(item[1]), float(item[2]) if len(item) > 2 else 0.0, item[3] if len(item) > 3 else None)
+            plan = cls(
+                int(item[0]), str(item[1]), float(item[2]) if len(item) > 2 else 0.0, item[3] if len(item) > 3 else None
+            )
         else:
             raise TestKitConfigError(f"{where}: expected (servo_id, kind, after_s, duration_s) or a dict, got {item!r}")
         if plan.kind not in FAULT_KINDS:
@@ -113,7 +130,9 @@ def resolve(marker: Mapping[str, Any], ini: Mapping[str, str], *, wants_face: bo
     (a Face needs a head: the built-in human head unless one is configured)."""
     unknown = sorted(set(marker) - MARKER_KEYS)
     if unknown:
-        raise TestKitConfigError(f"@pytest.mark.servoface: unknown argument(s) {unknown}; expected some of {sorted(MARKER_KEYS)}")
+        raise TestKitConfigError(
+            f"@pytest.mark.servoface: unknown argument(s) {unknown}; expected some of {sorted(MARKER_KEYS)}"
+        )
     merged: dict[str, Any] = {k: v for k, v in ini.items() if v not in ("", None)}
     merged.update(marker)
     where = "@pytest.mark.servoface" if marker else "servoface ini options"

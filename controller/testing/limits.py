@@ -47,7 +47,12 @@ class WireLimits:
 
     @classmethod
     def build(
-        cls, servos: Iterable[ServoLimit], *, rate_hz: float = DEFAULT_RATE_HZ, gate: GateConfig | None = None, source: str
+        cls,
+        servos: Iterable[ServoLimit],
+        *,
+        rate_hz: float = DEFAULT_RATE_HZ,
+        gate: GateConfig | None = None,
+        source: str,
     ) -> WireLimits:
         if not (isinstance(rate_hz, int | float) and 0 < rate_hz < float("inf")):
             raise TestKitConfigError(f"wire limits: rate_hz {rate_hz!r}; expected a positive number of frames/s")

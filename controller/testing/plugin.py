@@ -29,11 +29,28 @@ NO_PORT = (
 
 def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup("servoface", "servoface hardware-in-the-loop (real servos for @pytest.mark.hardware)")
-    group.addoption("--servoface-port", dest="servoface_port", default=None, help="serial port of real servos (env SERVOFACE_PORT)")
-    group.addoption("--servoface-baud", dest="servoface_baud", default=None, help="their baud rate, default 1000000 (SERVOFACE_BAUD)")
+    group.addoption(
+        "--servoface-port", dest="servoface_port", default=None, help="serial port of real servos (env SERVOFACE_PORT)"
+    )
+    group.addoption(
+        "--servoface-baud",
+        dest="servoface_baud",
+        default=None,
+        help="their baud rate, default 1000000 (SERVOFACE_BAUD)",
+    )
     group.addoption("--servoface-ids", dest="servoface_ids", default=None, help="their ids, e.g. 1-4,7 (SERVOFACE_IDS)")
-    group.addoption("--servoface-head", dest="servoface_head", default=None, help="their head: built-in name or profile folder (SERVOFACE_HEAD)")
-    group.addoption("--servoface-model", dest="servoface_model", default=None, help="model of --servoface-ids, default XL330-M288 (SERVOFACE_MODEL)")
+    group.addoption(
+        "--servoface-head",
+        dest="servoface_head",
+        default=None,
+        help="their head: built-in name or profile folder (SERVOFACE_HEAD)",
+    )
+    group.addoption(
+        "--servoface-model",
+        dest="servoface_model",
+        default=None,
+        help="model of --servoface-ids, default XL330-M288 (SERVOFACE_MODEL)",
+    )
     for key, what in (
         ("head", "built-in head name or profile folder of the emulated chain"),
         ("servos", "explicit emulated servos: '1-4' or '1:XL330-M288,2:XL430-W250'"),
@@ -84,7 +101,9 @@ def servoface_config(request: pytest.FixtureRequest) -> Any:
 
     marker = request.node.get_closest_marker("servoface")
     ini = {k: str(request.config.getini(f"servoface_{k}")) for k in ("head", "servos", "model", "transport", "clock")}
-    config: ServofaceConfig = resolve(dict(marker.kwargs) if marker else {}, ini, wants_face="face" in request.fixturenames)
+    config: ServofaceConfig = resolve(
+        dict(marker.kwargs) if marker else {}, ini, wants_face="face" in request.fixturenames
+    )
     if _on_hardware(request):
         from dataclasses import replace
 

@@ -11,7 +11,13 @@ from typing import Any
 from servoface.testing.errors import TestKitConfigError
 from servoface.testing.record import ServoEnd, WireRecord
 
-ENV = {"port": "SERVOFACE_PORT", "baud": "SERVOFACE_BAUD", "ids": "SERVOFACE_IDS", "head": "SERVOFACE_HEAD", "model": "SERVOFACE_MODEL"}
+ENV = {
+    "port": "SERVOFACE_PORT",
+    "baud": "SERVOFACE_BAUD",
+    "ids": "SERVOFACE_IDS",
+    "head": "SERVOFACE_HEAD",
+    "model": "SERVOFACE_MODEL",
+}
 
 
 @dataclass(frozen=True)
@@ -34,7 +40,9 @@ class RealRig:
         try:
             baud_bps = int(baud)
         except ValueError as err:
-            raise TestKitConfigError(f"--servoface-baud / SERVOFACE_BAUD {baud!r}: expected bits per second, e.g. 1000000") from err
+            raise TestKitConfigError(
+                f"--servoface-baud / SERVOFACE_BAUD {baud!r}: expected bits per second, e.g. 1000000"
+            ) from err
         return cls(get("port"), baud_bps, get("ids"), get("head"), get("model"))
 
     def describe(self) -> str:
@@ -58,7 +66,7 @@ class RealServos:
         from servoface.hardware.bus import open_bus
         from servoface.hardware.registers import Register
 
-        bus = self.bus if self.bus is not None and self.bus.is_open else None
+        bus: Any = self.bus if self.bus is not None and self.bus.is_open else None
         own = bus is None
         if own:
             bus = open_bus("dynamixel", port=self.port, baud=self.baud)
@@ -67,7 +75,12 @@ class RealServos:
             for sid in self.ids:
                 values = bus.read_many(
                     sid,
-                    [Register.TORQUE_ENABLE, Register.HARDWARE_ERROR_STATUS, Register.GOAL_POSITION, Register.PRESENT_POSITION],
+                    [
+                        Register.TORQUE_ENABLE,
+                        Register.HARDWARE_ERROR_STATUS,
+                        Register.GOAL_POSITION,
+                        Register.PRESENT_POSITION,
+                    ],
                 )
                 end[sid] = ServoEnd(
                     sid,

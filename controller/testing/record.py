@@ -84,7 +84,11 @@ class WireRecord:
         return cls(
             source=str(data["source"]),
             end=end,
-            goals=None if goals is None else tuple(GoalWrite(int(q), float(t), int(i), int(g), bool(on), int(p)) for q, t, i, g, on, p in goals),
-            torque_writes=None if writes is None else tuple(TorqueWrite(int(q), float(t), int(i), int(v)) for q, t, i, v in writes),
+            goals=None
+            if goals is None
+            else tuple(GoalWrite(int(q), float(t), int(i), int(g), bool(on), int(p)) for q, t, i, g, on, p in goals),
+            torque_writes=None
+            if writes is None
+            else tuple(TorqueWrite(int(q), float(t), int(i), int(v)) for q, t, i, v in writes),
             time_s=float(data.get("time_s", 0.0)),
         )

@@ -136,7 +136,7 @@ class ServedChain:
         return WireRecord.from_json(self._call("record")["record"])
 
     def goal_writes(self) -> list[tuple[float, int, int]]:
-        return self.record().goal_writes()
+        return list(self.record().goal_writes())
 
     def close(self) -> None:
         """Stop the served process (the pty vanishes); safe to call twice."""

@@ -34,7 +34,9 @@ def _observed(record: WireRecord, check: str) -> bool:
     if record.observed:
         return True
     warnings.warn(
-        WireNotObservedWarning(f"{check}: not checked on {record.source}; the write history is seen only on the emulator"),
+        WireNotObservedWarning(
+            f"{check}: not checked on {record.source}; the write history is seen only on the emulator"
+        ),
         stacklevel=3,
     )
     return False
@@ -52,7 +54,10 @@ def goal_limit_violations(record: WireRecord, limits: WireLimits) -> list[str]:
     for g in record.goals or ():
         s = limits.servos.get(g.servo_id)
         if s is None:
-            out.append(f"t={g.t_s:.3f}s servo {g.servo_id}: goal {g.goal_tick} tick to a servo with no limits ({limits.source})")
+            out.append(
+                f"t={g.t_s:.3f}s servo {g.servo_id}: goal {g.goal_tick} tick to a servo with no limits "
+                f"({limits.source})"
+            )
         elif not s.min_tick <= g.goal_tick <= s.max_tick:
             out.append(
                 f"t={g.t_s:.3f}s {s.label}: goal {g.goal_tick} tick outside its {limits.source} limits "
@@ -87,7 +92,9 @@ def goal_step_violations(record: WireRecord, limits: WireLimits) -> list[str]:
         cap = int(table.max_step_tick[i])
         frm = "from where it stood" if ref is None else "from its previous goal"
         if abs(step) > cap:
-            out.append(f"{where}: goal {e.goal_tick} tick is a step of {step} tick {frm}, beyond the cap {cap} tick/frame")
+            out.append(
+                f"{where}: goal {e.goal_tick} tick is a step of {step} tick {frm}, beyond the cap {cap} tick/frame"
+            )
         else:
             lo, hi = lim.step_bounds(last_step, table)
             if not lo[i] <= step <= hi[i]:
@@ -131,13 +138,19 @@ def torque_violations(
             state = "left on" if end.torque_on else "off"
             out.append(
                 f"{limits.label(sid)}: torque {state} at the end, expected {'on' if want else 'off'} "
-                f"(present {end.present_tick} tick, goal {end.goal_tick} tick, hardware error 0x{end.hardware_error:02x})"
+                f"(present {end.present_tick} tick, goal {end.goal_tick} tick, "
+                f"hardware error 0x{end.hardware_error:02x})"
             )
     return out
 
 
 def position_violations(
-    record: WireRecord, limits: WireLimits, expected_tick: Mapping[int, int], *, tolerance_tick: int = 2, what: str = "expected"
+    record: WireRecord,
+    limits: WireLimits,
+    expected_tick: Mapping[int, int],
+    *,
+    tolerance_tick: int = 2,
+    what: str = "expected",
 ) -> list[str]:
     out = []
     for sid, want in expected_tick.items():

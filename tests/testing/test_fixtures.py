@@ -35,9 +35,14 @@ def test_a_goal_outside_the_limits_fails_naming_the_servo(dxl_bus, servo_wire) -
     dxl_bus.write(2, Register.TORQUE_ENABLE, 1)
     present = dxl_bus.read(2, Register.PRESENT_POSITION)
     dxl_bus.write(2, Register.GOAL_POSITION, 3500)  # no limits written on the servo: it takes it
-    with pytest.raises(AssertionError, match=r"servo 2 'servo_2': goal 3500 tick outside its servo specs limits 1024\.\.3072"):
+    with pytest.raises(
+        AssertionError, match=r"servo 2 'servo_2': goal 3500 tick outside its servo specs limits 1024\.\.3072"
+    ):
         servo_wire.assert_goals_within_limits()
-    with pytest.raises(AssertionError, match=rf"servo 2 'servo_2': goal 3500 tick is a step of {3500 - present} tick from where it stood"):
+    with pytest.raises(
+        AssertionError,
+        match=rf"servo 2 'servo_2': goal 3500 tick is a step of {3500 - present} tick from where it stood",
+    ):
         servo_wire.assert_goal_steps_within_caps()
     with pytest.raises(AssertionError, match=r"torque left on at the end, expected off"):
         servo_wire.assert_torque_off([2])
@@ -49,7 +54,9 @@ def test_a_goal_while_torque_is_off_fails_unless_it_pins(dxl_bus, servo_wire) ->
     dxl_bus.write(4, Register.GOAL_POSITION, present)  # the pin before torque-on: fine
     servo_wire.assert_no_goal_while_torque_off()
     dxl_bus.write(4, Register.GOAL_POSITION, present + 300)
-    with pytest.raises(AssertionError, match=rf"servo 4 'servo_4': goal {present + 300} tick written while its torque was off"):
+    with pytest.raises(
+        AssertionError, match=rf"servo 4 'servo_4': goal {present + 300} tick written while its torque was off"
+    ):
         servo_wire.assert_no_goal_while_torque_off()
 
 
@@ -76,7 +83,10 @@ def test_a_heads_mixed_models_served_by_another_process(servo_chain, servo_port,
     models = {sid: dxl_bus.ping(sid).model_number for sid in servo_chain.ids}
     assert set(models.values()) == {1200, 1060, 1020}  # XL330-M288, XL430-W250, XM430-W350
     jaw = calibration.id_of("jaw")
-    assert calibration.head == "dog" and servo_chain.read_register(jaw, "Present Position") == calibration["jaw"].neutral_tick
+    assert (
+        calibration.head == "dog"
+        and servo_chain.read_register(jaw, "Present Position") == calibration["jaw"].neutral_tick
+    )
     record = servo_chain.record()
     assert isinstance(record, WireRecord) and record.goals == () and "pty" in record.source
 
