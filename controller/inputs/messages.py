@@ -26,11 +26,12 @@ from servoface.controller.frame import FrameValidator, check_face_type
 from servoface.controller.inputs.blendshapes import BlendshapeMap, load_blendshape_map
 from servoface.controller.inputs.errors import InputError
 from servoface.controller.inputs.head_pose import head_pose_aus, parse_head
+from servoface.controller.inputs.mediapipe_result import is_result, normalise_result
 from servoface.controller.inputs.shape_ranges import ShapeRanges
 from servoface.controller.inputs.sides import mirror_aus
 from servoface.sim.rig import FaceType
 
-KEYS = frozenset({"t", "aus", "blendshapes", "head", "confidence"})
+KEYS = frozenset({"t", "aus", "blendshapes", "head", "confidence", "token"})
 MAX_MESSAGE_BYTES = 65_536
 
 
@@ -55,8 +56,10 @@ class MessageDecoder:
         vergence: bool = False,
         blendshape_map: BlendshapeMap | None = None,
         shape_ranges: ShapeRanges | None = None,
+        face_id: int = 0,
     ) -> None:
         self.face_type = check_face_type(face_type)
+        self.face_id = int(face_id)
         self.validator = FrameValidator(self.face_type, allowed)
         self.mirror = bool(mirror)
         self.vergence = bool(vergence)
@@ -71,14 +74,7 @@ class MessageDecoder:
 
     def decode_line(self, line: str | bytes, *, where: str = "message") -> Message:
         """Decode one JSON text (a line or a datagram)."""
-        if len(line) > MAX_MESSAGE_BYTES:
-            raise InputError(f"{where}: {len(line)} bytes, more than the {MAX_MESSAGE_BYTES} allowed")
-        try:
-            text = line.decode("utf-8") if isinstance(line, bytes) else line
-            obj = json.loads(text, parse_constant=_reject_constant)
-        except (UnicodeDecodeError, ValueError) as err:
-            raise InputError(f"{where}: not valid JSON: {err}") from err
-        return self.decode(obj, where=where)
+        return self.decode(parse_json(line, where=where), where=where)
 
     def decode(self, obj: Any, *, where: str = "message") -> Message:
         """Decode one parsed JSON object."""
@@ -86,9 +82,12 @@ class MessageDecoder:
             raise InputError(
                 f'{where}: expected a JSON object like {{"aus": {{"AU12": 0.5}}}}, got {type(obj).__name__}'
             )
+        if is_result(obj):
+            obj = normalise_result(obj, face_id=self.face_id, where=where)
         unknown = set(obj) - KEYS
         if unknown:
-            raise InputError(f"{where}: unknown key(s) {sorted(unknown)}; expected {sorted(KEYS)}")
+            shown = sorted(str(k)[:40] for k in unknown)[:5]
+            raise InputError(f"{where}: unknown key(s) {shown}; expected {sorted(KEYS)}")
         if not ({"aus", "blendshapes", "head"} & set(obj)):
             raise InputError(f"{where}: no face data; expected at least one of aus, blendshapes, head")
         t_s = None
@@ -127,10 +126,37 @@ class MessageDecoder:
         return Message(t_s, aus, confidence)
 
 
+def parse_json(raw: str | bytes, *, where: str = "message") -> Any:
+    """One JSON text -> a Python value, surviving anything: more than ``MAX_MESSAGE_BYTES``, invalid UTF-8,
+    nesting deeper than the parser's recursion limit, huge integers (read as floats: 400 digits -> inf,
+    then refused as not finite), NaN/Infinity constants -> InputError naming ``where``."""
+    if len(raw) > MAX_MESSAGE_BYTES:
+        raise InputError(f"{where}: {len(raw)} bytes, more than the {MAX_MESSAGE_BYTES} allowed")
+    try:
+        text = raw.decode("utf-8") if isinstance(raw, bytes) else raw
+        return json.loads(text, parse_constant=_reject_constant, parse_int=_parse_int)
+    except UnicodeDecodeError as err:
+        raise InputError(f"{where}: not valid JSON: not UTF-8 text (byte {err.start})") from err
+    except RecursionError as err:
+        raise InputError(f"{where}: JSON nested too deeply") from err
+    except ValueError as err:
+        raise InputError(f"{where}: not valid JSON: {str(err)[:120]}") from err
+
+
+def _parse_int(text: str) -> int | float:
+    return int(text) if len(text) <= 18 else float(text)
+
+
 def _finite(value: Any, field: str, what: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise InputError(f"{field}: expected {what}, got {value!r}")
-    return float(value)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise InputError(f"{field}: expected {what}, got {type(value).__name__}")
+    try:
+        number = float(value)
+    except OverflowError:
+        number = math.inf
+    if not math.isfinite(number):
+        raise InputError(f"{field}: expected {what}, got a non-finite number")
+    return number
 
 
 def _reject_constant(name: str) -> float:
