@@ -94,7 +94,7 @@ def resolve_times(
         report.time = note
         steps_s = [b - a for a, b in zip(times, times[1:], strict=False) if b > a]
         report.fps = round(1.0 / statistics.median(steps_s), 3) if steps_s else None
-        if report.fps is not None:
+        if report.fps is not None and "fps" not in report.time:
             report.time += f"; {report.fps:g} fps"
     return times
 
