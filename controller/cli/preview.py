@@ -59,7 +59,7 @@ def _fail(message: str, code: int = 2) -> int:
 def run(args: argparse.Namespace) -> int:
     # cheap checks first: nothing heavy is imported and nothing is written on bad input
     if args.all + (args.expression is not None) + (args.input is not None) != 1:
-        return _fail("give one expression name, --input FILE, or --all for the whole library")
+        return _fail("give one expression name, or --all for the whole library, or --input FILE")
     from servoface.controller.cli.input_args import input_problem
 
     if args.input is not None and (problem := input_problem(args)) is not None:
