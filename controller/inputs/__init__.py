@@ -7,12 +7,12 @@ Live: :class:`StreamSource` fed by :class:`UdpReceiver`, :class:`TcpReceiver` or
 Mapping: :func:`load_blendshape_map` (ARKit/MediaPipe -> AU prior), :func:`head_pose_aus`, :func:`mirror_aus`.
 """
 
+from servoface.controller.inputs.assemble import ReadOptions
 from servoface.controller.inputs.blendshapes import BlendshapeMap, load_blendshape_map
 from servoface.controller.inputs.errors import InputError
-from servoface.controller.inputs.assemble import ReadOptions
 from servoface.controller.inputs.face_files import read_blendshape_csv, read_jsonl
-from servoface.controller.inputs.loader import detect_format, load_recording
 from servoface.controller.inputs.head_pose import head_pose_aus, matrix_to_ypr_deg
+from servoface.controller.inputs.loader import detect_format, load_recording
 from servoface.controller.inputs.messages import Message, MessageDecoder
 from servoface.controller.inputs.openface import read_openface_csv, read_pyfeat_csv
 from servoface.controller.inputs.recorded import Recording

@@ -142,9 +142,7 @@ def _switch(aus: Mapping[str, float], opts: ReadOptions) -> dict[str, float]:
     return out
 
 
-def fill_cells(
-    values: dict[str, float], last: dict[str, float], report: InputReport
-) -> dict[str, float] | None:
+def fill_cells(values: dict[str, float], last: dict[str, float], report: InputReport) -> dict[str, float] | None:
     """NaN cells of a row: all NaN -> None (no face); some -> the channel's previous value (0 before any),
     counted. ``last`` is updated with the row's values."""
     missing = [k for k, v in values.items() if math.isnan(v)]

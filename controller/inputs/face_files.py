@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from servoface.controller.frame import check_face_type
-from servoface.controller.inputs.assemble import ReadOptions, RawRow, assemble, fill_cells
+from servoface.controller.inputs.assemble import RawRow, ReadOptions, assemble, fill_cells
 from servoface.controller.inputs.blendshapes import SCORE_SLACK, _fold
 from servoface.controller.inputs.csv_table import CsvTable, read_text
 from servoface.controller.inputs.errors import InputError

@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from servoface.controller.inputs.assemble import ReadOptions, RawRow, assemble
+from servoface.controller.inputs.assemble import RawRow, ReadOptions, assemble
 from servoface.controller.inputs.blendshapes import load_blendshape_map
 from servoface.controller.inputs.csv_table import read_text
 from servoface.controller.inputs.errors import InputError
@@ -172,7 +172,9 @@ def read_fap(
     if n_frames != len(rows) + tol.bad:
         report.notes.append(f"header says {n_frames} frames, the file has {len(rows) + tol.bad}")
     opts = _options(opts, fps=rate, time_unit="frames" if opts.time_unit == "auto" else None)
-    return assemble(rows, report, opts, tol, kind="aus", time_column="frame", default_fps=rate, total_rows=len(body) // 2)
+    return assemble(
+        rows, report, opts, tol, kind="aus", time_column="frame", default_fps=rate, total_rows=len(body) // 2
+    )
 
 
 def _frame(file: Path, mask_no: int, mask_text: str, val_no: int, val_text: str, widths: set[int]) -> RawRow:

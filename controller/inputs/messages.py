@@ -33,6 +33,8 @@ from servoface.sim.rig import FaceType
 
 KEYS = frozenset({"t", "aus", "blendshapes", "head", "confidence", "token"})
 MAX_MESSAGE_BYTES = 65_536
+_EYE_AUS = ("AU61", "AU62", "AU63", "AU64", "AU65", "AU66")
+_HEAD_AUS = ("AU51", "AU52", "AU53", "AU54", "AU55", "AU56", "AU57", "AU58")
 
 
 @dataclass(frozen=True)
@@ -57,9 +59,14 @@ class MessageDecoder:
         blendshape_map: BlendshapeMap | None = None,
         shape_ranges: ShapeRanges | None = None,
         face_id: int = 0,
+        gaze: bool = True,
+        head_pose: bool = True,
     ) -> None:
         self.face_type = check_face_type(face_type)
         self.face_id = int(face_id)
+        self.gaze = bool(gaze)  # False: drop eye AUs 61-66 (the eyes stay the robot's own)
+        self.head_pose = bool(head_pose)  # False: drop head AUs 51-58
+        self.head_rest_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)  # subtracted (a rest pose)
         self.validator = FrameValidator(self.face_type, allowed)
         self.mirror = bool(mirror)
         self.vergence = bool(vergence)
@@ -115,12 +122,16 @@ class MessageDecoder:
                 )
             )
         if "head" in obj:
-            aus.update(head_pose_aus(*parse_head(obj["head"], field=f"{where}.head")))
+            ypr = parse_head(obj["head"], field=f"{where}.head")
+            aus.update(head_pose_aus(*(a - r for a, r in zip(ypr, self.head_rest_deg, strict=True))))
         if "aus" in obj:
             try:
                 aus.update(self.validator.pose(obj["aus"], where=f"{where}.aus"))
             except FrameError as err:
                 raise InputError(str(err)) from err
+        if self.face_type == "human" and not (self.gaze and self.head_pose):
+            drop = (() if self.gaze else _EYE_AUS) + (() if self.head_pose else _HEAD_AUS)
+            aus = {k: v for k, v in aus.items() if k not in drop}
         if self.mirror:
             aus = mirror_aus(aus, self.face_type)
         return Message(t_s, aus, confidence)

@@ -32,7 +32,7 @@ import re
 from pathlib import Path
 
 from servoface.controller.au_names import canonical_au, default_au_names
-from servoface.controller.inputs.assemble import ReadOptions, RawRow, assemble, fill_cells
+from servoface.controller.inputs.assemble import RawRow, ReadOptions, assemble, fill_cells
 from servoface.controller.inputs.csv_table import CsvTable
 from servoface.controller.inputs.errors import InputError
 from servoface.controller.inputs.faces import FaceBox, FaceFollower
@@ -153,9 +153,7 @@ def read_openface_csv(
         report.skip(f"rows of other faces than face_id {wanted}", sum(n for k, n in faces.items() if k != wanted))
     if wanted is not None and faces and wanted not in faces:
         raise InputError(f"{table.path}: no rows for face_id {wanted}; the file has face_id {sorted(faces)}")
-    recording = assemble(
-        rows, report, opts, tol, kind="aus", time_column=time_col, default_fps=30.0, total_rows=total
-    )
+    recording = assemble(rows, report, opts, tol, kind="aus", time_column=time_col, default_fps=30.0, total_rows=total)
     if report.held:
         report.notes.append(f"lost tracking = success 0 or confidence < {gate:g} (--min-confidence)")
     return recording
