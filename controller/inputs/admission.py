@@ -84,18 +84,21 @@ class StreamGuard:
 
     def rate_ok(self, client: Client) -> bool:
         """Take one message from ``client``'s bucket; False (counted) if it is empty."""
+        return self.take(client, 1) == 1
+
+    def take(self, client: Client, count: int) -> int:
+        """Take ``count`` messages from ``client``'s bucket: how many fit (the rest are counted as limited)."""
         now = self.clock()
         with self._lock:
             buckets = self._buckets
             tokens, last = buckets.pop(client, (self.burst, now))
             tokens = min(self.burst, tokens + (now - last) * self.rate_hz)
-            ok = tokens >= 1.0
-            buckets[client] = (tokens - 1.0 if ok else tokens, now)
+            allowed = min(count, int(tokens))
+            buckets[client] = (tokens - allowed, now)
             while len(buckets) > MAX_TRACKED_CLIENTS:
                 buckets.pop(next(iter(buckets)))  # type: ignore[call-overload]
-            if not ok:
-                self.stats.rate_limited += 1
-            return ok
+            self.stats.rate_limited += count - allowed
+            return allowed
 
     def token_ok(self, obj: Any) -> bool:
         """True if ``obj`` (a parsed message) carries the token, or none is configured. Counts failures."""

@@ -235,6 +235,16 @@ class StreamSource:
             self.stats.bad += 1
             self.stats.errors.append(error if len(error) <= 300 else error[:297] + "...")
 
+    def admit(self, client: Hashable, count: int) -> bool:
+        """``count`` raw messages arrived from ``client`` in one read and only the newest will be decoded:
+        all are counted as received, the guard's rate limit takes its share, the rest of what fits is
+        superseded. True if the newest is to be fed (with ``rate_checked=True``)."""
+        allowed = count if self.guard is None else self.guard.take(client, count)
+        with self._lock:
+            self.stats.messages += count - (1 if allowed else 0)
+            self.stats.superseded += max(0, allowed - 1)
+        return allowed > 0
+
     def rate_ok(self, client: Hashable) -> bool:
         """The guard's rate limit for one raw message from ``client`` (counted as received if refused); a
         receiver that checks it itself passes ``rate_checked=True`` to :meth:`feed`."""

@@ -138,18 +138,15 @@ class UdpReceiver(_Receiver):
                 continue
             except OSError:
                 break
-            newest: dict[tuple[str, int], bytes] = {}
-            skipped = 0
-            if self.source.rate_ok(("udp", peer)):
-                newest[peer] = data
+            newest: dict[tuple[str, int], bytes] = {peer: data}
+            counts: dict[tuple[str, int], int] = {peer: 1}
             try:  # drain what else is waiting: per client only the newest datagram matters (no backlog)
                 self.sock.setblocking(False)
+                recv = self.sock.recvfrom
                 for _ in range(_MAX_BATCH):
-                    data, peer = self.sock.recvfrom(MAX_MESSAGE_BYTES + 1)
-                    if not self.source.rate_ok(("udp", peer)):
-                        continue
-                    skipped += peer in newest
+                    data, peer = recv(MAX_MESSAGE_BYTES + 1)
                     newest[peer] = data
+                    counts[peer] = counts.get(peer, 0) + 1
             except (BlockingIOError, InterruptedError):
                 pass
             except OSError:
@@ -157,10 +154,10 @@ class UdpReceiver(_Receiver):
             finally:
                 if self.sock.fileno() >= 0:
                     self.sock.settimeout(_POLL_S)
-            if skipped:
-                self.source.supersede(skipped)
-            for peer, datagram in newest.items():
-                self.source.feed(datagram, where=f"udp {peer[0]}:{peer[1]}", client=("udp", peer), rate_checked=True)
+            for peer, datagram in newest.items():  # the rate limit per client, on the whole batch at once
+                client = ("udp", peer)
+                if self.source.admit(client, counts[peer]):
+                    self.source.feed(datagram, where=f"udp {peer[0]}:{peer[1]}", client=client, rate_checked=True)
 
     def close(self) -> None:
         super().close()
