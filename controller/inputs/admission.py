@@ -96,7 +96,7 @@ class StreamGuard:
             allowed = min(count, int(tokens))
             buckets[client] = (tokens - allowed, now)
             while len(buckets) > MAX_TRACKED_CLIENTS:
-                buckets.pop(next(iter(buckets)))  # type: ignore[call-overload]
+                buckets.pop(next(iter(buckets)))
             self.stats.rate_limited += count - allowed
             return allowed
 

@@ -66,7 +66,7 @@ def _au_columns(table: CsvTable, pattern: re.Pattern[str], allowed: frozenset[st
 def _options(options: ReadOptions | None, **given: object) -> ReadOptions:
     base = options or ReadOptions()
     changes = {k: v for k, v in given.items() if v is not None}
-    return ReadOptions(**{**base.__dict__, **changes})  # type: ignore[arg-type]
+    return ReadOptions(**{**base.__dict__, **changes})
 
 
 def read_openface_csv(
@@ -132,7 +132,8 @@ def read_openface_csv(
                     values[name] = raw
                     continue
                 values[name] = tol.ranged(raw, 0.0, 5.0, where=table.where(line, column), what="OpenFace's") / 5.0
-            head = gaze = None
+            head: tuple[float, float, float] | None = None
+            gaze_deg: tuple[float, float] | None = None
             if has_pose:
                 rot = [table.value(cells, line, c) for c in _POSE]
                 if not any(math.isnan(v) for v in rot):
@@ -140,13 +141,13 @@ def read_openface_csv(
             if has_gaze:
                 gx, gy = (table.value(cells, line, c) for c in ("gaze_angle_x", "gaze_angle_y"))
                 if not (math.isnan(gx) or math.isnan(gy)):
-                    gaze = (math.degrees(gx), -math.degrees(gy))
+                    gaze_deg = (math.degrees(gx), -math.degrees(gy))
         except BadRow as err:
             tol.handle(err)
             continue
         good = success == 1.0 and confidence >= gate
         filled = fill_cells(values, last, report) if good else None
-        rows.append(RawRow(line, t, filled, head if good else None, gaze if good else None))
+        rows.append(RawRow(line, t, filled, head if good else None, gaze_deg if good else None))
     if len(faces) > 1:
         shown = ", ".join(f"{k} ({n} rows)" for k, n in sorted(faces.items()))
         report.faces = f"{len(faces)} faces: face_id {shown}; followed face_id {wanted} (--face-id)"

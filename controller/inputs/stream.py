@@ -189,15 +189,17 @@ class StreamSource:
             self._rest_until = arrival + self.rest_s
         if arrival <= self._rest_until:
             scores: dict[str, float] = {}
-            bmap = self.decoder.blendshape_map if self.decoder.face_type == "human" else None
-            for name, value in (obj.get("blendshapes") or {}).items() if bmap is not None else ():
-                scores[bmap.resolve(name, field="rest")] = min(1.0, max(0.0, float(value)))
-            head = parse_head(obj["head"]) if "head" in obj and bmap is not None else None
+            head = None
+            if self.decoder.face_type == "human":  # the message decoded: its fields are valid
+                bmap = self.decoder.blendshape_map
+                for name, value in (obj.get("blendshapes") or {}).items():
+                    scores[bmap.resolve(name, field="rest")] = min(1.0, max(0.0, float(value)))
+                head = parse_head(obj["head"]) if "head" in obj else None
             with self._lock:
                 self._rest_rows.append((scores, head))
                 self.stats.calibrating += 1
             return True
-        rows = [(0.0, scores, head, None) for scores, head in self._rest_rows if scores or head]
+        rows = [(0.0, shapes, ypr, None) for shapes, ypr in self._rest_rows if shapes or ypr]
         if rows:
             rest = RestPose.from_rows(rows, 1.0)
             if rest.values:
@@ -207,28 +209,6 @@ class StreamSource:
         else:
             self.stats.rest = f"rest pose: no blendshapes or head pose in the first {self.rest_s:g} s"
         return False
-        if self._rest_until is None:
-            self._rest_until = arrival + self.rest_s
-        if arrival <= self._rest_until:
-            scores: dict[str, float] = {}
-            bmap = self.decoder.blendshape_map if self.decoder.face_type == "human" else None
-            for name, value in (obj.get("blendshapes") or {}).items() if bmap is not None else ():
-                scores[bmap.resolve(name, field="rest")] = min(1.0, max(0.0, float(value)))
-            head = parse_head(obj["head"]) if "head" in obj and bmap is not None else None
-            with self._lock:
-                self._rest_rows.append((scores, head))
-                self.stats.calibrating += 1
-            return False
-        rows = [(0.0, scores, head, None) for scores, head in self._rest_rows if scores or head]
-        if rows:
-            rest = RestPose.from_rows(rows, 1.0)
-            if rest.values:
-                self.decoder.shape_ranges = rest.shape_ranges(self.decoder.shape_ranges)
-            self.decoder.head_rest_deg = rest.head_deg
-            self.stats.rest = rest.describe(self.rest_s)
-        else:
-            self.stats.rest = f"rest pose: no blendshapes or head pose in the first {self.rest_s:g} s"
-        return True
 
     def _bad(self, error: str) -> None:
         with self._lock:
