@@ -230,6 +230,8 @@ def run(args: argparse.Namespace) -> int:
         f"{1e3 * stats.latency_s_max:.1f} ms (mean {1e3 * stats.age_s.mean:.1f} ms)"
     )
     print(f"verdicts {summary['verdicts']}")
+    if stats.rest:
+        print(f"{stats.rest} ({stats.calibrating} messages taken as the rest pose, not shown)")
     if args.stdin:
         print(f"stdin {'fed on arrival' if args.arrival else 'paced by the messages t'}")
     else:

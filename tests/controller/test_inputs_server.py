@@ -352,3 +352,21 @@ def test_a_tcp_flood_at_full_speed_leaves_another_connection_flowing() -> None:
             flooder.wait(5.0)
     assert src.stats.good >= 15 and src.guard is not None and src.guard.stats.not_controlling > 0
     assert src.sample(0.0).get("AU27", 0.0) == 0.0
+
+
+def test_stream_rest_pose_from_the_first_seconds() -> None:
+    now = [0.0]
+    src = StreamSource(smoothing=None, clock=lambda: now[0], rest_s=1.0, dropout_ms=5000.0)
+    for k in range(20):  # a neutral face with MediaPipe's resting squint and blink, 1 s
+        now[0] = k * 0.05
+        src.feed(json.dumps({"blendshapes": {"eyeBlinkLeft": 0.3, "eyeSquintLeft": 0.6}, "head": {"yaw_deg": 8}}))
+    assert src.sample(0.0).aus == {} and src.stats.calibrating == 20  # nothing shown while calibrating
+    now[0] = 1.1
+    assert src.feed(json.dumps({"blendshapes": {"eyeBlinkLeft": 0.3, "eyeSquintLeft": 0.6}, "head": {"yaw_deg": 8}}))
+    rest = src.sample(1.1)
+    assert rest.get("AU43L") == 0.0 and rest.get("AU7L") == 0.0 and rest.get("AU51") == 0.0
+    assert "eyeSquintLeft 0.60" in src.stats.rest
+    now[0] = 1.2
+    src.feed(json.dumps({"blendshapes": {"eyeBlinkLeft": 1.0}, "head": {"yaw_deg": 30.5}}))
+    shut = src.sample(1.2)
+    assert shut.get("AU43L") == 1.0 and shut.get("AU51") == pytest.approx(0.5)  # 22.5 deg of 45 from rest
