@@ -98,6 +98,18 @@ def _stats_of(traces: list[FrameTrace], rate_hz: float, missed: int, overruns: i
     return stats
 
 
+class _Fixed:
+    """A source played for a fixed length (what ``HeadService.play`` takes as a recording)."""
+
+    def __init__(self, source: Samples, duration_s: float) -> None:
+        self.source = source
+        self.duration_s = duration_s
+        self.face_type = getattr(source, "face_type", None)
+
+    def sample(self, t_s: float) -> Any:
+        return self.source.sample(t_s)
+
+
 class Face:
     """A head driven through the whole pipeline by its head service. Build it with `Face.open`."""
 
@@ -296,6 +308,20 @@ class Face:
             end_s = min(end_s, float(duration_s))
         limit = end_s if end_s > 0 else None
         return self._perform(lambda svc: svc.play(loaded, track=TRACK, duration_s=limit), end_s)
+
+    def perform(self, source: Samples, duration_s: float) -> Performance:
+        """Play anything with ``sample(t_s) -> AUFrame`` (a Timeline, a Recording, a Script) from its time 0
+        for exactly ``duration_s`` (a recording holds its last frame past its end)."""
+        if isinstance(duration_s, bool) or not isinstance(duration_s, int | float) or not (0 <= duration_s < math.inf):
+            raise ControllerError(f"perform: duration_s must be a finite number of seconds >= 0, got {duration_s!r}")
+        if not callable(getattr(source, "sample", None)):
+            raise ControllerError(f"perform: expected something with sample(t_s) -> AUFrame, got {source!r}")
+        theirs = getattr(source, "face_type", self.head.face_type)
+        if theirs != self.head.face_type:
+            raise ControllerError(f"perform: the source is for a {theirs} face; head is {self.head.face_type}")
+        length = float(duration_s)
+        timeline = _Fixed(source, length)
+        return self._perform(lambda svc: svc.play(timeline, track=TRACK, duration_s=length or None), length)
 
     def follow(
         self, source: Samples, duration_s: float | None = None, *, until: Callable[[], bool] | None = None
