@@ -48,7 +48,7 @@ def test_estop_from_another_thread_turns_torque_off_within_two_frames(wire_time:
             svc.set_aus({"AU12": 0.3})
         with pytest.raises(EStopLatchedError):
             svc.torque_on()
-        assert svc.wait_frame(svc.status().frames + 3, timeout_s=1.0) is None or True
+        assert svc.wait_frame(svc.last_trace.index, timeout_s=0.2) is None  # limp: frames go on, no goals
         assert len(chain.goal_writes()) == n_log and all(not chain.servo(s).torque_on for s in ids)
         # cleared, then torque on: goals pinned to where the servos are, motion allowed again
         assert svc.clear_estop().wait(2.0) is Status.DONE
