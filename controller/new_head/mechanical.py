@@ -81,8 +81,8 @@ def meshes() -> dict[str, object]:
         "pupil_r": _sphere((eye_r[0], eye_r[1], eye_r[2] + EYE_RADIUS_MM - 1.5), 4.5, 2),
         "lid_l": _lid(EYE_L),
         "lid_r": _lid(eye_r),
-        "brow_l": _box((18.0, 143.0, 52.0), (50.0, 149.0, 60.0)),
-        "brow_r": _box((-50.0, 143.0, 52.0), (-18.0, 149.0, 60.0)),
+        "brow_l": _box((18.0, 147.0, 52.0), (50.0, 153.0, 60.0)),
+        "brow_r": _box((-50.0, 147.0, 52.0), (-18.0, 153.0, 60.0)),
     }
     return out
 
@@ -136,14 +136,14 @@ limits_deg = [0.0, 25.0]
 [[joint]]
 name = "brow_l"                  # a lever behind the brow bar: + = brow up
 parent = "neck_pan"
-pivot_mm = [34.0, 146.0, 30.0]
+pivot_mm = [34.0, 150.0, 30.0]
 axis = [-1.0, 0.0, 0.0]
 limits_deg = [-10.0, 20.0]
 
 [[joint]]
 name = "brow_r"
 parent = "neck_pan"
-pivot_mm = [-34.0, 146.0, 30.0]
+pivot_mm = [-34.0, 150.0, 30.0]
 axis = [-1.0, 0.0, 0.0]
 limits_deg = [-10.0, 20.0]
 
