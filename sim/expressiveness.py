@@ -127,6 +127,14 @@ class Expressiveness:
             if n in unreachable:
                 out.append(f"AU{n} reaches nothing on this head: {unreachable[n]}")
         neutral = self.model.solve({}).joint_deg
+        _, raw = self.model.mapping.evaluate(aus)
+        for joint, delta in zip(self.head.joints, raw.tolist(), strict=True):
+            asked = joint.neutral_deg + delta
+            if abs(delta) > 0.1 and not joint.lower_deg - 1e-6 <= asked <= joint.upper_deg + 1e-6:
+                out.append(
+                    f"joint {joint.name} is asked for {asked:.1f} deg, beyond its limits "
+                    f"[{joint.lower_deg:g}, {joint.upper_deg:g}]"
+                )
         moved = {j for j, v in solution.pose.joint_deg.items() if abs(v - neutral[j]) > 0.1}
         loose = sorted(j for j in moved if j not in self.driven)
         if loose:

@@ -184,6 +184,8 @@ def _build(r: _Reader, data: dict[str, Any], folder: Path) -> Head:
         _needs_skin(r, data)
     anchors = _anchors(r, data, skin.vertices_mm)
     actuators = _actuators(r, data, {j.name: j for j in joints}, anchors, n_vert)
+    if not actuators:
+        raise r.fail("actuator", "at least one [[actuator]] table (one per servo: role, servo, kind)", None)
     couplings = _couplings(r, data, {a.role for a in actuators})
     landmarks: dict[str, Vec3] = {}
     lm = r.table(data.get("landmarks", {}), "landmarks")
