@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     if args.columns is not None and args.columns < 1:
         return _fail(f"--columns must be >= 1, got {args.columns}")
 
-    from servoface.sim.errors import ExpressionError, HeadProfileError, RenderError
+    from servoface.sim.errors import ExpressionError, HeadProfileError, RenderError, SimError
     from servoface.sim.render.renderer import parse_size
 
     try:
@@ -112,7 +112,6 @@ def run(args: argparse.Namespace) -> int:
     if args.show != "target":
         from servoface.calibration import CalibrationError
         from servoface.sim.achievable import AchievableFace
-        from servoface.sim.errors import SimError
 
         try:
             twin = AchievableFace(head, frame_period_s=1.0 / args.fps if suffix in CLIP else 0.02)
@@ -149,6 +148,10 @@ def run(args: argparse.Namespace) -> int:
                     _say_gap(twin, aus or {})
     except RenderError as err:
         return _fail(str(err), code=1)
+    except (HeadProfileError, ExpressionError) as err:
+        return _fail(f"{err}\n  next: `servoface check {args.head}` names what to fix", code=1)
+    except SimError as err:
+        return _fail(f"{err}\n  next: `servoface check {args.head}` names what to fix", code=1)
     return 0
 
 
