@@ -158,7 +158,9 @@ class Expressiveness:
         if short:
             out.append(f"servo ranges or the twin gate hold back: {', '.join(short)} (deg/mm)")
         if got.verdict not in ("accept", "ranges") and got.reasons:
-            out.append(f"twin gate {got.verdict}: {got.reasons[0]}")
+            # the rate caps fire on every walk from neutral; the state check that stopped it says why
+            state = [r for r in got.reasons if not r.startswith(("[speed]", "[accel]", "[hold]"))]
+            out.append(f"twin gate {got.verdict}: {(state or list(got.reasons))[0]}")
         return out
 
     def au_scores(self) -> list[Score]:

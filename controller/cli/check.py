@@ -207,7 +207,7 @@ def _report(head: Any, cal: Any, args: argparse.Namespace) -> None:
 def _apex(expression: Any) -> dict[str, float]:
     from servoface.sim.render.clips import apex_aus
 
-    return apex_aus(expression)
+    return dict(apex_aus(expression))
 
 
 def _au_key(name: str) -> str:

@@ -119,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
             return _fail(f"{err}\n  next: `servoface check {args.head}` names what to fix", code=1)
         if twin.note:
             print(f"servoface preview: note: {twin.note}", file=sys.stderr)
-    what = {"achievable": "what the servos make", "target": "muscle-model target", "both": "target | servos"}
+    shown_as = {"achievable": "what the servos make", "target": "muscle-model target", "both": "target | servos"}
     try:
         with HeadRenderer(width, height, view=view) as renderer:
             if args.all:
@@ -128,7 +128,7 @@ def run(args: argparse.Namespace) -> int:
                 )
                 save_image(sheet, args.output)
                 print(
-                    f"wrote {args.output}: {len(names)} expressions of {head.name!r} ({what[args.show]}): "
+                    f"wrote {args.output}: {len(names)} expressions of {head.name!r} ({shown_as[args.show]}): "
                     f"{', '.join(names)}"
                 )
             elif suffix in CLIP:
@@ -137,12 +137,12 @@ def run(args: argparse.Namespace) -> int:
                     achievable=twin,
                 )  # fmt: skip
                 count = WRITERS[suffix](frames, args.output, args.fps)
-                print(f"wrote {args.output}: {count} frames at {args.fps:g} fps ({args.expression}, {what[args.show]})")
+                print(f"wrote {args.output}: {count} frames at {args.fps:g} fps ({args.expression}, {shown_as[args.show]})")
             else:
                 save_image(render_aus(renderer, head, aus or {}, show=args.show, achievable=twin), args.output)
                 print(
                     f"wrote {args.output}: {args.expression} at apex on {head.name} ({width}x{height}, "
-                    f"{what[args.show]})"
+                    f"{shown_as[args.show]})"
                 )
                 if twin is not None:
                     _say_gap(twin, aus or {})

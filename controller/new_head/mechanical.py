@@ -50,7 +50,8 @@ def _cylinder(radius: float, y0: float, y1: float, z: float = 0.0) -> object:
     import trimesh
 
     c = trimesh.creation.cylinder(radius=radius, height=y1 - y0, sections=24)
-    c.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))
+    upright = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+    c.apply_transform(upright)  # the cylinder's axis from z to y
     c.apply_translation((0.0, (y0 + y1) / 2, z))
     return c
 

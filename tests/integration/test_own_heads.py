@@ -172,3 +172,21 @@ def test_new_from_human_keeps_the_builtin_face_and_derives_a_direct_table(
     direct = FaceModel(head, direct=table).solve({"AU26": 1.0, "AU1L": 1.0}).actuator_targets
     for role, value in muscle.items():
         assert direct[role] == pytest.approx(value, abs=0.02), role
+
+
+def test_a_copy_of_the_human_head_without_lower_lids_needs_no_dummy_parts(tmp_path: Path) -> None:
+    """The builder's first wall (issue 10): removing joints the built-in AU table names is not an error."""
+    from servoface.sim.face_model import FaceModel
+    from servoface.sim.heads import load_head
+
+    folder = tmp_path / "lidless"
+    assert main(["new", str(folder), "--from", "human"]) == 0
+    blocks = (folder / "head.toml").read_text().split("\n\n")
+    kept = [b for b in blocks if "lower_lid" not in b or b.lstrip().startswith("#")]
+    (folder / "head.toml").write_text("\n\n".join(kept))
+    head = load_head(folder)
+    assert not any("lower_lid" in j.name for j in head.joints)
+    model = FaceModel(head)
+    assert {"lower_lid_l", "lower_lid_r"} <= model.mapping.missing
+    assert "joints lower_lid_l, lower_lid_r are not in the head" in " ".join(model.mapping.notes[6])
+    assert np.abs(model.solve({"AU6": 1.0}).skin_offset_mm).max() > 0.5  # the cheek still rises
