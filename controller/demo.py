@@ -56,8 +56,16 @@ def gated_pose(face: Face, trace: FrameTrace) -> HeadPose:
     return HeadPose(joint_deg=joint_deg, skin_offset_mm=offsets, actuator_targets=targets)
 
 
-def head_performance(face: Face, *, onset_s: float = 0.4, apex_s: float = 0.8, offset_s: float = 0.5) -> tuple[Any, float, str]:
-    """(timeline, end_s, title) of the generic performance of ``face.head`` (see the module docstring)."""
+def head_performance(
+    face: Face,
+    *,
+    onset_s: float = 0.4,
+    apex_s: float = 0.8,
+    offset_s: float = 0.5,
+    limit: int | None = None,
+) -> tuple[Any, float, str]:
+    """(timeline, end_s, title) of the generic performance of ``face.head`` (see the module docstring);
+    ``limit``: at most this many expressions (or AUs)."""
     from servoface.controller.timeline import Timeline
     from servoface.controller.timeline.barker import Expression
     from servoface.controller.timeline.dfacs import events_clip, parse_events
@@ -69,7 +77,7 @@ def head_performance(face: Face, *, onset_s: float = 0.4, apex_s: float = 0.8, o
     head = face.head
     library = {k: v for k, v in load_library(head.expressions_path or head.face_type).items() if k != "neutral"}
     scores = Expressiveness(AchievableFace(head, face.pipeline.calibration, model=face.pipeline.face))
-    keep = [s.name for s in scores.expression_scores(library) if not s.cannot_show]
+    keep = [s.name for s in scores.expression_scores(library) if not s.cannot_show][:limit]
     timeline = Timeline(head.face_type)
     t = 0.3
     step = onset_s + apex_s + offset_s + 0.3
@@ -85,7 +93,7 @@ def head_performance(face: Face, *, onset_s: float = 0.4, apex_s: float = 0.8, o
             t += max(step, float(getattr(clip, "duration_s", step)) + 0.3)
         title = f"{head.name}: {len(keep)} of {len(library)} library expressions it can show"
     else:
-        aus = [s for s in scores.au_scores() if not s.cannot_show and not s.name.endswith("L")]
+        aus = [s for s in scores.au_scores() if not s.cannot_show and not s.name.endswith("L")][:limit]
         for s in aus:
             value = -1.0 if s.name.endswith("-") else 1.0
             pose = {s.name.rstrip("-"): value}

@@ -27,9 +27,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _cal_hint(head_arg: str, roles: list[str] | None = None) -> str:
     roles_part = f" --roles {','.join(roles)}" if roles else ""
+    template = Path(head_arg) / "calibration_template.csv"
+    csv = str(template) if template.is_file() else "measured.csv"
     return (
         f"run `servoface calibrate --head {head_arg}{roles_part} --port /dev/ttyUSB0` (on the head), "
-        f"or `--csv measured.csv` (role,target,tick rows)"
+        f"or `--csv {csv}` (role,target,tick rows you measured)"
     )
 
 
@@ -105,9 +107,10 @@ def run(args: argparse.Namespace) -> int:
         problems += _calibration_gaps(head, cal, args.head)
     if cal is not None and not problems:
         problems += _servo_table(head, cal)
-    elif not problems:
-        problems.append("no calibration")
-    if not problems and not args.no_report:
+    uncalibrated = cal is None
+    if (not problems or uncalibrated) and not args.no_report:
+        if uncalibrated:
+            print("\n(no calibration yet: the report below uses the profile's actuator ranges, without the twin gate)")
         try:
             _report(head, cal, args)
         except (SimError, CalibrationError, ControllerError) as err:

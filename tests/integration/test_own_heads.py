@@ -190,3 +190,28 @@ def test_a_copy_of_the_human_head_without_lower_lids_needs_no_dummy_parts(tmp_pa
     assert {"lower_lid_l", "lower_lid_r"} <= model.mapping.missing
     assert "joints lower_lid_l, lower_lid_r are not in the head" in " ".join(model.mapping.notes[6])
     assert np.abs(model.solve({"AU6": 1.0}).skin_offset_mm).max() > 0.5  # the cheek still rises
+
+
+def test_demo_plays_any_head_and_draws_what_the_servos_make(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import functools
+
+    import servoface.controller.demo as demo
+
+    folder = _calibrated(tmp_path, "mechanical")
+    quick = functools.partial(demo.head_performance, onset_s=0.15, apex_s=0.2, offset_s=0.15, limit=3)
+    monkeypatch.setattr(demo, "head_performance", quick)
+    out_dir = tmp_path / "demo"
+    capsys.readouterr()
+    status = main(["demo", "--head", str(folder), "--out", str(out_dir), "--format", "gif"])
+    out, err = capsys.readouterr()
+    assert status == 0, out + err
+    report = json.loads((out_dir / "report.json").read_text())
+    assert report["head"] == "tinbot" and report["shown"] == "achievable"
+    assert "3 of 13 library expressions it can show" in report["title"]
+    assert report["frames"] > 20 and report["verdicts"].get("reject", 0) == 0
+    gif = Image.open(out_dir / "twin.gif")
+    assert gif.size[0] == 360  # one face per frame (the servos'), not target | gated side by side
+    sheet = np.asarray(Image.open(out_dir / "sheet.png").convert("RGB"))
+    assert sheet.std() > 5
