@@ -137,7 +137,9 @@ def render_performance(
                 if progress is not None:
                     progress(i + 1, len(picks))
                 if show == "target":
-                    yield with_label(renderer.render(face.head, face.pipeline.face.solve(trace.aus)), f"target  t={trace.t_s:5.2f}s")
+                    yield with_label(
+                        renderer.render(face.head, face.pipeline.face.solve(trace.aus)), f"target  t={trace.t_s:5.2f}s"
+                    )
                     continue
                 right = renderer.render(face.head, gated_pose(face, trace))
                 label = "servos" if trace.verdict == "accept" else f"servos ({trace.verdict})"

@@ -25,8 +25,8 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from servoface.sim.au.mapping import AUMapping, canonical_au_name, check_au
 from servoface.sim.au.direct import DirectMapping, DirectTable, load_direct_table
+from servoface.sim.au.mapping import AUMapping, canonical_au_name, check_au
 from servoface.sim.au.table import AUTable, au_table_path, load_au_table, with_vocabulary
 from servoface.sim.errors import HeadProfileError, PoseError, UnknownActionUnitError
 from servoface.sim.muscles import (

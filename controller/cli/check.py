@@ -181,7 +181,9 @@ def _report(head: Any, cal: Any, args: argparse.Namespace) -> None:
     cannot = [s for s in aus if s.cannot_show]
     cannot_numbers = {s.name for s in cannot}
     shown = [s for s in aus if not s.cannot_show]
-    print(f"\nwhat this head can express (the servos' achievable face vs the muscle-model target, {len(aus)} AU cases):")
+    print(
+        f"\nwhat this head can express (the servos' achievable face vs the muscle-model target, {len(aus)} AU cases):"
+    )
     print(f"  {'AU':7} {'shown':>6} {'max err':>8} {'moves':>7}  notes")
     for s in shown:
         note = "; ".join(s.reasons) if s.shown < 0.9 else ""

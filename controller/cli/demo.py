@@ -12,9 +12,7 @@ HELP = "play a head's performance on the emulated chain; write twin video, conta
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder (default out/demo)")
-    parser.add_argument(
-        "--head", default="human", help="built-in head (human, dog; default human) or a profile folder"
-    )
+    parser.add_argument("--head", default="human", help="built-in head (human, dog; default human) or a profile folder")
     parser.add_argument(
         "--show",
         choices=["achievable", "target", "both"],

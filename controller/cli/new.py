@@ -45,7 +45,9 @@ def run(args: argparse.Namespace) -> int:
     if n_meshes:
         print(f"  meshes/ ({n_meshes} STL files: replace them by your own parts)")
     print("next steps:")
-    print(f"  1. edit {folder / 'head.toml'}: servo ids and models (`servoface scan --port /dev/ttyUSB0`), joints, parts")
+    print(
+        f"  1. edit {folder / 'head.toml'}: servo ids and models (`servoface scan --port /dev/ttyUSB0`), joints, parts"
+    )
     print(f"  2. measure each servo and put the ticks in {folder / TEMPLATE_CSV}, then")
     print(f"     servoface calibrate --head {folder} --csv {folder / TEMPLATE_CSV}")
     print(f"     (or interactively on the head: servoface calibrate --head {folder} --port /dev/ttyUSB0)")

@@ -137,7 +137,10 @@ def run(args: argparse.Namespace) -> int:
                     achievable=twin,
                 )  # fmt: skip
                 count = WRITERS[suffix](frames, args.output, args.fps)
-                print(f"wrote {args.output}: {count} frames at {args.fps:g} fps ({args.expression}, {shown_as[args.show]})")
+                print(
+                    f"wrote {args.output}: {count} frames at {args.fps:g} fps "
+                    f"({args.expression}, {shown_as[args.show]})"
+                )
             else:
                 save_image(render_aus(renderer, head, aus or {}, show=args.show, achievable=twin), args.output)
                 print(

@@ -43,7 +43,7 @@ def _copy_builtin(folder: Path, kind: str, name: str) -> str:
     header = (
         f"# servoface head profile `{name}`, written by `servoface new --from {kind}` from the built-in {kind} head.\n"
         "# Edit it to match your head: servo ids and models (`servoface scan` lists them), joint pivots/axes/limits,\n"
-        "# anchor points and lines, ranges. Replace \"builtin:...\" meshes by your STL/OBJ/GLB files (mm; for a\n"
+        '# anchor points and lines, ranges. Replace "builtin:..." meshes by your STL/OBJ/GLB files (mm; for a\n'
         "# mesh in metres set scale = 1000). Remove what your head lacks: every section is optional, the AU\n"
         "# table is applied to what the head has and `servoface check` lists what it then cannot show.\n"
         "# To drive servos straight from AUs instead of the muscle model, uncomment:\n"

@@ -34,7 +34,9 @@ def size_warnings(head: Any) -> list[str]:
         chunks.append(np.asarray(head.skin.vertices_mm))
         span = _span(head.skin.vertices_mm)
         if not HEAD_SPAN_MM[0] <= span <= HEAD_SPAN_MM[1]:
-            out.append(f"skin.mesh is {span:.3g} mm across (expected {HEAD_SPAN_MM[0]:g}..{HEAD_SPAN_MM[1]:g}): {_hint(span)}")
+            out.append(
+                f"skin.mesh is {span:.3g} mm across (expected {HEAD_SPAN_MM[0]:g}..{HEAD_SPAN_MM[1]:g}): {_hint(span)}"
+            )
     for i, p in enumerate(head.parts):
         span = _span(p.mesh.vertices)
         if span < PART_MIN_MM:
@@ -43,7 +45,8 @@ def size_warnings(head: Any) -> list[str]:
         span = _span(np.concatenate(chunks))
         if not HEAD_SPAN_MM[0] <= span <= HEAD_SPAN_MM[1]:
             out.append(
-                f"the head is {span:.3g} mm across (expected {HEAD_SPAN_MM[0]:g}..{HEAD_SPAN_MM[1]:g} mm): {_hint(span)}"
+                f"the head is {span:.3g} mm across (expected {HEAD_SPAN_MM[0]:g}..{HEAD_SPAN_MM[1]:g} mm): "
+                f"{_hint(span)}"
             )
     else:
         out.append("the head has no skin and no parts: nothing to draw or check for collisions")

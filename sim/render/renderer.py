@@ -283,7 +283,9 @@ class HeadRenderer:
                     lo, hi = np.minimum(lo, plo), np.maximum(hi, phi)
             if not np.all(np.isfinite(lo)) and head.parts:  # only neck parts: frame them
                 transforms = part_transforms(head, rest.joint_deg)
-                lo, hi = _box_of([MeshItem(p.mesh, tuple(p.color_rgba), transforms[p.name], p.name) for p in head.parts])
+                lo, hi = _box_of(
+                    [MeshItem(p.mesh, tuple(p.color_rgba), transforms[p.name], p.name) for p in head.parts]
+                )
             if not np.all(np.isfinite(lo)):
                 raise RenderError(f"head {getattr(head, 'name', '?')!r} has nothing to draw: no skin and no parts")
             lo, hi = _portrait_crop(lo, hi, getattr(head, "landmarks_mm", {}))

@@ -21,7 +21,9 @@ def _calibrated_dog(folder: Path, *, scale: bool = True) -> Path:
     return folder
 
 
-def test_a_calibration_whose_servo_model_differs_is_a_problem(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_calibration_whose_servo_model_differs_is_a_problem(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     folder = _calibrated_dog(tmp_path / "dog")
     data = json.loads((folder / "calibration.json").read_text())
     servos = data["servos"]
@@ -40,7 +42,8 @@ def test_a_role_the_calibration_lacks_names_the_command_that_adds_it(
 ) -> None:
     folder = _calibrated_dog(tmp_path / "dog")
     text = (folder / "head.toml").read_text()
-    text += '\n[[joint]]\nname = "tail"\npivot_mm = [0.0, 60.0, -80.0]\naxis = [0.0, 1.0, 0.0]\nlimits_deg = [-30.0, 30.0]\n'
+    text += '\n[[joint]]\nname = "tail"\npivot_mm = [0.0, 60.0, -80.0]\naxis = [0.0, 1.0, 0.0]\n'
+    text += "limits_deg = [-30.0, 30.0]\n"
     text += '\n[[actuator]]\nrole = "tail"\nservo = { id = 9, model = "XL330-M288" }\nkind = "joint"\n'
     (folder / "head.toml").write_text(text)
     capsys.readouterr()
@@ -51,7 +54,9 @@ def test_a_role_the_calibration_lacks_names_the_command_that_adds_it(
 
 
 @pytest.mark.parametrize("scale", ["0", "-1000", "0.0"])
-def test_a_scale_that_is_not_positive_is_refused(tmp_path: Path, scale: str, capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_scale_that_is_not_positive_is_refused(
+    tmp_path: Path, scale: str, capsys: pytest.CaptureFixture[str]
+) -> None:
     folder = oh.write_dog_in_metres(tmp_path / "dog")
     text = (folder / "head.toml").read_text().replace("scale = 1000.0", f"scale = {scale}", 1)
     (folder / "head.toml").write_text(text)
@@ -60,7 +65,9 @@ def test_a_scale_that_is_not_positive_is_refused(tmp_path: Path, scale: str, cap
     assert "part[0].scale: expected a positive factor to millimetres" in err and "Traceback" not in err
 
 
-def test_a_mesh_in_metres_without_scale_is_warned_with_its_size(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_mesh_in_metres_without_scale_is_warned_with_its_size(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     folder = _calibrated_dog(tmp_path / "dog", scale=False)
     capsys.readouterr()
     main(["check", str(folder), "--no-report"])
@@ -71,6 +78,7 @@ def test_a_mesh_in_metres_without_scale_is_warned_with_its_size(tmp_path: Path, 
 
 # ------------------------------------------------------------------------------------------------------
 # fuzz: a mechanical head whose parts do not collide (no collision tables to build), mutated line by line
+
 
 def _mutants(text: str, n: int, seed: int) -> list[str]:
     rng = random.Random(seed)
