@@ -8,7 +8,7 @@ muscle model's wish instead, ``show="both"`` the two side by side. One reused `H
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -85,6 +85,28 @@ def render_aus(
         return renderer.render(head, target, view)
     achieved = _achievable(head, achievable).still(aus).pose
     return _draw(renderer, head, target, achieved, show, view)
+
+
+def render_sequence(
+    renderer: HeadRenderer,
+    head: Any,
+    frames: Iterable[Mapping[str, float]],
+    view: str | None = None,
+    *,
+    show: str = "achievable",
+    achievable: Any = None,
+) -> Iterator[Image]:
+    """One image per AU frame of a sequence (a recording sampled at the twin's frame period): the
+    achievable face is gated frame after frame, so the servos' rate caps show as lag."""
+    check_show(show)
+    model = face_model(head)
+    twin = None if show == "target" else _achievable(head, achievable)
+    if twin is not None:
+        twin.reset()
+    for aus in frames:
+        target = model.solve(aus)
+        achieved = twin.step(aus).pose if twin is not None else None
+        yield _draw(renderer, head, target, achieved, show, view)
 
 
 def clip_frames(
