@@ -147,6 +147,7 @@ class DynamixelBus:
         self.alerts: set[int] = set()
         self._packet = sdk.PacketHandler(2.0)
         self._sync_reads: dict[tuple[int, int, tuple[int, ...]], Any] = {}
+        self._pending: tuple[list[int], tuple[Register, ...], int, int, bool, str] | None = None
         if isinstance(port, str):
             self.port_name = port
             self._port: _WindowedPort = _WindowedPort(port)
@@ -194,6 +195,7 @@ class DynamixelBus:
         """Close and open the port again (after a USB re-plug or a dropped pty)."""
         self.close()
         self._sync_reads.clear()
+        self._pending = None
         self.open()
 
     def __enter__(self) -> DynamixelBus:
@@ -207,6 +209,11 @@ class DynamixelBus:
 
     def __repr__(self) -> str:
         return f"DynamixelBus({self.port_name!r}, baud={self.baud}, latency_timer_ms={self.latency_timer_ms:g})"
+
+    def sdk_handlers(self) -> tuple[Any, Any]:
+        """(PortHandler, PacketHandler) of this bus, for code that drives the stock SDK directly on the same
+        port (`servoface.hardware.stock_loop`, the benches' reference loop). Do not use the bus meanwhile."""
+        return self._port, self._packet
 
     # -- plumbing -----------------------------------------------------------------------------------
     def _call(self, fn: Any, *args: Any) -> Any:
@@ -322,12 +329,24 @@ class DynamixelBus:
     ) -> dict[int, dict[Register, int]]:
         """One Sync Read (or Fast Sync Read) of the block covering ``registers`` from ``servo_ids``.
 
-        All-or-nothing (the SDK's contract): any silent servo fails the call for every id.
+        All-or-nothing (the SDK's contract): any silent servo fails the call for every id. A reply with the
+        Alert bit adds its id to `alerts` (the reply's error byte, kept from the SDK's ``readRx``).
+        """
+        self.sync_read_start(servo_ids, registers, fast=fast)
+        return self.sync_read_finish()
+
+    def sync_read_start(self, servo_ids: Sequence[int], registers: Sequence[Register], *, fast: bool = False) -> None:
+        """Send the (Fast) Sync Read instruction and return while the replies are on the wire.
+
+        `sync_read_finish` collects them; in between the caller may compute but not use the bus (the SDK
+        keeps the port marked busy). The reply window is the SDK's, started when the instruction left.
         """
         ids = check_ids(servo_ids)
-        if not ids:
-            return {}
         start, length = span(tuple(registers))
+        what = f"{'fast ' if fast else ''}sync read {[r.name for r in registers]}"
+        self._pending = (ids, tuple(registers), start, length, fast, what)
+        if not ids:
+            return
         key = (start, length, tuple(ids))
         group = self._sync_reads.get(key)
         if group is None:
@@ -337,19 +356,62 @@ class DynamixelBus:
             for sid in ids:
                 group.addParam(sid)
             self._sync_reads[key] = group
-        comm = self._call(group.fastSyncRead if fast else group.txRxPacket)
-        what = f"{'fast ' if fast else ''}sync read {[r.name for r in registers]}"
-        self._check(comm, 0, what, ids)
+        comm = self._call(group.fastSyncReadTxPacket if fast else group.txPacket)
+        if comm != sdk.COMM_SUCCESS:
+            self._pending = None
+            self._check(comm, 0, what, ids)
+
+    def sync_read_finish(self) -> dict[int, dict[Register, int]]:
+        """The replies to the instruction `sync_read_start` sent (see `sync_read` for the contract)."""
+        pending, self._pending = self._pending, None
+        if pending is None:
+            raise BusError(f"sync_read_finish on {self.port_name} without a sync_read_start")
+        ids, registers, start, length, fast, what = pending
+        if not ids:
+            return {}
+        blocks = self._fast_blocks(ids, length, what) if fast else self._status_blocks(ids, length, what)
+        self._check(sdk.COMM_SUCCESS, 0, what, ids)
         fields = [(r, r.address - start, r.address - start + r.size, r.signed) for r in registers]
         out: dict[int, dict[Register, int]] = {}
         for sid in ids:
-            block = group.data_dict.get(sid)
-            if block is None or len(block) < length:
+            raw, err = blocks.get(sid, (b"", 0))
+            if len(raw) < length:
                 self.stats.corrupt += 1
-                raise BusCorruptError(f"{what}: servo {sid} returned {0 if block is None else len(block)} bytes", ids)
-            raw = bytes(block)
+                raise BusCorruptError(f"{what}: servo {sid} returned {len(raw)} bytes", ids)
+            if err & STATUS_ALERT_BIT:
+                self.stats.alerts += 1
+                self.alerts.add(sid)
             out[sid] = {r: int.from_bytes(raw[a:b], "little", signed=sg) for r, a, b, sg in fields}
         return out
+
+    def _status_blocks(self, ids: list[int], length: int, what: str) -> dict[int, tuple[bytes, int]]:
+        """One status packet per servo, read by the SDK's ``readRx`` (as ``GroupSyncRead.rxPacket`` does,
+        but keeping each packet's error byte)."""
+        blocks: dict[int, tuple[bytes, int]] = {}
+        read_rx, port = self._packet.readRx, self._port
+        for sid in ids:
+            data, comm, err = self._call(read_rx, port, sid, length)
+            if comm != sdk.COMM_SUCCESS:
+                self._check(comm, 0, what, ids)
+            blocks[sid] = (bytes(data), err)
+        return blocks
+
+    def _fast_blocks(self, ids: list[int], length: int, what: str) -> dict[int, tuple[bytes, int]]:
+        """The one combined Fast Sync Read reply (the SDK's ``fastSyncReadRx``), split per servo: ``ERR ID
+        data CRC`` each, as ``GroupSyncRead.fastSyncReadRxPacket`` does, but keeping the error bytes."""
+        raw, comm, _ = self._call(self._packet.fastSyncReadRx, self._port, sdk.BROADCAST_ID, (length + 4) * len(ids))
+        if comm != sdk.COMM_SUCCESS:
+            self._check(comm, 0, what, ids)
+        raw = bytes(raw)
+        blocks: dict[int, tuple[bytes, int]] = {}
+        wanted = set(ids)
+        for k in range(len(ids)):
+            at = k * (length + 4)
+            if at + 2 + length > len(raw) or raw[at + 1] not in wanted:
+                self.stats.corrupt += 1
+                raise BusCorruptError(f"{what}: combined reply block {k} is malformed", ids)
+            blocks[raw[at + 1]] = (raw[at + 2 : at + 2 + length], raw[at])
+        return blocks
 
     def bulk_read(
         self, requests: Mapping[int, Sequence[Register]], *, fast: bool = False
