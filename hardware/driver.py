@@ -74,6 +74,7 @@ class Driver(ChainReads):
             TelemetryGroup("motion", MOTION, 1.0 / self.policy.motion_hz),
             TelemetryGroup("thermal", THERMAL, 1.0 / self.policy.thermal_hz),
         ]
+        self.telemetry_reads = {g.name: 0 for g in self._groups}
         self._owner: int | None = threading.get_ident()
         self._connected = True
         self._last_reopen_s = float("-inf")
@@ -337,7 +338,8 @@ class Driver(ChainReads):
                 self._read_positions(now)
                 self._read_slow_group(now)
                 for rec in self._records.values():
-                    self._reactions.service(rec, now)
+                    if rec.reboot_at_s is not None or rec.recover_at_s is not None:  # else service() has nothing to do
+                        self._reactions.service(rec, now)
                 self._probe_missing(now)
         except BusDisconnectedError as err:
             self._on_disconnect(err)

@@ -45,6 +45,7 @@ class ChainReads:
     _group_failed: bool
     _fast_failures: int
     _clock: Callable[[], float]
+    telemetry_reads: dict[str, int]  # slow group reads so far, by group name
     _idle_s: float  # how long the caller left the bus idle before this cycle (inf on the first)
     _position_ids: list[int] | None  # ids whose position read `cycle_start` sent (None: nothing sent)
 
@@ -146,14 +147,14 @@ class ChainReads:
         """The most overdue group, if it is to be read this cycle: at once when asked for (an alert, a
         reaction, the first read), when the caller left the bus idle for at least as long as its last read
         took (nominal rate: the read fills idle time), or once overdue beyond the floor rate."""
-        due = [g for g in self._groups if g.due_s <= now]
-        if not due:
-            return None
-        group = min(due, key=lambda g: g.due_s)
-        floor_late_s = group.period_s * (1.0 / self.policy.telemetry_floor_share - 1.0)
-        if group.due_s == float("-inf") or self._idle_s >= group.cost_s or now >= group.due_s + floor_late_s:
-            return group
-        return None
+        late = 1.0 / self.policy.telemetry_floor_share - 1.0
+        ready = [
+            g
+            for g in self._groups
+            if g.due_s <= now
+            and (g.due_s == float("-inf") or self._idle_s >= g.cost_s or now >= g.due_s + g.period_s * late)
+        ]
+        return min(ready, key=lambda g: g.due_s) if ready else None
 
     def _read_slow_group(self, now: float) -> None:
         if self.bus.alerts:  # an Alert bit (any reply, the position read's included): read the why now,
@@ -165,9 +166,10 @@ class ChainReads:
         if group is None:
             return
         group.due_s = now + group.period_s
+        self.telemetry_reads[group.name] += 1
         ids = self._readable(now)
         t0 = self._clock()
-        got = self._read_group(ids, group.registers)
+        got = self._read_group(ids, group.registers, fast=self.fast_sync_read)  # one combined reply if it works
         group.cost_s = self._clock() - t0
         for sid, values in got.items():
             rec = self._records[sid]

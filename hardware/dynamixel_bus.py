@@ -11,6 +11,7 @@ latency timer, see `servoface.hardware.latency`), so two buses in one process do
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Mapping, Sequence
 from types import TracebackType
@@ -50,6 +51,9 @@ SDK_BAUDS = (
     4000000,
 )
 IN_PROCESS_LATENCY_MS = 2.0
+NAP_MIN_S = 0.0005  # a reply further away than this is slept for rather than polled
+NAP_MARGIN_S = 0.0002  # wake this much before it (wake-up latency)
+PARSE_S_START = 50e-6  # per status packet, until measured
 MAX_WINDOW_EXTENSION_MS = 100.0
 
 
@@ -71,14 +75,36 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
     def getCurrentTime(self) -> float:  # noqa: N802 (SDK name); milliseconds, as the SDK expects
         return time.monotonic() * 1000.0
 
+    tx_done_s: float = 0.0  # time.monotonic() when the bytes written so far have left the adapter
+
+    def writePort(self, packet: Any) -> int:  # noqa: N802 (SDK name)
+        """As the SDK's; also notes when the packet will have left (baud arithmetic): no reply can start
+        before, so a reader may sleep until then instead of spinning."""
+        now = time.monotonic()
+        self.tx_done_s = max(now, self.tx_done_s) + len(packet) * self.tx_time_per_byte * 1e-3
+        written: int = self.ser.write(packet)
+        return written
+
     def readPort(self, length: int) -> bytes:  # noqa: N802 (SDK name)
-        """As the SDK's, but an empty read yields the GIL: the SDK waits for replies in a busy loop, which
-        otherwise starves every other Python thread (a pty server, the caller's own threads) for up to the
-        5 ms switch interval per turn."""
+        """As the SDK's, but an empty read does not spin blindly: the SDK waits for replies in a busy loop.
+        Until the instruction has left and ``length`` bytes could have come back, sleep (frees the core);
+        after that, yield the GIL only when other threads run (an in-process pty server, the caller's own
+        threads: the busy loop would starve them for the 5 ms switch interval per turn). ``sleep(0)`` on
+        every empty read cost ~0.1 ms each on a loaded machine."""
         data: bytes = self.ser.read(length)
         if not data:
-            time.sleep(0)
+            wait_s = self.tx_done_s + length * self.tx_time_per_byte * 1e-3 - time.monotonic()
+            if wait_s > NAP_MIN_S:
+                time.sleep(wait_s - NAP_MARGIN_S)
+            elif threading.active_count() > 1:
+                time.sleep(0)
         return data
+
+    def nap_until(self, t_s: float) -> None:
+        """Sleep until ``t_s`` (time.monotonic) less a margin, if that is worth a sleep."""
+        wait_s = t_s - time.monotonic()
+        if wait_s > NAP_MIN_S:
+            time.sleep(wait_s - NAP_MARGIN_S)
 
     def isPacketTimeout(self) -> bool:  # noqa: N802 (SDK name)
         """The SDK reads, then checks the clock: a thread descheduled between the two (common on a loaded
@@ -148,6 +174,7 @@ class DynamixelBus:
         self._packet = sdk.PacketHandler(2.0)
         self._sync_reads: dict[tuple[int, int, tuple[int, ...]], Any] = {}
         self._pending: tuple[list[int], tuple[Register, ...], int, int, bool, str] | None = None
+        self._parse_s = PARSE_S_START  # measured CPU per status packet already waiting (see _nap_for_replies)
         if isinstance(port, str):
             self.port_name = port
             self._port: _WindowedPort = _WindowedPort(port)
@@ -389,17 +416,38 @@ class DynamixelBus:
         but keeping each packet's error byte)."""
         blocks: dict[int, tuple[bytes, int]] = {}
         read_rx, port = self._packet.readRx, self._port
-        for sid in ids:
+        backlog = self._nap_for_replies(len(ids), 11 + length)
+        t0 = time.perf_counter()
+        for k, sid in enumerate(ids):
             data, comm, err = self._call(read_rx, port, sid, length)
             if comm != sdk.COMM_SUCCESS:
                 self._check(comm, 0, what, ids)
             blocks[sid] = (bytes(data), err)
+            if k + 1 == backlog:  # the packets that were waiting: their parse cost, for the next nap
+                self._parse_s = 0.8 * self._parse_s + 0.2 * (time.perf_counter() - t0) / backlog
         return blocks
+
+    def _nap_for_replies(self, n_packets: int, packet_bytes: int) -> int:
+        """Sleep while the first of ``n_packets`` status packets are on the wire, waking when the parse of
+        the ones already in (at the measured cost per packet) would end as the last one arrives; returns
+        how many should be waiting then (0: no sleep). Return Delay Time is not counted: wakes early."""
+        port = self._port
+        packet_s = packet_bytes * port.tx_time_per_byte * 1e-3
+        backlog = int(n_packets * packet_s / (packet_s + self._parse_s))
+        if backlog < 2:
+            return 0
+        wake_s = port.tx_done_s + backlog * packet_s
+        if wake_s - time.monotonic() <= NAP_MIN_S:
+            return 0
+        port.nap_until(wake_s)
+        return backlog
 
     def _fast_blocks(self, ids: list[int], length: int, what: str) -> dict[int, tuple[bytes, int]]:
         """The one combined Fast Sync Read reply (the SDK's ``fastSyncReadRx``), split per servo: ``ERR ID
         data CRC`` each, as ``GroupSyncRead.fastSyncReadRxPacket`` does, but keeping the error bytes."""
-        raw, comm, _ = self._call(self._packet.fastSyncReadRx, self._port, sdk.BROADCAST_ID, (length + 4) * len(ids))
+        port = self._port  # one packet: sleep until its last bytes, less its parse (~ 2 packets' worth)
+        port.nap_until(port.tx_done_s + (8 + len(ids) * (length + 4)) * port.tx_time_per_byte * 1e-3 - 2 * self._parse_s)
+        raw, comm, _ = self._call(self._packet.fastSyncReadRx, port, sdk.BROADCAST_ID, (length + 4) * len(ids))
         if comm != sdk.COMM_SUCCESS:
             self._check(comm, 0, what, ids)
         raw = bytes(raw)

@@ -24,8 +24,17 @@ PRESENT = Register.PRESENT_POSITION
 class StockSdkLoop:
     """Sync Write of Goal Position to ``write_ids`` + Sync Read of Present Position from ``read_ids``."""
 
-    def __init__(self, bus: DynamixelBus, write_ids: Sequence[int], read_ids: Sequence[int] | None = None) -> None:
+    def __init__(
+        self,
+        bus: DynamixelBus,
+        write_ids: Sequence[int],
+        read_ids: Sequence[int] | None = None,
+        *,
+        fast: bool = False,
+    ) -> None:
+        """``fast``: read with ``GroupSyncRead.fastSyncRead`` (Fast Sync Read) instead of ``txRxPacket``."""
         self.port, self.packet = bus.sdk_handlers()
+        self.fast = fast
         self.write_ids = list(write_ids)
         self.read_ids = list(read_ids if read_ids is not None else write_ids)
         self._write: Any = sdk.GroupSyncWrite(self.port, self.packet, GOAL.address, GOAL.size)
@@ -44,7 +53,7 @@ class StockSdkLoop:
         self._write.clearParam()
         if comm != sdk.COMM_SUCCESS:
             raise BusError(f"stock SDK loop: sync write failed: {self.packet.getTxRxResult(comm)}")
-        if self._read.txRxPacket() != sdk.COMM_SUCCESS:
+        if (self._read.fastSyncRead() if self.fast else self._read.txRxPacket()) != sdk.COMM_SUCCESS:
             self.failures += 1
             return {}
         out = {}
