@@ -89,6 +89,8 @@ class Driver(ChainReads):
         self._cycle_now: float | None = None  # set between cycle_start and cycle_finish
         self._position_ids: list[int] | None = None
         self._idle_s = float("inf")
+        self._busy_s = 0.0  # how long the last cycle took (clock)
+        self._patient = False
         self._last_end_s = float("-inf")  # clock at the end of the last cycle
 
     # -- ownership ----------------------------------------------------------------------------------
@@ -315,6 +317,7 @@ class Driver(ChainReads):
         goals = self.validate_goals(goals_tick)
         now = self._clock()
         self._idle_s = now - self._last_end_s
+        self._patient = self._idle_s > self._busy_s  # a paced caller: spend least CPU, not least latency
         self._cycle_events = []
         self._cycle_now = now
         self._position_ids = None
@@ -346,6 +349,7 @@ class Driver(ChainReads):
         self._cycle += 1
         snapshot = self._freeze(now)
         self._last_end_s = self._clock()
+        self._busy_s = self._last_end_s - now
         return snapshot
 
     def read_state(self) -> ChainSnapshot:

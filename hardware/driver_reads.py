@@ -47,6 +47,7 @@ class ChainReads:
     _clock: Callable[[], float]
     telemetry_reads: dict[str, int]  # slow group reads so far, by group name
     _idle_s: float  # how long the caller left the bus idle before this cycle (inf on the first)
+    _patient: bool  # that idle time exceeds the last cycle's own: replies are slept for, not polled
     _position_ids: list[int] | None  # ids whose position read `cycle_start` sent (None: nothing sent)
 
     def _emit(self, servo_id: int | None, kind: FaultKind, reaction: str) -> None:
@@ -62,9 +63,9 @@ class ChainReads:
             return {}
         for attempt in range(1 + self.policy.retries):
             try:
-                if started and attempt == 0:
-                    return self.bus.sync_read_finish()
-                return self.bus.sync_read(ids, registers, fast=fast)
+                if not (started and attempt == 0):
+                    self.bus.sync_read_start(ids, registers, fast=fast)
+                return self.bus.sync_read_finish(patient=self._patient)
             except (BusTimeoutError, BusCorruptError):
                 continue
         self._group_failed = True

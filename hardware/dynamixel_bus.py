@@ -11,6 +11,7 @@ latency timer, see `servoface.hardware.latency`), so two buses in one process do
 
 from __future__ import annotations
 
+import select
 import threading
 import time
 from collections.abc import Mapping, Sequence
@@ -53,6 +54,7 @@ SDK_BAUDS = (
 IN_PROCESS_LATENCY_MS = 2.0
 NAP_MIN_S = 0.0005  # a reply further away than this is slept for rather than polled
 NAP_MARGIN_S = 0.0002  # wake this much before it (wake-up latency)
+POLL_SLICE_S = 0.001  # a port with a file descriptor blocks in select() this long at most per empty read
 PARSE_S_START = 50e-6  # per status packet, until measured
 MAX_WINDOW_EXTENSION_MS = 100.0
 
@@ -76,6 +78,7 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
         return time.monotonic() * 1000.0
 
     tx_done_s: float = 0.0  # time.monotonic() when the bytes written so far have left the adapter
+    _fd: int | None = -2  # -2: not looked up yet
 
     def writePort(self, packet: Any) -> int:  # noqa: N802 (SDK name)
         """As the SDK's; also notes when the packet will have left (baud arithmetic): no reply can start
@@ -96,9 +99,27 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
             wait_s = self.tx_done_s + length * self.tx_time_per_byte * 1e-3 - time.monotonic()
             if wait_s > NAP_MIN_S:
                 time.sleep(wait_s - NAP_MARGIN_S)
+            elif (fd := self._fileno()) is not None:  # a real port or pty: block until bytes come (or 1 ms)
+                select.select([fd], [], [], POLL_SLICE_S)
             elif threading.active_count() > 1:
                 time.sleep(0)
         return data
+
+    def _fileno(self) -> int | None:
+        """The serial object's file descriptor (None for an in-process chain), looked up once per open."""
+        fd: int | None = getattr(self, "_fd", -2)
+        if fd == -2:
+            try:
+                fd = int(self.ser.fileno())
+            except (AttributeError, OSError, ValueError, TypeError):
+                fd = None
+            self._fd = fd
+        return fd
+
+    def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 (SDK name)
+        self._fd = -2
+        ok: bool = super().setupPort(cflag_baud)
+        return ok
 
     def nap_until(self, t_s: float) -> None:
         """Sleep until ``t_s`` (time.monotonic) less a margin, if that is worth a sleep."""
@@ -134,6 +155,7 @@ class _ChainPort(_WindowedPort):
     def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 (SDK name)
         if self.is_open:
             self.closePort()
+        self._fd = None
         self.ser = self.chain.open_serial()
         if hasattr(self.ser, "baudrate"):
             self.ser.baudrate = self.baudrate
@@ -388,15 +410,22 @@ class DynamixelBus:
             self._pending = None
             self._check(comm, 0, what, ids)
 
-    def sync_read_finish(self) -> dict[int, dict[Register, int]]:
-        """The replies to the instruction `sync_read_start` sent (see `sync_read` for the contract)."""
+    def sync_read_finish(self, *, patient: bool = False) -> dict[int, dict[Register, int]]:
+        """The replies to the instruction `sync_read_start` sent (see `sync_read` for the contract).
+
+        ``patient``: the caller has time to spare (a paced loop): sleep until every reply should be in, then
+        parse them at once (least CPU). Otherwise wake while they arrive so the parse ends with the last one
+        (least latency: back-to-back cycles)."""
         pending, self._pending = self._pending, None
         if pending is None:
             raise BusError(f"sync_read_finish on {self.port_name} without a sync_read_start")
         ids, registers, start, length, fast, what = pending
         if not ids:
             return {}
-        blocks = self._fast_blocks(ids, length, what) if fast else self._status_blocks(ids, length, what)
+        if fast:
+            blocks = self._fast_blocks(ids, length, what)
+        else:
+            blocks = self._status_blocks(ids, length, what, patient)
         self._check(sdk.COMM_SUCCESS, 0, what, ids)
         fields = [(r, r.address - start, r.address - start + r.size, r.signed) for r in registers]
         out: dict[int, dict[Register, int]] = {}
@@ -411,12 +440,12 @@ class DynamixelBus:
             out[sid] = {r: int.from_bytes(raw[a:b], "little", signed=sg) for r, a, b, sg in fields}
         return out
 
-    def _status_blocks(self, ids: list[int], length: int, what: str) -> dict[int, tuple[bytes, int]]:
+    def _status_blocks(self, ids: list[int], length: int, what: str, patient: bool) -> dict[int, tuple[bytes, int]]:
         """One status packet per servo, read by the SDK's ``readRx`` (as ``GroupSyncRead.rxPacket`` does,
         but keeping each packet's error byte)."""
         blocks: dict[int, tuple[bytes, int]] = {}
         read_rx, port = self._packet.readRx, self._port
-        backlog = self._nap_for_replies(len(ids), 11 + length)
+        backlog = self._nap_for_replies(len(ids), 11 + length, patient)
         t0 = time.perf_counter()
         for k, sid in enumerate(ids):
             data, comm, err = self._call(read_rx, port, sid, length)
@@ -427,13 +456,14 @@ class DynamixelBus:
                 self._parse_s = 0.8 * self._parse_s + 0.2 * (time.perf_counter() - t0) / backlog
         return blocks
 
-    def _nap_for_replies(self, n_packets: int, packet_bytes: int) -> int:
+    def _nap_for_replies(self, n_packets: int, packet_bytes: int, patient: bool) -> int:
         """Sleep while the first of ``n_packets`` status packets are on the wire, waking when the parse of
-        the ones already in (at the measured cost per packet) would end as the last one arrives; returns
-        how many should be waiting then (0: no sleep). Return Delay Time is not counted: wakes early."""
+        the ones already in (at the measured cost per packet) would end as the last one arrives — or, when
+        ``patient``, once all should be in; returns how many should be waiting then (0: no sleep). Return
+        Delay Time is not counted: wakes early rather than late."""
         port = self._port
         packet_s = packet_bytes * port.tx_time_per_byte * 1e-3
-        backlog = int(n_packets * packet_s / (packet_s + self._parse_s))
+        backlog = n_packets if patient else int(n_packets * packet_s / (packet_s + self._parse_s))
         if backlog < 2:
             return 0
         wake_s = port.tx_done_s + backlog * packet_s
@@ -447,7 +477,9 @@ class DynamixelBus:
         data CRC`` each, as ``GroupSyncRead.fastSyncReadRxPacket`` does, but keeping the error bytes."""
         port = self._port  # one packet: sleep until its last bytes, less its parse (~ 2 packets' worth)
         if port.getBytesAvailable() == 0:
-            port.nap_until(port.tx_done_s + (8 + len(ids) * (length + 4)) * port.tx_time_per_byte * 1e-3 - 2 * self._parse_s)
+            port.nap_until(
+                port.tx_done_s + (8 + len(ids) * (length + 4)) * port.tx_time_per_byte * 1e-3 - 2 * self._parse_s
+            )
         raw, comm, _ = self._call(self._packet.fastSyncReadRx, port, sdk.BROADCAST_ID, (length + 4) * len(ids))
         if comm != sdk.COMM_SUCCESS:
             self._check(comm, 0, what, ids)

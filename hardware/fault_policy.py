@@ -56,7 +56,9 @@ class FaultPolicy:
             if isinstance(value, float) and (not math.isfinite(value) or value < 0):
                 raise ValueError(f"FaultPolicy.{name} = {value!r}: expected a finite value >= 0")
         if not 0 < self.telemetry_floor_share <= 1:
-            raise ValueError(f"FaultPolicy.telemetry_floor_share = {self.telemetry_floor_share}: expected 0 < share <= 1")
+            raise ValueError(
+                f"FaultPolicy.telemetry_floor_share = {self.telemetry_floor_share}: expected 0 < share <= 1"
+            )
         if not 0 <= self.backoff_gain <= 1:
             raise ValueError(f"FaultPolicy.backoff_gain = {self.backoff_gain}: expected 0..1")
 

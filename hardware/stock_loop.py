@@ -10,11 +10,12 @@ that imports it).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
+from servoface.hardware.bus import ServoBus
 from servoface.hardware.dynamixel_bus import DynamixelBus, sdk
-from servoface.hardware.errors import BusError
+from servoface.hardware.errors import BusError, HardwareConfigError
 from servoface.hardware.registers import Register
 
 GOAL = Register.GOAL_POSITION
@@ -26,13 +27,15 @@ class StockSdkLoop:
 
     def __init__(
         self,
-        bus: DynamixelBus,
+        bus: ServoBus,
         write_ids: Sequence[int],
         read_ids: Sequence[int] | None = None,
         *,
         fast: bool = False,
     ) -> None:
         """``fast``: read with ``GroupSyncRead.fastSyncRead`` (Fast Sync Read) instead of ``txRxPacket``."""
+        if not isinstance(bus, DynamixelBus):
+            raise HardwareConfigError(f"the stock SDK loop needs a DynamixelBus (an SDK port), got {bus!r}")
         self.port, self.packet = bus.sdk_handlers()
         self.fast = fast
         self.write_ids = list(write_ids)
@@ -43,11 +46,13 @@ class StockSdkLoop:
             self._read.addParam(sid)
         self.failures = 0
 
-    def cycle(self, goal_tick: int) -> dict[int, int]:
-        """One cycle with every servo's goal at ``goal_tick``; the positions read (empty on a failed read)."""
-        data = [sdk.DXL_LOBYTE(sdk.DXL_LOWORD(goal_tick)), sdk.DXL_HIBYTE(sdk.DXL_LOWORD(goal_tick)),
-                sdk.DXL_LOBYTE(sdk.DXL_HIWORD(goal_tick)), sdk.DXL_HIBYTE(sdk.DXL_HIWORD(goal_tick))]  # fmt: skip
+    def cycle(self, goal_tick: int | Mapping[int, int]) -> dict[int, int]:
+        """One cycle: every servo's goal at ``goal_tick`` (or ``goal_tick[id]``); the positions read (empty
+        on a failed read)."""
         for sid in self.write_ids:
+            goal = goal_tick if isinstance(goal_tick, int) else goal_tick[sid]
+            data = [sdk.DXL_LOBYTE(sdk.DXL_LOWORD(goal)), sdk.DXL_HIBYTE(sdk.DXL_LOWORD(goal)),
+                    sdk.DXL_LOBYTE(sdk.DXL_HIWORD(goal)), sdk.DXL_HIBYTE(sdk.DXL_HIWORD(goal))]  # fmt: skip
             self._write.addParam(sid, data)
         comm = self._write.txPacket()
         self._write.clearParam()

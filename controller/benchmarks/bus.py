@@ -140,7 +140,7 @@ def contenders(chain: ServoChain, baud: int, fast: bool) -> tuple[dict[str, Step
     `ServoBus` sync write + sync read, and a full `Driver.cycle` (telemetry + fault policy)."""
     ids = chain.ids
     buses = [open_bus("emulator", chain=chain, baud=baud) for _ in range(3)]
-    stock = StockSdkLoop(buses[0], ids, fast=fast)  # type: ignore[arg-type]
+    stock = StockSdkLoop(buses[0], ids, fast=fast)
     specs = [ServoSpec(sid, "XL330-M288", return_delay_us=RETURN_DELAY_US) for sid in ids]
     driver = Driver(buses[2], specs, fast_sync_read=fast)
     driver.configure()
