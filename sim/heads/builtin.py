@@ -59,6 +59,7 @@ def _dog() -> dict[str, MeshFn]:
         "dog_teeth_upper": d.teeth_upper,
         "dog_mouth_cavity": d.mouth_cavity,
         "dog_neck": d.neck,
+        "dog_neck_collar": d.neck_collar,
         "dog_nose": d.nose,
         "dog_tongue_root": d.tongue_root,
         "dog_tongue_tip": d.tongue_tip,
