@@ -388,13 +388,13 @@ def test_dog_au7_opens_the_mandible(dog: Face) -> None:
     """DFACS AU7 open mandible (jaw pitch about the TMJ): the chin drops, the mouth opens
     (dfacs-dog.md §2)."""
     d = dog.moved({"AU7": 1.0})
-    assert d["chin"][Y] <= -dog.d(0.6)
+    assert d["mandible_front"][Y] <= -dog.d(0.6)
     assert abs(d["mouth_front"][Y]) <= dog.d(0.02)  # the upper jaw stays
 
 
 def test_dog_au8_moves_the_mandible_sideways(dog: Face) -> None:
     """DFACS AU8 left mandible (lateral jaw rotation) (dfacs-dog.md §2)."""
-    assert dog.moved({"AU8": 1.0})["chin"][X] >= dog.d(0.2)
+    assert dog.moved({"AU8": 1.0})["mandible_front"][X] >= dog.d(0.2)
 
 
 @pytest.mark.parametrize("au, axis, sign", [("AU12", X, 1.0), ("AU13", Y, 1.0), ("AU13", Y, -1.0)])
@@ -430,12 +430,12 @@ def test_dog_anger_retracts_the_lips_and_bares_the_teeth(dog: Face) -> None:
     """Londra anger: 14, 4, 1, 2, 5, 7 (dfacs-dog.md §3): flews up, corners back, mouth open."""
     d = dog.moved(dog.expression("anger_without_tongue"))
     assert d["anchor_lip_raise_l"][Y] >= dog.d(0.08) and d["anchor_mouth_corner_l"][Z] <= -dog.d(0.12)
-    assert d["chin"][Y] <= -dog.d(0.2)
+    assert d["mandible_front"][Y] <= -dog.d(0.2)
 
 
 def test_dog_happiness_has_a_relaxed_open_mouth(dog: Face) -> None:
     """Londra happiness 6, 9 with a relaxed open mouth (dfacs-dog.md §5: recognised only as attention
     without it): the jaw drops, the flews relax, the tongue shows."""
     rest, p = dog.rest, dog.at(dog.expression("happiness"))
-    chin_drop = (rest["mouth_front"][Y] - rest["chin"][Y]) - (p["mouth_front"][Y] - p["chin"][Y])
+    chin_drop = (rest["mouth_front"][Y] - rest["mandible_front"][Y]) - (p["mouth_front"][Y] - p["mandible_front"][Y])
     assert chin_drop <= -dog.d(0.2)
