@@ -5,10 +5,10 @@ twin gate (verdict) + `Driver.cycle` (one Sync Write of the head's goals, a Sync
 Present Position, the due slow telemetry group, the fault policy). The bus is the in-process emulator at
 1 Mbps with wire time on and Return Delay Time 0.
 
-24 servos on the chain: the built-in human head's 21 actuators plus 3 spare XL330-M288 (ids 22-24) that the
-driver also configures and reads every frame (the head never sends them goals). So one frame writes 21 goals
-and reads 24 positions; the wire limit is that traffic's wire time (`servoface.hardware.wire`: sync write of 21 x 4
-bytes, sync read instruction for 24, 24 status packets of 4 bytes, no return delay). The slow telemetry reads
+33 servos on the chain: the built-in human head's 30 actuators plus 3 spare XL330-M288 (ids 31-33) that the
+driver also configures and reads every frame (the head never sends them goals). So one frame writes 30 goals
+and reads 33 positions; the wire limit is that traffic's wire time (`servoface.hardware.wire`: sync write of 30 x 4
+bytes, sync read instruction for 33, 33 status packets of 4 bytes, no return delay). The slow telemetry reads
 the driver adds on some frames are not in the limit, so a ratio near 1 is out of reach by design; the bus
 stage is compared with the same limit.
 

@@ -76,8 +76,8 @@ def _portrait_crop(
     if span <= 0:
         return lo, hi
     lo, hi = lo.copy(), hi.copy()
-    lo[1] = max(lo[1], chin_y - 0.3 * span)
-    hi[1] = min(hi[1], eye_y + 1.1 * span)
+    lo[1] = max(lo[1], chin_y - 0.2 * span)
+    hi[1] = min(hi[1], eye_y + 0.8 * span)  # issue 11: the face fills the frame (0.3 / 1.1 showed the crown)
     return lo, hi
 
 

@@ -110,8 +110,8 @@ def test_antagonists_sum_then_clamp() -> None:
 def test_dog_counter_aus_use_their_own_row_or_mirror() -> None:
     m = _mapping("dog")
     assert _joint(m, {"AU5": 1.0}, "ear_pan_l") == pytest.approx(30.0)
-    assert _joint(m, {"AU5": -1.0}, "ear_pan_l") == pytest.approx(-40.0)
-    assert _joint(m, {"AU5R": -0.5}, "ear_pan_r") == pytest.approx(-20.0)
+    assert _joint(m, {"AU5": -1.0}, "ear_pan_l") == pytest.approx(-50.0)  # issue 11: about x, back and flat
+    assert _joint(m, {"AU5R": -0.5}, "ear_pan_r") == pytest.approx(-25.0)
     assert _joint(m, {"AU5R": -0.5}, "ear_pan_l") == 0.0
     assert _muscle(m, {"AU1": -1.0}, "levator_nasolabialis_l") == pytest.approx(-0.3)
     assert _joint(m, {"AU19": -1.0}, "tongue_tip") == pytest.approx(35.0)  # mirrored counter (name lost)
