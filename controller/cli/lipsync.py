@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     from servoface.controller.speech.video import render_talking
 
     with Face.open(head, emulate=True) as face:
-        perf = say_on_face(face, speech, audio_out=False)
+        perf = say_on_face(face, speech, audio_out=False).performance
         video = args.out / "speech.mp4"
         count = render_talking(face, perf, speech, video)
     print(f"wrote {video}: {count} frames, the achievable face with the sound")

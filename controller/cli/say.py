@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     with face:
         if args.expression:
             face.express(args.expression, hold_s=0.0)
-        perf = say_on_face(face, speech)
+        perf = say_on_face(face, speech).performance
         if args.out is not None:
             from servoface.controller.speech.video import render_talking
 

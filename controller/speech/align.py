@@ -60,8 +60,18 @@ def _decoder() -> object:
     except ImportError as err:
         raise SpeechError("forced alignment needs pocketsphinx: pip install 'pocketsphinx>=5'") from err
     # wide beams: alignment has one path to follow; the default beams lose it on synthetic or noisy speech
+    # (with beams of 1e-100, 3 of 22 corpus sentences found no path; these found all)
     return pocketsphinx.Decoder(
-        samprate=ALIGN_RATE_HZ, bestpath=False, loglevel="FATAL", beam=1e-100, pbeam=1e-100, wbeam=1e-80
+        samprate=ALIGN_RATE_HZ,
+        bestpath=False,
+        loglevel="FATAL",
+        beam=1e-200,
+        pbeam=1e-200,
+        wbeam=1e-200,
+        lpbeam=1e-200,
+        lponlybeam=1e-200,
+        fwdflat=False,
+        maxhmmpf=-1,
     )
 
 

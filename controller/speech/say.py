@@ -10,6 +10,7 @@ When the speech clip ends it provides nothing and the face track has the mouth a
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -33,7 +34,18 @@ def speech_timeline(face_type: str, speech: Speech, base_pose: dict[str, float],
     return timeline
 
 
-def say_on_face(face: Face, speech: Speech, *, audio_out: bool = True) -> Performance:
+@dataclass(frozen=True)
+class SpokenRun:
+    """What a spoken run did: its frames, and on the monotonic clock when the mouth clock's 0 was (the
+    first frame's due time) and when the sound started (or would have: no device)."""
+
+    performance: Performance
+    start_monotonic_s: float
+    audio_start_monotonic_s: float
+    sound: str  # where the sound went, or why it did not play
+
+
+def say_on_face(face: Face, speech: Speech, *, audio_out: bool = True) -> SpokenRun:
     """Play ``speech`` on an open face (blocking), the mouth on the speech track over the face's pose; the
     sound (when a device exists) starts ``plan.audio_start_s`` after the first frame."""
     from servoface.controller.speech.playback import open_audio_out
@@ -41,15 +53,17 @@ def say_on_face(face: Face, speech: Speech, *, audio_out: bool = True) -> Perfor
     allowed = head_au_names(face.head)
     timeline = speech_timeline(face.head.face_type, speech, dict(face.pose), allowed)
     out = open_audio_out() if audio_out else None
-    if out is not None and out.available:
-        out.play_at(speech.samples, speech.rate_hz, time.monotonic() + speech.plan.audio_start_s)
     duration = max(speech.plan.duration_s, speech.plan.audio_end_s) + 0.15
     pose_before = dict(face.pose)
+    start = time.monotonic()
+    if out is not None and out.available:
+        out.play_at(speech.samples, speech.rate_hz, start + speech.plan.audio_start_s)
     perf = face._run(timeline, duration)  # noqa: SLF001 - the Face's own runner (bounded, traced, interruptible)
     face.pose = pose_before  # the expression is still held; the mouth is back at the face track's
     if out is not None:
         out.wait()
-    return perf
+    sound = "not asked for" if out is None else out.reason
+    return SpokenRun(perf, start, start + speech.plan.audio_start_s, sound)
 
 
 def speak_text(face: Face, text: str, *, voice: str = "en-us", out_dir: str | Path | None = None) -> Performance:
@@ -59,7 +73,7 @@ def speak_text(face: Face, text: str, *, voice: str = "en-us", out_dir: str | Pa
     speech = speech_from_text(text, voice=voice)
     if out_dir is not None:
         write_outputs(speech, face.head.face_type, Path(out_dir), allowed=head_au_names(face.head))
-    return say_on_face(face, speech)
+    return say_on_face(face, speech).performance
 
 
 def write_outputs(

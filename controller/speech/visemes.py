@@ -20,6 +20,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+import numpy as np
+from numpy.typing import NDArray
+
 VISEMES: tuple[str, ...] = ("sil", "PP", "FF", "TH", "DD", "kk", "CH", "SS", "nn", "RR", "aa", "E", "ih", "oh", "ou")
 FEATURES: tuple[str, ...] = ("open", "part", "spread", "round", "press", "upper", "tongue")
 
@@ -97,7 +100,7 @@ ARPABET_TO_VISEME: dict[str, str] = {
     "N": "nn", "L": "nn", "Y": "ih",
     "R": "RR", "ER": "RR",
     "W": "ou",
-    "AA": "aa", "AE": "aa", "AH": "aa", "AY": "aa", "AW": "aa",
+    "AA": "aa", "AE": "aa", "AY": "aa", "AW": "aa", "AH": "E",  # AH: mostly schwa in running speech (espeak @)
     "EH": "E", "EY": "E",
     "IH": "ih", "IY": "ih",
     "AO": "oh", "OW": "oh", "OY": "oh",
@@ -166,9 +169,8 @@ def shape_to_aus(shape: Mapping[str, float], face_type: str, allowed: frozenset[
     return {au: min(1.0, max(lo, v)) for au, v in out.items()}
 
 
-def recipe_matrix(face_type: str, allowed: frozenset[str] | None = None) -> tuple[list[str], np.ndarray]:
+def recipe_matrix(face_type: str, allowed: frozenset[str] | None = None) -> tuple[list[str], NDArray[np.float64]]:
     """(AU names, matrix (len(FEATURES), len(names))): features @ matrix = AU intensities (unclamped)."""
-    import numpy as np
 
     if face_type not in RECIPES:
         raise ValueError(f"face type {face_type!r}: expected one of {sorted(RECIPES)}")
