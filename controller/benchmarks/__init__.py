@@ -11,4 +11,5 @@ SUITES: dict[str, str] = {
     "gate": "servoface.controller.benchmarks.gate",
     "pipeline": "servoface.controller.benchmarks.pipeline",
     "timeline": "servoface.controller.benchmarks.timeline",
+    "speech": "servoface.controller.benchmarks.speech",
 }

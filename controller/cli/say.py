@@ -50,10 +50,13 @@ def run(args: argparse.Namespace) -> int:
     with face:
         if args.expression:
             face.express(args.expression, hold_s=0.0)
-        perf = say_on_face(face, speech).performance
+        spoken = say_on_face(face, speech)
+        perf = spoken.performance
         if args.out is not None:
-            from servoface.controller.speech.video import render_talking
+            from servoface.controller.speech.video import plot_timing, render_talking
 
+            plot = plot_timing(face, perf, speech, args.out / "speech_timing.png", latency_s=spoken.latency_s)
+            print(f"wrote {plot}: the waveform against the jaw")
             video = args.out / "speech.mp4"
             count = render_talking(face, perf, speech, video)
             print(f"wrote {video}: {count} frames with sound ({speech.duration_s:.2f} s of speech)")

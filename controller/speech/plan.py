@@ -82,22 +82,26 @@ class LipSyncPlan:
 
 
 def _simplify(t: NDArray[np.float64], v: NDArray[np.float64], tol: float) -> list[int]:
-    """Indices of a piecewise-linear fit within ``tol`` (greedy forward; always keeps the ends and extrema)."""
+    """Indices of a piecewise-linear fit within ``tol`` of every sample: the ends and the turning points,
+    then, while some sample is further than ``tol`` from the fit, the worst sample of each such run."""
     n = len(t)
     if n <= 2:
         return list(range(n))
-    keep = [0]
-    anchor = 0
-    i = 2
-    while i < n:
-        seg_t = t[anchor : i + 1]
-        line = v[anchor] + (v[i] - v[anchor]) * (seg_t - t[anchor]) / (t[i] - t[anchor])
-        if np.max(np.abs(line - v[anchor : i + 1])) > tol:
-            keep.append(i - 1)
-            anchor = i - 1
-        i += 1
-    keep.append(n - 1)
-    return keep
+    d = np.diff(v)
+    turning = np.nonzero(np.sign(d[1:]) != np.sign(d[:-1]))[0] + 1
+    keep = np.unique(np.concatenate([[0, n - 1], turning]))
+    for _ in range(64):
+        err = np.abs(np.interp(t, t[keep], v[keep]) - v)
+        bad = err > tol
+        if not bad.any():
+            break
+        # the worst sample of each gap between kept points
+        gap = np.searchsorted(keep, np.arange(n), side="right")
+        order = np.lexsort((-err, gap))
+        first = order[np.r_[True, np.diff(gap[order]) != 0]]
+        add = first[bad[first]]
+        keep = np.unique(np.concatenate([keep, add]))
+    return keep.tolist()
 
 
 def loudness_gain(

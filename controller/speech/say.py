@@ -37,11 +37,13 @@ def speech_timeline(face_type: str, speech: Speech, base_pose: dict[str, float],
 @dataclass(frozen=True)
 class SpokenRun:
     """What a spoken run did: its frames, and on the monotonic clock when the mouth clock's 0 was (the
-    first frame's due time) and when the sound started (or would have: no device)."""
+    first frame's due time) and when the sound started (or would have: no device). The sound starts
+    ``audio_start_s`` (the lead) plus ``latency_s`` (the pipeline's frame time) after the mouth clock."""
 
     performance: Performance
     start_monotonic_s: float
     audio_start_monotonic_s: float
+    latency_s: float
     sound: str  # where the sound went, or why it did not play
 
 
@@ -55,15 +57,28 @@ def say_on_face(face: Face, speech: Speech, *, audio_out: bool = True) -> Spoken
     out = open_audio_out() if audio_out else None
     duration = max(speech.plan.duration_s, speech.plan.audio_end_s) + 0.15
     pose_before = dict(face.pose)
+    latency_s = pipeline_latency_s(face)
     start = time.monotonic()
+    audio_start = start + speech.plan.audio_start_s + latency_s
     if out is not None and out.available:
-        out.play_at(speech.samples, speech.rate_hz, start + speech.plan.audio_start_s)
+        out.play_at(speech.samples, speech.rate_hz, audio_start)
     perf = face._run(timeline, duration)  # noqa: SLF001 - the Face's own runner (bounded, traced, interruptible)
     face.pose = pose_before  # the expression is still held; the mouth is back at the face track's
     if out is not None:
         out.wait()
     sound = "not asked for" if out is None else out.reason
-    return SpokenRun(perf, start, start + speech.plan.audio_start_s, sound)
+    return SpokenRun(perf, start, audio_start, latency_s, sound)
+
+
+def pipeline_latency_s(face: Face) -> float:
+    """How long a frame takes from its due time to its goals on the wire, from the face's recent frames
+    (median of the last 25 frame times; 0 before any): the sound is delayed by this much so it meets
+    the mouth on the wire, not in the pipeline."""
+    import itertools
+    import statistics
+
+    recent = [t.timings_ms.get("total_ms", 0.0) for t in itertools.islice(reversed(face.traces), 25)]
+    return statistics.median(recent) / 1e3 if recent else 0.0
 
 
 def speak_text(face: Face, text: str, *, voice: str = "en-us", out_dir: str | Path | None = None) -> Performance:

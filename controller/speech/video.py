@@ -59,3 +59,42 @@ def mux(video: Path, audio: Path, out: Path) -> Path:
     if proc.returncode != 0:
         raise SpeechError(f"{out}: ffmpeg could not mux the audio: {proc.stderr.strip()[:300]}")
     return out
+
+
+def plot_timing(face: Face, perf: Performance, speech: Speech, path: Path, *, latency_s: float = 0.0) -> Path:
+    """The sound's waveform against the jaw: the jaw's goal per frame (ticks, as sent) and the plan's
+    jaw opening, on one time axis (the audio clock), with the viseme onsets marked — to check the timing
+    by eye."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    jaw = face.head.servo_ids.get("jaw")
+    traces = perf.traces
+    t0 = traces[0].t_s if traces else 0.0
+    shift = speech.plan.audio_start_s + latency_s  # mouth clock -> audio clock
+    fig, (ax_audio, ax_jaw) = plt.subplots(2, 1, figsize=(10, 4.2), sharex=True)
+    t_audio = np.arange(len(speech.samples)) / speech.rate_hz
+    ax_audio.plot(t_audio, speech.samples, lw=0.4, color="#345")
+    ax_audio.set_ylabel("audio")
+    for seg in speech.plan.segments:
+        if seg.viseme != "sil":
+            ax_audio.axvline(seg.start_s, color="#c63", lw=0.4, alpha=0.5)
+            ax_audio.text(seg.start_s, 0.9 * float(np.max(np.abs(speech.samples)) or 1), seg.viseme, fontsize=6)
+    ax_jaw.plot(speech.plan.times_s - speech.plan.audio_start_s, speech.plan.feature("open"), color="#888",
+                lw=1, label="plan: jaw opening (0..1)")  # fmt: skip
+    ax_jaw.set_ylabel("opening")
+    if jaw is not None and traces:
+        ticks = np.array([t.goals_sent[jaw] for t in traces], dtype=float)
+        span = float(np.ptp(ticks)) or 1.0
+        times = np.array([t.t_s - t0 for t in traces]) - shift + latency_s
+        ax_jaw.step(times, (ticks - ticks.min()) / span, where="post", color="#17a", lw=1,
+                    label=f"jaw goal sent (servo {jaw}, scaled)")  # fmt: skip
+    ax_jaw.set_xlabel("audio time (s)")
+    ax_jaw.legend(loc="upper right", fontsize=7)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

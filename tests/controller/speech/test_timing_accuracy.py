@@ -89,6 +89,7 @@ def test_envelope_jaw_opens_with_the_spoken_runs() -> None:
                 assert open_[inside].min() < 0.1, f"jaw stays open through the pause at {p.start_s:.2f} s"
     e = np.abs(np.array(errors))
     print(
-        f"envelope: spoken-run onsets {len(e)}: median {np.median(e) * 1e3:.0f} ms, {np.mean(e <= 0.05):.0%} within 50 ms"
+        f"envelope: spoken-run onsets {len(e)}: median {np.median(e) * 1e3:.0f} ms, "
+        f"{np.mean(e <= 0.05):.0%} within 50 ms"
     )
     assert np.median(e) <= 0.06
