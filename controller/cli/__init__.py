@@ -26,6 +26,8 @@ COMMANDS: dict[str, str] = {
     "bench": "servoface.controller.cli.bench",
     "list": "servoface.controller.cli.list",
     "new": "servoface.controller.cli.new",
+    "say": "servoface.controller.cli.say",
+    "lipsync": "servoface.controller.cli.lipsync",
 }
 
 
