@@ -20,6 +20,7 @@ track, an e-stop from any thread). ``face.traces`` keeps the recent frame traces
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import numbers
 import signal
@@ -215,7 +216,8 @@ class Face:
         if svc.error is not None:
             raise svc.error
         started = handle.started_s if handle.started_s is not None else float("inf")
-        traces = [t for t in sub.drain() if t.t_s >= started - 1e-9]
+        # the call's frames, timed from its start (as the timeline it played sees them; service time - start)
+        traces = [dataclasses.replace(t, t_s=t.t_s - started) for t in sub.drain() if t.t_s >= started - 1e-9]
         stats1 = svc.loop_stats
         missed = stats1.missed - missed0 if stats1 is stats0 else stats1.missed
         overruns = stats1.overruns - overruns0 if stats1 is stats0 else stats1.overruns
@@ -323,6 +325,11 @@ class Face:
         timeline = _Fixed(source, length)
         return self._perform(lambda svc: svc.play(timeline, track=TRACK, duration_s=length or None), length)
 
+    def _run(self, timeline: Samples, duration_s: float) -> Performance:
+        """Play ``timeline`` for ``duration_s`` on the face track (what `perform` does; kept for callers of
+        the old runner, e.g. the speech front end)."""
+        return self.perform(timeline, duration_s)
+
     def follow(
         self, source: Samples, duration_s: float | None = None, *, until: Callable[[], bool] | None = None
     ) -> Performance:
@@ -338,6 +345,14 @@ class Face:
         if perf.traces:
             self.t_s += perf.traces[-1].t_s - perf.traces[0].t_s
         return perf
+
+    def say(self, text: str, *, voice: str = "en-us", out_dir: str | Path | None = None) -> Performance:
+        """Speak ``text`` (espeak-ng) with lip sync: the mouth on the speech track, the rest of the face as it
+        is; the sound on the default output when there is one. ``out_dir``: also write speech.wav/.toml."""
+        from servoface.controller.speech.say import speak_text
+
+        self._check_open()
+        return speak_text(self, text, voice=voice, out_dir=out_dir)
 
     def hold(self, seconds: float) -> Performance:
         return self.set_aus(self.pose, transition_s=0.0, hold_s=seconds)

@@ -1,8 +1,8 @@
 """Benchmarks behind `servoface bench` / `make bench`: each suite module yields `Figure`s.
 
 Suites: ``bus`` (hardware), ``face`` (muscle model, rendering), ``gate`` (twin gate, TSS), ``pipeline``
-(end to end), ``timeline`` (sampling cost), ``pty`` (sync-read loop over the pty under CPU load),
-``service`` (command-to-wire latency, e-stop).
+(end to end), ``timeline`` (sampling cost), ``pty`` (sync-read loop over the pty under CPU load), ``scale``
+(growth with skin vertices and servos), ``service`` (command-to-wire latency, e-stop).
 Each suite module defines ``run(quick: bool = False) -> Iterator[Figure]``.
 """
 
@@ -13,5 +13,7 @@ SUITES: dict[str, str] = {
     "pipeline": "servoface.controller.benchmarks.pipeline",
     "timeline": "servoface.controller.benchmarks.timeline",
     "pty": "servoface.controller.benchmarks.pty_load",
+    "scale": "servoface.controller.benchmarks.scale",
+    "speech": "servoface.controller.benchmarks.speech",
     "service": "servoface.controller.benchmarks.service",
 }

@@ -175,9 +175,11 @@ def test_a_coupling_rule_given_to_the_gate_clips_and_is_named(played: Played) ->
         "sum_at_most",
         "any",
     )
+    face.neutral(transition_s=0.3)  # a defined start: the face track would hold the flip-flop's last extreme
     strict = Pipeline(
         face.head, face.pipeline.calibration, driver=face.driver, gate_config=GateConfig(coupling=(rule,))
     )
+    face.service.pause()  # a second pipeline on the same bus: the head service lends it (resumed below)
     strict.pin_to(face.pipeline.last_goals_tick)
     start = len(played.chain.goal_writes())
     timeline = Timeline("human")
@@ -189,8 +191,10 @@ def test_a_coupling_rule_given_to_the_gate_clips_and_is_named(played: Played) ->
             name="brows_and_smile",
         )
     )
-    with face.service.paused_loop():  # a second pipeline on the same bus: the service lends it
+    try:
         perf = play_timeline(strict, timeline, 0.6)
+    finally:
+        face.service.resume()
     coupled = [t for t in perf.traces if "coupling" in t.checks]
     assert coupled, perf.summary()
     assert all(any(f"rule '{rule.name}'" in r for r in t.reasons) for t in coupled)
