@@ -183,6 +183,7 @@ def test_a_copy_of_the_human_head_without_lower_lids_needs_no_dummy_parts(tmp_pa
     folder = tmp_path / "lidless"
     assert main(["new", str(folder), "--from", "human"]) == 0
     blocks = (folder / "head.toml").read_text().split("\n\n")
+
     def code(block: str) -> str:
         return "\n".join(line for line in block.splitlines() if not line.lstrip().startswith("#"))
 
