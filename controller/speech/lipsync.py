@@ -28,8 +28,14 @@ class Speech:
         return len(self.samples) / self.rate_hz
 
 
-def speech_from_text(text: str, *, voice: str = "en-us", rate_wpm: int | None = None, lead_s: float = DEFAULT_LEAD_S,
-                     intensity: float = 1.0) -> Speech:  # fmt: skip
+def speech_from_text(
+    text: str,
+    *,
+    voice: str = "en-us",
+    rate_wpm: int | None = None,
+    lead_s: float = DEFAULT_LEAD_S,
+    intensity: float = 1.0,
+) -> Speech:
     """Synthesise ``text`` with espeak-ng; the plan's visemes come from its own phoneme events."""
     from servoface.controller.speech.espeak import synthesize
 
@@ -37,9 +43,13 @@ def speech_from_text(text: str, *, voice: str = "en-us", rate_wpm: int | None = 
     samples = to_float(synth.samples)
     segments = visemes_from_phonemes([(p.phoneme, p.t_s) for p in synth.phonemes], synth.duration_s)
     plan = plan_from_visemes(
-        segments, audio_duration_s=synth.duration_s, samples=samples, sample_rate_hz=synth.sample_rate_hz,
-        lead_s=lead_s, intensity=intensity,
-    )  # fmt: skip
+        segments,
+        audio_duration_s=synth.duration_s,
+        samples=samples,
+        sample_rate_hz=synth.sample_rate_hz,
+        lead_s=lead_s,
+        intensity=intensity,
+    )
     return Speech(samples, synth.sample_rate_hz, plan, "text", text)
 
 
@@ -61,7 +71,11 @@ def speech_from_recording(
     phones = align(samples, rate, transcript)
     segments = visemes_from_phonemes([(p.phone, p.start_s) for p in phones], len(samples) / rate, alphabet="arpabet")
     plan = plan_from_visemes(
-        segments, audio_duration_s=len(samples) / rate, samples=samples, sample_rate_hz=rate, lead_s=lead_s,
+        segments,
+        audio_duration_s=len(samples) / rate,
+        samples=samples,
+        sample_rate_hz=rate,
+        lead_s=lead_s,
         intensity=intensity,
-    )  # fmt: skip
+    )
     return Speech(samples, rate, plan, "aligned", transcript)

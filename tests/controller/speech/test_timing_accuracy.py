@@ -57,8 +57,10 @@ def test_forced_alignment_onsets_match_espeak_events() -> None:
         errors += _errors(truth, onsets(list(speech.plan.segments)))
     e = np.array(errors)
     median_ms, within = float(np.median(e) * 1e3), float(np.mean(e <= 0.05))
-    print(f"forced alignment over {len(SENTENCES)} sentences, {len(e)} onsets: median {median_ms:.1f} ms, "
-          f"{within:.1%} within 50 ms")  # fmt: skip
+    print(
+        f"forced alignment over {len(SENTENCES)} sentences, {len(e)} onsets: median {median_ms:.1f} ms, "
+        f"{within:.1%} within 50 ms"
+    )
     assert median_ms <= 20.0
     assert within >= 0.85
 
