@@ -22,6 +22,7 @@ class Speech:
     plan: LipSyncPlan
     method: str
     text: str = ""
+    phonemes: tuple[tuple[str, float], ...] = ()  # (phoneme, start s) the plan was made from (text, aligned)
 
     @property
     def duration_s(self) -> float:
@@ -50,7 +51,8 @@ def speech_from_text(
         lead_s=lead_s,
         intensity=intensity,
     )
-    return Speech(samples, synth.sample_rate_hz, plan, "text", text)
+    events = tuple((p.phoneme, p.t_s) for p in synth.phonemes)
+    return Speech(samples, synth.sample_rate_hz, plan, "text", text, events)
 
 
 def speech_from_recording(
@@ -78,4 +80,4 @@ def speech_from_recording(
         lead_s=lead_s,
         intensity=intensity,
     )
-    return Speech(samples, rate, plan, "aligned", transcript)
+    return Speech(samples, rate, plan, "aligned", transcript, tuple((p.phone, p.start_s) for p in phones))

@@ -39,12 +39,14 @@ def test_corpus_is_large_enough() -> None:
 
 
 def test_text_path_onsets_are_espeaks_events() -> None:
+    """The plan of a synthesised text is made from the phoneme events of the very audio it plays with:
+    its viseme onsets are those events, to the sample (espeak-ng's own timing varies by a few ms from one
+    synthesis to the next, so the comparison is within one synthesis)."""
     for text in SENTENCES[:5]:
-        truth, _ = _truth(text)
-        plan = speech_from_text(text).plan
-        got = onsets(list(plan.segments))
-        assert [v for v, _ in got] == [v for v, _ in truth]
-        assert max(abs(a - b) for (_, a), (_, b) in zip(got, truth, strict=True)) <= 0.002  # espeak: +-1 ms run to run
+        speech = speech_from_text(text)
+        truth = onsets(visemes_from_phonemes(list(speech.phonemes), speech.duration_s))
+        assert onsets(list(speech.plan.segments)) == truth
+        assert len(truth) >= 8
 
 
 @pytest.mark.slow
