@@ -172,6 +172,7 @@ def run(args: argparse.Namespace) -> int:
             )
             while not stop.wait(0.2):
                 pass
+            print(f"# pty: {chain.pty_stats}", file=sys.stderr, flush=True)
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
