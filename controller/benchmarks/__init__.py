@@ -14,4 +14,5 @@ SUITES: dict[str, str] = {
     "timeline": "servoface.controller.benchmarks.timeline",
     "pty": "servoface.controller.benchmarks.pty_load",
     "scale": "servoface.controller.benchmarks.scale",
+    "speech": "servoface.controller.benchmarks.speech",
 }

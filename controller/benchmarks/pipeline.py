@@ -6,12 +6,12 @@ twin gate (verdict) + `Driver.cycle` (one Sync Write of the head's goals, a Sync
 Present Position, due slow telemetry, the fault policy). The bus is the in-process emulator at 1 Mbps with
 wire time on and Return Delay Time 0.
 
-24 servos on the chain: the built-in human head's 21 actuators plus 3 spare XL330-M288 (ids 22-24) that the
-driver also configures and reads every frame. So one frame writes 21 goals and reads 24 positions; the wire
-limit is that traffic's wire time (`servoface.hardware.wire`: 517 B = 5.17 ms). Three loops on the same
-chain, interleaved (`interleave`): the plain stock-SDK loop with the same traffic (re-sending the goals the
-pipeline last sent, so the head does not move), the pipeline stepped plainly (stages in series), and the
-pipeline with the next frame computed while this frame's replies are on the wire (`Pipeline.step(...,
+The chain: the built-in human head's servos (30 now) plus 3 spare XL330-M288 that the driver also
+configures and reads every frame (the head never sends them goals). So one frame writes the head's goals and
+reads every position; the wire limit is that traffic's wire time (`servoface.hardware.wire`). Three loops on
+the same chain, interleaved (`interleave`): the plain stock-SDK loop with the same traffic (re-sending the
+goals the pipeline last sent, so the head does not move), the pipeline stepped plainly (stages in series),
+and the pipeline with the next frame computed while this frame's replies are on the wire (`Pipeline.step(...,
 next_frame=)`). One motion runs through all pipeline windows: the shipped human performance sampled at 50
 Hz, back to back, so the gate sees real motion (clips included). Rates are medians of windows, ratios are
 medians of per-round ratios to the stock loop; the best window and the machine's load are in the notes.
