@@ -6,8 +6,9 @@ with the skin read from a PLY file). Per resolution: the per-frame muscle model 
 (offline pipeline on the shipped human performance, medians), the render time (640x480, EGL), the muscle
 model build and the cold gate build (TSS tables and skin tables, empty cache). Servos: 24 / 48 / 96
 emulated XL330 on one chain served from another process over a pty at 1 Mbps; `Driver.cycle`'s CPU time per
-cycle in this process and its rate against the wire limit. Each series ends with its growth exponent (log cost ratio / log size
-ratio between the smallest and the largest): 1 is linear; the goal is no faster than linear.
+cycle in this process and its rate against the wire limit. Each series ends with its growth exponent (log
+cost ratio / log size ratio between the smallest and the largest): 1 is linear; the goal is no faster than
+linear.
 """
 
 from __future__ import annotations
