@@ -177,7 +177,7 @@ def test_mediapipe_csv_without_times_takes_fps(tmp_path: Path, capsys: pytest.Ca
     path = _write(tmp_path, "mp_rows.csv", "eyeBlinkLeft,mouthSmileLeft\n" + "0.1,0.2\n" * 31)
     assert load_recording(path).duration_s == pytest.approx(0.5)  # default 60 fps, printed
     assert load_recording(path, fps=30.0).duration_s == pytest.approx(1.0)
-    assert "no time column: rows timed at 30 fps (--fps)" in _play(path, capsys, "--fps", "30")
+    assert "no time column: rows timed at 30 fps (given)" in _play(path, capsys, "--fps", "30")
 
 
 def test_pyfeat_two_faces_follow_one_person(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -370,3 +370,11 @@ def test_stream_rest_pose_from_the_first_seconds() -> None:
     src.feed(json.dumps({"blendshapes": {"eyeBlinkLeft": 1.0}, "head": {"yaw_deg": 30.5}}))
     shut = src.sample(1.2)
     assert shut.get("AU43L") == 1.0 and shut.get("AU51") == pytest.approx(0.5)  # 22.5 deg of 45 from rest
+
+
+def test_stream_blendshape_scores_a_hair_over_one_are_clamped_and_counted() -> None:
+    decoder = MessageDecoder()
+    msg = decoder.decode({"blendshapes": {"eyeLookInRight": 1.0033, "mouthSmileLeft": -1e-7}})
+    assert decoder.clamped == 2 and msg.aus.get("AU12L", 0.0) == 0.0
+    with pytest.raises(InputError, match="out of range"):
+        decoder.decode({"blendshapes": {"eyeLookInRight": 1.2}})
