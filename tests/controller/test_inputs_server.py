@@ -302,9 +302,12 @@ def test_cli_stream_with_a_token_file_counts_refusals(tmp_path: Path, capsys: py
     stop = threading.Event()
 
     def send() -> None:
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
+        with (
+            socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx,
+            socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as bad,
+        ):
             while not stop.is_set():
-                tx.sendto(_msg(aus={"AU26": 1.0}), ("127.0.0.1", port))  # no token
+                bad.sendto(_msg(aus={"AU26": 1.0}), ("127.0.0.1", port))  # another sender, without the token
                 tx.sendto(_msg(aus={"AU12": 0.5}, token=TOKEN), ("127.0.0.1", port))
                 time.sleep(0.02)
 
