@@ -1,7 +1,7 @@
 """Benchmarks behind `servoface bench` / `make bench`: each suite module yields `Figure`s.
 
 Suites: ``bus`` (hardware), ``face`` (muscle model, rendering), ``gate`` (twin gate, TSS), ``pipeline``
-(end to end), ``timeline`` (sampling cost).
+(end to end), ``timeline`` (sampling cost), ``pty`` (sync-read loop over the pty under CPU load).
 Each suite module defines ``run(quick: bool = False) -> Iterator[Figure]``.
 """
 
@@ -11,4 +11,5 @@ SUITES: dict[str, str] = {
     "gate": "servoface.controller.benchmarks.gate",
     "pipeline": "servoface.controller.benchmarks.pipeline",
     "timeline": "servoface.controller.benchmarks.timeline",
+    "pty": "servoface.controller.benchmarks.pty_load",
 }

@@ -17,6 +17,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--json", action="store_true", help="one JSON object per figure per line")
     parser.add_argument("--quick", action="store_true", help="fewer repetitions (smoke run)")
+    parser.add_argument("--minutes", type=float, default=None, help="duration of long-running suites (pty: 2)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -44,12 +45,19 @@ def run(args: argparse.Namespace) -> int:
             print(f"servoface bench: suite '{name}' is not built yet", file=sys.stderr)
             status = 1
             continue
-        for figure in module.run(quick=args.quick):
+        options = {"minutes": args.minutes} if args.minutes is not None and _takes_minutes(module) else {}
+        for figure in module.run(quick=args.quick, **options):
             if args.json:
                 print(figure.to_json(), flush=True)
             else:
                 print(_row(name, figure), flush=True)
     return status
+
+
+def _takes_minutes(module: object) -> bool:
+    import inspect
+
+    return "minutes" in inspect.signature(module.run).parameters  # type: ignore[attr-defined]
 
 
 def _row(suite: str, figure: object) -> str:

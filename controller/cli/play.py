@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from servoface.controller.cli.head_args import add_head_arguments, open_errors, open_face, rate_problem
+from servoface.controller.cli.input_args import add_input_arguments, input_problem, read_options
 
 HELP = "play an expression or a timeline script on a head, on a real port or on the emulator"
 
@@ -26,9 +27,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "ARKit/MediaPipe blendshape CSV or JSON lines, MPEG-4 .fap) or a shipped sample "
         "(sample:openface_smile, see `servoface list samples`); see README 'Inputs'",
     )
-    parser.add_argument("--mirror", action="store_true", help="with --input: imitate a person facing the robot")
+    add_input_arguments(parser)
     add_head_arguments(parser)
-    parser.add_argument("--hold", type=float, default=1.5, help="seconds to hold an expression's apex (default 1.5)")
+    parser.add_argument(
+        "--hold",
+        type=float,
+        default=None,
+        help="seconds to hold an expression's apex, or the last frame of --input (default 1.5; 0 after a "
+        "recording of several rows, 1.5 for a one-row still)",
+    )
     parser.add_argument(
         "--duration",
         type=float,
@@ -48,7 +55,10 @@ def run(args: argparse.Namespace) -> int:
     if (problem := rate_problem(args)) is not None:
         print(f"servoface play: {problem}", file=sys.stderr)
         return 2
-    if not (args.hold >= 0):
+    if (problem := input_problem(args)) is not None:
+        print(f"servoface play: {problem}", file=sys.stderr)
+        return 2
+    if args.hold is not None and not (args.hold >= 0):
         print(f"servoface play: --hold must be >= 0 s, got {args.hold}", file=sys.stderr)
         return 2
     if args.duration is not None and not (0 < args.duration < 1e6):
@@ -71,7 +81,8 @@ def run(args: argparse.Namespace) -> int:
         if args.input is not None:
             from servoface.controller.inputs import load_recording
 
-            recording = load_recording(args.input, head.face_type, mirror=args.mirror)
+            recording = load_recording(args.input, head.face_type, options=read_options(args))
+            print("\n".join(recording.report.lines()))
         elif is_script:
             what = load_script(args.what)
         else:
@@ -87,17 +98,19 @@ def run(args: argparse.Namespace) -> int:
             if recording is not None:
                 from servoface.controller.performance import play_timeline
 
+                hold_s = args.hold if args.hold is not None else (1.5 if len(recording) == 1 else 0.0)
+                length_s = recording.duration_s + hold_s
                 perf = play_timeline(
                     face.pipeline,
                     recording,
-                    recording.duration_s if args.duration is None else min(recording.duration_s, args.duration),
+                    length_s if args.duration is None else min(length_s, args.duration),
                     on_frame=face.traces.append,
                     stop_on_interrupt=True,
                 )
             elif is_script:
                 perf = face.play(what, duration_s=args.duration)
             else:
-                perf = face.express(args.what, hold_s=args.hold)
+                perf = face.express(args.what, hold_s=1.5 if args.hold is None else args.hold)
     except (ControllerError, SimError, ValueError) as err:
         print(f"servoface play: {err}", file=sys.stderr)
         return 2

@@ -33,10 +33,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         choices=["front", "three-quarter", "side"],
         help="camera (default: front for a human head, three-quarter for a dog)",
     )
-    parser.add_argument("--duration", type=float, default=2.0, help="clip length in seconds (default 2.0)")
+    parser.add_argument(
+        "--input",
+        type=Path,
+        help="instead of EXPR: a recorded tracker file (as `play --input`): a still of its most expressive "
+        "frame (or --at S), or a clip of it",
+    )
+    parser.add_argument("--at", type=float, default=None, help="with --input and a still: the time to show (s)")
+    parser.add_argument(
+        "--duration", type=float, default=None, help="clip length in seconds (default 2.0; --input: its length)"
+    )
     parser.add_argument("--fps", type=float, default=20.0, help="clip frame rate (default 20)")
     parser.add_argument("--columns", type=int, default=None, help="sheet columns with --all (default: about square)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    from servoface.controller.cli.input_args import add_input_arguments
+
+    add_input_arguments(parser, fps_flag="--input-fps")
 
 
 def _fail(message: str, code: int = 2) -> int:
@@ -46,8 +58,12 @@ def _fail(message: str, code: int = 2) -> int:
 
 def run(args: argparse.Namespace) -> int:
     # cheap checks first: nothing heavy is imported and nothing is written on bad input
-    if args.all == (args.expression is not None):
-        return _fail("give one expression name, or --all for the whole library")
+    if args.all + (args.expression is not None) + (args.input is not None) != 1:
+        return _fail("give one expression name, or --all for the whole library, or --input FILE")
+    from servoface.controller.cli.input_args import input_problem
+
+    if args.input is not None and (problem := input_problem(args)) is not None:
+        return _fail(problem)
     suffix = args.output.suffix.lower()
     allowed = STILL if args.all else STILL + CLIP
     if suffix not in allowed:
@@ -77,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         from servoface.sim.render.video import there_and_back
 
         try:
-            there_and_back(args.duration, args.fps)
+            there_and_back(2.0 if args.duration is None else args.duration, args.fps)
         except ValueError as err:
             return _fail(str(err))
 
@@ -93,6 +109,10 @@ def run(args: argparse.Namespace) -> int:
         head = load_head(args.head)
     except (HeadProfileError, FileNotFoundError, KeyError, ValueError) as err:
         return _fail(f"--head {args.head!r}: {err}")
+    if args.input is not None:
+        from servoface.controller.cli.preview_input import preview_input
+
+        return preview_input(args, head, (width, height), suffix in CLIP)
     try:
         library = load_library(head.expressions_path or head.face_type)  # a profile may bring its own
         aus = None if args.all else pick_expression(library, args.expression)
@@ -108,7 +128,8 @@ def run(args: argparse.Namespace) -> int:
                 save_image(sheet, args.output)
                 print(f"wrote {args.output}: {len(names)} expressions of {head.name!r}: {', '.join(names)}")
             elif suffix in CLIP:
-                frames = clip_frames(renderer, head, aus or {}, args.duration, args.fps, show_progress=show)
+                duration_s = 2.0 if args.duration is None else args.duration
+                frames = clip_frames(renderer, head, aus or {}, duration_s, args.fps, show_progress=show)
                 count = WRITERS[suffix](frames, args.output, args.fps)
                 print(f"wrote {args.output}: {count} frames at {args.fps:g} fps ({args.expression})")
             else:
