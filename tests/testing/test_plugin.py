@@ -108,3 +108,17 @@ def test_with_a_port_the_same_tests_run_on_the_servos_there(project: Path, how: 
         assert not any(e.torque_on for e in record.end.values())
     finally:
         bench.close()
+
+
+def test_the_editable_install_resolves_the_kit_to_its_folder() -> None:
+    """pyproject maps controller/testing to servoface.testing; the pytest11 entry point names its plugin."""
+    import importlib.metadata
+
+    import servoface.testing
+    import servoface.testing.plugin
+
+    root = Path(__file__).resolve().parents[2]
+    assert Path(servoface.testing.__file__).resolve().parent == root / "controller" / "testing"
+    points = {e.name: e.value for e in importlib.metadata.entry_points(group="pytest11")}
+    assert points.get("servoface") == "servoface.testing.plugin"
+    assert servoface.testing.plugin.__name__ == "servoface.testing.plugin"
