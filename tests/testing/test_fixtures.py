@@ -161,6 +161,7 @@ def test_a_servo_away_from_the_twin_is_named_with_its_targets(face, servo_chain,
     face.set_aus({"AU26": 0.5}, transition_s=0.2, hold_s=0.2)
     jaw = calibration.id_of("jaw")
     servo_wire.assert_matches_twin(face, within_s=2.0)
+    face.service.pause()  # the head service's loop would re-enable and drive the jaw back (fault policy)
     there = face.pipeline.last_goals_tick[jaw]
     servo_chain.write_register(jaw, "Torque Enable", 0)  # lost torque and pushed: not where the twin has it
     servo_chain.move_by_hand(jaw, there + 40)
@@ -169,3 +170,4 @@ def test_a_servo_away_from_the_twin_is_named_with_its_targets(face, servo_chain,
     ) as err:
         servo_wire.assert_matches_twin(face, within_s=1.0)
     assert "'jaw': stands at" in str(err.value) and "the twin's target" in str(err.value)
+    face.service.resume()
