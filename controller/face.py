@@ -224,8 +224,9 @@ class Face:
         perf = Performance(traces, _stats_of(traces, rate, missed, overruns), rate, interrupt.pressed.is_set())
         self.traces.extend(traces)
         self.t_s += duration_s
-        if traces:
-            self.pose = {au: v for au, v in traces[-1].aus.items() if abs(v) > 1e-12}
+        if traces:  # the face track's pose (other front ends' tracks, e.g. a gaze, are theirs)
+            mine = svc.status().tracks[TRACK].aus
+            self.pose = {au: v for au, v in mine.items() if abs(v) > 1e-12}
         return perf
 
     def set_aus(self, aus: Mapping[str, float], *, transition_s: float = 0.4, hold_s: float = 0.0) -> Performance:
