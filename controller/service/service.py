@@ -119,7 +119,8 @@ class HeadService:
         self._inbox: deque[tuple[CommandHandle, Callable[[float], None]]] = deque()
         self._wake = threading.Event()
         self._estop_requested = threading.Event()
-        self._estop_handle: CommandHandle | None = None
+        self._estop_handle: CommandHandle | None = None  # the latest press
+        self._estop_pending: deque[CommandHandle] = deque()  # presses the loop has not answered yet
         self._latched = False
         self._torque_on = self.driver is not None if torque_on is None else bool(torque_on)
         self._torque_wanted = self._torque_on
@@ -539,17 +540,14 @@ class HeadService:
     def estop(self, reason: str = "") -> CommandHandle:
         """Emergency stop, from any thread: the loop stops sending goals at once (the servos hold their
         last goal), clears every track and turns torque off on every servo; latched until
-        :meth:`clear_estop`. Done when torque is off. Never refused."""
+        :meth:`clear_estop`. Done when torque is off. Never refused, takes no lock (safe in a signal
+        handler): flags, an append and two events."""
         handle = CommandHandle("estop")
         handle.detail = str(reason)
-        with self._lock:
-            first = not self._latched
-            self._latched = True
-            self._torque_wanted = False
-            if first or self._estop_handle is None:
-                self._estop_handle = handle
-            else:
-                return self._estop_handle
+        self._latched = True
+        self._torque_wanted = False
+        self._estop_handle = handle
+        self._estop_pending.append(handle)
         self._estop_requested.set()
         self._wake.set()
         if not self.running and not self._paused:  # no loop to do it: the owner is gone; report it
@@ -715,9 +713,10 @@ class HeadService:
         ok = self._torque_off_all()
         detail = "torque off" if ok else "torque off FAILED on some servos"
         self.observers.offer("fault", ServiceEvent(t_s, "estop", f"{detail}; {handle.detail if handle else ''}"))
-        if handle is not None:
-            handle._set(Status.DONE if ok else Status.FAILED, self.clock.now_s(), detail)
-            self._notify(handle)
+        while self._estop_pending:  # every press so far is answered by this torque-off
+            press = self._estop_pending.popleft()
+            if press._set(Status.DONE if ok else Status.FAILED, self.clock.now_s(), detail):
+                self._notify(press)
 
     def _repin(self) -> None:
         """After a pause the bus may have carried other goals: take what the driver last put on the wire
