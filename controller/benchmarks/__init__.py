@@ -1,7 +1,8 @@
 """Benchmarks behind `servoface bench` / `make bench`: each suite module yields `Figure`s.
 
 Suites: ``bus`` (hardware), ``face`` (muscle model, rendering), ``gate`` (twin gate, TSS), ``pipeline``
-(end to end), ``timeline`` (sampling cost), ``pty`` (sync-read loop over the pty under CPU load).
+(end to end), ``timeline`` (sampling cost), ``pty`` (sync-read loop over the pty under CPU load), ``scale``
+(growth with skin vertices and servos).
 Each suite module defines ``run(quick: bool = False) -> Iterator[Figure]``.
 """
 
@@ -12,4 +13,6 @@ SUITES: dict[str, str] = {
     "pipeline": "servoface.controller.benchmarks.pipeline",
     "timeline": "servoface.controller.benchmarks.timeline",
     "pty": "servoface.controller.benchmarks.pty_load",
+    "scale": "servoface.controller.benchmarks.scale",
+    "speech": "servoface.controller.benchmarks.speech",
 }

@@ -269,6 +269,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"servoface calibrate: {err}", file=sys.stderr)
         return 1
     _report(result)
+    print(f"next: servoface check {args.head}")
     return 0
 
 

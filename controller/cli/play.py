@@ -130,6 +130,7 @@ def run(args: argparse.Namespace) -> int:
             reasons[key] = reasons.get(key, 0) + 1
     for reason, count in sorted(reasons.items(), key=lambda kv: -kv[1])[:12]:
         print(f"  {count:5d} x {reason}")
+    _say_unshown(face, perf, args.head)
     if args.trace is not None:
         args.trace.parent.mkdir(parents=True, exist_ok=True)
         with args.trace.open("w") as fh:
@@ -137,3 +138,16 @@ def run(args: argparse.Namespace) -> int:
                 fh.write(json.dumps(trace.as_dict()) + "\n")
         print(f"trace written to {args.trace}")
     return 130 if perf.interrupted else 0
+
+
+def _say_unshown(face: object, perf: object, head_arg: str) -> None:
+    """Name the AUs of what was played that move nothing on this head (the preview shows the same)."""
+    from servoface.sim.au.mapping import canonical_au_name
+
+    model = face.pipeline.face  # type: ignore[attr-defined]
+    unreachable = getattr(model, "unreachable", {})
+    played = {canonical_au_name(au)[0] for t in perf.traces for au, v in t.aus.items() if abs(v) > 1e-6}  # type: ignore[attr-defined]
+    lost = sorted(played & set(unreachable))
+    if lost:
+        names = ", ".join(f"AU{n}" for n in lost)
+        print(f"  this head cannot show {names} (they move nothing here): `servoface check {head_arg}` says why")

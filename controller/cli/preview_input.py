@@ -1,7 +1,8 @@
-"""`servoface preview --input FILE -o out.png|gif|mp4`: render a recorded tracker file on a head (the target
-face of the muscle model, as `preview EXPR`), after printing what the reader made of the file (the same
-summary as `play --input`). A still shows the most expressive frame (largest sum of AU intensities) or the
-one at ``--at S``; a clip samples the recording at ``--fps`` over its length (or ``--duration``)."""
+"""`servoface preview --input FILE -o out.png|gif|mp4`: render a recorded tracker file on a head (as
+`preview EXPR`: the face the servos make by default, ``--show target|both``), after printing what the
+reader made of the file (the same summary as `play --input`). A still shows the most expressive frame
+(largest sum of AU intensities) or the one at ``--at S``; a clip samples the recording at ``--fps`` over
+its length (or ``--duration``)."""
 
 from __future__ import annotations
 
@@ -11,12 +12,14 @@ from typing import Any
 
 
 def preview_input(args: argparse.Namespace, head: Any, size: tuple[int, int], clip: bool) -> int:
+    from servoface.calibration import CalibrationError
     from servoface.controller.cli.input_args import read_options
     from servoface.controller.errors import ControllerError
     from servoface.controller.inputs import load_recording
-    from servoface.sim.errors import RenderError
+    from servoface.sim.achievable import AchievableFace
+    from servoface.sim.errors import RenderError, SimError
     from servoface.sim.render.camera import default_view
-    from servoface.sim.render.clips import render_aus
+    from servoface.sim.render.clips import render_aus, render_sequence
     from servoface.sim.render.images import save_image
     from servoface.sim.render.progress import progress
     from servoface.sim.render.renderer import HeadRenderer
@@ -30,6 +33,12 @@ def preview_input(args: argparse.Namespace, head: Any, size: tuple[int, int], cl
     print("\n".join(recording.report.lines()))
     width, height = size
     view = args.view or default_view(head.face_type)
+    shown = getattr(args, "show", "achievable")
+    try:
+        twin = None if shown == "target" else AchievableFace(head, frame_period_s=1.0 / args.fps if clip else 0.02)
+    except (SimError, CalibrationError) as err:  # a calibration that does not fit the head: say so
+        print(f"servoface preview: {err}\n  next: `servoface check {args.head}` names what to fix", file=sys.stderr)
+        return 1
     try:
         with HeadRenderer(width, height, view=view) as renderer:
             if clip:
@@ -37,9 +46,12 @@ def preview_input(args: argparse.Namespace, head: Any, size: tuple[int, int], cl
                 count = max(1, int(length_s * args.fps) + 1)
                 times = [k / args.fps for k in range(count)]
                 show = False if args.quiet else None
-                frames = (
-                    render_aus(renderer, head, recording.sample(t).aus)
-                    for t in progress(times, total=count, desc="frames", enabled=show)
+                frames = render_sequence(
+                    renderer,
+                    head,
+                    (recording.sample(t).aus for t in progress(times, total=count, desc="frames", enabled=show)),
+                    show=shown,
+                    achievable=twin,
                 )
                 written = WRITERS[args.output.suffix.lower()](frames, args.output, args.fps)
                 print(f"wrote {args.output}: {written} frames at {args.fps:g} fps of {args.input}")
@@ -50,7 +62,7 @@ def preview_input(args: argparse.Namespace, head: Any, size: tuple[int, int], cl
                 else:
                     frame = max(recording.frames, key=lambda f: sum(abs(v) for v in f.aus.values()))
                     what = f"its most expressive frame, at {frame.t_s:.3f} s"
-                save_image(render_aus(renderer, head, frame.aus), args.output)
+                save_image(render_aus(renderer, head, frame.aus, show=shown, achievable=twin), args.output)
                 print(f"wrote {args.output}: {args.input} {what} on {head.name} ({width}x{height})")
     except RenderError as err:
         print(f"servoface preview: {err}", file=sys.stderr)

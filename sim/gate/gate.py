@@ -311,6 +311,16 @@ class TwinGate:
                 break
         return best, best_frac
 
+    def step_state(self) -> tuple[IntArray | None, IntArray]:
+        """What `check` carries from one call to the next (the last command it passed and that step), for
+        a caller that checks a command speculatively and puts the state back (`restore_step_state`)."""
+        return (None if self._last_sent is None else self._last_sent.copy(), self._last_step.copy())
+
+    def restore_step_state(self, state: tuple[IntArray | None, IntArray]) -> None:
+        last_sent, last_step = state
+        self._last_sent = None if last_sent is None else last_sent.copy()
+        self._last_step = last_step.copy()
+
     def reset(self) -> None:
         """Forget the previous step (the next check assumes the servos start from rest)."""
         self._last_sent = None

@@ -177,10 +177,13 @@ def test_table_file_errors_name_the_file_and_key(tmp_path: Path, body: str, word
         assert word in str(info.value)
 
 
-def test_a_table_naming_a_missing_muscle_fails_to_bind(tmp_path: Path) -> None:
+def test_a_table_naming_a_missing_muscle_is_noted_or_strictly_refused(tmp_path: Path) -> None:
     table = load_au_table(_write(tmp_path, '[AU1]\nsource = "s"\nmuscles = { "nasalis" = 1.0 }\n'))
     with pytest.raises(HeadProfileError, match="nasalis.*known muscles"):
-        AUMapping(table, ["procerus"], [])
+        AUMapping(table, ["procerus"], [], allow_missing=False)
+    mapping = AUMapping(table, ["procerus"], [])
+    assert mapping.missing == {"nasalis"}
+    assert mapping.unreachable == {1: "muscle nasalis is not in the head"}
     with pytest.raises(HeadProfileError, match="not found"):
         load_au_table(tmp_path / "nope.toml")
 
