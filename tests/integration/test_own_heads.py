@@ -164,7 +164,7 @@ def test_new_from_human_keeps_the_builtin_face_and_derives_a_direct_table(
     folder = tmp_path / "copy"
     assert main(["new", str(folder), "--from", "human"]) == 0
     head = load_head(folder)
-    assert head.name == "copy" and head.au_direct_path is None and len(head.actuators) == 21
+    assert head.name == "copy" and head.au_direct_path is None and len(head.actuators) == 30
     table = load_direct_table(folder / "direct.toml")
     assert {1, 12, 26, 51} <= set(table.rows)
     # switched on, the derived table reproduces the muscle model's actuator targets for one AU alone
