@@ -25,6 +25,9 @@ COMMANDS: dict[str, str] = {
     "scan": "servoface.controller.cli.scan",
     "bench": "servoface.controller.cli.bench",
     "list": "servoface.controller.cli.list",
+    "node": "servoface.controller.cli.node",
+    "heads": "servoface.controller.cli.heads",
+    "cue": "servoface.controller.cli.cue",
 }
 
 
