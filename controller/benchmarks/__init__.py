@@ -14,4 +14,5 @@ SUITES: dict[str, str] = {
     "timeline": "servoface.controller.benchmarks.timeline",
     "pty": "servoface.controller.benchmarks.pty_load",
     "service": "servoface.controller.benchmarks.service",
+    "speech": "servoface.controller.benchmarks.speech",
 }

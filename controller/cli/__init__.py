@@ -28,6 +28,8 @@ COMMANDS: dict[str, str] = {
     "node": "servoface.controller.cli.node",
     "heads": "servoface.controller.cli.heads",
     "cue": "servoface.controller.cli.cue",
+    "say": "servoface.controller.cli.say",
+    "lipsync": "servoface.controller.cli.lipsync",
 }
 
 
