@@ -28,8 +28,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="keep the pose when the last peer disconnects (default: ease to neutral)")  # fmt: skip
     parser.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     parser.add_argument("--wire-log", type=Path, default=None,
-                        help="with --emulate: at exit, write every goal the emulated servos received as JSON "
-                        "lines [monotonic_s, id, tick] (for tests)")  # fmt: skip
+                        help="with --emulate: append every goal the emulated servos receive to this file as JSON "
+                        "lines [monotonic_s, id, tick], as they arrive (for tests)")  # fmt: skip
     add_network_arguments(parser, node=True)
 
 
@@ -73,8 +73,13 @@ def run(args: argparse.Namespace) -> int:
     service.start()
     node = HeadNode(service, session, keys, hold_on_link_loss=args.hold_on_link_loss,
                     on_event=lambda msg: print(f"node {keys.base}: {msg}", flush=True)).start()  # fmt: skip
+    wire_log = None
+    if args.wire_log is not None and opened.chain is not None:
+        wire_log = _WireLog(opened.chain, args.wire_log, stop)
     listen = args.listen or ["tcp/127.0.0.1:7447"]
-    print(f"node {keys.base} ({opened.head.name}, {opened.head.face_type}) listening on {', '.join(listen)}", flush=True)
+    print(
+        f"node {keys.base} ({opened.head.name}, {opened.head.face_type}) listening on {', '.join(listen)}", flush=True
+    )
     code = 0
     try:
         deadline = None if args.duration is None else time.monotonic() + args.duration
@@ -92,16 +97,38 @@ def run(args: argparse.Namespace) -> int:
         if report is not None and getattr(report, "unreached", None):
             print(f"servoface node: torque could not be turned off on {report.unreached}", file=sys.stderr)
             code = 1
-        if args.wire_log is not None and opened.chain is not None:
-            _dump_wire(opened.chain, args.wire_log)
+        if wire_log is not None:
+            wire_log.close()
         if opened.chain is not None:
             opened.chain.close()
         session.close()
     return code
 
 
-def _dump_wire(chain: object, path: Path) -> None:
-    offset = time.monotonic() - chain._clock()  # type: ignore[attr-defined]  # noqa: SLF001 - emulator clock
-    with path.open("w") as fh:
-        for t_s, sid, tick in chain.goal_writes():  # type: ignore[attr-defined]
-            fh.write(json.dumps([round(t_s + offset, 6), sid, tick]) + "\n")
+class _WireLog:
+    """Appends the emulated chain's decoded goal writes to a file every 50 ms (monotonic time)."""
+
+    def __init__(self, chain: object, path: Path, stop: threading.Event) -> None:
+        self.chain, self.path, self.stop = chain, path, stop
+        self.offset = time.monotonic() - chain._clock()  # type: ignore[attr-defined]  # noqa: SLF001
+        self.done = 0
+        self.fh = path.open("w")
+        self.thread = threading.Thread(target=self._run, name="servoface-wire-log", daemon=True)
+        self.thread.start()
+
+    def _flush(self) -> None:
+        writes = self.chain.goal_writes()  # type: ignore[attr-defined]
+        for t_s, sid, tick in writes[self.done :]:
+            self.fh.write(json.dumps([round(t_s + self.offset, 6), sid, tick]) + "\n")
+        self.done = len(writes)
+        self.fh.flush()
+
+    def _run(self) -> None:
+        while not self.stop.wait(0.05):
+            self._flush()
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join(1.0)
+        self._flush()
+        self.fh.close()

@@ -43,9 +43,12 @@ class ClockOffset:
 class HeadsClient:
     """A client session (``session`` from :func:`.zconfig.open_session`, with ``connect`` endpoints)."""
 
-    def __init__(self, session: Any, *, sender: str | None = None) -> None:
+    def __init__(self, session: Any, *, live: bool = False) -> None:
+        """``live=True``: this client holds live control — a head it commands eases to neutral when the
+        link to it drops (AU frames are always live)."""
         self.session = session
-        self.sender = sender or f"client-{uuid.uuid4().hex[:8]}"
+        self.sender = str(session.zid())  # the node maps it to the link it arrives on
+        self.live = bool(live)
         self._seq = 0
         self._lock = threading.Lock()
 
@@ -53,7 +56,7 @@ class HeadsClient:
         with self._lock:
             self._seq += 1
             seq = self._seq
-        return envelope({"from": self.sender, **body}, seq)
+        return envelope({"from": self.sender, **({"live": True} if self.live else {}), **body}, seq)
 
     # -- presence -----------------------------------------------------------------------------------
     def heads(self, pattern: str = "*/*", timeout_s: float = 1.0) -> list[HeadInfo]:
@@ -85,7 +88,9 @@ class HeadsClient:
             raise NetworkError(f"command {verb!r}: expected one of {list(VERBS)}")
         self.session.put(keys.cmd(verb), self._body(body))
 
-    def send_aus(self, keys: HeadKeys, aus: dict[str, float], *, t_s: float | None = None, track: str = "stream") -> None:
+    def send_aus(
+        self, keys: HeadKeys, aus: dict[str, float], *, t_s: float | None = None, track: str = "stream"
+    ) -> None:
         """One AU frame on ``track`` (the stream schema: ``{"t", "aus"}``)."""
         frame = {"t": time.monotonic() if t_s is None else t_s, "aus": aus}
         self.session.put(keys.aus(track), self._body(frame))

@@ -34,8 +34,8 @@ def envelope(body: dict[str, Any], seq: int) -> bytes:
 
 def open_envelope(raw: bytes) -> tuple[int, dict[str, Any]]:
     """(seq, body) of a raw message; MessageError for a bad size, JSON, schema version or seq."""
-    from servoface.controller.inputs.messages import parse_json
     from servoface.controller.errors import FrameError
+    from servoface.controller.inputs.messages import parse_json
 
     if len(raw) > MAX_MESSAGE_BYTES:
         raise MessageError(f"message of {len(raw)} bytes: at most {MAX_MESSAGE_BYTES}")

@@ -6,8 +6,10 @@ Safety on the network:
   and changes nothing); refusals are counted by reason and published on ``state/counters``;
 - AU streams are followed through a ``StreamSource`` with its dropout policy: when frames stop, the track
   eases to neutral (250 ms + 0.5 s);
-- when the node loses its last connected peer (a link that drops, a controller that dies), the head eases
-  to neutral (0.5 s) unless ``hold_on_link_loss``; detection takes one lease (500 ms) at most;
+- when the link to a peer that holds **live control** drops (a controller that streams AU frames, or sent
+  a command with ``"live": true``, and dies or is cut off), the head eases to neutral (0.3 s) unless
+  ``hold_on_link_loss``; detection takes one lease (400 ms) at most. One-shot commands (a cue, an
+  expression from ``servoface cue``) outlive the client that sent them: it may exit right after;
 - an e-stop from any peer that can open a session (i.e. has the credentials) is honoured at once.
 """
 
@@ -25,6 +27,7 @@ from servoface.controller.network.keys import TRACK_NAMES, VERBS, HeadKeys
 from servoface.controller.network.messages import SCHEMA_VERSION, SequenceGuard, envelope, open_envelope
 
 LINK_POLL_S = 0.05
+LINK_LOSS_EASE_S = 0.3  # lease 0.4 s + 2 polls + this: at neutral within 1 s of the cut
 CUE_WINDOW_S = (-0.5, 120.0)  # a cue may start at most this far in the past / future of the node's clock
 
 
@@ -54,6 +57,7 @@ class HeadNode:
         self.link_losses = 0
         self.cues: list[dict[str, Any]] = []
         self._streams: dict[str, Any] = {}
+        self._live: dict[str, float] = {}  # sender (its Zenoh session id) -> last live message (monotonic)
         self._seq = 0
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -113,8 +117,12 @@ class HeadNode:
         sender = body.pop("from", None)
         if not isinstance(sender, str) or len(sender) > 64:
             sender = "?"
+        live = body.pop("live", False) is True or "/aus/" in key
         if not self.guard.take(sender, key, seq):
             return None
+        if live and sender != "?":
+            with self._lock:
+                self._live[sender] = time.monotonic()
         return key, body
 
     # -- AU streams ---------------------------------------------------------------------------------
@@ -311,23 +319,32 @@ class HeadNode:
                 sub.close()
 
     def _watch_links(self) -> None:
-        had_peers = False
-        empty_polls = 0
+        missing: dict[str, int] = {}
         while not self._stop.wait(LINK_POLL_S):
             try:
-                peers = list(self.session.info.peers_zid())
+                peers = {str(z) for z in self.session.info.peers_zid()}
             except Exception:  # noqa: BLE001 - session closing
                 return
-            if peers:
-                had_peers, empty_polls = True, 0
+            with self._lock:
+                live = list(self._live)
+            lost = []
+            for sender in live:
+                if sender in peers:
+                    missing.pop(sender, None)
+                    continue
+                missing[sender] = missing.get(sender, 0) + 1
+                if missing[sender] >= 2:
+                    lost.append(sender)
+            if not lost:
                 continue
-            empty_polls += 1
-            if had_peers and empty_polls == 2:
-                had_peers = False
-                self.link_losses += 1
-                self._on_event("link lost: no peer connected")
-                if not self.hold_on_link_loss:
-                    self._ease_to_neutral()
+            with self._lock:
+                for sender in lost:
+                    self._live.pop(sender, None)
+                    missing.pop(sender, None)
+            self.link_losses += 1
+            self._on_event(f"link lost to controller(s) {', '.join(s[:8] for s in lost)}")
+            if not self.hold_on_link_loss:
+                self._ease_to_neutral()
 
     def _ease_to_neutral(self) -> None:
         with self._lock:
@@ -335,7 +352,7 @@ class HeadNode:
         for source in streams.values():  # the next frame from a returning sender follows afresh
             source.close()
         try:
-            self.service.neutral(transition_s=0.5)
+            self.service.neutral(transition_s=LINK_LOSS_EASE_S)
         except Exception:  # noqa: BLE001 - e.g. e-stop latched: already safe
             pass
 

@@ -3,7 +3,7 @@
 Defaults that avoid what hurt other robot fleets (multicast discovery that fails on Wi-Fi and WSL and lets
 robots hear each other): multicast scouting and gossip are **off**; a node listens where it is told
 (``tcp/127.0.0.1:7447`` by default) and clients connect to it, or both connect to a router. Links use a
-short lease (500 ms, 4 keep-alives per lease), so a dead peer is noticed within about half a second.
+short lease (400 ms, 4 keep-alives per lease), so a dead or cut-off peer is noticed within half a second.
 
 Beyond loopback, a node refuses to listen or connect without **TLS** (``tls/`` endpoints with a CA and a
 certificate/key) and **user/password authentication** (a dictionary file of ``user:password`` lines for a
@@ -23,7 +23,7 @@ from typing import Any
 from servoface.controller.network.errors import InsecureEndpointError, NetworkError
 
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
-LEASE_MS = 500
+LEASE_MS = 400
 
 
 @dataclass(frozen=True)
