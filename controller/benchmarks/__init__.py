@@ -15,4 +15,5 @@ SUITES: dict[str, str] = {
     "pty": "servoface.controller.benchmarks.pty_load",
     "service": "servoface.controller.benchmarks.service",
     "speech": "servoface.controller.benchmarks.speech",
+    "network": "servoface.controller.benchmarks.network",
 }
