@@ -60,8 +60,9 @@ def _spawn(tmp: Path, *args: str) -> subprocess.Popen[str]:
 
     script = tmp / "sender.py"
     script.write_text(SENDER)
-    return subprocess.Popen([sys.executable, str(script), *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=ENV)  # fmt: skip
+    return subprocess.Popen(
+        [sys.executable, str(script), *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV
+    )
 
 
 def run(quick: bool = False) -> Iterator[Figure]:
@@ -85,8 +86,9 @@ def run(quick: bool = False) -> Iterator[Figure]:
             # -- cues
             spreads, latest = [], []
             for _ in range(2 if quick else 5):
-                result = client.cue("lobby/*", {"verb": "express", "name": "surprise", "transition_s": 0.3,
-                                                "hold_s": 0.3}, in_s=0.8)  # fmt: skip
+                result = client.cue(
+                    "lobby/*", {"verb": "express", "name": "surprise", "transition_s": 0.3, "hold_s": 0.3}, in_s=0.8
+                )
                 cue_t = result["at_monotonic_s"]
                 time.sleep(1.8)
                 onsets = [onset_after(n.goals(brow, cue_t - 1.0), cue_t - 0.3) for n in nodes]
@@ -97,10 +99,15 @@ def run(quick: bool = False) -> Iterator[Figure]:
                 for n in nodes:
                     client.send(head_keys("lobby", n.name), "neutral")
                 time.sleep(1.0)
-            yield Figure("cue onset skew across 3 heads (median of cues)", statistics.median(spreads) if spreads
-                         else float("nan"), "ms", goal=20.0, better="lower",
-                         note=f"{len(spreads)} cues; spreads {[round(s, 1) for s in spreads]} ms; latest onset "
-                         f"after the cue time {[round(x, 1) for x in latest]} ms")  # fmt: skip
+            yield Figure(
+                "cue onset skew across 3 heads (median of cues)",
+                statistics.median(spreads) if spreads else float("nan"),
+                "ms",
+                goal=20.0,
+                better="lower",
+                note=f"{len(spreads)} cues; spreads {[round(s, 1) for s in spreads]} ms; latest onset "
+                f"after the cue time {[round(x, 1) for x in latest]} ms",
+            )
             # -- a 50 Hz stream from another process
             before = client.status(head_keys("lobby", "h1"))
             sender = _spawn(tmp, nodes[0].endpoint, "h1", "stream", "150" if quick else "500")
@@ -112,11 +119,22 @@ def run(quick: bool = False) -> Iterator[Figure]:
             lat_ms = np.array(lat) * 1e3
             frames = max(after["frames"] - before["frames"], 1)
             late = (after["late"] - before["late"]) / frames
-            yield Figure("50 Hz AU stream: publish -> goal on the wire, p99", float(np.percentile(lat_ms, 99))
-                         if len(lat_ms) else float("nan"), "ms", goal=30.0, better="lower",
-                         note=f"{len(lat_ms)} steps of the jaw; median {np.median(lat_ms):.1f} ms")  # fmt: skip
-            yield Figure("late frames on the head during the stream", late * 100, "%", goal=1.0, better="lower",
-                         note=f"{after['late'] - before['late']} of {frames} frames")  # fmt: skip
+            yield Figure(
+                "50 Hz AU stream: publish -> goal on the wire, p99",
+                float(np.percentile(lat_ms, 99)) if len(lat_ms) else float("nan"),
+                "ms",
+                goal=30.0,
+                better="lower",
+                note=f"{len(lat_ms)} steps of the jaw; median {np.median(lat_ms):.1f} ms",
+            )
+            yield Figure(
+                "late frames on the head during the stream",
+                late * 100,
+                "%",
+                goal=1.0,
+                better="lower",
+                note=f"{after['late'] - before['late']} of {frames} frames",
+            )
             # -- a cut link
             ctl = _spawn(tmp, nodes[1].endpoint, "h2", "express")
             assert ctl.stdout is not None
@@ -130,8 +148,14 @@ def run(quick: bool = False) -> Iterator[Figure]:
             ctl.send_signal(signal.SIGCONT)
             ctl.kill()
             ctl.wait(10)
-            yield Figure("cut link -> head back at rest", (back[0] - cut) * 1e3 if back else float("nan"), "ms",
-                         goal=1000.0, better="lower", note="controller stopped (SIGSTOP): lease 400 ms + 0.3 s ease")  # fmt: skip
+            yield Figure(
+                "cut link -> head back at rest",
+                (back[0] - cut) * 1e3 if back else float("nan"),
+                "ms",
+                goal=1000.0,
+                better="lower",
+                note="controller stopped (SIGSTOP): lease 400 ms + 0.3 s ease",
+            )
             # -- a killed node
             nodes[2].proc.send_signal(signal.SIGKILL)
             t0 = time.monotonic()
@@ -142,8 +166,14 @@ def run(quick: bool = False) -> Iterator[Figure]:
                     gone = (time.monotonic() - t0) * 1e3
                     break
                 time.sleep(0.02)
-            yield Figure("killed node -> gone from `servoface heads`", gone, "ms", goal=1000.0, better="lower",
-                         note="presence: Zenoh liveliness token, dropped with the node's link")  # fmt: skip
+            yield Figure(
+                "killed node -> gone from `servoface heads`",
+                gone,
+                "ms",
+                goal=1000.0,
+                better="lower",
+                note="presence: Zenoh liveliness token, dropped with the node's link",
+            )
         finally:
             session.close()
             for n in nodes:

@@ -39,8 +39,10 @@ def run(args: argparse.Namespace) -> int:
             print(json.dumps({"site": h.site, "name": h.name, **h.status}))
         else:
             s = h.status
-            print(f"{h.site}/{h.name}  {s.get('head', '?')} ({s.get('face_type', '?')}), {len(s.get('servos', []))} "
-                  f"servos, frames {s.get('frames')}, late {s.get('late')}, e-stop {s.get('estop_latched')}")  # fmt: skip
+            print(
+                f"{h.site}/{h.name}  {s.get('head', '?')} ({s.get('face_type', '?')}), {len(s.get('servos', []))} "
+                f"servos, frames {s.get('frames')}, late {s.get('late')}, e-stop {s.get('estop_latched')}"
+            )
     if not heads:
         print(f"# no head matches {args.pattern} (check --connect)", file=sys.stderr)
     return 0 if heads else 1

@@ -9,10 +9,15 @@ from typing import Any
 
 def add_network_arguments(parser: argparse.ArgumentParser, *, node: bool) -> None:
     if node:
-        parser.add_argument("--listen", action="append", default=None,
-                            help="Zenoh endpoint to listen on (repeatable; default tcp/127.0.0.1:7447)")  # fmt: skip
-    parser.add_argument("--connect", action="append", default=[],
-                        help="Zenoh endpoint (a node or a router) to connect to (repeatable)")  # fmt: skip
+        parser.add_argument(
+            "--listen",
+            action="append",
+            default=None,
+            help="Zenoh endpoint to listen on (repeatable; default tcp/127.0.0.1:7447)",
+        )
+    parser.add_argument(
+        "--connect", action="append", default=[], help="Zenoh endpoint (a node or a router) to connect to (repeatable)"
+    )
     parser.add_argument("--user", help="user name for Zenoh user/password authentication")
     parser.add_argument("--password", help="its password")
     if node:
@@ -20,9 +25,11 @@ def add_network_arguments(parser: argparse.ArgumentParser, *, node: bool) -> Non
     parser.add_argument("--tls-ca", type=Path, help="TLS root CA certificate (PEM)")
     parser.add_argument("--tls-cert", type=Path, help="TLS certificate (PEM) for listening")
     parser.add_argument("--tls-key", type=Path, help="TLS private key (PEM) for listening")
-    parser.add_argument("--insecure", action="store_true",
-                        help="allow a non-loopback endpoint without TLS and credentials (anyone reaching it can "
-                        "drive the head)")  # fmt: skip
+    parser.add_argument(
+        "--insecure",
+        action="store_true",
+        help="allow a non-loopback endpoint without TLS and credentials (anyone reaching it can drive the head)",
+    )
 
 
 def open_from_args(args: argparse.Namespace, *, node: bool) -> Any:

@@ -24,12 +24,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     where.add_argument("--emulate", action="store_true", help="an in-process emulated chain")
     parser.add_argument("--baud", type=int, default=1_000_000, help="bus speed (default 1000000)")
     parser.add_argument("--rate", type=float, default=50.0, help="control rate in Hz (default 50)")
-    parser.add_argument("--hold-on-link-loss", action="store_true",
-                        help="keep the pose when the last peer disconnects (default: ease to neutral)")  # fmt: skip
+    parser.add_argument(
+        "--hold-on-link-loss",
+        action="store_true",
+        help="keep the pose when the last peer disconnects (default: ease to neutral)",
+    )
     parser.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
-    parser.add_argument("--wire-log", type=Path, default=None,
-                        help="with --emulate: append every goal the emulated servos receive to this file as JSON "
-                        "lines [monotonic_s, id, tick], as they arrive (for tests)")  # fmt: skip
+    parser.add_argument(
+        "--wire-log",
+        type=Path,
+        default=None,
+        help="with --emulate: append every goal the emulated servos receive to this file as JSON "
+        "lines [monotonic_s, id, tick], as they arrive (for tests)",
+    )
     add_network_arguments(parser, node=True)
 
 
@@ -71,8 +78,13 @@ def run(args: argparse.Namespace) -> int:
     now = time.monotonic()
     time.sleep(period - (now % period))
     service.start()
-    node = HeadNode(service, session, keys, hold_on_link_loss=args.hold_on_link_loss,
-                    on_event=lambda msg: print(f"node {keys.base}: {msg}", flush=True)).start()  # fmt: skip
+    node = HeadNode(
+        service,
+        session,
+        keys,
+        hold_on_link_loss=args.hold_on_link_loss,
+        on_event=lambda msg: print(f"node {keys.base}: {msg}", flush=True),
+    ).start()
     wire_log = None
     if args.wire_log is not None and opened.chain is not None:
         wire_log = _WireLog(opened.chain, args.wire_log, stop)

@@ -33,8 +33,10 @@ TRACK_NAMES = ("stream", "face", "gaze", "studio", "gesture", "head", "speech")
 
 def check_token(value: str, *, field: str) -> str:
     if not isinstance(value, str) or not _TOKEN.match(value):
-        raise NetworkError(f"{field}: expected 1..40 characters of a-z, 0-9, '_' or '-' (starting with a letter "
-                           f"or digit), got {value!r:.60}")  # fmt: skip
+        raise NetworkError(
+            f"{field}: expected 1..40 characters of a-z, 0-9, '_' or '-' (starting with a letter "
+            f"or digit), got {value!r:.60}"
+        )
     return value
 
 

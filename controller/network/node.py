@@ -189,9 +189,13 @@ class HeadNode:
             return svc.stop(body.get("track", "face"))
         if verb == "express":
             return svc.express(
-                body.get("name"), intensity=body.get("intensity", 1.0), transition_s=body.get("transition_s", 0.5),
-                hold_s=body.get("hold_s", 1.0), track=body.get("track", "face"), at_s=at_s,
-            )  # fmt: skip
+                body.get("name"),
+                intensity=body.get("intensity", 1.0),
+                transition_s=body.get("transition_s", 0.5),
+                hold_s=body.get("hold_s", 1.0),
+                track=body.get("track", "face"),
+                at_s=at_s,
+            )
         if verb == "play":
             name = body.get("name")
             if not isinstance(name, str):

@@ -57,8 +57,25 @@ def start_nodes(tmp: Path, names: list[str], *, users_file: Path | None = None, 
         port = free_port()
         endpoint = f"tcp/127.0.0.1:{port}"
         wire, log = tmp / f"{name}.wire", tmp / f"{name}.log"
-        cmd = [sys.executable, "-m", "servoface.controller.cli", "node", "--head", head, "--name", name, "--site",
-               "lobby", "--emulate", "--listen", endpoint, "--wire-log", str(wire), "--duration", "600"]  # fmt: skip
+        cmd = [
+            sys.executable,
+            "-m",
+            "servoface.controller.cli",
+            "node",
+            "--head",
+            head,
+            "--name",
+            name,
+            "--site",
+            "lobby",
+            "--emulate",
+            "--listen",
+            endpoint,
+            "--wire-log",
+            str(wire),
+            "--duration",
+            "600",
+        ]
         if users_file is not None:
             cmd += ["--users-file", str(users_file), "--user", "node", "--password", "node-secret"]
         fh = log.open("w")

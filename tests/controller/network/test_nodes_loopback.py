@@ -52,8 +52,9 @@ def net(tmp_path_factory: pytest.TempPathFactory):  # type: ignore[no-untyped-de
 def _helper(tmp: Path, code: str) -> subprocess.Popen[str]:
     script = tmp / f"helper_{time.monotonic_ns()}.py"
     script.write_text(code)
-    return subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=ENV)  # fmt: skip
+    return subprocess.Popen(
+        [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV
+    )
 
 
 def test_all_three_heads_are_present_with_their_status(net) -> None:  # type: ignore[no-untyped-def]
@@ -68,8 +69,9 @@ def test_all_three_heads_are_present_with_their_status(net) -> None:  # type: ig
 def test_a_cue_starts_on_all_three_within_20_ms(net) -> None:  # type: ignore[no-untyped-def]
     _, nodes, client, _ = net
     time.sleep(0.5)
-    result = client.cue("lobby/*", {"verb": "express", "name": "surprise", "transition_s": 0.4, "hold_s": 0.5},
-                        in_s=1.0)  # fmt: skip
+    result = client.cue(
+        "lobby/*", {"verb": "express", "name": "surprise", "transition_s": 0.4, "hold_s": 0.5}, in_s=1.0
+    )
     cue_t = result["at_monotonic_s"]
     time.sleep(2.5)
     onsets = {n.name: onset_after(n.goals(BROW, cue_t - 1.0), cue_t - 0.3) for n in nodes}
@@ -127,8 +129,11 @@ s.close()
     lat_ms = np.array(lat) * 1e3
     after = client.status(head_keys("lobby", "h1"))
     late = (after["late"] - before["late"]) / max(after["frames"] - before["frames"], 1)
-    print(f"stream publish -> goal on the wire: median {np.median(lat_ms):.1f} ms, p99 {np.percentile(lat_ms, 99):.1f} ms "
-          f"over {len(lat_ms)} steps; late frames {late:.1%}")  # fmt: skip
+    print(
+        f"stream publish -> goal on the wire: median {np.median(lat_ms):.1f} ms, "
+        f"p99 {np.percentile(lat_ms, 99):.1f} ms "
+        f"over {len(lat_ms)} steps; late frames {late:.1%}"
+    )
     assert len(lat_ms) >= 10 and np.median(lat_ms) <= 200.0
 
 
@@ -169,8 +174,10 @@ def test_frames_with_an_unknown_schema_version_move_nothing(net) -> None:  # typ
     before = client.status(keys)["counters"]["refused"]
     t0 = time.monotonic()
     for i in range(20):
-        client.session.put(keys.aus("stream"), json.dumps({"schema": 2, "seq": 10_000 + i, "t": time.monotonic(),
-                                                           "aus": {"AU26": 0.9}}).encode())  # fmt: skip
+        client.session.put(
+            keys.aus("stream"),
+            json.dumps({"schema": 2, "seq": 10_000 + i, "t": time.monotonic(), "aus": {"AU26": 0.9}}).encode(),
+        )
         client.session.put(keys.cmd("express"), json.dumps({"schema": 99, "seq": 1, "name": "happiness"}).encode())
         client.session.put(keys.cmd("express"), json.dumps({"seq": 2, "name": "happiness"}).encode())
         time.sleep(0.02)
