@@ -14,6 +14,7 @@ SUITES: dict[str, str] = {
     "timeline": "servoface.controller.benchmarks.timeline",
     "pty": "servoface.controller.benchmarks.pty_load",
     "scale": "servoface.controller.benchmarks.scale",
-    "speech": "servoface.controller.benchmarks.speech",
     "service": "servoface.controller.benchmarks.service",
+    "speech": "servoface.controller.benchmarks.speech",
+    "network": "servoface.controller.benchmarks.network",
 }

@@ -26,6 +26,9 @@ COMMANDS: dict[str, str] = {
     "bench": "servoface.controller.cli.bench",
     "list": "servoface.controller.cli.list",
     "new": "servoface.controller.cli.new",
+    "node": "servoface.controller.cli.node",
+    "heads": "servoface.controller.cli.heads",
+    "cue": "servoface.controller.cli.cue",
     "say": "servoface.controller.cli.say",
     "lipsync": "servoface.controller.cli.lipsync",
 }

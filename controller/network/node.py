@@ -1,0 +1,370 @@
+"""``HeadNode``: one head service on one Zenoh session (see :mod:`.keys` for what it serves).
+
+Safety on the network:
+- every message is opened by :func:`.messages.open_envelope` (size, depth, schema version) and checked
+  against the sender's sequence; every value is validated by the head service (a bad command raises there
+  and changes nothing); refusals are counted by reason and published on ``state/counters``;
+- AU streams are followed through a ``StreamSource`` with its dropout policy: when frames stop, the track
+  eases to neutral (250 ms + 0.5 s);
+- when the link to a peer that holds **live control** drops (a controller that streams AU frames, or sent
+  a command with ``"live": true``, and dies or is cut off), the head eases to neutral (0.3 s) unless
+  ``hold_on_link_loss``; detection takes one lease (400 ms) at most. One-shot commands (a cue, an
+  expression from ``servoface cue``) outlive the client that sent them: it may exit right after;
+- an e-stop from any peer that can open a session (i.e. has the credentials) is honoured at once.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from servoface.controller.network.errors import MessageError
+from servoface.controller.network.keys import TRACK_NAMES, VERBS, HeadKeys
+from servoface.controller.network.messages import SCHEMA_VERSION, SequenceGuard, envelope, open_envelope
+
+LINK_POLL_S = 0.05
+LINK_LOSS_EASE_S = 0.3  # lease 0.4 s + 2 polls + this: at neutral within 1 s of the cut
+CUE_WINDOW_S = (-0.5, 120.0)  # a cue may start at most this far in the past / future of the node's clock
+
+
+class HeadNode:
+    """Serve ``service`` (a running ``HeadService``) on ``session`` under ``keys``."""
+
+    def __init__(
+        self,
+        service: Any,
+        session: Any,
+        keys: HeadKeys,
+        *,
+        frame_hz: float = 10.0,
+        telemetry_hz: float = 5.0,
+        hold_on_link_loss: bool = False,
+        dropout_ms: float = 250.0,
+        on_event: Callable[[str], None] | None = None,
+    ) -> None:
+        self.service = service
+        self.session = session
+        self.keys = keys
+        self.frame_hz = frame_hz
+        self.telemetry_hz = telemetry_hz
+        self.hold_on_link_loss = hold_on_link_loss
+        self.dropout_ms = dropout_ms
+        self.guard = SequenceGuard()
+        self.link_losses = 0
+        self.cues: list[dict[str, Any]] = []
+        self._streams: dict[str, Any] = {}
+        self._live: dict[str, float] = {}  # sender (its Zenoh session id) -> last live message (monotonic)
+        self._seq = 0
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._on_event = on_event or (lambda _msg: None)
+        self._declared: list[Any] = []
+        self._threads: list[threading.Thread] = []
+
+    # -- life ---------------------------------------------------------------------------------------
+    def start(self) -> HeadNode:
+        s, k = self.session, self.keys
+        self._declared += [
+            s.declare_subscriber(k.aus_any, self._on_aus),
+            s.declare_subscriber(k.cmd_any, self._on_cmd),
+            s.declare_queryable(k.status, self._on_status),
+            s.declare_queryable(k.clock, self._on_clock),
+            s.liveliness().declare_token(k.presence),
+        ]
+        for target, name in ((self._publish_state, "state"), (self._watch_links, "links")):
+            t = threading.Thread(target=target, name=f"servoface-node-{name}", daemon=True)
+            t.start()
+            self._threads.append(t)
+        return self
+
+    def close(self) -> None:
+        self._stop.set()
+        for t in self._threads:
+            t.join(2.0)
+        for d in reversed(self._declared):
+            try:
+                d.undeclare()
+            except Exception:  # noqa: BLE001 - the session may already be closing
+                pass
+        self._declared.clear()
+        for source in self._streams.values():
+            source.close()
+
+    # -- helpers ------------------------------------------------------------------------------------
+    def _next_seq(self) -> int:
+        with self._lock:
+            self._seq += 1
+            return self._seq
+
+    def _put(self, key: str, body: dict[str, Any]) -> None:
+        try:
+            self.session.put(key, envelope(body, self._next_seq()))
+        except Exception:  # noqa: BLE001 - publishing must never take the node down
+            pass
+
+    def _open(self, sample: Any) -> tuple[str, dict[str, Any]] | None:
+        key = str(sample.key_expr)
+        try:
+            seq, body = open_envelope(sample.payload.to_bytes())
+        except MessageError as err:
+            reason = str(err).split(":", 1)[0]
+            self.guard.refuse(f"bad message ({reason})")
+            return None
+        sender = body.pop("from", None)
+        if not isinstance(sender, str) or len(sender) > 64:
+            sender = "?"
+        live = body.pop("live", False) is True or "/aus/" in key
+        if not self.guard.take(sender, key, seq):
+            return None
+        if live and sender != "?":
+            with self._lock:
+                self._live[sender] = time.monotonic()
+        return key, body
+
+    # -- AU streams ---------------------------------------------------------------------------------
+    def _on_aus(self, sample: Any) -> None:
+        opened = self._open(sample)
+        if opened is None:
+            return
+        key, body = opened
+        track = key.rsplit("/", 1)[-1]
+        if track not in TRACK_NAMES:
+            self.guard.refuse("unknown track")
+            return
+        source = self._stream(track)
+        if source is None:
+            return
+        if not source.feed(json.dumps(body), where=f"{key}", rate_checked=True):
+            self.guard.refuse("bad AU frame")
+
+    def _stream(self, track: str) -> Any:
+        with self._lock:
+            source = self._streams.get(track)
+            if source is not None:
+                return source
+            from servoface.controller.inputs import StreamSource
+            from servoface.controller.inputs.messages import MessageDecoder
+
+            source = StreamSource(MessageDecoder(self.service.head.face_type), dropout_ms=self.dropout_ms)
+            self._streams[track] = source
+        try:
+            self.service.follow(source, track=track)
+        except Exception as err:  # noqa: BLE001 - an unknown track on this head
+            self.guard.refuse(f"follow refused ({type(err).__name__})")
+            with self._lock:
+                self._streams.pop(track, None)
+            return None
+        return source
+
+    # -- commands -----------------------------------------------------------------------------------
+    def _on_cmd(self, sample: Any) -> None:
+        opened = self._open(sample)
+        if opened is None:
+            return
+        key, body = opened
+        verb = key.rsplit("/", 1)[-1]
+        if verb not in VERBS:
+            self.guard.refuse("unknown command")
+            return
+        try:
+            self.run_command(verb, body)
+        except Exception as err:  # noqa: BLE001 - a refused command is counted and reported, never fatal
+            self.guard.refuse(f"{verb} refused")
+            self._put(self.keys.state("refused"), {"verb": verb, "error": str(err)[:300]})
+
+    def run_command(self, verb: str, body: dict[str, Any], *, at_s: float | None = None) -> Any:
+        """Apply one command (already opened); raises the service's typed error for a bad value."""
+        svc = self.service
+        if verb == "estop":
+            return svc.estop(str(body.get("reason", "remote e-stop"))[:200])
+        if verb == "clear_estop":
+            return svc.clear_estop()
+        if verb == "neutral":
+            return svc.neutral(transition_s=body.get("transition_s", 0.6))
+        if verb == "stop":
+            return svc.stop(body.get("track", "face"))
+        if verb == "express":
+            return svc.express(
+                body.get("name"),
+                intensity=body.get("intensity", 1.0),
+                transition_s=body.get("transition_s", 0.5),
+                hold_s=body.get("hold_s", 1.0),
+                track=body.get("track", "face"),
+                at_s=at_s,
+            )
+        if verb == "play":
+            name = body.get("name")
+            if not isinstance(name, str):
+                raise MessageError(f"play: name must be a shipped script or expression name, got {name!r:.40}")
+            from servoface.controller.shipped import is_shipped_script
+
+            if not is_shipped_script(name):  # an expression of the head's library, played as a clip
+                from servoface.controller.timeline.library import library_clip
+
+                return svc.play(library_clip(svc.head.face_type, name), track=body.get("track", "face"), at_s=at_s)
+            return svc.play(name, track=body.get("track", "face"), at_s=at_s)
+        if verb == "look_at":
+            point = body.get("point_mm")
+            return svc.look_at(None if point is None else tuple(point), at_s=at_s)
+        if verb == "say":
+            return self._say(body, at_s)
+        if verb == "cue":
+            return self._cue(body)
+        raise MessageError(f"unknown command {verb!r}")
+
+    def _say(self, body: dict[str, Any], at_s: float | None) -> Any:
+        from servoface.controller.au_names import head_au_names
+        from servoface.controller.speech.lipsync import speech_from_text
+        from servoface.controller.speech.visemes import mouth_aus
+
+        text = body.get("text")
+        if not isinstance(text, str) or not text.strip() or len(text) > 2000:
+            raise MessageError("say: text must be a non-empty string of at most 2000 characters")
+        speech = speech_from_text(text)
+        face_type = self.service.head.face_type
+        clip = speech.plan.clip(face_type, head_au_names(self.service.head) & mouth_aus(face_type))
+        return self.service.speak(clip, at_s=at_s)
+
+    def _cue(self, body: dict[str, Any]) -> Any:
+        what = body.get("what")
+        at = body.get("at_s")
+        if not isinstance(what, dict) or what.get("verb") not in ("express", "play", "look_at", "say", "neutral"):
+            raise MessageError("cue: what must be {verb: express|play|look_at|say|neutral, ...}")
+        if isinstance(at, bool) or not isinstance(at, int | float) or not math.isfinite(at):
+            raise MessageError(f"cue: at_s must be a time on this head's clock, got {at!r:.40}")
+        now = self.service.now_s()
+        if not CUE_WINDOW_S[0] <= at - now <= CUE_WINDOW_S[1]:
+            raise MessageError(f"cue: at_s {at:.3f} is {at - now:+.3f} s from now; expected within {CUE_WINDOW_S}")
+        args = {k: v for k, v in what.items() if k != "verb"}
+        handle = self.run_command(str(what["verb"]), args, at_s=float(at))
+        record = {
+            "cue": str(body.get("cue", ""))[:64],
+            "at_s": float(at),
+            "at_monotonic_s": self.service.clock.to_monotonic_s(float(at)),
+            "offset_s": body.get("offset_s"),
+            "received_ahead_s": round(at - now, 4),
+        }
+        self.cues.append(record)
+        self._put(self.keys.state("cue"), record)
+        self._on_event(f"cue {record['cue']} at {at:.3f} (offset {record['offset_s']})")
+        return handle
+
+    # -- queryables ---------------------------------------------------------------------------------
+    def status(self) -> dict[str, Any]:
+        svc = self.service
+        st = svc.status()
+        head = svc.head
+        from servoface.controller.au_names import head_au_names
+        from servoface.sim.expressions import load_library
+
+        try:
+            expressions = sorted(load_library(head.expressions_path or head.face_type))
+        except Exception:  # noqa: BLE001 - a profile without a library
+            expressions = []
+        return {
+            "schema": SCHEMA_VERSION,
+            "site": self.keys.site,
+            "name": self.keys.name,
+            "head": head.name,
+            "face_type": head.face_type,
+            "aus": sorted(head_au_names(head)),
+            "expressions": expressions,
+            "servos": [{"id": a.servo.id, "role": a.role, "model": a.servo.model} for a in head.actuators],
+            "tracks": sorted(st.tracks),
+            "t_s": round(st.t_s, 4),
+            "running": st.running,
+            "estop_latched": st.estop_latched,
+            "torque_on": st.torque_on,
+            "frames": st.frames,
+            "late": st.late,
+            "link_losses": self.link_losses,
+            "counters": self.guard.counters(),
+        }
+
+    def _on_status(self, query: Any) -> None:
+        try:
+            query.reply(self.keys.status, json.dumps(self.status()).encode())
+        except Exception:  # noqa: BLE001 - a querier that went away
+            pass
+
+    def _on_clock(self, query: Any) -> None:
+        try:
+            body = {"service_s": self.service.now_s(), "monotonic_s": time.monotonic()}
+            query.reply(self.keys.clock, json.dumps(body).encode())
+        except Exception:  # noqa: BLE001
+            pass
+
+    # -- background ---------------------------------------------------------------------------------
+    def _publish_state(self) -> None:
+        svc = self.service
+        frames = svc.subscribe("frame", rate_hz=self.frame_hz, maxlen=8)
+        telemetry = svc.subscribe("telemetry", rate_hz=self.telemetry_hz, maxlen=4)
+        faults = svc.subscribe("fault", maxlen=64)
+        last_counters = 0.0
+        try:
+            while not self._stop.is_set():
+                item = frames.get(timeout_s=0.05)
+                if item is not None:
+                    self._put(self.keys.state("frame"), item.as_dict())
+                for snap in telemetry.drain():
+                    self._put(self.keys.state("telemetry"), _jsonable(snap))
+                for event in faults.drain():
+                    self._put(self.keys.state("fault"), _jsonable(event))
+                now = time.monotonic()
+                if now - last_counters >= 1.0:
+                    last_counters = now
+                    self._put(self.keys.state("counters"), {**self.guard.counters(), "link_losses": self.link_losses})
+        finally:
+            for sub in (frames, telemetry, faults):
+                sub.close()
+
+    def _watch_links(self) -> None:
+        missing: dict[str, int] = {}
+        while not self._stop.wait(LINK_POLL_S):
+            try:
+                peers = {str(z) for z in self.session.info.peers_zid()}
+            except Exception:  # noqa: BLE001 - session closing
+                return
+            with self._lock:
+                live = list(self._live)
+            lost = []
+            for sender in live:
+                if sender in peers:
+                    missing.pop(sender, None)
+                    continue
+                missing[sender] = missing.get(sender, 0) + 1
+                if missing[sender] >= 2:
+                    lost.append(sender)
+            if not lost:
+                continue
+            with self._lock:
+                for sender in lost:
+                    self._live.pop(sender, None)
+                    missing.pop(sender, None)
+            self.link_losses += 1
+            self._on_event(f"link lost to controller(s) {', '.join(s[:8] for s in lost)}")
+            if not self.hold_on_link_loss:
+                self._ease_to_neutral()
+
+    def _ease_to_neutral(self) -> None:
+        with self._lock:
+            streams, self._streams = self._streams, {}
+        for source in streams.values():  # the next frame from a returning sender follows afresh
+            source.close()
+        try:
+            self.service.neutral(transition_s=LINK_LOSS_EASE_S)
+        except Exception:  # noqa: BLE001 - e.g. e-stop latched: already safe
+            pass
+
+
+def _jsonable(obj: Any) -> dict[str, Any]:
+    if hasattr(obj, "as_dict"):
+        out = obj.as_dict()
+        return out if isinstance(out, dict) else {"value": out}
+    if hasattr(obj, "__dict__"):
+        return {k: v if isinstance(v, int | float | str | bool | type(None)) else repr(v) for k, v in vars(obj).items()}
+    return {"value": repr(obj)}

@@ -1,0 +1,141 @@
+"""Zenoh configuration for servoface: explicit endpoints, no discovery by multicast, short leases.
+
+Defaults that avoid what hurt other robot fleets (multicast discovery that fails on Wi-Fi and WSL and lets
+robots hear each other): multicast scouting and gossip are **off**; a node listens where it is told
+(``tcp/127.0.0.1:7447`` by default) and clients connect to it, or both connect to a router. Links use a
+short lease (400 ms, 4 keep-alives per lease), so a dead or cut-off peer is noticed within half a second.
+
+Beyond loopback, a node refuses to listen or connect without **TLS** (``tls/`` endpoints with a CA and a
+certificate/key) and **user/password authentication** (a dictionary file of ``user:password`` lines for a
+node, ``--user``/``--password`` for a client) unless ``insecure=True`` (``--insecure``). A peer without the
+configured credentials cannot open a session with the node, so it can neither move the head nor read it.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from servoface.controller.network.errors import InsecureEndpointError, NetworkError
+
+DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
+LEASE_MS = 400
+
+
+@dataclass(frozen=True)
+class Credentials:
+    """What a session proves (user/password) and, for a node, whom it accepts (a dictionary file)."""
+
+    user: str | None = None
+    password: str | None = None
+    users_file: Path | None = None
+
+    @property
+    def any(self) -> bool:
+        return bool(self.user or self.users_file)
+
+
+@dataclass(frozen=True)
+class TlsFiles:
+    root_ca: Path | None = None
+    cert: Path | None = None
+    key: Path | None = None
+
+
+def _host(endpoint: str) -> tuple[str, str]:
+    """(protocol, host) of a Zenoh endpoint such as ``tcp/127.0.0.1:7447`` or ``tls/[::1]:7447``."""
+    if not isinstance(endpoint, str) or "/" not in endpoint:
+        raise NetworkError(f"endpoint {endpoint!r:.60}: expected PROTO/HOST:PORT, e.g. {DEFAULT_LISTEN}")
+    proto, rest = endpoint.split("/", 1)
+    if proto not in ("tcp", "tls", "udp", "quic", "ws"):
+        raise NetworkError(f"endpoint {endpoint!r}: unknown protocol {proto!r} (tcp, tls, udp, quic, ws)")
+    host = rest.split("#", 1)[0]
+    host = host[1 : host.index("]")] if host.startswith("[") else host.rsplit(":", 1)[0]
+    return proto, host
+
+
+def is_loopback(endpoint: str) -> bool:
+    _, host = _host(endpoint)
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False  # a host name: assume it is reachable from elsewhere
+
+
+def check_endpoints(
+    listen: Sequence[str], connect: Sequence[str], creds: Credentials, tls: TlsFiles, *, insecure: bool
+) -> None:
+    """Refuse an endpoint beyond loopback without TLS and credentials (unless ``insecure``)."""
+    for endpoint in (*listen, *connect):
+        proto, _ = _host(endpoint)
+        if is_loopback(endpoint) or insecure:
+            continue
+        missing = []
+        if proto not in ("tls", "quic"):
+            missing.append("a tls/ (or quic/) endpoint")
+        if tls.root_ca is None or (endpoint in listen and (tls.cert is None or tls.key is None)):
+            missing.append("--tls-ca (and --tls-cert/--tls-key to listen)")
+        if not creds.any:
+            missing.append("credentials (--users-file on a node, --user/--password on a client)")
+        if missing:
+            raise InsecureEndpointError(
+                f"endpoint {endpoint} is not on loopback: it needs {', '.join(missing)}; "
+                "or pass --insecure (anyone who can reach it could move the head)"
+            )
+
+
+def session_config(
+    *,
+    listen: Sequence[str] = (),
+    connect: Sequence[str] = (),
+    creds: Credentials = Credentials(),
+    tls: TlsFiles = TlsFiles(),
+    insecure: bool = False,
+    lease_ms: int = LEASE_MS,
+) -> Any:
+    """A ``zenoh.Config`` for a peer with these endpoints (validated first)."""
+    check_endpoints(listen, connect, creds, tls, insecure=insecure)
+    import zenoh
+
+    conf = zenoh.Config()
+
+    def put(key: str, value: object) -> None:
+        conf.insert_json5(key, json.dumps(value))
+
+    put("mode", "peer")
+    put("scouting/multicast/enabled", False)
+    put("scouting/gossip/enabled", False)
+    put("listen/endpoints", list(listen))
+    put("connect/endpoints", list(connect))
+    put("transport/link/tx/lease", int(lease_ms))
+    put("transport/link/tx/keep_alive", 4)
+    if creds.user is not None:
+        put("transport/auth/usrpwd/user", creds.user)
+        put("transport/auth/usrpwd/password", creds.password or "")
+    if creds.users_file is not None:
+        if not Path(creds.users_file).is_file():
+            raise NetworkError(f"users file {creds.users_file}: not found (expected lines 'user:password')")
+        put("transport/auth/usrpwd/dictionary_file", str(creds.users_file))
+    if tls.root_ca is not None:
+        put("transport/link/tls/root_ca_certificate", str(tls.root_ca))
+    if tls.cert is not None and tls.key is not None:
+        put("transport/link/tls/listen_certificate", str(tls.cert))
+        put("transport/link/tls/listen_private_key", str(tls.key))
+    return conf
+
+
+def open_session(**kwargs: Any) -> Any:
+    """``zenoh.open`` of :func:`session_config`; NetworkError with the endpoint if it cannot listen."""
+    import zenoh
+
+    conf = session_config(**kwargs)
+    try:
+        return zenoh.open(conf)
+    except zenoh.ZError as err:
+        raise NetworkError(f"cannot open a Zenoh session ({err}); is the endpoint in use or unreachable?") from err

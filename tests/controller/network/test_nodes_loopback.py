@@ -1,0 +1,241 @@
+"""Heads as Zenoh nodes, in separate processes on loopback, checked from each emulator's side of the wire
+(the goals every emulated servo received, with their monotonic times: one clock for every process here).
+
+The module starts three `servoface node` processes (user/password authentication on) and drives them from
+this process and from helper processes. The tests assert what must happen, with bounds loose enough for a
+loaded machine; the figures against their goals (cue skew <= 20 ms, stream p99 <= 30 ms and < 1 % late,
+neutral within 1 s of a cut link, gone from the list within 1 s of a kill) are `servoface bench network`."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from servoface.controller.network.client import HeadsClient
+from servoface.controller.network.keys import head_keys
+from servoface.controller.network.testbed import ENV, NodeProc, onset_after, start_nodes
+from servoface.controller.network.zconfig import Credentials, open_session
+from servoface.sim.heads import load_head
+
+pytestmark = pytest.mark.slow
+
+HEAD = load_head("human")
+JAW = HEAD.servo_ids["jaw"]
+BROW = HEAD.servo_ids["brow_inner_l"]
+
+
+@pytest.fixture(scope="module")
+def net(tmp_path_factory: pytest.TempPathFactory):  # type: ignore[no-untyped-def]
+    tmp = tmp_path_factory.mktemp("zenoh")
+    users = tmp / "users.txt"
+    users.write_text("operator:op-secret\nnode:node-secret\n")
+    nodes = start_nodes(tmp, ["h1", "h2", "h3"], users_file=users)
+    session = open_session(connect=[n.endpoint for n in nodes], creds=Credentials("operator", "op-secret"))
+    client = HeadsClient(session)
+    deadline = time.monotonic() + 30
+    while len(client.heads("lobby/*")) < 3 and time.monotonic() < deadline:
+        time.sleep(0.3)
+    try:
+        yield tmp, nodes, client, users
+    finally:
+        session.close()
+        for n in nodes:
+            n.stop()
+
+
+def _helper(tmp: Path, code: str) -> subprocess.Popen[str]:
+    script = tmp / f"helper_{time.monotonic_ns()}.py"
+    script.write_text(code)
+    return subprocess.Popen(
+        [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV
+    )
+
+
+def test_all_three_heads_are_present_with_their_status(net) -> None:  # type: ignore[no-untyped-def]
+    _, nodes, client, _ = net
+    heads = client.heads("lobby/*")
+    assert sorted(h.name for h in heads) == ["h1", "h2", "h3"]
+    for h in heads:
+        assert h.status["face_type"] == "human" and "AU12" in h.status["aus"] and h.status["running"]
+        assert "happiness" in h.status["expressions"] and len(h.status["servos"]) == len(HEAD.actuators)
+
+
+def test_a_cue_starts_on_all_three_within_20_ms(net) -> None:  # type: ignore[no-untyped-def]
+    _, nodes, client, _ = net
+    time.sleep(0.5)
+    result = client.cue(
+        "lobby/*", {"verb": "express", "name": "surprise", "transition_s": 0.4, "hold_s": 0.5}, in_s=1.0
+    )
+    cue_t = result["at_monotonic_s"]
+    time.sleep(2.5)
+    onsets = {n.name: onset_after(n.goals(BROW, cue_t - 1.0), cue_t - 0.3) for n in nodes}
+    assert all(v is not None for v in onsets.values()), onsets
+    times = np.array(list(onsets.values()))
+    print(f"cue onsets after the cue time (ms): { ({k: round((v - cue_t) * 1e3, 1) for k, v in onsets.items()}) }")
+    assert (times - cue_t).min() > -0.005, "a head moved before the cue time"
+    assert (times - cue_t).max() < 2.0, "a head started the cue late (or never)"
+    for off in result["heads"].values():
+        assert off["error_s"] < 0.05
+    client.send(head_keys("lobby", "h1"), "neutral")
+    client.send(head_keys("lobby", "h2"), "neutral")
+    client.send(head_keys("lobby", "h3"), "neutral")
+
+
+def test_a_50_hz_stream_from_another_process_reaches_the_wire_within_30_ms(net) -> None:  # type: ignore[no-untyped-def]
+    tmp, nodes, client, _ = net
+    node = nodes[0]
+    steps_log = tmp / "steps.json"
+    before = client.status(head_keys("lobby", "h1"))
+    code = f"""
+import json, time
+from servoface.controller.network.client import HeadsClient
+from servoface.controller.network.keys import head_keys
+from servoface.controller.network.zconfig import Credentials, open_session
+s = open_session(connect=["{node.endpoint}"], creds=Credentials("operator", "op-secret"))
+c = HeadsClient(s)
+k = head_keys("lobby", "h1")
+time.sleep(1.0)
+steps, value, t0 = [], 0.0, time.monotonic()
+for i in range(250):  # 5 s at 50 Hz, the jaw stepping between 0 and 0.5 every 0.4 s
+    due = t0 + i / 50
+    time.sleep(max(0.0, due - time.monotonic()))
+    new = 0.5 if (i // 20) % 2 else 0.0
+    t = time.monotonic()
+    c.send_aus(k, {{"AU26": new}}, t_s=t)
+    if new != value:
+        steps.append(t)
+    value = new
+json.dump(steps, open("{steps_log}", "w"))
+time.sleep(0.3)
+s.close()
+"""
+    helper = _helper(tmp, code)
+    out, err = helper.communicate(timeout=120)
+    assert helper.returncode == 0, err
+    steps = json.loads(steps_log.read_text())
+    time.sleep(0.3)
+    goals = node.goals(JAW, steps[0] - 1.0)
+    lat = []
+    for t in steps:
+        onset = onset_after(goals, t - 0.001, min_change=1)
+        assert onset is not None, f"no jaw goal change after the step at {t:.3f}"
+        lat.append(onset - t)
+    lat_ms = np.array(lat) * 1e3
+    after = client.status(head_keys("lobby", "h1"))
+    late = (after["late"] - before["late"]) / max(after["frames"] - before["frames"], 1)
+    print(
+        f"stream publish -> goal on the wire: median {np.median(lat_ms):.1f} ms, "
+        f"p99 {np.percentile(lat_ms, 99):.1f} ms "
+        f"over {len(lat_ms)} steps; late frames {late:.1%}"
+    )
+    assert len(lat_ms) >= 10 and np.median(lat_ms) <= 200.0
+
+
+def test_a_peer_without_the_credentials_cannot_move_a_head(net) -> None:  # type: ignore[no-untyped-def]
+    tmp, nodes, client, _ = net
+    node = nodes[1]
+    code = f"""
+import time
+from servoface.controller.network.client import HeadsClient
+from servoface.controller.network.keys import head_keys
+from servoface.controller.network.zconfig import Credentials, open_session
+for creds in (Credentials("operator", "wrong"), Credentials("mallory", "x"), Credentials()):
+    s = open_session(connect=["{node.endpoint}"], creds=creds)
+    c = HeadsClient(s)
+    time.sleep(0.5)
+    print("sees", len(c.heads("lobby/*", timeout_s=0.5)))
+    for _ in range(20):
+        c.send(head_keys("lobby", "h2"), "express", name="happiness", transition_s=0.2)
+        c.send_aus(head_keys("lobby", "h2"), {{"AU26": 0.8}})
+        time.sleep(0.02)
+    s.close()
+"""
+    t0 = time.monotonic()
+    helper = _helper(tmp, code)
+    out, err = helper.communicate(timeout=120)
+    assert helper.returncode == 0, err
+    assert out.split() == ["sees", "0"] * 3, out
+    time.sleep(0.5)
+    for sid in (JAW, BROW, HEAD.servo_ids["lip_corner_l"]):
+        goals = node.goals(sid, t0 - 0.5)
+        assert goals and max(g for _, g in goals) - min(g for _, g in goals) <= 2, f"servo {sid} moved"
+
+
+def test_frames_with_an_unknown_schema_version_move_nothing(net) -> None:  # type: ignore[no-untyped-def]
+    _, nodes, client, _ = net
+    node = nodes[2]
+    keys = head_keys("lobby", "h3")
+    before = client.status(keys)["counters"]["refused"]
+    t0 = time.monotonic()
+    for i in range(20):
+        client.session.put(
+            keys.aus("stream"),
+            json.dumps({"schema": 2, "seq": 10_000 + i, "t": time.monotonic(), "aus": {"AU26": 0.9}}).encode(),
+        )
+        client.session.put(keys.cmd("express"), json.dumps({"schema": 99, "seq": 1, "name": "happiness"}).encode())
+        client.session.put(keys.cmd("express"), json.dumps({"seq": 2, "name": "happiness"}).encode())
+        time.sleep(0.02)
+    time.sleep(0.8)
+    for sid in (JAW, HEAD.servo_ids["lip_corner_l"]):
+        goals = node.goals(sid, t0 - 0.2)
+        assert max(g for _, g in goals) - min(g for _, g in goals) <= 2, f"servo {sid} moved"
+    refused = client.status(keys)["counters"]["refused"]
+    gained = {k: refused.get(k, 0) - before.get(k, 0) for k in refused}
+    assert gained.get("bad message (schema)", 0) >= 60, refused
+
+
+def test_cutting_the_link_to_a_controller_eases_the_head_to_neutral_within_1_s(net) -> None:  # type: ignore[no-untyped-def]
+    tmp, nodes, _, _ = net
+    node = nodes[1]
+    code = f"""
+import sys, time
+from servoface.controller.network.client import HeadsClient
+from servoface.controller.network.keys import head_keys
+from servoface.controller.network.zconfig import Credentials, open_session
+s = open_session(connect=["{node.endpoint}"], creds=Credentials("operator", "op-secret"))
+c = HeadsClient(s, live=True)
+time.sleep(0.8)
+c.send(head_keys("lobby", "h2"), "express", name="surprise", transition_s=0.3, hold_s=30.0)
+print("sent", flush=True)
+time.sleep(60)
+"""
+    helper = _helper(tmp, code)
+    assert helper.stdout is not None and helper.stdout.readline().strip() == "sent"
+    time.sleep(1.5)
+    rest_brow = node.goals(BROW, 0.0)[0][1]
+    raised = node.goals(BROW, time.monotonic() - 0.2)
+    assert raised and abs(raised[-1][1] - rest_brow) > 15, "the expression did not arrive"
+    helper.send_signal(signal.SIGSTOP)  # the link goes silent (no FIN, no keep-alives): a cut cable
+    cut = time.monotonic()
+    try:
+        time.sleep(2.0)
+        goals = node.goals(BROW, cut)
+        back = [t for t, g in goals if abs(g - rest_brow) <= 2]
+        assert back, f"brow never back at rest after the cut: {goals[-3:]}"
+        print(f"link cut -> brow at rest after {(back[0] - cut) * 1e3:.0f} ms")
+        assert back[0] - cut <= 1.5
+    finally:
+        helper.send_signal(signal.SIGCONT)
+        helper.kill()
+        helper.wait(10)
+
+
+def test_killing_a_node_removes_it_from_the_heads_list_within_1_s(net) -> None:  # type: ignore[no-untyped-def]
+    _, nodes, client, _ = net
+    node: NodeProc = nodes[2]
+    node.proc.send_signal(signal.SIGKILL)
+    t0 = time.monotonic()
+    node.proc.wait(10)
+    gone = None
+    while time.monotonic() - t0 < 5.0:
+        if "h3" not in [h.name for h in client.heads("lobby/*", timeout_s=0.3)]:
+            gone = time.monotonic() - t0
+            break
+        time.sleep(0.05)
+    assert gone is not None and gone <= 3.0, f"h3 still listed {gone}"
