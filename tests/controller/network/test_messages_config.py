@@ -1,0 +1,82 @@
+"""The envelope, the sequence guard, the key space and the endpoint rules (no network needed)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from servoface.controller.network.errors import InsecureEndpointError, MessageError, NetworkError
+from servoface.controller.network.keys import head_keys, parse_head_key, pattern_keys
+from servoface.controller.network.messages import SequenceGuard, envelope, open_envelope
+from servoface.controller.network.zconfig import Credentials, TlsFiles, check_endpoints, is_loopback
+
+
+def test_envelope_round_trip_and_refusals() -> None:
+    seq, body = open_envelope(envelope({"t": 1.0, "aus": {"AU12": 0.5}}, 7))
+    assert seq == 7 and body == {"t": 1.0, "aus": {"AU12": 0.5}}
+    for raw, field in [
+        (json.dumps({"schema": 2, "seq": 1}).encode(), "schema"),
+        (json.dumps({"seq": 1}).encode(), "schema"),
+        (json.dumps({"schema": True, "seq": 1}).encode(), "schema"),
+        (json.dumps({"schema": 1, "seq": -1}).encode(), "seq"),
+        (json.dumps({"schema": 1, "seq": "3"}).encode(), "seq"),
+        (json.dumps([1, 2]).encode(), "object"),
+        (b"[" * 5000, "message"),
+        (b"\xff\xfe", "message"),
+        (b"x" * 70_000, "bytes"),
+    ]:
+        with pytest.raises(MessageError, match=field):
+            open_envelope(raw)
+
+
+def test_sequence_guard_refuses_stale_and_out_of_order_but_takes_a_restart() -> None:
+    g = SequenceGuard()
+    assert g.take("a", "k", 1) and g.take("a", "k", 2)
+    assert not g.take("a", "k", 2) and not g.take("a", "k", 1)  # duplicate, out of order
+    assert g.take("b", "k", 1) and g.take("a", "other", 1)  # per sender and key
+    assert g.take("a", "k", 5000) and g.take("a", "k", 3)  # a jump back > 1000: the sender restarted
+    assert g.counters()["refused"] == {"stale or out of order": 2}
+
+
+@pytest.mark.parametrize("bad", ["", "Lobby", "a/b", "*", "a*", "$x", "x" * 41, "a?b", "-a"])
+def test_site_and_name_are_plain_tokens(bad: str) -> None:
+    with pytest.raises(NetworkError, match="site"):
+        head_keys(bad, "ada")
+
+
+def test_keys_and_patterns() -> None:
+    k = head_keys("lobby", "ada")
+    assert k.aus("stream") == "servoface/lobby/ada/aus/stream" and k.presence == "@servoface/lobby/ada"
+    assert parse_head_key("@servoface/lobby/ada") == ("lobby", "ada") and parse_head_key("x/y") is None
+    assert pattern_keys("lobby/*").base == "servoface/lobby/*"
+    with pytest.raises(NetworkError):
+        pattern_keys("lobby/**")
+
+
+def test_loopback_detection() -> None:
+    assert is_loopback("tcp/127.0.0.1:7447") and is_loopback("tcp/[::1]:7447") and is_loopback("tcp/localhost:1")
+    assert not is_loopback("tcp/10.0.0.7:7447") and not is_loopback("tls/robot.local:7447")
+
+
+def test_an_endpoint_beyond_loopback_needs_tls_and_credentials_or_insecure() -> None:
+    with pytest.raises(InsecureEndpointError, match="tls"):
+        check_endpoints(["tcp/0.0.0.0:7447"], [], Credentials(), TlsFiles(), insecure=False)
+    with pytest.raises(InsecureEndpointError, match="credentials"):
+        check_endpoints(["tls/0.0.0.0:7447"], [], Credentials(), TlsFiles("ca.pem", "c.pem", "k.pem"), insecure=False)  # type: ignore[arg-type]
+    check_endpoints(
+        ["tls/0.0.0.0:7447"],
+        [],
+        Credentials(users_file="u.txt"),
+        TlsFiles("ca.pem", "c.pem", "k.pem"),  # type: ignore[arg-type]
+        insecure=False,
+    )
+    check_endpoints(["tcp/0.0.0.0:7447"], [], Credentials(), TlsFiles(), insecure=True)
+    check_endpoints(["tcp/127.0.0.1:7447"], ["tcp/127.0.0.1:7448"], Credentials(), TlsFiles(), insecure=False)
+    with pytest.raises(NetworkError, match="endpoint"):
+        check_endpoints(["127.0.0.1:7447"], [], Credentials(), TlsFiles(), insecure=False)
+
+
+def test_the_node_cli_refuses_an_open_endpoint_without_insecure() -> None:
+    from servoface.controller.cli import main
+
+    assert main(["node", "--name", "ada", "--emulate", "--listen", "tcp/0.0.0.0:17999"]) == 2
