@@ -23,6 +23,7 @@ from servoface.hardware.errors import (
     DriverThreadError,
     GoalRejectedError,
     HardwareConfigError,
+    ServoStatusError,
 )
 from servoface.hardware.fault_policy import FaultPolicy, ThermalTrend, eased_goal
 from servoface.hardware.fault_reactions import FaultReactions
@@ -82,6 +83,9 @@ class Driver(ChainReads):
         self._group_failed = False
         self._fast_failures = 0
         self._last: ChainSnapshot | None = None
+        self._last_tx_s: float | None = None  # driver clock of the last cycle (feeds the Bus Watchdog)
+        self.watchdog_rearms = 0  # times a pause made the driver clear and re-arm the watchdog
+        self._stop_reopened = False  # a stop re-opens a failed port at most once
 
     # -- ownership ----------------------------------------------------------------------------------
     def _check_owner(self) -> None:
@@ -141,13 +145,20 @@ class Driver(ChainReads):
         return report
 
     def _pin_and_enable(self, rec: ServoRecord) -> None:
-        """Goal Position := Present Position (clamped into the limits), then Torque Enable = 1."""
+        """Bus Watchdog cleared, Goal Position := Present Position (clamped into the limits), Torque Enable = 1,
+        then the watchdog armed (`FaultPolicy.watchdog_s`): if the host stops talking, the servo stops."""
+        units = self.policy.watchdog_units
+        if units:  # a tripped watchdog (an earlier controller died) refuses goals until it is cleared
+            self.bus.write(rec.servo_id, Register.BUS_WATCHDOG, 0)
         present = self.bus.read(rec.servo_id, Register.PRESENT_POSITION)
         goal = rec.clamp(present)
         self._write_goal_single(rec, goal)
         self.bus.write(rec.servo_id, Register.TORQUE_ENABLE, 1)
+        if units:
+            self.bus.write(rec.servo_id, Register.BUS_WATCHDOG, units)
         rec.position_tick, rec.position_t_s = present, self._clock()
         rec.torque_on = True
+        self._last_tx_s = self._clock()
 
     def torque_on(self, servo_ids: Iterable[int] | None = None) -> None:
         """Torque on, each servo's goal first pinned to where it is (no jump)."""
@@ -160,13 +171,80 @@ class Driver(ChainReads):
                 except (BusTimeoutError, BusCorruptError):  # pinned and enabled when it answers again
                     self._mark_missing(rec, self._clock(), "did not answer torque-on")
 
-    def torque_off(self, servo_ids: Iterable[int] | None = None) -> None:
+    def torque_off(self, servo_ids: Iterable[int] | None = None, *, attempts: int | None = None) -> tuple[int, ...]:
+        """Torque Enable = 0 on every servo (missing ones too: they may answer), each tried up to ``attempts``
+        times (default `FaultPolicy.torque_off_attempts`), carrying on past any servo that fails.
+
+        Returns the ids that could not be reached — their torque may still be on; an empty tuple means
+        every servo confirmed torque off. Never raises for a bus failure (a dead port: every servo not yet
+        reached is returned after one re-open attempt).
+        """
         self._check_owner()
+        tries = max(1, attempts if attempts is not None else self.policy.torque_off_attempts)
+        unreached: list[int] = []
         for rec in self._select(servo_ids):
             rec.torque_wanted = False
-            if not rec.missing:
-                self.bus.write(rec.servo_id, Register.TORQUE_ENABLE, 0)
-            rec.torque_on = False
+            if self._write_confirmed(rec.servo_id, Register.TORQUE_ENABLE, 0, tries):
+                rec.torque_on = False
+            else:
+                unreached.append(rec.servo_id)
+                self._emit(rec.servo_id, FaultKind.UNREACHED, f"torque off not confirmed after {tries} attempt(s)")
+        return tuple(unreached)
+
+    def _write_confirmed(self, servo_id: int, register: Register, value: int, tries: int) -> bool:
+        """Write with retries; True once the servo acknowledged (or reads back) ``value``."""
+        for _ in range(tries):
+            try:
+                self.bus.write(servo_id, register, value)
+                return True
+            except BusDisconnectedError:
+                if not self._reopen_once():
+                    return False
+            except ServoStatusError:  # answered with an error: believe only a read-back
+                try:
+                    if self.bus.read(servo_id, register) == value:
+                        return True
+                except BusError:
+                    pass
+            except BusError:  # timeout, corrupt reply, port busy: try again
+                continue
+        return False
+
+    def _reopen_once(self) -> bool:
+        """One attempt to re-open a failed port while stopping (False: the port stays dead)."""
+        if self._stop_reopened:
+            return self._connected
+        self._stop_reopened = True
+        try:
+            self.bus.reopen()
+        except BusError:
+            self._connected = False
+            return False
+        self._connected = True
+        return True
+
+    def disarm_watchdog(self, servo_ids: Iterable[int] | None = None) -> None:
+        """Bus Watchdog := 0 (one attempt per servo, failures ignored): a clean close leaves no timer."""
+        self._check_owner()
+        if not self.policy.watchdog_units or not self._connected:
+            return
+        for rec in self._select(servo_ids):
+            try:
+                self.bus.write(rec.servo_id, Register.BUS_WATCHDOG, 0)
+            except BusError:
+                continue
+
+    def _feed_watchdog(self, now: float) -> None:
+        """After a pause longer than half the watchdog time (a slow frame, a caller that waited between
+        motions), the watchdog may have tripped and would refuse every goal: clear and re-arm it first."""
+        units = self.policy.watchdog_units
+        if not units or self._last_tx_s is None or now - self._last_tx_s <= 0.5 * self.policy.watchdog_s:
+            return
+        ids = [rec.servo_id for rec in self._records.values() if rec.in_service]
+        if ids:
+            self.bus.sync_write(Register.BUS_WATCHDOG, {sid: 0 for sid in ids})
+            self.bus.sync_write(Register.BUS_WATCHDOG, {sid: units for sid in ids})
+            self.watchdog_rearms += 1
 
     def clear_fault(self, servo_id: int) -> None:
         """Acknowledge a latched fault: reboot the servo and bring it back (re-configured, goal re-pinned)."""
@@ -225,7 +303,13 @@ class Driver(ChainReads):
         each reboot counts toward `FaultPolicy.max_reboots`, after which the servo latches off.
         """
         now = self._clock()
-        for k in (FaultKind.OVERLOAD, FaultKind.OVERHEATING, FaultKind.VOLTAGE_HIGH, FaultKind.VOLTAGE_LOW):
+        for k in (
+            FaultKind.OVERLOAD,
+            FaultKind.OVERHEATING,
+            FaultKind.VOLTAGE_HIGH,
+            FaultKind.VOLTAGE_LOW,
+            FaultKind.INPUT_VOLTAGE,
+        ):
             if k != FaultKind.VOLTAGE_LOW or rec.voltage_count == 0:
                 rec.faults.discard(k)
         rec.derated = FaultKind.THERMAL_DERATE in rec.faults or FaultKind.VOLTAGE_LOW in rec.faults
@@ -302,6 +386,7 @@ class Driver(ChainReads):
             if not self._connected:
                 self._try_reopen(now)
             if self._connected:
+                self._feed_watchdog(now)
                 self._write_goals(goals)
                 self._read_positions(now)
                 self._read_slow_group(now)
@@ -310,6 +395,7 @@ class Driver(ChainReads):
                 self._probe_missing(now)
         except BusDisconnectedError as err:
             self._on_disconnect(err)
+        self._last_tx_s = now
         self._cycle += 1
         return self._freeze(now)
 
@@ -333,12 +419,26 @@ class Driver(ChainReads):
         self._last = snap
         return snap
 
-    def close(self, *, torque_off: bool = False) -> None:
-        """Optionally torque everything off, then close the bus."""
+    def close(self, *, torque_off: bool = False) -> tuple[int, ...]:
+        """Optionally torque everything off (retried per servo) and disarm the Bus Watchdog, then close the bus.
+
+        Returns the ids whose torque-off was not confirmed (empty without ``torque_off``).
+        """
         self._check_owner()
-        if torque_off and self._connected:
-            try:
-                self.torque_off()
-            except BusError:
-                pass
-        self.bus.close()
+        unreached: tuple[int, ...] = ()
+        try:
+            if torque_off:
+                unreached = self.torque_off()
+                reached = [sid for sid in self.servo_ids if sid not in unreached]
+                if reached:
+                    self.disarm_watchdog(reached)
+        finally:
+            self.bus.close()
+        return unreached
+
+    def servo_problems(self) -> dict[str, tuple[int, ...]]:
+        """Servos that ended the run out of service: ``latched`` (needs `clear_fault`), ``missing``."""
+        return {
+            "latched": tuple(sid for sid, r in self._records.items() if r.latched),
+            "missing": tuple(sid for sid, r in self._records.items() if r.missing),
+        }

@@ -28,6 +28,7 @@ from servoface.hardware.errors import (
     ServoStatusError,
 )
 from servoface.hardware.latency import read_latency_timer, sdk_latency_ms, warn_if_high
+from servoface.hardware.port_lock import PortLock
 from servoface.hardware.registers import STATUS_ALERT_BIT, STATUS_ERROR_NAMES, Register, slice_value, span
 
 SDK_BAUDS = (
@@ -147,8 +148,10 @@ class DynamixelBus:
         self.alerts: set[int] = set()
         self._packet = sdk.PacketHandler(2.0)
         self._sync_reads: dict[tuple[int, int, tuple[int, ...]], Any] = {}
+        self._lock: PortLock | None = None
         if isinstance(port, str):
             self.port_name = port
+            self._lock = PortLock(port)  # one controller per chain: held while the port is open
             self._port: _WindowedPort = _WindowedPort(port)
             timer = read_latency_timer(port)
             if warn_latency:
@@ -170,19 +173,24 @@ class DynamixelBus:
         return bool(self._port.is_open)
 
     def open(self) -> None:
+        """Take the port's lock (`PortLockedError` names the holder's pid), then open it."""
         if self.is_open:
             return
+        if self._lock is not None:
+            self._lock.acquire()
         self._port.baudrate = self.baud
         try:
             ok = self._port.openPort()
         except (OSError, ValueError) as err:
+            self._release_lock()
             raise BusDisconnectedError(
                 f"cannot open port {self.port_name} at {self.baud} bps: {err}{_open_hint(err)}"
             ) from err
         if not ok:
+            self._release_lock()
             raise BusError(f"cannot open port {self.port_name} at {self.baud} bps")
 
-    def close(self) -> None:
+    def _close_port(self) -> None:
         if self._port.is_open:
             try:
                 self._port.closePort()
@@ -190,9 +198,17 @@ class DynamixelBus:
                 self._port.is_open = False
         self._port.is_using = False
 
+    def _release_lock(self) -> None:
+        if self._lock is not None:
+            self._lock.release()
+
+    def close(self) -> None:
+        self._close_port()
+        self._release_lock()
+
     def reopen(self) -> None:
-        """Close and open the port again (after a USB re-plug or a dropped pty)."""
-        self.close()
+        """Close and open the port again (after a USB re-plug or a dropped pty), keeping its lock."""
+        self._close_port()
         self._sync_reads.clear()
         self.open()
 
