@@ -18,24 +18,27 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections import deque
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import TracebackType
 from typing import Any
 
 from servoface.calibration import HeadCalibration, load_calibration
+from servoface.controller import stop_signals
 from servoface.controller.alive.gaze import gaze_config_for, solve_look_at
 from servoface.controller.alive.gaze_layer import angles_to_aus
 from servoface.controller.errors import ControllerError
 from servoface.controller.frame import AUFrame, FrameValidator
 from servoface.controller.head_servos import servo_specs, temperature_limits_c
 from servoface.controller.performance import Performance, Samples, play_timeline
-from servoface.controller.pipeline import FrameTrace, Pipeline
+from servoface.controller.pipeline import Pipeline
+from servoface.controller.safe_stop import EASE_S, MAX_EASE_S, StopReport, bus_problem, safe_stop
 from servoface.controller.script import Script, load_script
 from servoface.controller.timeline import ChannelClip, Key, Timeline, min_jerk
+from servoface.controller.trace_ring import TraceRing
 from servoface.hardware.bus import ServoBus, open_bus
 from servoface.hardware.driver import Driver
+from servoface.hardware.fault_policy import FaultPolicy
 from servoface.sim.expressions import load_library
 from servoface.sim.head import Head
 from servoface.sim.heads import load_head
@@ -91,8 +94,9 @@ class Face:
         self.validator = FrameValidator(head.face_type)
         self.pose: dict[str, float] = {}
         self.t_s = 0.0
-        self.traces: deque[FrameTrace] = deque(maxlen=history)
+        self.traces = TraceRing(maxlen=history)  # the newest frames; ``.sink`` may stream every one
         self._closed = False
+        self.stop_report: StopReport | None = None
 
     # -- opening ------------------------------------------------------------------------------------
     @classmethod
@@ -107,6 +111,7 @@ class Face:
         rate_hz: float = 50.0,
         calibration: HeadCalibration | str | Path | None = None,
         fast_sync_read: bool = False,
+        policy: FaultPolicy | None = None,
     ) -> Face:
         """Open ``head`` (built-in name, profile folder, or a loaded Head) on ``port`` or on the emulator.
 
@@ -129,17 +134,20 @@ class Face:
             bus = open_bus("dynamixel", port=chain, baud=baud)
         else:
             bus = open_bus("dynamixel", port=port, baud=baud)
+        driver: Driver | None = None
         try:
-            driver = Driver(bus, specs, fast_sync_read=fast_sync_read)
+            driver = Driver(bus, specs, fast_sync_read=fast_sync_read, policy=policy)
             driver.configure()
+            with stop_signals.interruptible():  # torque is off and the bus idle: a signal aborts at once
+                pipeline = Pipeline(  # builds the gate's tables (seconds on a first run) before torque goes on
+                    the_head,
+                    cal,
+                    driver=driver,
+                    rate_hz=rate_hz,
+                    temperature_limits_c=temperature_limits_c(specs),
+                )
+            stop_signals.raise_if_requested()
             driver.torque_on()
-            pipeline = Pipeline(
-                the_head,
-                cal,
-                driver=driver,
-                rate_hz=rate_hz,
-                temperature_limits_c=temperature_limits_c(specs),
-            )
             snapshot = driver.read_state()
             lo_hi = cal.position_limits_tick()
             present = {
@@ -148,9 +156,14 @@ class Face:
             pipeline.pin_to(present)
             pipeline.last_snapshot = snapshot
         except BaseException:
-            bus.close()
-            if chain is not None:
-                chain.close()
+            try:
+                if driver is not None:  # whatever went wrong, every servo ends with torque off
+                    driver.close(torque_off=True)
+                else:
+                    bus.close()
+            finally:
+                if chain is not None:
+                    chain.close()
             raise
         return cls(the_head, pipeline, driver=driver, bus=bus, chain=chain)
 
@@ -197,7 +210,7 @@ class Face:
         frame = AUFrame(final.t_s, final.aus)
         source = _Still(frame)
         waited = 0.0
-        while not perf.interrupted and waited < max_s:
+        while not perf.interrupted and perf.bus_failure is None and waited < max_s:
             last = perf.traces[-1]
             previous = perf.traces[-2].goals_sent if len(perf.traces) > 1 else None
             if last.goals_sent == last.goals_requested or last.goals_sent == previous:
@@ -213,6 +226,7 @@ class Face:
             )
             perf.traces.extend(more.traces)
             perf.interrupted = more.interrupted
+            perf.bus_failure = more.bus_failure
             waited += SETTLE_CHUNK_S
 
     def set_aus(self, aus: Mapping[str, float], *, transition_s: float = 0.4, hold_s: float = 0.0) -> Performance:
@@ -308,7 +322,17 @@ class Face:
             raise ControllerError(
                 f"follow: duration_s must be a positive number of seconds or None, got {duration_s!r}"
             )
-        perf = follow(self.pipeline, source, duration_s, on_frame=self.traces.append, stop_on_interrupt=True)
+        perf = follow(
+            self.pipeline,
+            source,
+            duration_s,
+            on_frame=self.traces.append,
+            stop_on_interrupt=True,
+            until=lambda: bus_problem(self.pipeline.last_snapshot) is not None,
+            keep_traces=True,
+        )
+        if perf.bus_failure is None:
+            perf.bus_failure = bus_problem(self.pipeline.last_snapshot)
         if perf.traces:
             self.t_s += perf.traces[-1].t_s
             self.pose = dict(perf.traces[-1].aus)
@@ -322,26 +346,47 @@ class Face:
         if self._closed:
             raise ControllerError("this Face is closed")
 
-    def close(self, *, ease_s: float = 0.8) -> None:
-        """Ease to neutral, turn torque off, close the port (and the emulator). Safe to call twice."""
+    def close(
+        self,
+        *,
+        ease_s: float = EASE_S,
+        max_ease_s: float = MAX_EASE_S,
+        hurry: Callable[[], bool] | None = None,
+        reason: str = "end",
+    ) -> StopReport | None:
+        """The one stop path (`servoface.controller.safe_stop`): ease to neutral (at most ``max_ease_s``; not
+        at all when ``ease_s`` is 0, or once ``hurry()`` — default: a second stop signal — turns true), torque
+        off on every servo (retried, carrying on), Bus Watchdog disarmed, port (and emulator) closed.
+
+        Returns the `StopReport` (also kept as ``face.stop_report``): ``report.unreached`` names servos whose
+        torque-off was not confirmed. Safe to call twice (the second call returns the first report).
+        """
         if self._closed:
-            return
+            return self.stop_report
+        signals = stop_signals.active()
+        if hurry is None:
+            hurry = (lambda: signals.hurry) if signals is not None else (lambda: False)
         try:
-            if self.driver is not None and ease_s > 0:
-                try:
-                    self.neutral(ease_s)
-                except Exception:  # a broken bus must not keep the torque on
-                    pass
+            if self.driver is not None:
+                self.stop_report = safe_stop(
+                    self.pipeline,
+                    self.driver,
+                    from_aus=self.pose,
+                    ease=ease_s > 0,
+                    ease_s=ease_s,
+                    max_ease_s=max_ease_s,
+                    hurry=hurry,
+                    reason=reason,
+                    on_frame=self.traces.append,
+                )
+                self.pose = {}
+            elif self.bus is not None:
+                self.bus.close()
         finally:
             self._closed = True
-            try:
-                if self.driver is not None:
-                    self.driver.close(torque_off=True)
-                elif self.bus is not None:
-                    self.bus.close()
-            finally:
-                if self.chain is not None:
-                    self.chain.close()
+            if self.chain is not None:
+                self.chain.close()
+        return self.stop_report
 
     def __enter__(self) -> Face:
         return self
@@ -349,4 +394,13 @@ class Face:
     def __exit__(
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
     ) -> None:
-        self.close()
+        signals = stop_signals.active()
+        if signals is not None and signals.requested:
+            reason = signals.name or "signal"
+        elif exc is None:
+            reason = "end"
+        elif isinstance(exc, KeyboardInterrupt):
+            reason = "interrupted"
+        else:
+            reason = f"error: {type(exc).__name__}"
+        self.close(reason=reason)

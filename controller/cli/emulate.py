@@ -6,10 +6,13 @@ Prints the pseudo-terminal path as the first line of output, then serves until C
 from __future__ import annotations
 
 import argparse
+import json
 import signal
 import sys
 import threading
+from pathlib import Path
 from types import FrameType
+from typing import Any
 
 HELP = "serve an emulated Dynamixel chain on a pseudo-terminal (prints its path first)"
 
@@ -64,6 +67,41 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--baud", type=int, default=1_000_000, help="bus baud rate in bps (default 1000000)")
     parser.add_argument("--no-wire-time", action="store_true", help="answer at once instead of at wire speed")
+    parser.add_argument(
+        "--state-file",
+        type=Path,
+        help="on exit, write every servo's final state (torque, goal, present, watchdog, error) and every "
+        "Goal Position / Torque Enable decoded from the wire as JSON here (tests check from this side)",
+    )
+
+
+def chain_state(chain: Any) -> dict[str, Any]:
+    """The emulated servos as the far end of the wire sees them, JSON-ready."""
+    servos = {}
+    for sid in chain.ids:
+        servo = chain.servo(sid)
+        servos[str(sid)] = {
+            "torque_enable": servo.read_register("Torque Enable"),
+            "goal_position": servo.read_register("Goal Position"),
+            "present_position": servo.position_tick,
+            "bus_watchdog": servo.read_register("Bus Watchdog"),
+            "hardware_error_status": servo.hardware_error,
+            "moving": servo.read_register("Moving"),
+            "min_position_limit": servo.read_register("Min Position Limit"),
+            "max_position_limit": servo.read_register("Max Position Limit"),
+        }
+    return {
+        "t_s": chain.time_s,
+        "servos": servos,
+        "goal_writes": [[round(t, 6), sid, tick] for t, sid, tick in chain.goal_writes()],
+        "torque_writes": [[round(t, 6), sid, v] for t, sid, v in chain.register_writes(64, 1)],
+    }
+
+
+def write_state(chain: Any, path: Path) -> None:
+    from servoface.calibration.fileformat import write_atomic
+
+    write_atomic(path, json.dumps(chain_state(chain)))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -96,6 +134,8 @@ def run(args: argparse.Namespace) -> int:
             )
             while not stop.wait(0.2):
                 pass
+            if args.state_file is not None:
+                write_state(chain, args.state_file)
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
