@@ -68,6 +68,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--baud", type=int, default=1_000_000, help="bus baud rate in bps (default 1000000)")
     parser.add_argument("--no-wire-time", action="store_true", help="answer at once instead of at wire speed")
     parser.add_argument(
+        "--head",
+        help="emulate this head's chain instead (built-in name or profile folder): its ids and models, each "
+        "servo at rest at its calibration's neutral tick (overrides --ids/--model)",
+    )
+    parser.add_argument(
+        "--fault-on-signal",
+        action="append",
+        default=[],
+        metavar="ID:KIND[:DELAY_S]",
+        help="on SIGUSR1, start fault KIND (no_reply, late_reply, corrupt_crc, overload, ...) on servo ID "
+        "until the end (repeatable; tests use it to break a servo at a chosen moment)",
+    )
+    parser.add_argument(
         "--state-file",
         type=Path,
         help="on exit, write every servo's final state (torque, goal, present, watchdog, error) and every "
@@ -98,6 +111,35 @@ def chain_state(chain: Any) -> dict[str, Any]:
     }
 
 
+def _parse_fault(text: str) -> tuple[int, str, float]:
+    parts = text.split(":")
+    if len(parts) not in (2, 3):
+        raise ValueError(f"{text!r}: expected ID:KIND or ID:KIND:DELAY_S")
+    try:
+        sid = int(parts[0])
+        delay = float(parts[2]) if len(parts) == 3 else 0.010
+    except ValueError:
+        raise ValueError(f"{text!r}: ID must be an integer and DELAY_S a number") from None
+    from servoface.hardware.emulator.faults import KINDS
+
+    if parts[1] not in KINDS:
+        raise ValueError(f"{text!r}: unknown fault {parts[1]!r}; expected one of {sorted(KINDS)}")
+    return sid, parts[1], delay
+
+
+def _head_chain(args: argparse.Namespace) -> tuple[Any, dict[int, int]]:
+    from servoface.controller.face import head_calibration
+    from servoface.controller.head_servos import servo_specs
+    from servoface.hardware.emulator import ServoChain
+    from servoface.sim.heads import load_head
+
+    head = load_head(args.head)
+    cal = head_calibration(head)
+    specs = servo_specs(head, cal)
+    chain = ServoChain.create([(s.servo_id, s.model) for s in specs], baud=args.baud, wire_time=not args.no_wire_time)
+    return chain, {s.servo_id: cal.by_id(s.servo_id).neutral_tick for s in specs}
+
+
 def write_state(chain: Any, path: Path) -> None:
     from servoface.calibration.fileformat import write_atomic
 
@@ -108,16 +150,35 @@ def run(args: argparse.Namespace) -> int:
     from servoface.hardware.emulator import EmulatorError, ServoChain
 
     try:
-        chain = ServoChain.create(ids=args.ids, model=args.model, baud=args.baud, wire_time=not args.no_wire_time)
+        faults = [_parse_fault(text) for text in args.fault_on_signal]
+    except ValueError as err:
+        print(f"servoface emulate: --fault-on-signal: {err}", file=sys.stderr)
+        return 2
+    try:
+        if args.head is not None:
+            chain, rest = _head_chain(args)
+        else:
+            chain = ServoChain.create(ids=args.ids, model=args.model, baud=args.baud, wire_time=not args.no_wire_time)
+            rest = {}
+        for sid, tick in rest.items():
+            chain.servo(sid).move_by_hand(tick)
     except EmulatorError as err:
         print(f"servoface emulate: {err}", file=sys.stderr)
+        return 2
+    except Exception as err:  # noqa: BLE001 - a bad head profile or calibration: reported, no traceback
+        print(f"servoface emulate: --head {args.head}: {err}", file=sys.stderr)
         return 2
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
         stop.set()
 
+    def on_fault_signal(signum: int, frame: FrameType | None) -> None:
+        for sid, kind, delay in faults:
+            chain.faults.inject_now(sid, kind, delay_s=delay)
+
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous[signal.SIGUSR1] = signal.signal(signal.SIGUSR1, on_fault_signal)
     try:
         with chain:
             try:
@@ -127,7 +188,8 @@ def run(args: argparse.Namespace) -> int:
                 return 1
             print(path, flush=True)
             print(
-                f"# serving {len(args.ids)} x {args.model} at {args.baud} bps"
+                f"# serving {len(chain.ids)} x {args.model if args.head is None else 'servos of ' + args.head} "
+                f"at {args.baud} bps"
                 f"{' (no wire time)' if args.no_wire_time else ''}; Ctrl-C to stop",
                 file=sys.stderr,
                 flush=True,

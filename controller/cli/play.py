@@ -96,6 +96,8 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
                 if args.what not in known:
                     raise ControllerError(f"unknown expression {args.what!r}; known: {sorted(known)}")
             trace_file.open()
+        where = "the emulator" if args.emulate else args.port
+        print(f"# opening head {head.name!r} on {where}", file=sys.stderr, flush=True)
         face = open_face(args, head)
     except StopRequested as err:
         trace_file.finish()
@@ -106,6 +108,11 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
         return 2
     if trace_file.writer is not None:
         face.traces.sink = trace_file.sink
+    print(
+        f"# playing at {args.rate:g} Hz; Ctrl-C eases to neutral and turns torque off (twice: torque off now)",
+        file=sys.stderr,
+        flush=True,
+    )
     perf = None
     failed = False
     code: int | None = None
