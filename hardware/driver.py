@@ -33,6 +33,8 @@ from servoface.hardware.servo_config import ConfigReport, ServoSpec, check_specs
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind
 
+TORQUE_OFF_QUIET_S = (0.03, 0.12, 0.3)  # after a failed torque-off, wait this long for quiet (per pass)
+
 
 class Driver(ChainReads):
     """Drives a configured chain. Not thread-safe by design: the thread that first uses it owns it.
@@ -181,34 +183,55 @@ class Driver(ChainReads):
         """
         self._check_owner()
         tries = max(1, attempts if attempts is not None else self.policy.torque_off_attempts)
-        unreached: list[int] = []
-        for rec in self._select(servo_ids):
+        records = self._select(servo_ids)
+        for rec in records:
             rec.torque_wanted = False
-            if self._write_confirmed(rec.servo_id, Register.TORQUE_ENABLE, 0, tries):
-                rec.torque_on = False
-            else:
-                unreached.append(rec.servo_id)
-                self._emit(rec.servo_id, FaultKind.UNREACHED, f"torque off not confirmed after {tries} attempt(s)")
-        return tuple(unreached)
+        if self._connected or self._reopen_once():
+            try:  # one broadcast first: every servo that hears it stops at once, whatever its replies do
+                self.bus.sync_write(Register.TORQUE_ENABLE, {rec.servo_id: 0 for rec in records})
+            except BusError:
+                pass
+        pending = list(records)
+        for attempt in range(tries):  # then confirm servo by servo; failures are retried in the next pass
+            failed = []
+            quiet_s = TORQUE_OFF_QUIET_S[min(attempt, len(TORQUE_OFF_QUIET_S) - 1)]  # longer each pass
+            for rec in pending:
+                if self._write_confirmed(rec.servo_id, Register.TORQUE_ENABLE, 0):
+                    rec.torque_on = False
+                else:
+                    failed.append(rec)
+                    self._drain(quiet_s)
+            if len(failed) == len(pending) == len(records) and attempt >= 1:
+                pending = failed  # nothing answers at all (the chain is gone): do not wait out every pass
+                break
+            pending = failed
+            if not pending or not self._connected:
+                break
+        for rec in pending:
+            self._emit(rec.servo_id, FaultKind.UNREACHED, f"torque off not confirmed after {tries} attempt(s)")
+        return tuple(rec.servo_id for rec in pending)
 
-    def _write_confirmed(self, servo_id: int, register: Register, value: int, tries: int) -> bool:
-        """Write with retries; True once the servo acknowledged (or reads back) ``value``."""
-        for _ in range(tries):
+    def _drain(self, quiet_s: float) -> None:
+        """Let a late reply pass before the next servo is asked (it would collide with, or be taken for, its reply)."""
+        drain = getattr(self.bus, "drain", None)
+        if drain is not None and self._connected:
+            drain(quiet_s=quiet_s, max_s=max(0.3, 2 * quiet_s))
+
+    def _write_confirmed(self, servo_id: int, register: Register, value: int) -> bool:
+        """One write; True once the servo acknowledged it (or reads ``value`` back after an error reply)."""
+        try:
+            self.bus.write(servo_id, register, value)
+            return True
+        except BusDisconnectedError:
+            self._reopen_once()
+            return False
+        except ServoStatusError:  # answered with an error: believe only a read-back
             try:
-                self.bus.write(servo_id, register, value)
-                return True
-            except BusDisconnectedError:
-                if not self._reopen_once():
-                    return False
-            except ServoStatusError:  # answered with an error: believe only a read-back
-                try:
-                    if self.bus.read(servo_id, register) == value:
-                        return True
-                except BusError:
-                    pass
-            except BusError:  # timeout, corrupt reply, port busy: try again
-                continue
-        return False
+                return bool(self.bus.read(servo_id, register) == value)
+            except BusError:
+                return False
+        except BusError:  # timeout, corrupt reply, port busy: the next pass tries again
+            return False
 
     def _reopen_once(self) -> bool:
         """One attempt to re-open a failed port while stopping (False: the port stays dead)."""

@@ -212,6 +212,28 @@ class DynamixelBus:
         self._sync_reads.clear()
         self.open()
 
+    def drain(self, quiet_s: float = 0.05, max_s: float = 0.3) -> int:
+        """Discard what arrives until the line has been quiet for ``quiet_s`` (at most ``max_s``); returns
+        the bytes dropped. After a timeout, a late reply still on its way must neither collide with the next
+        instruction's reply nor be taken for it."""
+        if not self._port.is_open:
+            return 0
+        dropped = 0
+        start = last = time.monotonic()
+        try:
+            while True:
+                now = time.monotonic()
+                if now - last >= quiet_s or now - start >= max_s:
+                    return dropped
+                n = self._port.getBytesAvailable()
+                if n:
+                    dropped += len(self._port.readPort(n))
+                    last = time.monotonic()
+                else:
+                    time.sleep(0.002)
+        except OSError:
+            return dropped
+
     def __enter__(self) -> DynamixelBus:
         self.open()
         return self
