@@ -134,6 +134,14 @@ class BusServoAccess:
 
         self.bus.write(servo_id, Register.GOAL_POSITION, int(tick))
 
+    def set_position_limits(self, servo_id: int, min_tick: int, max_tick: int) -> None:
+        """Min/Max Position Limit (EEPROM, torque off): the servo itself refuses goals past the captured ends."""
+        from servoface.hardware.registers import Register
+
+        self.bus.write(servo_id, Register.TORQUE_ENABLE, 0)
+        self.bus.write(servo_id, Register.MIN_POSITION_LIMIT, int(min_tick))
+        self.bus.write(servo_id, Register.MAX_POSITION_LIMIT, int(max_tick))
+
 
 class TerminalOperator:
     """`servoface.calibration.procedure.Operator` that asks through input() and answers with print()."""

@@ -24,6 +24,7 @@ def servoface(*args: str, env: dict[str, str] | None = None) -> subprocess.Popen
     return subprocess.Popen(
         [sys.executable, "-m", "servoface.controller.cli", *args],
         cwd=ROOT,
+        stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
