@@ -17,13 +17,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--json", action="store_true", help="one JSON object per figure per line")
     parser.add_argument("--quick", action="store_true", help="fewer repetitions (smoke run)")
+    parser.add_argument("--minutes", type=float, help="soak: how long to run (default 1)")
 
 
 def run(args: argparse.Namespace) -> int:
-    from servoface.controller.benchmarks import SUITES
+    from servoface.controller.benchmarks import LONG_SUITES, SUITES
     from servoface.controller.benchmarks.figure import machine_description
 
-    names = args.suites or list(SUITES)
+    names = args.suites or [n for n in SUITES if n not in LONG_SUITES]
+    if args.minutes is not None and not 0 < args.minutes <= 24 * 60:
+        print(f"servoface bench: --minutes must be within 0..1440, got {args.minutes}", file=sys.stderr)
+        return 2
     unknown = [n for n in names if n not in SUITES]
     if unknown:
         print(f"servoface bench: unknown suite(s) {unknown}; expected some of {list(SUITES)}", file=sys.stderr)
@@ -44,7 +48,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"servoface bench: suite '{name}' is not built yet", file=sys.stderr)
             status = 1
             continue
-        for figure in module.run(quick=args.quick):
+        extra = {"minutes": args.minutes} if name in LONG_SUITES and args.minutes is not None else {}
+        for figure in module.run(quick=args.quick, **extra):
             if args.json:
                 print(figure.to_json(), flush=True)
             else:
