@@ -146,7 +146,10 @@ class Pipeline:
             if self.last_snapshot is not None
             else None
         )
-        verdict: Verdict = self.gate.check(requested, self.last_goals_tick, health)
+        elapsed_s = (
+            None if self.driver is None or self.last_cycle_s is None else time.monotonic() - self.last_cycle_s
+        )  # since the last frame went on the wire: the gate's caps hold per second, not per call
+        verdict: Verdict = self.gate.check(requested, self.last_goals_tick, health, elapsed_s=elapsed_s)
         t3 = time.perf_counter()
         timings["gate_ms"] = (t3 - t2) * 1e3
         sent = dict(verdict.goals_tick)
