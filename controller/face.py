@@ -16,8 +16,6 @@ is done; every frame passes the twin gate. ``face.traces`` keeps the recent fram
 
 from __future__ import annotations
 
-import math
-import numbers
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import TracebackType
@@ -36,6 +34,7 @@ from servoface.controller.safe_stop import EASE_S, MAX_EASE_S, StopReport, bus_p
 from servoface.controller.script import Script, load_script
 from servoface.controller.timeline import ChannelClip, Key, Timeline, min_jerk
 from servoface.controller.trace_ring import TraceRing
+from servoface.controller.values import as_finite, check_seconds, printable_repr
 from servoface.hardware.bus import ServoBus, open_bus
 from servoface.hardware.driver import Driver
 from servoface.hardware.fault_policy import FaultPolicy
@@ -210,11 +209,12 @@ class Face:
         frame = AUFrame(final.t_s, final.aus)
         source = _Still(frame)
         waited = 0.0
-        while not perf.interrupted and perf.bus_failure is None and waited < max_s:
+        stalled = 0  # chunks without progress (one frame may not move: the caps hold per second of wire time)
+        while not perf.interrupted and perf.bus_failure is None and waited < max_s and stalled < 2:
             last = perf.traces[-1]
-            previous = perf.traces[-2].goals_sent if len(perf.traces) > 1 else None
-            if last.goals_sent == last.goals_requested or last.goals_sent == previous:
+            if last.goals_sent == last.goals_requested:
                 return
+            before = last.goals_sent
             more = play_timeline(
                 self.pipeline,
                 source,
@@ -228,15 +228,15 @@ class Face:
             perf.interrupted = more.interrupted
             perf.bus_failure = more.bus_failure
             waited += SETTLE_CHUNK_S
+            stalled = stalled + 1 if perf.traces[-1].goals_sent == before else 0
 
     def set_aus(self, aus: Mapping[str, float], *, transition_s: float = 0.4, hold_s: float = 0.0) -> Performance:
         """Move to the AU pose ``aus`` (AUs not named go to 0) over ``transition_s``, then hold."""
+        if not isinstance(aus, Mapping):
+            raise ControllerError(f"set_aus: aus must be a mapping of AU name -> intensity, got {type(aus).__name__}")
         pose = self.validator.pose(dict(aus), where="set_aus")
-        for name, value in (("transition_s", transition_s), ("hold_s", hold_s)):
-            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-                raise ControllerError(f"set_aus: {name} must be a finite number of seconds >= 0, got {value!r}")
-        transition = max(float(transition_s), 1.0 / self.pipeline.rate_hz)
-        duration = transition + float(hold_s)
+        transition = max(check_seconds(transition_s, "set_aus: transition_s"), 1.0 / self.pipeline.rate_hz)
+        duration = transition + check_seconds(hold_s, "set_aus: hold_s")
         timeline = Timeline(self.head.face_type, initial_pose=self.pose)
         channels = {
             au: (Key(0.0, None), Key(transition, value, min_jerk), Key(duration, value)) for au, value in pose.items()
@@ -257,11 +257,12 @@ class Face:
     ) -> Performance:
         """Move to a named expression's apex (scaled by ``intensity``) and hold it."""
         library = load_library(self.head.expressions_path or self.head.face_type)
-        if name not in library:
-            raise ControllerError(f"unknown expression {name!r}; known: {sorted(library)}")
-        if not (isinstance(intensity, int | float) and math.isfinite(intensity) and 0 <= intensity <= 1):
-            raise ControllerError(f"express: intensity must be within 0..1, got {intensity!r}")
-        apex = {au: v * float(intensity) for au, v in library[name].apex().items()}
+        if not isinstance(name, str) or name not in library:
+            raise ControllerError(f"express: unknown expression {printable_repr(name)}; known: {sorted(library)}")
+        level = as_finite(intensity)
+        if level is None or not 0 <= level <= 1:
+            raise ControllerError(f"express: intensity must be a number within 0..1, got {printable_repr(intensity)}")
+        apex = {au: v * level for au, v in library[name].apex().items()}
         return self.set_aus(apex, transition_s=transition_s, hold_s=hold_s)
 
     def neutral(self, transition_s: float = 0.6) -> Performance:
@@ -269,16 +270,22 @@ class Face:
 
     def look_at(self, point_mm: tuple[float, float, float], *, transition_s: float = 0.5) -> Performance:
         """Turn eyes and head towards a point (head frame, mm); eyes lead, the neck takes the rest."""
-        try:
+        values: tuple[Any, ...] = ()
+        if isinstance(point_mm, tuple | list) and len(point_mm) == 3:
             values = tuple(point_mm)
-        except TypeError:  # not a sequence at all (a bare number, None)
-            values = ()
-        if len(values) != 3 or not all(
-            isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v) for v in values
-        ):
-            raise ControllerError(f"look_at: point_mm must be three finite numbers (x, y, z) in mm, got {point_mm!r}")
+        elif not isinstance(point_mm, str | bytes | Mapping):
+            try:
+                values = tuple(point_mm) if len(point_mm) == 3 else ()  # numpy arrays and the like
+            except TypeError:  # not a sequence at all (a bare number, None, a set)
+                values = ()
+        numbers_mm = [as_finite(v) for v in values]
+        if len(numbers_mm) != 3 or any(v is None or abs(v) > 1e6 for v in numbers_mm):
+            raise ControllerError(
+                f"look_at: point_mm must be three finite numbers (x, y, z) in mm, got {printable_repr(point_mm)}"
+            )
+        check_seconds(transition_s, "look_at: transition_s")
         cfg = gaze_config_for(self.head.face_type, self.head)
-        gaze = solve_look_at(tuple(float(v) for v in values), cfg)  # type: ignore[arg-type]
+        gaze = solve_look_at(tuple(numbers_mm), cfg)  # type: ignore[arg-type]
         gaze_aus = angles_to_aus(
             self.head.face_type,
             cfg,
@@ -303,13 +310,7 @@ class Face:
             )
         end_s = loaded.end_s
         if duration_s is not None:
-            if (
-                isinstance(duration_s, bool)
-                or not isinstance(duration_s, int | float)
-                or not (0 < duration_s < math.inf)
-            ):
-                raise ControllerError(f"play: duration_s must be a positive number of seconds, got {duration_s!r}")
-            end_s = min(end_s, float(duration_s))
+            end_s = min(end_s, check_seconds(duration_s, "play: duration_s", minimum=1e-3))
         return self._run(loaded, end_s)
 
     def follow(self, source: Samples, duration_s: float | None = None) -> Performance:
@@ -318,10 +319,8 @@ class Face:
         from servoface.controller.inputs.follow import follow
 
         self._check_open()
-        if duration_s is not None and not (isinstance(duration_s, int | float) and 0 < duration_s < math.inf):
-            raise ControllerError(
-                f"follow: duration_s must be a positive number of seconds or None, got {duration_s!r}"
-            )
+        if duration_s is not None:
+            duration_s = check_seconds(duration_s, "follow: duration_s", minimum=1e-3)
         perf = follow(
             self.pipeline,
             source,
