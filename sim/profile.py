@@ -220,7 +220,9 @@ def _build(r: _Reader, data: dict[str, Any], folder: Path) -> Head:
         skin_joint=skin_joint,
         au_table_path=_data_file(r, data, "au_table", folder),
         expressions_path=_data_file(r, data, "expressions", folder),
-        calibration_path=(folder / r.string(data, "calibration", "")) if "calibration" in data else None,
+        calibration_path=_inside(r, "calibration", r.string(data, "calibration", ""), folder)
+        if "calibration" in data
+        else None,
         profile_dir=folder,
         landmarks_mm=landmarks,
     )
@@ -233,9 +235,25 @@ def _data_file(r: _Reader, data: dict[str, Any], name: str, folder: Path) -> Pat
     v = r.string(data, name, "")
     if v == "builtin" or v.startswith("builtin:"):
         return None
-    p = folder / v
+    p = _inside(r, name, v, folder)
     if not p.is_file():
         raise r.fail(name, f'an existing file relative to {folder} (or "builtin")', v)
+    return p
+
+
+def _inside(r: _Reader, name: str, value: str, folder: Path) -> Path:
+    """``folder / value``, refused when it leaves the profile folder (``../``, an absolute path, a symlink
+    out): a profile must not make servoface read or overwrite files elsewhere (``calibrate --builtin``
+    writes the calibration file the profile names). Pass ``--calibration`` / ``--out`` for a file elsewhere."""
+    if not value or "\x00" in value:
+        raise r.fail(name, "a file name inside the profile folder", value)
+    p = folder / value
+    try:
+        p.resolve().relative_to(folder.resolve())
+    except ValueError:
+        raise r.fail(
+            name, f"a path inside the profile folder {folder} (pass the file on the command line instead)", value
+        ) from None
     return p
 
 

@@ -209,6 +209,25 @@ def _default_out(head: Any, name: str) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
+    """SIGTERM and SIGHUP (a closed terminal) end a calibration like Ctrl-C: the servo being measured
+    gets torque off, nothing half-written is left (files are written atomically), exit 130."""
+    import signal
+    import threading
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        previous = {s: signal.signal(s, interrupt) for s in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        return _run(args)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def _run(args: argparse.Namespace) -> int:
     from servoface.calibration.builtin import write_builtin
     from servoface.calibration.errors import CalibrationError, ProcedureAborted
     from servoface.calibration.fileformat import load_calibration, save_calibration
