@@ -1,6 +1,11 @@
-"""The main job on the embedded default: a built-in head on the emulated chain plays a scripted
-performance through the whole pipeline (wire time on); the twin's view is written as a video, the
-expression library as a contact sheet, and what happened as ``report.json``.
+"""The main job on the embedded default: a head on the emulated chain plays a performance through the
+whole pipeline (wire time on); the twin's view is written as a video, the expression library as a contact
+sheet, and what happened as ``report.json``.
+
+The built-in heads play their shipped scripts; any other head (a profile folder) plays its expression
+library, keeping the expressions it can show at least in part, or, if it can show none, each AU it can
+show in turn (`head_performance`). What is drawn by default is the face the servos make (the gated
+command posed by the twin); ``show="target"`` draws the muscle model's wish, ``show="both"`` both.
 """
 
 from __future__ import annotations
@@ -51,6 +56,53 @@ def gated_pose(face: Face, trace: FrameTrace) -> HeadPose:
     return HeadPose(joint_deg=joint_deg, skin_offset_mm=offsets, actuator_targets=targets)
 
 
+def head_performance(
+    face: Face,
+    *,
+    onset_s: float = 0.4,
+    apex_s: float = 0.8,
+    offset_s: float = 0.5,
+    limit: int | None = None,
+) -> tuple[Any, float, str]:
+    """(timeline, end_s, title) of the generic performance of ``face.head`` (see the module docstring);
+    ``limit``: at most this many expressions (or AUs)."""
+    from servoface.controller.timeline import Timeline
+    from servoface.controller.timeline.barker import Expression
+    from servoface.controller.timeline.dfacs import events_clip, parse_events
+    from servoface.controller.timeline.library import DEFAULT_DOG_TIMING
+    from servoface.sim.achievable import AchievableFace
+    from servoface.sim.expressions import load_library
+    from servoface.sim.expressiveness import Expressiveness
+
+    head = face.head
+    library = {k: v for k, v in load_library(head.expressions_path or head.face_type).items() if k != "neutral"}
+    scores = Expressiveness(AchievableFace(head, face.pipeline.calibration, model=face.pipeline.face))
+    keep = [s.name for s in scores.expression_scores(library) if not s.cannot_show][:limit]
+    timeline = Timeline(head.face_type)
+    t = 0.3
+    step = onset_s + apex_s + offset_s + 0.3
+    if keep:
+        for name in keep:
+            expr = library[name]
+            if head.face_type == "dog":
+                tokens = [{"au": au, "value": value} for au, value in expr.events]
+                clip = events_clip(parse_events(tokens, field=f"{head.name}.{name}"), DEFAULT_DOG_TIMING, name=name)
+            else:
+                clip = Expression.envelope(name, expr.apex(), onset_s, apex_s, offset_s).clip()
+            timeline.play(clip, at_s=t)
+            t += max(step, float(getattr(clip, "duration_s", step)) + 0.3)
+        title = f"{head.name}: {len(keep)} of {len(library)} library expressions it can show"
+    else:
+        aus = [s for s in scores.au_scores() if not s.cannot_show and not s.name.endswith("L")][:limit]
+        for s in aus:
+            value = -1.0 if s.name.endswith("-") else 1.0
+            pose = {s.name.rstrip("-"): value}
+            timeline.play(Expression.envelope(s.name, pose, onset_s, apex_s, offset_s).clip(), at_s=t)
+            t += step
+        title = f"{head.name}: the {len(aus)} AUs it can show, one by one"
+    return timeline, t, title
+
+
 def render_performance(
     face: Face,
     perf: Performance,
@@ -59,11 +111,16 @@ def render_performance(
     fps: float = 20.0,
     size: tuple[int, int] = (360, 300),
     progress: Callable[[int, int], None] | None = None,
+    show: str = "achievable",
 ) -> int:
-    """Target face (left) vs gated face (right) for the played frames, resampled to ``fps``."""
+    """The played frames resampled to ``fps``: the gated face (default: what the servos were sent, posed
+    by the twin), the muscle model's target (``show="target"``) or both side by side (``"both"``)."""
     from servoface.sim.render import HeadRenderer
-    from servoface.sim.render.images import render_side_by_side
+    from servoface.sim.render.images import render_side_by_side, with_label
     from servoface.sim.render.video import write_gif, write_mp4
+
+    if show not in ("achievable", "target", "both"):
+        raise ValueError(f"show: expected achievable, target or both, got {show!r}")
 
     traces = perf.traces
     if not traces:
@@ -77,12 +134,19 @@ def render_performance(
         def frames() -> Any:
             for i, k in enumerate(picks):
                 trace = traces[max(k, 0)]
-                target = face.pipeline.face.solve(trace.aus)
-                left = renderer.render(face.head, target)
-                right = renderer.render(face.head, gated_pose(face, trace))
-                label = "gated" if trace.verdict == "accept" else f"gated ({trace.verdict})"
                 if progress is not None:
                     progress(i + 1, len(picks))
+                if show == "target":
+                    yield with_label(
+                        renderer.render(face.head, face.pipeline.face.solve(trace.aus)), f"target  t={trace.t_s:5.2f}s"
+                    )
+                    continue
+                right = renderer.render(face.head, gated_pose(face, trace))
+                label = "servos" if trace.verdict == "accept" else f"servos ({trace.verdict})"
+                if show == "achievable":
+                    yield with_label(right, f"{label}  t={trace.t_s:5.2f}s")
+                    continue
+                left = renderer.render(face.head, face.pipeline.face.solve(trace.aus))
                 yield render_side_by_side(left, right, (f"target  t={trace.t_s:5.2f}s", label))
 
         writer = write_mp4 if path.suffix.lower() == ".mp4" else write_gif
@@ -91,15 +155,19 @@ def render_performance(
         renderer.close()
 
 
-def write_sheet(face: Face, path: Path, size: tuple[int, int] = (240, 200)) -> list[str]:
+def write_sheet(face: Face, path: Path, size: tuple[int, int] = (240, 200), show: str = "achievable") -> list[str]:
     from PIL import Image as PILImage
+    from servoface.sim.achievable import AchievableFace
     from servoface.sim.expressions import load_library
     from servoface.sim.render import HeadRenderer
     from servoface.sim.render.clips import library_sheet
 
     library = load_library(face.head.expressions_path or face.head.face_type)
+    twin = None
+    if show != "target":
+        twin = AchievableFace(face.head, face.pipeline.calibration, model=face.pipeline.face)
     with HeadRenderer(*size) as renderer:
-        sheet, names = library_sheet(renderer, face.head, library, show_progress=False)
+        sheet, names = library_sheet(renderer, face.head, library, show_progress=False, show=show, achievable=twin)
     PILImage.fromarray(sheet).save(path)
     return names
 
@@ -127,35 +195,50 @@ def write_clipped_frame(face: Face, perf: Performance, path: Path) -> Path | Non
 def run_demo(
     out_dir: Path,
     *,
-    head: str = "human",
+    head: str | Path = "human",
     video_format: str = "mp4",
     baud: int = 1_000_000,
     rate_hz: float = 50.0,
     progress: Callable[[str], None] | None = None,
+    show: str = "achievable",
 ) -> DemoOutputs:
-    """Play the built-in performance of ``head`` on the emulated chain and write the outputs."""
+    """Play the performance of ``head`` (a built-in name or a profile folder) on the emulated chain and
+    write the outputs (see the module docstring)."""
     say = progress or (lambda _msg: None)
     out_dir.mkdir(parents=True, exist_ok=True)
-    script = load_script(DEMO_SCRIPTS[head])
+    builtin = isinstance(head, str) and head in DEMO_SCRIPTS
     t0 = time.perf_counter()
-    say(f"opening the {head} head on an emulated chain at {baud} bps (wire time on)")
+    say(f"opening head {str(head)!r} on an emulated chain at {baud} bps (wire time on)")
     with Face.open(head, emulate=True, baud=baud, rate_hz=rate_hz, wire_time=True) as face:
         t_open = time.perf_counter() - t0
-        say(f"playing {script.title!r} ({script.end_s:.1f} s at {rate_hz:g} Hz)")
-        perf = face.play(script)
+        if builtin:
+            script: Any = load_script(DEMO_SCRIPTS[str(head)])
+            script_name, end_s, title = DEMO_SCRIPTS[str(head)].name, script.end_s, script.title
+        else:
+            script, end_s, title = head_performance(face)
+            script_name = "generic performance (its library)"
+        say(f"playing {title!r} ({end_s:.1f} s at {rate_hz:g} Hz)")
+        if builtin:
+            perf = face.play(script)
+        else:
+            from servoface.controller.performance import play_timeline
+
+            perf = play_timeline(face.pipeline, script, end_s, keep_traces=True, stop_on_interrupt=True)
         errors = settle_error_tick(face)
         stats = face.driver.bus.stats if face.driver is not None else None
         say("rendering the twin video, the contact sheet and the most clipped frame")
         video = out_dir / f"twin.{video_format}"
-        n_video = render_performance(face, perf, video)
+        n_video = render_performance(face, perf, video, show=show)
         sheet = out_dir / "sheet.png"
-        names = write_sheet(face, sheet)
+        names = write_sheet(face, sheet, show=show)
         clipped_png = write_clipped_frame(face, perf, out_dir / "clipped.png")
         summary = perf.summary()
         loop = summary.get("loop", {})
         report: dict[str, Any] = {
-            "head": head,
-            "script": str(DEMO_SCRIPTS[head].name),
+            "head": face.head.name if not builtin else head,
+            "script": str(script_name),
+            "title": title,
+            "shown": show,
             "machine": f"{platform.machine()} {os.cpu_count()} cpu, Python {platform.python_version()}",
             "bus": {
                 "interface": "emulator (in-process, wire time on)",

@@ -337,6 +337,14 @@ class Face:
             self.pose = dict(perf.traces[-1].aus)
         return perf
 
+    def say(self, text: str, *, voice: str = "en-us", out_dir: str | Path | None = None) -> Performance:
+        """Speak ``text`` (espeak-ng) with lip sync: the mouth on the speech track, the rest of the face as it
+        is; the sound on the default output when there is one. ``out_dir``: also write speech.wav/.toml."""
+        from servoface.controller.speech.say import speak_text
+
+        self._check_open()
+        return speak_text(self, text, voice=voice, out_dir=out_dir)
+
     def hold(self, seconds: float) -> Performance:
         return self.set_aus(self.pose, transition_s=0.0, hold_s=seconds)
 

@@ -82,10 +82,15 @@ def play_timeline(
     result = Performance(rate_hz=rate)
     _pace(pipeline, rate, sleep)  # the gate's caps are per frame: never two bus frames within one period
 
+    ahead: list[tuple[float, AUFrame]] = []  # the next slot's sample, taken a frame early
+
     def frame(tick: Tick) -> bool | None:
         t_s = start_s + tick.t_s
-        aus = source.sample(t_s)
-        trace = pipeline.step(aus, t_s, late_s=tick.late_s)
+        aus = ahead[0][1] if ahead and abs(ahead[0][0] - t_s) < 1e-9 else source.sample(t_s)
+        t_next = start_s + tick.t_s + 1.0 / rate
+        ahead[:] = [(t_next, source.sample(t_next))]
+        # the next frame is computed while this one's replies are on the wire (Pipeline.step(next_frame=))
+        trace = pipeline.step(aus, t_s, late_s=tick.late_s, next_frame=ahead[0][1])
         if keep_traces:
             result.traces.append(trace)
         if on_frame is not None:

@@ -17,12 +17,13 @@ import numpy as np
 from servoface.calibration import HeadCalibration
 from servoface.controller.errors import FrameError
 from servoface.controller.frame import AUFrame
+from servoface.controller.pipeline_ahead import Ahead
 from servoface.controller.telemetry import gate_health
 from servoface.hardware.driver import Driver
 from servoface.hardware.snapshot import ChainSnapshot
 from servoface.sim.errors import SimError
 from servoface.sim.face_model import FaceModel
-from servoface.sim.gate import GateConfig, TwinGate, Verdict
+from servoface.sim.gate import GateConfig, ServoHealth, TwinGate, Verdict
 from servoface.sim.head import Head
 
 
@@ -100,6 +101,7 @@ class Pipeline:
         self.last_snapshot: ChainSnapshot | None = None
         self.last_cycle_s: float | None = None  # time.monotonic() of the last driver cycle (pacing)
         self._index = 0
+        self._ahead: Ahead | None = None  # the next frame, computed during this one's wait (step(next_frame=))
 
     # -- state ------------------------------------------------------------------------------------
     def pin_to(self, goals_tick: Mapping[int, int]) -> None:
@@ -128,35 +130,62 @@ class Pipeline:
         ]
         return {s.role: float(c) for s, c in zip(self._servos, clamped, strict=True)}, reasons
 
-    def step(self, frame: AUFrame | Mapping[str, float], t_s: float | None = None, late_s: float = 0.0) -> FrameTrace:
-        """Run one frame. Raises (FrameError / sim errors) on invalid input, before anything is sent."""
+    def step(
+        self,
+        frame: AUFrame | Mapping[str, float],
+        t_s: float | None = None,
+        late_s: float = 0.0,
+        next_frame: AUFrame | Mapping[str, float] | None = None,
+    ) -> FrameTrace:
+        """Run one frame. Raises (FrameError / sim errors) on invalid input, before anything is sent.
+
+        ``next_frame``: the AUs the next call will most likely bring; with a driver, its muscle model,
+        calibration and a speculative gate check run while this frame's replies are on the wire, and the next
+        step uses them only if they are exactly what it would compute (`servoface.controller.pipeline_ahead`).
+        """
         timings: dict[str, float] = {}
         t0 = time.perf_counter()
         aus = dict(frame.aus) if isinstance(frame, AUFrame) else dict(frame)
         t = frame.t_s if isinstance(frame, AUFrame) and t_s is None else float(t_s or 0.0)
-        targets = self.targets_for(aus)
-        t1 = time.perf_counter()
-        timings["muscle_ms"] = (t1 - t0) * 1e3
-        clamped, clamp_reasons = self.clamp_targets(targets)
-        requested = self.calibration.targets_to_goals(clamped)
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None and ahead.aus != aus:
+            ahead = None
+        if ahead is not None:
+            targets, clamped, clamp_reasons = ahead.targets, ahead.clamped, list(ahead.clamp_reasons)
+            requested = dict(ahead.requested)
+            timings.update(ahead.timings_ms)
+        else:
+            targets = self.targets_for(aus)
+            t1 = time.perf_counter()
+            timings["muscle_ms"] = (t1 - t0) * 1e3
+            clamped, clamp_reasons = self.clamp_targets(targets)
+            requested = self.calibration.targets_to_goals(clamped)
+            timings["calibration_ms"] = (time.perf_counter() - t1) * 1e3
         t2 = time.perf_counter()
-        timings["calibration_ms"] = (t2 - t1) * 1e3
-        health = (
-            gate_health(self.last_snapshot, self.temperature_limits_c, self._ids)
-            if self.last_snapshot is not None
-            else None
-        )
+        health = self._health()
         elapsed_s = (
             None if self.driver is None or self.last_cycle_s is None else time.monotonic() - self.last_cycle_s
         )  # since the last frame went on the wire: the gate's caps hold per second, not per call
-        verdict: Verdict = self.gate.check(requested, self.last_goals_tick, health, elapsed_s=elapsed_s)
+        per_frame = elapsed_s is None or (
+            elapsed_s >= self.gate.frame_period_s and getattr(self.gate, "_last_fraction", 1.0) >= 1.0
+        )  # a speculative verdict was checked against whole-frame caps: usable only when those apply
+        spec = ahead.verdict_for(self.last_goals_tick, health, self.gate.step_state()) if ahead and per_frame else None
+        if spec is not None and ahead is not None:
+            verdict = spec
+            self.gate.restore_step_state(ahead.state_after)
+            timings["ahead_ms"] = sum(ahead.timings_ms.values())
+        else:
+            verdict = self.gate.check(requested, self.last_goals_tick, health, elapsed_s=elapsed_s)
+            timings["gate_ms"] = (time.perf_counter() - t2) * 1e3
         t3 = time.perf_counter()
-        timings["gate_ms"] = (t3 - t2) * 1e3
         sent = dict(verdict.goals_tick)
         written = 0
         if self.driver is not None:
             before = self.driver.bus.stats.bytes_written
-            self.last_snapshot = self.driver.cycle(sent)
+            self.driver.cycle_start(sent)
+            if next_frame is not None:  # while the replies are on the wire
+                self._ahead = self._prepare(next_frame, sent, health)
+            self.last_snapshot = self.driver.cycle_finish()
             self.last_cycle_s = time.monotonic()
             written = self.driver.bus.stats.bytes_written - before
         t4 = time.perf_counter()
@@ -186,6 +215,42 @@ class Pipeline:
         )
         self._index += 1
         return trace
+
+    def _health(self) -> dict[int, ServoHealth] | None:
+        if self.last_snapshot is None:
+            return None
+        return gate_health(self.last_snapshot, self.temperature_limits_c, self._ids)
+
+    def _prepare(
+        self, frame: AUFrame | Mapping[str, float], sent: dict[int, int], health: dict[int, ServoHealth] | None
+    ) -> Ahead | None:
+        """Frame N+1 during frame N's wait (see `servoface.controller.pipeline_ahead`). Invalid AUs give
+        None: the error is raised when that frame is stepped, before anything is sent."""
+        t0 = time.perf_counter()
+        aus = dict(frame.aus) if isinstance(frame, AUFrame) else dict(frame)
+        try:
+            targets = self.targets_for(aus)
+            t1 = time.perf_counter()
+            clamped, reasons = self.clamp_targets(targets)
+            requested = self.calibration.targets_to_goals(clamped)
+        except Exception:  # noqa: BLE001 - re-raised by the step of that frame, where it belongs
+            return None
+        t2 = time.perf_counter()
+        before = self.gate.step_state()
+        verdict: Verdict | None
+        try:
+            verdict = self.gate.check(requested, sent, health)
+        except Exception:  # noqa: BLE001 - the step checks afresh (and raises there)
+            verdict = None
+        after = self.gate.step_state()
+        self.gate.restore_step_state(before)
+        timings = {
+            "muscle_ms": (t1 - t0) * 1e3,
+            "calibration_ms": (t2 - t1) * 1e3,
+            "gate_ms": (time.perf_counter() - t2) * 1e3,
+        }
+        return Ahead(aus, targets, clamped, tuple(reasons), requested, timings, verdict, dict(sent),
+                     None if health is None else dict(health), before, after)  # fmt: skip
 
     def _sync_with_driver(self, snapshot: ChainSnapshot) -> None:
         """Take the goal the driver really left on a servo in service as the last command when it differs

@@ -4,12 +4,15 @@ A script becomes a :class:`~servoface.controller.timeline.Timeline`; ``Script.sa
 is a :class:`ScriptError` naming the file, the key path (and the line when it can be found); TOML syntax
 errors carry tomllib's line and column. The format (all times in seconds, intensities per face):
 
-    [script]                 face = "human" | "dog" (required); title; end_s; initial = pose name/table
+    [script]                 face = "human" | "dog" (required); title; end_s; initial = pose name/table;
+                             audio = "speech.wav" + audio_start_s (the sound that goes with it, beside the file)
     [poses]                  name = { AU12 = 0.8, ... }        (complete: AUs not named are 0)
     [expressions.<name>]     one of:
         duration_s + movements = [{ pose = "name" | {..}, percent = 30 | share = 0.3, easing = ".." }]
         pose + onset_s + apex_s + offset_s [+ easing]          (onset / apex / offset envelope)
         keyframes = [{ t_s = 0.2, pose = .., easing = ".." }]  (poses reached at clip times)
+        channels = { AU26 = [[t_s, value], ...], ... } [+ holds = false]  (per-AU keys, linear;
+                                 what `servoface say` / `lipsync` write for the speech track)
         events = ["AU14", "-AU9", 7, {au = "AU7", value = 0.5}] | recipe = "anger"  [+ timing, repeat] (dog)
         library = "happiness" [+ onset_s, apex_s, offset_s, easing | + timing (dog)]  (servoface.sim.expressions)
     [[play]]                 at_s, track = "face" (default) | any name; expression = "name" |
@@ -40,10 +43,12 @@ from servoface.controller.frame import AUFrame, FrameValidator
 from servoface.controller.script_fields import Reader, shown
 from servoface.controller.timeline import (
     BlendPolicy,
+    ChannelClip,
     Clip,
     Event,
     EventTiming,
     Expression,
+    Key,
     Movement,
     Timeline,
     easing_by_name,
@@ -81,6 +86,12 @@ class Script:
     end_s: float
     poses: dict[str, dict[str, float]] = field(default_factory=dict)
     clips: dict[str, Clip] = field(default_factory=dict)
+    audio: str = ""  # a sound file beside the script (speech), started at audio_start_s
+    audio_start_s: float = 0.0
+
+    @property
+    def audio_path(self) -> Path | None:
+        return Path(self.source).parent / self.audio if self.audio else None
 
     def sample(self, t_s: float) -> AUFrame:
         return self.timeline.sample(t_s)
@@ -132,7 +143,7 @@ class _Builder:
         data = r.table(data, "")
         r.keys(data, "", _TOP)
         head = r.table(r.get(data, "script", "", required=True), "script")
-        r.keys(head, "script", ("face", "title", "end_s", "initial"))
+        r.keys(head, "script", ("face", "title", "end_s", "initial", "audio", "audio_start_s"))
         face = r.string(head, "face", "script")
         if face not in ("human", "dog"):
             r.fail("script.face", f"expected 'human' or 'dog', got {shown(face)}")
@@ -156,8 +167,20 @@ class _Builder:
         end = max(self.timeline.end_s, self.gaze_end_s)
         end_s = r.number(head, "end_s", "script", None, lo=0.0, hi=MAX_SCRIPT_S, what="an end time in seconds")
         title = r.string(head, "title", "script", Path(r.source).stem)
+        audio = r.string(head, "audio", "script", "")
+        if audio and (Path(audio).is_absolute() or ".." in Path(audio).parts):
+            r.fail("script.audio", f"expected a file name beside the script (no absolute path, no '..'), got {audio!r}")
+        audio_start = r.number(head, "audio_start_s", "script", 0.0, lo=0.0, hi=3600.0, what="seconds >= 0")
         return Script(
-            r.source, title, self.face, self.timeline, end if end_s is None else end_s, self.poses, self.clips
+            r.source,
+            title,
+            self.face,
+            self.timeline,
+            end if end_s is None else end_s,
+            self.poses,
+            self.clips,
+            audio=audio,
+            audio_start_s=audio_start,
         )
 
     # -- pieces -----------------------------------------------------------------------------------
@@ -203,6 +226,8 @@ class _Builder:
                     pose = self.pose(r.get(m, "pose", mpath, required=True), f"{mpath}.pose")
                     moves.append(Movement(pose, share, self.easing(m, mpath)))
                 return Expression(name, duration, tuple(moves)).clip()
+            if "channels" in spec:
+                return self.channels(name, spec, path)
             if "keyframes" in spec:
                 r.keys(spec, path, ("keyframes",))
                 return self.keyframes(name, r.array(spec, "keyframes", path), path)
@@ -247,6 +272,41 @@ class _Builder:
         shares = [(b - a) / duration for a, b in zip([0.0, *times[:-1]], times, strict=True)]
         movements = tuple(Movement(p, s, e) for (p, e), s in zip(moves, shares, strict=True))
         return Expression(name, duration, movements).clip()
+
+    def channels(self, name: str, spec: Mapping[str, Any], path: str) -> Clip:
+        """Per-AU keys ``[[t_s, value], ...]`` (linear between keys); AUs not named keep their value."""
+        r = self.r
+        r.keys(spec, path, ("channels", "holds"))
+        table = r.table(r.get(spec, "channels", path, required=True), f"{path}.channels")
+        if not table:
+            r.fail(f"{path}.channels", "expected at least one AU channel")
+        channels: dict[str, tuple[Key, ...]] = {}
+        end = 0.0
+        for au, keys in table.items():
+            cpath = f"{path}.channels.{au}"
+            keys = r.array(table, au, f"{path}.channels")
+            if not keys or len(keys) > 100_000:
+                r.fail(cpath, "expected 1..100000 keys [t_s, value]")
+            out, prev = [], 0.0
+            for i, key in enumerate(keys):
+                kpath = f"{cpath}[{i}]"
+                if not isinstance(key, list) or len(key) != 2:
+                    r.fail(kpath, f"expected [t_s, value], got {key!r:.60}")
+                t, v = key
+                if isinstance(t, bool) or not isinstance(t, int | float) or not (prev <= t < 3600.0):
+                    r.fail(kpath, f"expected a time in seconds, in order (>= {prev:g}, < 3600), got {t!r:.40}")
+                pose = self.pose({au: v}, kpath, by_name=False)
+                ((canonical, value),) = pose.items()
+                out.append(Key(float(t), value))
+                prev = float(t)
+            channels[canonical] = tuple(out)
+            end = max(end, prev)
+        if end <= 0:
+            r.fail(f"{path}.channels", "the last key must be at t_s > 0")
+        holds = spec.get("holds", True)
+        if not isinstance(holds, bool):
+            r.fail(f"{path}.holds", f"expected true or false, got {holds!r:.40}")
+        return ChannelClip(channels, end, unlisted="hold", name=name, holds=holds)
 
     def library(self, name: str, spec: Mapping[str, Any], path: str) -> Clip:
         r = self.r

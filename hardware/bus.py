@@ -8,7 +8,8 @@ Error contract, shared by every backend (and checked by one contract test suite)
 - no reply in time -> `BusTimeoutError`; malformed reply / bad CRC -> `BusCorruptError`;
 - a status packet with a non-zero error number -> `ServoStatusError`;
 - a status packet with only the Alert bit (0x80) -> the call succeeds and the id is added to
-  `alerts` (read Hardware Error Status to learn why; sync/fast reads cannot see this bit at all);
+  `alerts` (read Hardware Error Status to learn why); sync and fast sync reads record it the same way,
+  from each servo's error byte, so the per-frame position read carries every servo's alarm;
 - the port itself fails -> `BusDisconnectedError`; use after close -> `BusClosedError`;
 - a sync/bulk read is all-or-nothing: one silent servo fails the whole call (`BusTimeoutError` whose
   ``servo_ids`` lists the ids asked for). The driver falls back to single reads to find the silent one.
@@ -96,6 +97,13 @@ class ServoBus(Protocol):
     def sync_read(
         self, servo_ids: Sequence[int], registers: Sequence[Register], *, fast: bool = False
     ) -> dict[int, dict[Register, int]]: ...
+
+    def sync_read_start(self, servo_ids: Sequence[int], registers: Sequence[Register], *, fast: bool = False) -> None:
+        """Send the read instruction only; `sync_read_finish` collects the replies (the caller computes
+        meanwhile). ``sync_read`` is exactly start + finish."""
+        ...
+
+    def sync_read_finish(self, *, patient: bool = False) -> dict[int, dict[Register, int]]: ...
 
     def sync_write(self, register: Register, values: Mapping[int, int]) -> None: ...
 

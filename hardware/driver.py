@@ -1,9 +1,12 @@
 """`Driver`: owns one bus from one thread; one `cycle()` per control frame.
 
 A cycle: validate goals (refuse the whole frame on any bad goal: nothing sent) -> one Sync Write of Goal
-Position to the servos in service -> one (Fast) Sync Read of Present Position -> at most one due slow
-telemetry group (round-robin: status 10 Hz, motion 10 Hz, thermal 2 Hz) -> fault policy -> re-probe of
-one missing servo -> a frozen `ChainSnapshot`.
+Position to the servos in service -> one (Fast) Sync Read of Present Position (every reply's Alert bit
+is kept: an alarm is seen the cycle it happens) -> at most one due slow telemetry group (round-robin:
+status 10 Hz, motion 10 Hz, thermal 2 Hz while the caller leaves the bus that much idle time; down to
+`FaultPolicy.telemetry_floor_share` of those rates when cycles run back to back) -> fault policy ->
+re-probe of one missing servo -> a frozen `ChainSnapshot`. `cycle_start` / `cycle_finish` split it where
+the position replies are on the wire, so a caller can compute meanwhile (the pipeline's next frame).
 """
 
 from __future__ import annotations
@@ -74,6 +77,7 @@ class Driver(ChainReads):
             TelemetryGroup("motion", MOTION, 1.0 / self.policy.motion_hz),
             TelemetryGroup("thermal", THERMAL, 1.0 / self.policy.thermal_hz),
         ]
+        self.telemetry_reads = {g.name: 0 for g in self._groups}
         self._owner: int | None = threading.get_ident()
         self._connected = True
         self._last_reopen_s = float("-inf")
@@ -88,6 +92,12 @@ class Driver(ChainReads):
         self._last_tx_s: float | None = None  # driver clock of the last cycle (feeds the Bus Watchdog)
         self.watchdog_rearms = 0  # times a pause made the driver clear and re-arm the watchdog
         self._stop_reopened = False  # a stop re-opens a failed port at most once
+        self._cycle_now: float | None = None  # set between cycle_start and cycle_finish
+        self._position_ids: list[int] | None = None
+        self._idle_s = float("inf")
+        self._busy_s = 0.0  # how long the last cycle took (clock)
+        self._patient = False
+        self._last_end_s = float("-inf")  # clock at the end of the last cycle
 
     # -- ownership ----------------------------------------------------------------------------------
     def _check_owner(self) -> None:
@@ -401,26 +411,55 @@ class Driver(ChainReads):
     # -- the cycle ----------------------------------------------------------------------------------
     def cycle(self, goals_tick: Mapping[int, int]) -> ChainSnapshot:
         """One control frame: one Sync Write of goals, position read, due telemetry, fault policy."""
+        self.cycle_start(goals_tick)
+        return self.cycle_finish()
+
+    def cycle_start(self, goals_tick: Mapping[int, int]) -> None:
+        """The first half of `cycle`: validate and write the goals, send the position read's instruction,
+        and return while its replies are on the wire (the caller may compute, not use the bus, until
+        `cycle_finish`). Bad goals raise here, before anything is sent."""
         self._check_owner()
+        if self._cycle_now is not None:
+            raise DriverThreadError("Driver.cycle_start called twice without cycle_finish in between")
         goals = self.validate_goals(goals_tick)
         now = self._clock()
+        self._idle_s = now - self._last_end_s
+        self._patient = self._idle_s > self._busy_s  # a paced caller: spend least CPU, not least latency
         self._cycle_events = []
+        self._cycle_now = now
+        self._position_ids = None
         try:
             if not self._connected:
                 self._try_reopen(now)
             if self._connected:
                 self._feed_watchdog(now)
                 self._write_goals(goals)
+                self._start_positions(now)
+        except BusDisconnectedError as err:
+            self._on_disconnect(err)
+
+    def cycle_finish(self) -> ChainSnapshot:
+        """The second half of `cycle`: collect positions, due telemetry, fault policy; the snapshot."""
+        self._check_owner()
+        now, self._cycle_now = self._cycle_now, None
+        if now is None:
+            raise DriverThreadError("Driver.cycle_finish called without cycle_start")
+        try:
+            if self._connected:
                 self._read_positions(now)
                 self._read_slow_group(now)
                 for rec in self._records.values():
-                    self._reactions.service(rec, now)
+                    if rec.reboot_at_s is not None or rec.recover_at_s is not None:  # else service() has nothing to do
+                        self._reactions.service(rec, now)
                 self._probe_missing(now)
         except BusDisconnectedError as err:
             self._on_disconnect(err)
         self._last_tx_s = now
         self._cycle += 1
-        return self._freeze(now)
+        snapshot = self._freeze(now)
+        self._last_end_s = self._clock()
+        self._busy_s = self._last_end_s - now
+        return snapshot
 
     def read_state(self) -> ChainSnapshot:
         """A cycle without goals (positions, due telemetry, policy)."""

@@ -3,7 +3,7 @@ round-robin slow telemetry (a mixin: it shares the driver's records, bus, policy
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from servoface.hardware.bus import ServoBus
@@ -24,10 +24,13 @@ FAST_READ_GIVE_UP = 3  # cycles of "fast read fails, single reads work" before f
 
 @dataclass
 class TelemetryGroup:
+    """A slow group: read every ``period_s`` when the bus has the idle time for it (see `ChainReads`)."""
+
     name: str
     registers: tuple[Register, ...]
     period_s: float
     due_s: float = float("-inf")
+    cost_s: float = 0.0  # wall time its last read took (0 until measured: the first read always fits)
 
 
 class ChainReads:
@@ -41,20 +44,28 @@ class ChainReads:
     _reactions: FaultReactions
     _group_failed: bool
     _fast_failures: int
+    _clock: Callable[[], float]
+    telemetry_reads: dict[str, int]  # slow group reads so far, by group name
+    _idle_s: float  # how long the caller left the bus idle before this cycle (inf on the first)
+    _patient: bool  # that idle time exceeds the last cycle's own: replies are slept for, not polled
+    _position_ids: list[int] | None  # ids whose position read `cycle_start` sent (None: nothing sent)
 
     def _emit(self, servo_id: int | None, kind: FaultKind, reaction: str) -> None:
         raise NotImplementedError
 
     def _read_group(
-        self, ids: list[int], registers: tuple[Register, ...], fast: bool = False
+        self, ids: list[int], registers: tuple[Register, ...], fast: bool = False, started: bool = False
     ) -> dict[int, dict[Register, int]]:
-        """Group read with retries; on failure, read servo by servo to find the silent one."""
+        """Group read with retries; on failure, read servo by servo to find the silent one. ``started``:
+        the first attempt's instruction is already on the wire (`sync_read_start`); collect its replies."""
         self._group_failed = False
         if not ids:
             return {}
-        for _ in range(1 + self.policy.retries):
+        for attempt in range(1 + self.policy.retries):
             try:
-                return self.bus.sync_read(ids, registers, fast=fast)
+                if not (started and attempt == 0):
+                    self.bus.sync_read_start(ids, registers, fast=fast)
+                return self.bus.sync_read_finish(patient=self._patient)
             except (BusTimeoutError, BusCorruptError):
                 continue
         self._group_failed = True
@@ -98,9 +109,21 @@ class ChainReads:
             if not rec.missing and (rec.recover_at_s is None or rec.recover_at_s <= now or rec.reboot_at_s is not None)
         ]
 
-    def _read_positions(self, now: float) -> None:
+    def _start_positions(self, now: float) -> None:
+        """Send the position read's instruction; `_read_positions` collects the replies."""
         ids = self._readable(now)
-        got = self._read_group(ids, POSITION, fast=self.fast_sync_read)
+        self._position_ids = None
+        if ids:
+            try:
+                self.bus.sync_read_start(ids, POSITION, fast=self.fast_sync_read)
+            except (BusTimeoutError, BusCorruptError):
+                return  # nothing on the wire: `_read_positions` reads afresh
+            self._position_ids = ids
+
+    def _read_positions(self, now: float) -> None:
+        started, self._position_ids = self._position_ids, None
+        ids = started if started is not None else self._readable(now)
+        got = self._read_group(ids, POSITION, fast=self.fast_sync_read, started=started is not None)
         if self.fast_sync_read and ids:
             self._check_fast_read_support(self._group_failed and len(got) == len(ids))
         for sid, values in got.items():
@@ -121,17 +144,34 @@ class ChainReads:
                 "single reads (firmware without it?): positions now read with plain Sync Read",
             )
 
+    def _due_group(self, now: float) -> TelemetryGroup | None:
+        """The most overdue group, if it is to be read this cycle: at once when asked for (an alert, a
+        reaction, the first read), when the caller left the bus idle for at least as long as its last read
+        took (nominal rate: the read fills idle time), or once overdue beyond the floor rate."""
+        late = 1.0 / self.policy.telemetry_floor_share - 1.0
+        ready = [
+            g
+            for g in self._groups
+            if g.due_s <= now
+            and (g.due_s == float("-inf") or self._idle_s >= g.cost_s or now >= g.due_s + g.period_s * late)
+        ]
+        return min(ready, key=lambda g: g.due_s) if ready else None
+
     def _read_slow_group(self, now: float) -> None:
-        if self.bus.alerts:  # an Alert bit seen on a single transaction: read Hardware Error Status now
-            self._groups[0].due_s = float("-inf")
+        if self.bus.alerts:  # an Alert bit (any reply, the position read's included): read the why now,
+            # unless every alerting servo's error is already known (the bit stays set until its reboot)
+            if any(sid not in self._records or not self._records[sid].hardware_error for sid in self.bus.alerts):
+                self._groups[0].due_s = float("-inf")
             self.bus.alerts.clear()
-        due = [g for g in self._groups if g.due_s <= now]
-        if not due:
+        group = self._due_group(now)
+        if group is None:
             return
-        group = min(due, key=lambda g: g.due_s)
         group.due_s = now + group.period_s
+        self.telemetry_reads[group.name] += 1
         ids = self._readable(now)
-        got = self._read_group(ids, group.registers)
+        t0 = self._clock()
+        got = self._read_group(ids, group.registers, fast=self.fast_sync_read)  # one combined reply if it works
+        group.cost_s = self._clock() - t0
         for sid, values in got.items():
             rec = self._records[sid]
             if group.name == "status":
@@ -145,4 +185,6 @@ class ChainReads:
                 self._reactions.on_thermal(
                     rec, values[Register.PRESENT_INPUT_VOLTAGE], values[Register.PRESENT_TEMPERATURE], now
                 )
+        if group.name == "status":  # its replies' Alert bits are what it just read the detail of
+            self.bus.alerts.difference_update(got)
         self._mark_results(ids, got, now)

@@ -11,6 +11,8 @@ latency timer, see `servoface.hardware.latency`), so two buses in one process do
 
 from __future__ import annotations
 
+import select
+import threading
 import time
 from collections.abc import Mapping, Sequence
 from types import TracebackType
@@ -51,6 +53,10 @@ SDK_BAUDS = (
     4000000,
 )
 IN_PROCESS_LATENCY_MS = 2.0
+NAP_MIN_S = 0.0005  # a reply further away than this is slept for rather than polled
+NAP_MARGIN_S = 0.0002  # wake this much before it (wake-up latency)
+POLL_SLICE_S = 0.001  # a port with a file descriptor blocks in select() this long at most per empty read
+PARSE_S_START = 50e-6  # per status packet, until measured
 MAX_WINDOW_EXTENSION_MS = 100.0
 
 
@@ -72,14 +78,55 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
     def getCurrentTime(self) -> float:  # noqa: N802 (SDK name); milliseconds, as the SDK expects
         return time.monotonic() * 1000.0
 
+    tx_done_s: float = 0.0  # time.monotonic() when the bytes written so far have left the adapter
+    _fd: int | None = -2  # -2: not looked up yet
+
+    def writePort(self, packet: Any) -> int:  # noqa: N802 (SDK name)
+        """As the SDK's; also notes when the packet will have left (baud arithmetic): no reply can start
+        before, so a reader may sleep until then instead of spinning."""
+        now = time.monotonic()
+        self.tx_done_s = max(now, self.tx_done_s) + len(packet) * self.tx_time_per_byte * 1e-3
+        written: int = self.ser.write(packet)
+        return written
+
     def readPort(self, length: int) -> bytes:  # noqa: N802 (SDK name)
-        """As the SDK's, but an empty read yields the GIL: the SDK waits for replies in a busy loop, which
-        otherwise starves every other Python thread (a pty server, the caller's own threads) for up to the
-        5 ms switch interval per turn."""
+        """As the SDK's, but an empty read does not spin blindly: the SDK waits for replies in a busy loop.
+        Until the instruction has left and ``length`` bytes could have come back, sleep (frees the core);
+        after that, yield the GIL only when other threads run (an in-process pty server, the caller's own
+        threads: the busy loop would starve them for the 5 ms switch interval per turn). ``sleep(0)`` on
+        every empty read cost ~0.1 ms each on a loaded machine."""
         data: bytes = self.ser.read(length)
         if not data:
-            time.sleep(0)
+            wait_s = self.tx_done_s + length * self.tx_time_per_byte * 1e-3 - time.monotonic()
+            if wait_s > NAP_MIN_S:
+                time.sleep(wait_s - NAP_MARGIN_S)
+            elif (fd := self._fileno()) is not None:  # a real port or pty: block until bytes come (or 1 ms)
+                select.select([fd], [], [], POLL_SLICE_S)
+            elif threading.active_count() > 1:
+                time.sleep(0)
         return data
+
+    def _fileno(self) -> int | None:
+        """The serial object's file descriptor (None for an in-process chain), looked up once per open."""
+        fd: int | None = getattr(self, "_fd", -2)
+        if fd == -2:
+            try:
+                fd = int(self.ser.fileno())
+            except (AttributeError, OSError, ValueError, TypeError):
+                fd = None
+            self._fd = fd
+        return fd
+
+    def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 (SDK name)
+        self._fd = -2
+        ok: bool = super().setupPort(cflag_baud)
+        return ok
+
+    def nap_until(self, t_s: float) -> None:
+        """Sleep until ``t_s`` (time.monotonic) less a margin, if that is worth a sleep."""
+        wait_s = t_s - time.monotonic()
+        if wait_s > NAP_MIN_S:
+            time.sleep(wait_s - NAP_MARGIN_S)
 
     def isPacketTimeout(self) -> bool:  # noqa: N802 (SDK name)
         """The SDK reads, then checks the clock: a thread descheduled between the two (common on a loaded
@@ -109,6 +156,7 @@ class _ChainPort(_WindowedPort):
     def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 (SDK name)
         if self.is_open:
             self.closePort()
+        self._fd = None
         self.ser = self.chain.open_serial()
         if hasattr(self.ser, "baudrate"):
             self.ser.baudrate = self.baudrate
@@ -149,6 +197,8 @@ class DynamixelBus:
         self._packet = sdk.PacketHandler(2.0)
         self._sync_reads: dict[tuple[int, int, tuple[int, ...]], Any] = {}
         self._lock: PortLock | None = None
+        self._pending: tuple[list[int], tuple[Register, ...], int, int, bool, str] | None = None
+        self._parse_s = PARSE_S_START  # measured CPU per status packet already waiting (see _nap_for_replies)
         if isinstance(port, str):
             self.port_name = port
             self._lock = PortLock(port)  # one controller per chain: held while the port is open
@@ -210,6 +260,7 @@ class DynamixelBus:
         """Close and open the port again (after a USB re-plug or a dropped pty), keeping its lock."""
         self._close_port()
         self._sync_reads.clear()
+        self._pending = None
         self.open()
 
     def drain(self, quiet_s: float = 0.05, max_s: float = 0.3) -> int:
@@ -245,6 +296,11 @@ class DynamixelBus:
 
     def __repr__(self) -> str:
         return f"DynamixelBus({self.port_name!r}, baud={self.baud}, latency_timer_ms={self.latency_timer_ms:g})"
+
+    def sdk_handlers(self) -> tuple[Any, Any]:
+        """(PortHandler, PacketHandler) of this bus, for code that drives the stock SDK directly on the same
+        port (`servoface.hardware.stock_loop`, the benches' reference loop). Do not use the bus meanwhile."""
+        return self._port, self._packet
 
     # -- plumbing -----------------------------------------------------------------------------------
     def _call(self, fn: Any, *args: Any) -> Any:
@@ -360,12 +416,24 @@ class DynamixelBus:
     ) -> dict[int, dict[Register, int]]:
         """One Sync Read (or Fast Sync Read) of the block covering ``registers`` from ``servo_ids``.
 
-        All-or-nothing (the SDK's contract): any silent servo fails the call for every id.
+        All-or-nothing (the SDK's contract): any silent servo fails the call for every id. A reply with the
+        Alert bit adds its id to `alerts` (the reply's error byte, kept from the SDK's ``readRx``).
+        """
+        self.sync_read_start(servo_ids, registers, fast=fast)
+        return self.sync_read_finish()
+
+    def sync_read_start(self, servo_ids: Sequence[int], registers: Sequence[Register], *, fast: bool = False) -> None:
+        """Send the (Fast) Sync Read instruction and return while the replies are on the wire.
+
+        `sync_read_finish` collects them; in between the caller may compute but not use the bus (the SDK
+        keeps the port marked busy). The reply window is the SDK's, started when the instruction left.
         """
         ids = check_ids(servo_ids)
-        if not ids:
-            return {}
         start, length = span(tuple(registers))
+        what = f"{'fast ' if fast else ''}sync read {[r.name for r in registers]}"
+        self._pending = (ids, tuple(registers), start, length, fast, what)
+        if not ids:
+            return
         key = (start, length, tuple(ids))
         group = self._sync_reads.get(key)
         if group is None:
@@ -375,19 +443,94 @@ class DynamixelBus:
             for sid in ids:
                 group.addParam(sid)
             self._sync_reads[key] = group
-        comm = self._call(group.fastSyncRead if fast else group.txRxPacket)
-        what = f"{'fast ' if fast else ''}sync read {[r.name for r in registers]}"
-        self._check(comm, 0, what, ids)
+        comm = self._call(group.fastSyncReadTxPacket if fast else group.txPacket)
+        if comm != sdk.COMM_SUCCESS:
+            self._pending = None
+            self._check(comm, 0, what, ids)
+
+    def sync_read_finish(self, *, patient: bool = False) -> dict[int, dict[Register, int]]:
+        """The replies to the instruction `sync_read_start` sent (see `sync_read` for the contract).
+
+        ``patient``: the caller has time to spare (a paced loop): sleep until every reply should be in, then
+        parse them at once (least CPU). Otherwise wake while they arrive so the parse ends with the last one
+        (least latency: back-to-back cycles)."""
+        pending, self._pending = self._pending, None
+        if pending is None:
+            raise BusError(f"sync_read_finish on {self.port_name} without a sync_read_start")
+        ids, registers, start, length, fast, what = pending
+        if not ids:
+            return {}
+        if fast:
+            blocks = self._fast_blocks(ids, length, what)
+        else:
+            blocks = self._status_blocks(ids, length, what, patient)
+        self._check(sdk.COMM_SUCCESS, 0, what, ids)
         fields = [(r, r.address - start, r.address - start + r.size, r.signed) for r in registers]
         out: dict[int, dict[Register, int]] = {}
         for sid in ids:
-            block = group.data_dict.get(sid)
-            if block is None or len(block) < length:
+            raw, err = blocks.get(sid, (b"", 0))
+            if len(raw) < length:
                 self.stats.corrupt += 1
-                raise BusCorruptError(f"{what}: servo {sid} returned {0 if block is None else len(block)} bytes", ids)
-            raw = bytes(block)
+                raise BusCorruptError(f"{what}: servo {sid} returned {len(raw)} bytes", ids)
+            if err & STATUS_ALERT_BIT:
+                self.stats.alerts += 1
+                self.alerts.add(sid)
             out[sid] = {r: int.from_bytes(raw[a:b], "little", signed=sg) for r, a, b, sg in fields}
         return out
+
+    def _status_blocks(self, ids: list[int], length: int, what: str, patient: bool) -> dict[int, tuple[bytes, int]]:
+        """One status packet per servo, read by the SDK's ``readRx`` (as ``GroupSyncRead.rxPacket`` does,
+        but keeping each packet's error byte)."""
+        blocks: dict[int, tuple[bytes, int]] = {}
+        read_rx, port = self._packet.readRx, self._port
+        backlog = self._nap_for_replies(len(ids), 11 + length, patient)
+        t0 = time.perf_counter()
+        for k, sid in enumerate(ids):
+            data, comm, err = self._call(read_rx, port, sid, length)
+            if comm != sdk.COMM_SUCCESS:
+                self._check(comm, 0, what, ids)
+            blocks[sid] = (bytes(data), err)
+            if k + 1 == backlog:  # the packets that were waiting: their parse cost, for the next nap
+                self._parse_s = 0.8 * self._parse_s + 0.2 * (time.perf_counter() - t0) / backlog
+        return blocks
+
+    def _nap_for_replies(self, n_packets: int, packet_bytes: int, patient: bool) -> int:
+        """Sleep while the first of ``n_packets`` status packets are on the wire, waking when the parse of
+        the ones already in (at the measured cost per packet) would end as the last one arrives — or, when
+        ``patient``, once all should be in; returns how many should be waiting then (0: no sleep). Return
+        Delay Time is not counted: wakes early rather than late."""
+        port = self._port
+        packet_s = packet_bytes * port.tx_time_per_byte * 1e-3
+        backlog = n_packets if patient else int(n_packets * packet_s / (packet_s + self._parse_s))
+        if backlog < 2:
+            return 0
+        wake_s = port.tx_done_s + backlog * packet_s
+        if wake_s - time.monotonic() <= NAP_MIN_S or port.getBytesAvailable() > 0:  # already flowing (or no
+            return 0  # wire time, as in an emulator's fast tests)
+        port.nap_until(wake_s)
+        return backlog
+
+    def _fast_blocks(self, ids: list[int], length: int, what: str) -> dict[int, tuple[bytes, int]]:
+        """The one combined Fast Sync Read reply (the SDK's ``fastSyncReadRx``), split per servo: ``ERR ID
+        data CRC`` each, as ``GroupSyncRead.fastSyncReadRxPacket`` does, but keeping the error bytes."""
+        port = self._port  # one packet: sleep until its last bytes, less its parse (~ 2 packets' worth)
+        if port.getBytesAvailable() == 0:
+            port.nap_until(
+                port.tx_done_s + (8 + len(ids) * (length + 4)) * port.tx_time_per_byte * 1e-3 - 2 * self._parse_s
+            )
+        raw, comm, _ = self._call(self._packet.fastSyncReadRx, port, sdk.BROADCAST_ID, (length + 4) * len(ids))
+        if comm != sdk.COMM_SUCCESS:
+            self._check(comm, 0, what, ids)
+        raw = bytes(raw)
+        blocks: dict[int, tuple[bytes, int]] = {}
+        wanted = set(ids)
+        for k in range(len(ids)):
+            at = k * (length + 4)
+            if at + 2 + length > len(raw) or raw[at + 1] not in wanted:
+                self.stats.corrupt += 1
+                raise BusCorruptError(f"{what}: combined reply block {k} is malformed", ids)
+            blocks[raw[at + 1]] = (raw[at + 2 : at + 2 + length], raw[at])
+        return blocks
 
     def bulk_read(
         self, requests: Mapping[int, Sequence[Register]], *, fast: bool = False

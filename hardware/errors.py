@@ -70,6 +70,18 @@ class ServoConfigMismatch(HardwareConfigError):
         super().__init__(f"servo {servo_id}: {field} reads back {actual}, expected {expected} after writing it")
 
 
+class ServoModelMismatch(ServoConfigMismatch):
+    """The servo that answered on an id is a different model from the one the profile names for it."""
+
+    def __init__(self, servo_id: int, expected: int, actual: int, expected_name: str, actual_name: str) -> None:
+        super().__init__(servo_id, "model_number", expected, actual)
+        self.args = (
+            f"servo {servo_id}: wrong servo model on this id: it answers as {actual_name} (model number "
+            f"{actual}) but the profile expects {expected_name} ({expected}); fit a {expected_name} at id "
+            f"{servo_id} or correct the profile's model for it (`servoface scan` lists what answers)",
+        )
+
+
 class GoalRejectedError(HardwareConfigError):
     """A goal was refused before anything was sent (unknown id, non-integer, non-finite or outside limits)."""
 

@@ -48,6 +48,10 @@ class FaultPolicy:
     motion_hz: float = 10.0  # current/load, velocity, moving
     thermal_hz: float = 2.0  # temperature, input voltage
     status_hz: float = 10.0  # torque enable + hardware error status
+    # a due group is read when the caller leaves the bus idle at least as long as the group's read takes
+    # (a paced loop: nominal rates) and otherwise once this share of its rate is reached (cycles run back to
+    # back: the reads would cost the goals' rate). An Alert bit in any reply reads the status group at once.
+    telemetry_floor_share: float = 0.25
 
     def __post_init__(self) -> None:
         for name in ("retries", "missing_after_failures", "max_reboots", "voltage_debounce", "torque_off_attempts"):
@@ -57,6 +61,10 @@ class FaultPolicy:
         for name, value in vars(self).items():
             if isinstance(value, float) and (not math.isfinite(value) or value < 0):
                 raise ValueError(f"FaultPolicy.{name} = {value!r}: expected a finite value >= 0")
+        if not 0 < self.telemetry_floor_share <= 1:
+            raise ValueError(
+                f"FaultPolicy.telemetry_floor_share = {self.telemetry_floor_share}: expected 0 < share <= 1"
+            )
         if not 0 <= self.backoff_gain <= 1:
             raise ValueError(f"FaultPolicy.backoff_gain = {self.backoff_gain}: expected 0..1")
         if self.watchdog_s and not WATCHDOG_UNIT_S <= self.watchdog_s <= 127 * WATCHDOG_UNIT_S:

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from servoface.hardware.bus import ServoBus
-from servoface.hardware.errors import ServoConfigMismatch, ServoDescriptionError
+from servoface.hardware.errors import ServoConfigMismatch, ServoDescriptionError, ServoModelMismatch
 from servoface.hardware.registers import (
     DRIVE_MODE_TIME_BASED_PROFILE,
     HardwareErrorBits,
@@ -267,7 +267,9 @@ def configure_servo(bus: ServoBus, spec: ServoSpec) -> ConfigReport:
     reply = bus.ping(spec.servo_id)
     expected_model = spec.model_info.number
     if reply.model_number != expected_model:
-        raise ServoConfigMismatch(spec.servo_id, "model_number", expected_model, reply.model_number)
+        raise ServoModelMismatch(
+            spec.servo_id, expected_model, reply.model_number, spec.model_info.name, model_name(reply.model_number)
+        )
     if bus.read(spec.servo_id, Register.TORQUE_ENABLE):
         bus.write(spec.servo_id, Register.TORQUE_ENABLE, 0)
     written: list[str] = []

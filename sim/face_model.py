@@ -25,8 +25,9 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from servoface.sim.au.direct import DirectMapping, DirectTable, load_direct_table
 from servoface.sim.au.mapping import AUMapping, canonical_au_name, check_au
-from servoface.sim.au.table import AUTable, load_au_table
+from servoface.sim.au.table import AUTable, au_table_path, load_au_table, with_vocabulary
 from servoface.sim.errors import HeadProfileError, PoseError, UnknownActionUnitError
 from servoface.sim.muscles import (
     EyelidMuscle,
@@ -67,11 +68,23 @@ class FaceModel:
     """AUs -> HeadPose (with actuator targets) for one head, and actuator targets -> HeadPose (the twin).
 
     ``au_table``: a table, a file path, or None for the head's ``au_table_path`` (else the built-in table
-    of its face type). ``allow_missing``: let a head without some of the table's muscles or joints use
-    it anyway (they are listed in ``self.mapping.missing``); by default that is a HeadProfileError.
+    of its face type). A head's own table is completed with empty rows for the AUs of its face type it
+    leaves out (they validate and move nothing). The table is applied to what the head has: muscles and
+    joints it lacks are skipped (``self.mapping.missing``, per AU in ``self.mapping.notes``) and AUs that
+    reach nothing are listed in ``self.unreachable`` with the reason; ``allow_missing=False`` makes a
+    missing name a HeadProfileError instead. ``direct``: a direct AU -> actuator-target table
+    (`servoface.sim.au.direct`; default the head's ``au_direct_path``): the AUs it lists are driven
+    from it, the rest through the muscles. Skin, muscles, anchors and joints are all optional.
     """
 
-    def __init__(self, head: Any, au_table: AUTable | str | Path | None = None, *, allow_missing: bool = False) -> None:
+    def __init__(
+        self,
+        head: Any,
+        au_table: AUTable | str | Path | None = None,
+        *,
+        allow_missing: bool = True,
+        direct: DirectTable | str | Path | None = None,
+    ) -> None:
         self.head = head
         rest = np.asarray(head.skin.vertices_mm, dtype=np.float64)
         self.n_vertices = int(rest.shape[0])
@@ -85,14 +98,34 @@ class FaceModel:
             raise HeadProfileError(
                 f"{table.path}: face_type {table.face_type!r} does not match head {head.name!r} ({head.face_type!r})"
             )
+        if table.path != au_table_path(head.face_type):
+            table = with_vocabulary(table, load_au_table(head.face_type))
         joints = _values(head.joints)
+        actuators = _values(head.actuators)
         self.joint_names: tuple[str, ...] = tuple(j.name for j in joints)
-        self.mapping = AUMapping(table, self.field.names, self.joint_names, allow_missing)
+        direct_table = direct if isinstance(direct, DirectTable) else None
+        direct_path = direct if isinstance(direct, str | Path) else getattr(head, "au_direct_path", None)
+        if direct_table is None and direct_path is not None:
+            direct_table = load_direct_table(direct_path)
+        if direct_table is not None and direct_table.face_type != head.face_type:
+            raise HeadProfileError(
+                f"{direct_table.path}: face_type {direct_table.face_type!r} does not match head "
+                f"{head.name!r} ({head.face_type!r})"
+            )
+        skip = frozenset(direct_table.rows) if direct_table is not None else frozenset()
+        self.mapping = AUMapping(table, self.field.names, self.joint_names, allow_missing, skip)
+        self.direct: DirectMapping | None = None
+        if direct_table is not None:
+            self.direct = DirectMapping(
+                direct_table,
+                self.mapping.channels,
+                {n: e.sided for n, e in table.entries.items()},
+                [a.role for a in actuators],
+            )
         self._neutral = np.array([j.neutral_deg for j in joints], dtype=np.float64)
         self._lower = np.array([j.lower_deg for j in joints], dtype=np.float64)
         self._upper = np.array([j.upper_deg for j in joints], dtype=np.float64)
         j_index = {n: i for i, n in enumerate(self.joint_names)}
-        actuators = _values(head.actuators)
         self.joint_actuators = [a for a in actuators if isinstance(a, JointActuator)]
         self.anchor_actuators = [a for a in actuators if isinstance(a, AnchorActuator)]
         for act in self.joint_actuators:
@@ -121,6 +154,34 @@ class FaceModel:
             [a.radius_mm for a in self.anchor_actuators],
         )
         self.roles: tuple[str, ...] = tuple(a.role for a in actuators)
+        self._direct_setup()
+
+    def _direct_setup(self) -> None:
+        """Index maps for the direct table's rows (joint actuators, anchor actuators) and the AUs it reaches."""
+        order = {a.role: i for i, a in enumerate(self.joint_actuators)}
+        anchors = {a.role: i for i, a in enumerate(self.anchor_actuators)}
+        self._direct_joint: list[tuple[int, int]] = []  # (direct row, joint actuator index)
+        self._direct_anchor: list[tuple[int, int]] = []
+        if self.direct is not None:
+            for row, role in enumerate(self.direct.roles):
+                if role in order:
+                    self._direct_joint.append((row, order[role]))
+                elif role in anchors:
+                    self._direct_anchor.append((row, anchors[role]))
+
+    @property
+    def unreachable(self) -> dict[int, str]:
+        """AU number -> why its row moves nothing on this head (missing muscles/joints, no direct target)."""
+        out = dict(self.mapping.unreachable)
+        if self.direct is not None:
+            k = len(self.mapping.channels)
+            used = np.abs(self.direct.matrix).sum(axis=0) > 0
+            for number in self.direct.numbers:
+                cols = [i for i, (n, _) in enumerate(self.mapping.channels) if n == number]
+                if not (used[cols].any() or used[[c + k for c in cols]].any()):
+                    notes = self.direct.notes.get(number) or ["its direct table row has no targets"]
+                    out[number] = "direct table: " + "; ".join(notes)
+        return dict(sorted(out.items()))
 
     # --- the AU vocabulary of this head -----------------------------------------------------------------
 
@@ -146,13 +207,50 @@ class FaceModel:
         return self.solve_detailed(aus).pose
 
     def solve_detailed(self, aus: Mapping[str, float]) -> FaceSolution:
-        contractions, joint_delta = self.mapping.evaluate(aus)
+        split = self.mapping.split(aus)
+        contractions, joint_delta = self.mapping.evaluate_split(split)
         joint = np.clip(self._neutral + joint_delta, self._lower, self._upper)
         joint_deg = dict(zip(self.joint_names, joint.tolist(), strict=True))
         offsets = self.field.offsets(contractions, joint_deg if self.field.eyelids else None)
         targets = self._targets(joint, offsets)
+        if self.direct is not None and split.any():
+            joint_deg, offsets = self._apply_direct(self.direct.deltas(split), joint, joint_deg, offsets, targets)
         pose = HeadPose(joint_deg, offsets, targets)
         return FaceSolution(pose, dict(zip(self.field.names, contractions.tolist(), strict=True)))
+
+    def _apply_direct(
+        self,
+        deltas: FloatArray,
+        joint: FloatArray,
+        joint_deg: dict[str, float],
+        offsets: FloatArray,
+        targets: dict[str, float],
+    ) -> tuple[dict[str, float], FloatArray]:
+        """Add the direct table's target offsets (updates ``targets``); the pose follows: joint actuators
+        set their joints, anchor pulls move the skin by the twin's per-anchor bumps."""
+        changed = False
+        for row, i in self._direct_joint:
+            if deltas[row] == 0.0:
+                continue
+            act = self.joint_actuators[i]
+            value = min(max(targets[act.role] + float(deltas[row]), act.lower_deg), act.upper_deg)
+            targets[act.role] = value
+            joint[self._joint_cols[i]] = value
+            changed = True
+        if changed:
+            joint = np.clip(joint, self._lower, self._upper)
+            joint_deg = dict(zip(self.joint_names, joint.tolist(), strict=True))
+        residual = np.zeros(len(self.anchor_actuators))
+        for row, i in self._direct_anchor:
+            if deltas[row] == 0.0:
+                continue
+            act = self.anchor_actuators[i]
+            value = min(max(targets[act.role] + float(deltas[row]), act.lower_mm), act.upper_mm)
+            residual[i] = value - targets[act.role]
+            targets[act.role] = value
+        if residual.any():
+            offsets = offsets + self.fit.bumps(residual)
+        return joint_deg, offsets
 
     def _targets(self, joint: FloatArray, offsets: FloatArray) -> dict[str, float]:
         targets: dict[str, float] = {}

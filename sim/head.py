@@ -50,6 +50,7 @@ class Head:
     calibration_path: Path | None = None
     profile_dir: Path | None = None
     landmarks_mm: dict[str, Vec3] = field(default_factory=dict)
+    au_direct_path: Path | None = None  # the direct AU -> actuator-target table (sim/au/direct.py), if any
 
     # --- lookups ----------------------------------------------------------------------------------------
 
@@ -106,6 +107,11 @@ class Head:
     @cached_property
     def neutral_joint_deg(self) -> dict[str, float]:
         return {j.name: j.neutral_deg for j in self.joints}
+
+    @property
+    def has_skin(self) -> bool:
+        """False for a purely mechanical head (rigid parts on joints only; its skin arrays are empty)."""
+        return int(self.skin.vertices_mm.shape[0]) > 0
 
     @property
     def n_skin_vertices(self) -> int:

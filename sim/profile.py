@@ -37,7 +37,7 @@ SCHEMA_VERSION = 1
 ANCHOR_MAX_GAP_MM = 10.0  # an anchor's near_mm must be this close to the skin
 FACE_TYPES = ("human", "dog")
 _TOP_KEYS = {
-    "schema_version", "name", "face_type", "description", "calibration", "au_table", "expressions",
+    "schema_version", "name", "face_type", "description", "calibration", "au_table", "expressions", "au_direct",
     "skin", "joint", "part", "muscle", "anchors", "actuator", "coupling", "landmarks",
 }  # fmt: skip
 
@@ -191,7 +191,7 @@ def _build(r: _Reader, data: dict[str, Any], folder: Path) -> Head:
         pj = p.get("joint")
         if pj is not None and pj not in jnames:
             raise r.fail(f"{key}.joint", f"a joint of this head {sorted(jnames)}", pj)
-        scale = r.number(p, "scale", key, 1.0)
+        scale = _scale(r, p, key)
         mesh = load_part_mesh(r.string(p, "mesh", key), folder, f"{r.file}: {key}.mesh", scale)
         collides = p.get("collides", True)
         if not isinstance(collides, bool):
@@ -201,8 +201,12 @@ def _build(r: _Reader, data: dict[str, Any], folder: Path) -> Head:
     skin, skin_joint = _skin(r, data, folder, jnames, load_skin_mesh)
     n_vert = len(skin.vertices_mm)
     muscles = _muscles(r, data)
+    if n_vert == 0:
+        _needs_skin(r, data)
     anchors = _anchors(r, data, skin.vertices_mm)
     actuators = _actuators(r, data, {j.name: j for j in joints}, anchors, n_vert)
+    if not actuators:
+        raise r.fail("actuator", "at least one [[actuator]] table (one per servo: role, servo, kind)", None)
     couplings = _couplings(r, data, {a.role for a in actuators})
     landmarks: dict[str, Vec3] = {}
     lm = r.table(data.get("landmarks", {}), "landmarks")
@@ -220,6 +224,7 @@ def _build(r: _Reader, data: dict[str, Any], folder: Path) -> Head:
         skin_joint=skin_joint,
         au_table_path=_data_file(r, data, "au_table", folder),
         expressions_path=_data_file(r, data, "expressions", folder),
+        au_direct_path=_data_file(r, data, "au_direct", folder),
         calibration_path=_inside(r, "calibration", r.string(data, "calibration", ""), folder)
         if "calibration" in data
         else None,
@@ -292,8 +297,32 @@ def _joints(r: _Reader, data: dict[str, Any]) -> tuple[Joint, ...]:
     return tuple(ordered)
 
 
+def empty_skin() -> Skin:
+    """The skin of a purely mechanical head: no vertices, no faces (every consumer sees empty arrays)."""
+    verts = np.zeros((0, 3), dtype=np.float64)
+    faces = np.zeros((0, 3), dtype=np.int64)
+    weights = np.zeros((0, 1), dtype=np.float64)
+    colours = np.zeros((0, 4), dtype=np.float64)
+    for arr in (verts, faces, weights, colours):
+        arr.flags.writeable = False
+    return Skin(verts, faces, (), weights, (0.86, 0.70, 0.60, 1.0), colours)
+
+
+def _scale(r: _Reader, d: dict[str, Any], key: str) -> float:
+    scale = r.number(d, "scale", key, 1.0)
+    if scale <= 0:
+        raise r.fail(
+            f"{key}.scale",
+            "a positive factor to millimetres (1 for a mesh in mm, 1000 for metres, 25.4 for inches)",
+            scale,
+        )
+    return scale
+
+
 def _skin(r: _Reader, data: dict[str, Any], folder: Path, jnames: set[str], loader: Any) -> tuple[Skin, str | None]:
-    s = r.table(r.req(data, "skin", ""), "skin")
+    if "skin" not in data:
+        return empty_skin(), None
+    s = r.table(data["skin"], "skin")
     r.keys(
         s,
         "skin",
@@ -302,9 +331,7 @@ def _skin(r: _Reader, data: dict[str, Any], folder: Path, jnames: set[str], load
     joint = s.get("joint") or None
     if joint is not None and joint not in jnames:
         raise r.fail("skin.joint", f"a joint of this head {sorted(jnames)}", joint)
-    verts, faces, colours = loader(
-        r.string(s, "mesh", "skin"), folder, f"{r.file}: skin.mesh", r.number(s, "scale", "skin", 1.0)
-    )
+    verts, faces, colours = loader(r.string(s, "mesh", "skin"), folder, f"{r.file}: skin.mesh", _scale(r, s, "skin"))
     iters = s.get("smooth_iterations", 0)
     if isinstance(iters, bool) or not isinstance(iters, int) or not 0 <= iters <= 200:
         raise r.fail("skin.smooth_iterations", "an integer in 0..200", iters)
@@ -350,6 +377,18 @@ def _skin(r: _Reader, data: dict[str, Any], folder: Path, jnames: set[str], load
         arr.flags.writeable = False
     skin = Skin(verts, faces, tuple(names), w, r.rgba(s, "skin", (0.86, 0.70, 0.60, 1.0)), colours)
     return skin, joint
+
+
+def _needs_skin(r: _Reader, data: dict[str, Any]) -> None:
+    """Muscles and skin anchors move skin: a head without ``[skin]`` may not name them."""
+    hint = "a [skin] table (muscles and anchors move skin; this head has none): add [skin] or remove this"
+    if r.array(data, "muscle"):
+        raise r.fail("muscle[0]", hint, None)
+    if data.get("anchors"):
+        raise r.fail("anchors", hint, None)
+    for i, a in enumerate(r.array(data, "actuator")):
+        if a.get("kind") == "anchor":
+            raise r.fail(f"actuator[{i}].kind", hint.replace("remove this", 'use kind = "joint"'), "anchor")
 
 
 def _mirror(p: Vec3) -> Vec3:

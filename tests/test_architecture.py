@@ -8,12 +8,16 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-OURS = {"controller", "sim", "hardware", "calibration"}
+OURS = {"controller", "sim", "hardware", "calibration", "testing"}
+# servoface.testing (the pytest plugin) lives in controller/testing/ but is a package of its own: it may use
+# everything, and nothing of ours may import it (it is for tests, installed or not)
+FOLDERS = {"testing": "controller/testing"}
 ALLOWED: dict[str, set[str]] = {
     "hardware": set(),
     "calibration": set(),
     "sim": {"calibration"},
     "controller": {"sim", "hardware", "calibration"},
+    "testing": {"controller", "sim", "hardware", "calibration"},
 }
 
 
@@ -29,7 +33,11 @@ def _imports(path: Path) -> list[tuple[int, str]]:
 
 
 def _sources(package: str) -> list[Path]:
-    return sorted((ROOT / package).rglob("*.py"))
+    """The modules of a package (a folder of ours, or a tests/examples folder); a folder mapped to a package
+    of its own (controller/testing -> servoface.testing) belongs to that one, not to its parent folder."""
+    top = ROOT / FOLDERS.get(package, package)
+    inner = [ROOT / f for name, f in FOLDERS.items() if name != package and (ROOT / f).is_relative_to(top)]
+    return sorted(p for p in top.rglob("*.py") if not any(p.is_relative_to(d) for d in inner))
 
 
 def _ours(name: str) -> str | None:
@@ -52,9 +60,26 @@ def test_packages_import_only_what_they_may(package: str) -> None:
 
 
 def test_the_rules_see_the_imports() -> None:
-    """The rules above are not vacuous: controller does import the three others under the root."""
+    """The rules above are not vacuous: controller does import the three others under the root, the test kit
+    imports all four and is seen as its own package (its folder is not counted as controller's)."""
     seen = {_ours(name) for path in _sources("controller") for _, name in _imports(path)}
     assert {"sim", "hardware", "calibration", "controller"} <= seen
+    kit = {_ours(name) for path in _sources("testing") for _, name in _imports(path)}
+    assert {"sim", "hardware", "calibration", "controller", "testing"} <= kit
+    assert not any(p.is_relative_to(ROOT / "controller" / "testing") for p in _sources("controller"))
+
+
+def test_the_test_kit_is_imported_by_one_name_only() -> None:
+    """controller/testing/ installs as servoface.testing; importing it as servoface.controller.testing
+    (which an editable install would allow) would load a second copy of every module."""
+    bad = [
+        f"{path.relative_to(ROOT)}:{lineno} imports {name}"
+        for folder in ("controller", "sim", "hardware", "calibration", "tests", "examples")
+        for path in _sources(folder)
+        for lineno, name in _imports(path)
+        if name.startswith("servoface.controller.testing")
+    ]
+    assert not bad, "use servoface.testing:\n" + "\n".join(bad)
 
 
 @pytest.mark.parametrize("folder", ["controller", "sim", "hardware", "calibration", "tests", "examples"])

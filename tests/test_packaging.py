@@ -6,27 +6,38 @@ runs the commands a new user runs first from an empty folder.
 
 from __future__ import annotations
 
-import os
 import re
-import shutil
 import subprocess
-import sys
 import tomllib
 import zipfile
 from pathlib import Path
 
 import pytest
 
+from tests.wheel_venv import run
+
 ROOT = Path(__file__).resolve().parents[1]
 OURS = ("controller", "sim", "hardware", "calibration")
 
 
+# folders below the four that install as a package of their own (not as servoface.controller.testing)
+MAPPED = {"servoface.testing": "controller/testing"}
+
+
 def _package_folders() -> set[str]:
-    return {
-        "servoface." + ".".join(p.parent.relative_to(ROOT).parts)
-        for top in OURS
-        for p in (ROOT / top).rglob("__init__.py")
-    }
+    """The package each folder with an __init__.py installs as: under the deepest package-dir entry that
+    holds it (controller/testing/x -> servoface.testing.x, controller/cli -> servoface.controller.cli)."""
+    dirs = sorted(
+        [(Path(p), f"servoface.{p}") for p in OURS] + [(Path(d), pkg) for pkg, d in MAPPED.items()],
+        key=lambda item: -len(item[0].parts),
+    )
+    found = set()
+    for top in OURS:
+        for init in (ROOT / top).rglob("__init__.py"):
+            rel = init.parent.relative_to(ROOT)
+            folder, package = next((d, pkg) for d, pkg in dirs if rel == d or d in rel.parents)
+            found.add(".".join([package, *rel.relative_to(folder).parts]))
+    return found
 
 
 def test_pyproject_lists_every_package_under_the_servoface_root() -> None:
@@ -36,7 +47,8 @@ def test_pyproject_lists_every_package_under_the_servoface_root() -> None:
     extra = sorted(listed - _package_folders())
     assert not missing, f"add these to [tool.setuptools] packages in pyproject.toml: {missing}"
     assert not extra, f"pyproject.toml lists packages with no folder: {extra}"
-    assert data["tool"]["setuptools"]["package-dir"] == {f"servoface.{p}": p for p in OURS}
+    assert "servoface.controller.testing" not in listed
+    assert data["tool"]["setuptools"]["package-dir"] == {**{f"servoface.{p}": p for p in OURS}, **MAPPED}
 
 
 def _readme_api_example() -> str:
@@ -47,44 +59,17 @@ def _readme_api_example() -> str:
     return match.group(1)
 
 
-def _copy_source(dest: Path) -> Path:
-    ignore = shutil.ignore_patterns(".venv", ".git", "out", "build", "*.egg-info", "__pycache__", ".ruff_cache")
-    shutil.copytree(ROOT, dest, ignore=ignore)
-    return dest
-
-
-def _run(cmd: list[str], cwd: Path, env: dict[str, str], timeout: float = 300) -> subprocess.CompletedProcess[str]:
-    proc = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
-    assert proc.returncode == 0, (
-        f"{' '.join(cmd)} exited {proc.returncode}\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
-    )
-    return proc
+_run = run
 
 
 @pytest.fixture(scope="module")
-def installed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, dict[str, str]]:
-    """(venv python, empty working folder, environment) with servoface's wheel installed, outside the repo."""
-    base = tmp_path_factory.mktemp("wheel")
-    src = _copy_source(base / "src")
-    wheel_dir = base / "dist"
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV", "PYTHONHOME")}
-    env.setdefault("PYOPENGL_PLATFORM", "egl")
-    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(wheel_dir), str(src)], base, env)
-    wheels = list(wheel_dir.glob("servoface-*.whl"))
-    assert len(wheels) == 1, wheels
-    venv = base / "venv"
-    _run([sys.executable, "-m", "venv", str(venv)], base, env)
-    python = venv / "bin" / "python"
-    _run(
-        [str(python), "-m", "pip", "install", "-q", "--disable-pip-version-check", str(wheels[0])],
-        base,
-        env,
-        900,
-    )
+def installed(wheel_venv: tuple[Path, Path, dict[str, str]]) -> tuple[Path, Path, dict[str, str]]:
+    """(venv python, empty working folder, environment) with servoface's wheel installed, outside the repo
+    (the session's one wheel venv, tests/conftest.py)."""
+    python, base, env = wheel_venv
     work = base / "empty"
-    work.mkdir()
-    env["PATH"] = f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}"
-    return python, work, env
+    work.mkdir(exist_ok=True)
+    return python, work, dict(env)
 
 
 @pytest.mark.slow

@@ -1,7 +1,8 @@
 """Benchmarks behind `servoface bench` / `make bench`: each suite module yields `Figure`s.
 
 Suites: ``bus`` (hardware), ``face`` (muscle model, rendering), ``gate`` (twin gate, TSS), ``pipeline``
-(end to end), ``timeline`` (sampling cost), ``soak`` (memory growth and loop-rate drift over minutes; only when
+(end to end), ``timeline`` (sampling cost), ``pty`` (sync-read loop over the pty under CPU load), ``scale``
+(growth with skin vertices and servos), ``soak`` (memory growth and loop-rate drift over minutes; only when
 named: ``servoface bench soak --minutes 30``).
 Each suite module defines ``run(quick: bool = False) -> Iterator[Figure]``.
 """
@@ -12,6 +13,9 @@ SUITES: dict[str, str] = {
     "gate": "servoface.controller.benchmarks.gate",
     "pipeline": "servoface.controller.benchmarks.pipeline",
     "timeline": "servoface.controller.benchmarks.timeline",
+    "pty": "servoface.controller.benchmarks.pty_load",
+    "scale": "servoface.controller.benchmarks.scale",
+    "speech": "servoface.controller.benchmarks.speech",
     "soak": "servoface.controller.benchmarks.soak",
 }
 LONG_SUITES = frozenset({"soak"})  # run only when named (minutes of wall time)

@@ -1,11 +1,13 @@
-"""`servoface bench bus`: sustained sync-write + sync-read cycles against the wire limit.
+"""`servoface bench bus`: sustained sync-write + sync-read cycles against the wire limit and the stock SDK.
 
 24 XL330-M288 on the in-process emulator port with wire time on, at 1 Mbps and 4 Mbps, Return Delay Time 0
-(written to every servo before measuring). Per baud: cycles/s with a plain Sync Read and with Fast Sync Read
-of Present Position, each next to the wire limit from `servoface.hardware.wire.cycle_budget` (packet sizes, baud,
-return delay). Rates are the median of 20 windows of 0.1 s (the best window is in the note; the machine is shared; the
-median single cycle and the on-CPU share are in the note). A last group of figures splits the CPU time of
-one cycle (no wire time) between dynamixel-sdk, the emulator and servoface: where the time goes.
+(written to every servo before measuring). Per baud and read (plain Sync Read / Fast Sync Read of Present
+Position), three loops on the same chain, interleaved (`interleave`: 20 rounds of one 0.1 s window each):
+the plain stock-SDK loop (`servoface.hardware.stock_loop`), `ServoBus` sync write + sync read, and a full
+`Driver.cycle`. Each figure is the median window rate next to the wire limit from
+`servoface.hardware.wire.cycle_budget` (packet sizes, baud, return delay), plus its ratio to the stock SDK
+loop (median of per-round ratios); the best window and the machine's load are in the note. A last group of
+figures splits the CPU time of one cycle (no wire time) between dynamixel-sdk, the emulator and servoface.
 """
 
 from __future__ import annotations
@@ -17,17 +19,21 @@ import time
 from collections.abc import Iterator
 
 from servoface.controller.benchmarks.figure import Figure
+from servoface.controller.benchmarks.interleave import Step, interleaved, load_text
 from servoface.hardware.bus import ServoBus, open_bus
 from servoface.hardware.driver import Driver
 from servoface.hardware.emulator import ServoChain
 from servoface.hardware.registers import Register
 from servoface.hardware.servo_config import ServoSpec
+from servoface.hardware.stock_loop import StockSdkLoop
 from servoface.hardware.wire import cycle_budget
 
 N_SERVOS = 24
 BAUDS = (1_000_000, 4_000_000)
 RETURN_DELAY_US = 0
 GOAL_RATIO = 0.9
+DRIVER_GOAL_RATIO = 0.95
+STOCK = "stock SDK loop (GroupSyncWrite + GroupSyncRead)"
 
 
 def _chain_and_bus(baud: int, wire_time: bool) -> tuple[ServoChain, ServoBus]:
@@ -100,30 +106,10 @@ def cpu_split_ms(baud: int, fast: bool, cycles: int) -> dict[str, float]:
 
 
 def run(quick: bool = False) -> Iterator[Figure]:
-    windows, window_s = (4, 0.1) if quick else (20, 0.1)
+    rounds, window_s = (4, 0.1) if quick else (20, 0.1)
     for baud in BAUDS:
-        chain, bus = _chain_and_bus(baud, wire_time=True)
-        ids = chain.ids
-        tag = f"{N_SERVOS} servos @{baud // 1_000_000}M"
-        for fast, label in ((False, "sync write + sync read"), (True, "sync write + fast sync read")):
-            budget = cycle_budget(N_SERVOS, baud, return_delay_us=RETURN_DELAY_US, fast=fast)
-            best, median, per_cycle, cpu_share = measure_rate_hz(bus, ids, fast, windows, window_s)
-            yield Figure(
-                f"{label}, {tag}",
-                median,
-                "cycles/s",
-                limit=budget.limit_hz,
-                goal_ratio=GOAL_RATIO,
-                note=f"median of {windows}x{window_s:g}s windows (best window {best:.0f}/s = ratio "
-                f"{best / budget.limit_hz:.3f}, "
-                f"median single cycle {per_cycle:.0f}/s = ratio {per_cycle / budget.limit_hz:.3f}); "
-                "wire limit "
-                f"{budget.bytes_total} B x 10 bit / {baud} bps + RDT {RETURN_DELAY_US} us = "
-                f"{budget.wire_time_s * 1e3:.3f} ms; timeouts {bus.stats.timeouts}, "
-                f"corrupt {bus.stats.corrupt}; on-CPU share {cpu_share:.2f} (other processes ran the rest)",
-            )
-        bus.close()
-        chain.close()
+        for fast in (False, True):
+            yield from _interleaved_figures(baud, fast, rounds, window_s)
     yield Figure(
         "return delay time (bench configuration)",
         RETURN_DELAY_US,
@@ -131,7 +117,6 @@ def run(quick: bool = False) -> Iterator[Figure]:
         better="lower",
         note="Return Delay Time written to every servo before measuring (factory default 500 us)",
     )
-    yield from _driver_cycle(quick)
     cycles = 100 if quick else 400
     for baud in BAUDS[-1:]:
         for fast in (False, True):
@@ -150,31 +135,78 @@ def run(quick: bool = False) -> Iterator[Figure]:
             )
 
 
-def _driver_cycle(quick: bool) -> Iterator[Figure]:
-    """A full `Driver.cycle` (sync write + position read + round-robin telemetry + policy) at 1 Mbps."""
-    baud = BAUDS[0]
-    chain, bus = _chain_and_bus(baud, wire_time=True)
-    specs = [ServoSpec(sid, "XL330-M288", return_delay_us=RETURN_DELAY_US) for sid in chain.ids]
-    driver = Driver(bus, specs)
+def contenders(chain: ServoChain, baud: int, fast: bool) -> tuple[dict[str, Step], Driver, list[ServoBus]]:
+    """The three loops compared on one chain, each on its own port: the plain stock-SDK loop, servoface's
+    `ServoBus` sync write + sync read, and a full `Driver.cycle` (telemetry + fault policy)."""
+    ids = chain.ids
+    buses = [open_bus("emulator", chain=chain, baud=baud) for _ in range(3)]
+    stock = StockSdkLoop(buses[0], ids, fast=fast)
+    specs = [ServoSpec(sid, "XL330-M288", return_delay_us=RETURN_DELAY_US) for sid in ids]
+    driver = Driver(buses[2], specs, fast_sync_read=fast)
     driver.configure()
     driver.torque_on()
-    goals = {sid: 2048 for sid in chain.ids}
-    duration_s = 0.5 if quick else 2.0
-    n, t0 = 0, time.perf_counter()
-    while time.perf_counter() - t0 < duration_s:
-        goals = {sid: 2048 + (n & 1) for sid in chain.ids}
-        driver.cycle(goals)
-        n += 1
-    rate = n / (time.perf_counter() - t0)
-    limit = cycle_budget(N_SERVOS, baud, return_delay_us=RETURN_DELAY_US).limit_hz
-    yield Figure(
-        f"Driver.cycle (incl. telemetry + policy), {N_SERVOS} servos @1M",
-        rate,
-        "cycles/s",
-        limit=limit,
-        goal_ratio=0.95,
-        note="limit = sync write + sync read only; the driver also reads one slow telemetry group "
-        "on ~1 cycle in 4 (status 10 Hz, motion 10 Hz, thermal 2 Hz at this rate)",
-    )
-    bus.close()
+    bus = buses[1]
+
+    def bus_cycle(n: int) -> None:
+        _cycle(bus, ids, n, fast)
+
+    def driver_cycle(n: int) -> None:
+        driver.cycle({sid: 2048 + (n & 1) for sid in ids})
+
+    steps: dict[str, Step] = {
+        STOCK: lambda n: stock.cycle(2048 + (n & 1)),
+        "ServoBus sync write + sync read": bus_cycle,
+        "Driver.cycle (telemetry + policy)": driver_cycle,
+    }
+    return steps, driver, buses
+
+
+def _interleaved_figures(baud: int, fast: bool, rounds: int, window_s: float) -> Iterator[Figure]:
+    chain, setup = _chain_and_bus(baud, wire_time=True)
+    setup.close()
+    steps, driver, buses = contenders(chain, baud, fast)
+    reads0 = dict(driver.telemetry_reads)
+    t0 = time.perf_counter()
+    stats = interleaved(steps, STOCK, rounds, window_s)
+    driver_s = (time.perf_counter() - t0) / len(steps)
+    load = load_text()
+    budget = cycle_budget(N_SERVOS, baud, return_delay_us=RETURN_DELAY_US, fast=fast)
+    read = "fast sync read" if fast else "sync read"
+    tag = f"{read}, {N_SERVOS} servos @{baud // 1_000_000}M"
+    ref = stats[STOCK]
+    telemetry = {k: (v - reads0.get(k, 0)) / driver_s for k, v in driver.telemetry_reads.items()}
+    timeouts = sum(b.stats.timeouts for b in buses)
+    corrupt = sum(b.stats.corrupt for b in buses)
+    for name, st in stats.items():
+        goal = GOAL_RATIO
+        if name.startswith("Driver") and baud == BAUDS[0] and not fast:
+            goal = DRIVER_GOAL_RATIO
+        extra = ""
+        if name.startswith("Driver"):
+            extra = "; slow telemetry group reads/s " + ", ".join(f"{k} {v:.1f}" for k, v in telemetry.items())
+            extra += " (back to back: no idle bus time, so at FaultPolicy.telemetry_floor_share of nominal)"
+        yield Figure(
+            f"{name}, {tag}",
+            st.median,
+            "cycles/s",
+            limit=budget.limit_hz,
+            goal_ratio=goal,
+            note=f"median of {rounds} interleaved {window_s:g} s windows (best {st.best:.0f}/s = ratio "
+            f"{st.best / budget.limit_hz:.3f}); x{st.median_ratio:.3f} the stock SDK loop in the same rounds "
+            f"(median of per-round ratios; stock SDK median {ref.median:.0f}/s); wire limit {budget.bytes_total} B "
+            f"x 10 bit / {baud} bps + RDT {RETURN_DELAY_US} us = {budget.wire_time_s * 1e3:.3f} ms{extra}; "
+            f"timeouts {timeouts}, corrupt {corrupt}; {load}",
+        )
+        if name != STOCK:
+            yield Figure(
+                f"{name} vs stock SDK loop, {tag}",
+                st.median_ratio,
+                "x SDK loop",
+                limit=1.0,
+                goal_ratio=1.0 if name.startswith("Driver") else None,
+                note=f"median over {rounds} rounds of (this window's rate / the stock SDK loop's window in the "
+                f"same round); best round x{max(st.ratios, default=0):.3f}; {load}",
+            )
+    for b in buses:
+        b.close()
     chain.close()

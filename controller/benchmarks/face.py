@@ -4,6 +4,11 @@ Muscle model: median of ``servoface.sim.face_model.benchmark_solve`` (AU frame -
 goal <= 1 ms for the human head. Rendering: frames per second at 640x480 of each head posed through a
 cycle of expression poses (solved beforehand, so only posing the meshes and drawing are timed); one
 renderer, reused, as the twin preview uses it. Goal >= 30 fps on 2 CPU cores (Mesa llvmpipe, no GPU).
+Twin fidelity: the largest landmark distance between the muscle model's target face and the face the
+servos make (targets -> goal ticks -> the twin's ``pose_from_targets``), over every library expression
+and every single AU at +1 (and -1 where it has a counter), per built-in head; goal <= 1 mm. The landmark
+set is ``servoface.sim.landmarks`` (profile points, anchor vertices, lid margins, pupils, ear and tongue
+tips).
 """
 
 from __future__ import annotations
@@ -31,6 +36,24 @@ def _solve_figures(quick: bool) -> Iterator[Figure]:
             limit=1.0,
             better="lower",
             note=f"FaceModel.solve, AU frame -> HeadPose, median of {len(times_s)} varied frames",
+        )
+
+
+def _fidelity_figures() -> Iterator[Figure]:
+    from servoface.sim.landmarks import landmark_set, library_fidelity
+    from servoface.sim.heads import load_head
+
+    for name in HEADS:
+        cases = library_fidelity(name)
+        worst = max(cases, key=lambda c: c.max_error_mm)
+        yield Figure(
+            f"twin_fidelity_max_landmark_error_{name}",
+            worst.max_error_mm,
+            "mm",
+            limit=1.0,
+            better="lower",
+            note=f"max over {len(cases)} cases (library apexes, single AUs at +-1) and "
+            f"{len(landmark_set(load_head(name)))} landmarks; worst {worst.case} at {worst.landmark}",
         )
 
 
@@ -89,4 +112,5 @@ def _render_figures(quick: bool) -> Iterator[Figure]:
 
 def run(quick: bool = False) -> Iterator[Figure]:
     yield from _solve_figures(quick)
+    yield from _fidelity_figures()
     yield from _render_figures(quick)

@@ -5,10 +5,10 @@ twin gate (verdict) + `Driver.cycle` (one Sync Write of the head's goals, a Sync
 Present Position, the due slow telemetry group, the fault policy). The bus is the in-process emulator at
 1 Mbps with wire time on and Return Delay Time 0.
 
-24 servos on the chain: the built-in human head's 21 actuators plus 3 spare XL330-M288 (ids 22-24) that the
-driver also configures and reads every frame (the head never sends them goals). So one frame writes 21 goals
-and reads 24 positions; the wire limit is that traffic's wire time (`servoface.hardware.wire`: sync write of 21 x 4
-bytes, sync read instruction for 24, 24 status packets of 4 bytes, no return delay). The slow telemetry reads
+33 servos on the chain: the built-in human head's 30 actuators plus 3 spare XL330-M288 (ids 31-33) that the
+driver also configures and reads every frame (the head never sends them goals). So one frame writes 30 goals
+and reads 33 positions; the wire limit is that traffic's wire time (`servoface.hardware.wire`: sync write of 30 x 4
+bytes, sync read instruction for 33, 33 status packets of 4 bytes, no return delay). The slow telemetry reads
 the driver adds on some frames are not in the limit, so a ratio near 1 is out of reach by design; the bus
 stage is compared with the same limit.
 
@@ -23,7 +23,10 @@ import statistics
 import time
 from collections.abc import Iterator
 
+from servoface.controller.benchmarks.cpu import cpu_budget_figures
 from servoface.controller.benchmarks.figure import Figure
+from servoface.controller.benchmarks.interleave import interleaved, load_text
+from servoface.controller.pipeline import FrameTrace
 
 HEAD = "human"
 N_SPARE = 3
@@ -32,6 +35,9 @@ RETURN_DELAY_US = 0
 RATE_HZ = 50.0
 GATE_GOAL_MS = 1.0
 STAGES = ("muscle_ms", "calibration_ms", "gate_ms", "bus_ms", "total_ms")
+STOCK = "stock SDK loop (same traffic)"
+PLAIN = "pipeline frames/s"
+AHEAD = "pipeline frames/s, next frame during the wait"
 
 
 def wire_limit_hz(n_goals: int, n_read: int, baud: int, return_delay_us: float = 0.0) -> tuple[float, int]:
@@ -61,6 +67,7 @@ def run(quick: bool = False) -> Iterator[Figure]:
     from servoface.hardware.driver import Driver
     from servoface.hardware.emulator import ServoChain
     from servoface.hardware.servo_config import ServoSpec
+    from servoface.hardware.stock_loop import StockSdkLoop
     from servoface.sim.heads import load_head
 
     head = load_head(HEAD)
@@ -77,6 +84,7 @@ def run(quick: bool = False) -> Iterator[Figure]:
     for s in specs:
         chain.servo(s.servo_id).move_by_hand(cal.by_id(s.servo_id).neutral_tick)
     bus = open_bus("dynamixel", port=chain, baud=BAUD)
+    stock_bus = open_bus("dynamixel", port=chain, baud=BAUD)
     t0 = time.perf_counter()
     try:
         driver = Driver(bus, all_specs)
@@ -87,16 +95,32 @@ def run(quick: bool = False) -> Iterator[Figure]:
         pipeline.pin_to({sid: p for sid, p in snapshot.positions_tick().items() if sid in cal.ids})
         pipeline.last_snapshot = snapshot
         open_s = time.perf_counter() - t0
+        stock = StockSdkLoop(stock_bus, [s.servo_id for s in specs], [s.servo_id for s in all_specs])
         script = load_script(SCRIPTS_DIR / "human_performance.toml")
-        n_frames = 40 if quick else 400
-        frames = [script.sample((k % int(script.end_s * RATE_HZ)) / RATE_HZ) for k in range(n_frames + 5)]
-        for frame in frames[:5]:  # warm caches (first solves, first reads)
-            pipeline.step(frame)
+        n_loop = int(script.end_s * RATE_HZ)
+        frames = [script.sample(k / RATE_HZ) for k in range(n_loop)]
+        traces: dict[str, list[FrameTrace]] = {PLAIN: [], AHEAD: []}
+        at = [0]  # one motion through every window, whoever steps it
+
+        def plain(_: int) -> None:
+            traces[PLAIN].append(pipeline.step(frames[at[0] % n_loop]))
+            at[0] += 1
+
+        def ahead(_: int) -> None:
+            k = at[0]
+            traces[AHEAD].append(pipeline.step(frames[k % n_loop], next_frame=frames[(k + 1) % n_loop]))
+            at[0] += 1
+
+        def reference(_: int) -> None:  # the goals the pipeline last sent: the head does not move
+            stock.cycle(pipeline.last_goals_tick)
+
+        for k in range(5):  # warm caches (first solves, first reads)
+            plain(k)
+        traces[PLAIN].clear()
         stats0 = bus.stats.copy()
-        traces = []
+        rounds, window_s = (3, 0.15) if quick else (16, 0.25)
         cpu0, wall0 = time.process_time(), time.perf_counter()
-        for frame in frames[5:]:
-            traces.append(pipeline.step(frame))
+        windows = interleaved({STOCK: reference, PLAIN: plain, AHEAD: ahead}, STOCK, rounds, window_s, warm=0)
         wall_s = time.perf_counter() - wall0
         cpu_share = (time.process_time() - cpu0) / wall_s
         stats = bus.stats
@@ -104,27 +128,62 @@ def run(quick: bool = False) -> Iterator[Figure]:
         bytes_written = stats.bytes_written - stats0.bytes_written
     finally:
         bus.close()
+        stock_bus.close()
         chain.close()
-
-    stage = {name: _median([t.timings_ms[name] for t in traces]) for name in STAGES}
+    load = load_text()
     limit_hz, limit_bytes = wire_limit_hz(n_head, n_all, BAUD, RETURN_DELAY_US)
     wire_ms = 1e3 / limit_hz
-    verdicts = {k: sum(t.verdict == k for t in traces) for k in ("accept", "clip", "reject")}
     tag = f"{HEAD} {n_head} servos + {N_SPARE} spare @{BAUD // 1_000_000}M"
+    all_traces = traces[PLAIN] + traces[AHEAD]
+    verdicts = {k: sum(t.verdict == k for t in all_traces) for k in ("accept", "clip", "reject")}
+    used = sum("ahead_ms" in t.timings_ms for t in traces[AHEAD])
+    for name in (STOCK, PLAIN, AHEAD):
+        st = windows[name]
+        unit = "cycles/s" if name == STOCK else "frames/s"
+        extra = ""
+        if name == AHEAD:
+            extra = (f"; the next frame's speculative gate verdict was used on {used} of {len(traces[AHEAD])} "
+                     "frames (else checked afresh)")  # fmt: skip
+        yield Figure(
+            f"{name}, {tag}",
+            st.median,
+            unit,
+            limit=limit_hz,
+            goal_ratio=0.9 if name == AHEAD else None,
+            note=f"median of {rounds} interleaved {window_s:g} s windows (best {st.best:.1f}/s = ratio "
+            f"{st.best / limit_hz:.3f}); x{st.median_ratio:.3f} the stock SDK loop in the same rounds; wire "
+            f"limit = sync write {n_head} goals + sync read {n_all} positions = {limit_bytes} B x 10 bit / "
+            f"{BAUD} bps = {wire_ms:.3f} ms{extra}; verdicts {verdicts}; host bytes written "
+            f"{bytes_written / max(1, len(all_traces)):.0f}/frame; timeouts {timeouts}, corrupt {corrupt}; "
+            f"on-CPU share {cpu_share:.2f}; {load}",
+        )
+        if name != STOCK:
+            yield Figure(
+                f"{name} vs stock SDK loop, {tag}",
+                st.median_ratio,
+                "x SDK loop",
+                limit=1.0,
+                goal_ratio=0.9 if name == AHEAD else None,
+                note=f"frames/s over the stock SDK loop's cycles/s (same traffic: {n_head} goals written, "
+                f"{n_all} positions read), median of {rounds} per-round ratios; best round "
+                f"x{max(st.ratios, default=0):.3f}; {load}",
+            )
+    yield from _stage_figures(traces, wire_ms)
     yield Figure(
-        f"pipeline frames/s, {tag}",
-        1e3 / stage["total_ms"],
-        "frames/s",
-        limit=limit_hz,
-        goal_ratio=0.9,
-        note=f"1 / median frame time of {len(traces)} frames (mean {len(traces) / wall_s:.1f}/s); wire "
-        f"limit = sync write {n_head} goals + sync read {n_all} positions = {limit_bytes} B x 10 bit "
-        f"/ {BAUD} bps = {wire_ms:.3f} ms; verdicts {verdicts}; host bytes written "
-        f"{bytes_written / len(traces):.0f}/frame; timeouts {timeouts}, corrupt {corrupt}; on-CPU share "
-        f"{cpu_share:.2f} (under 1: the machine was busy)",
+        "pipeline open (configure + torque on + gate build)",
+        open_s * 1e3,
+        "ms",
+        better="lower",
+        note=f"Driver.configure/torque_on of {n_all} servos + Pipeline (TwinGate: TSS tables from the cache)",
     )
+    yield from cpu_budget_figures(quick)
+
+
+def _stage_figures(traces: dict[str, list[FrameTrace]], wire_ms: float) -> Iterator[Figure]:
+    plain = traces[PLAIN]
+    stage = {name: _median([t.timings_ms[name] for t in plain]) for name in STAGES}
     yield Figure(
-        f"pipeline frame time vs the {RATE_HZ:g} Hz frame period, {tag}",
+        f"pipeline frame time vs the {RATE_HZ:g} Hz frame period ({PLAIN})",
         stage["total_ms"],
         "ms",
         limit=1e3 / RATE_HZ,
@@ -147,10 +206,24 @@ def run(quick: bool = False) -> Iterator[Figure]:
             "ms",
             limit=limits.get(name),
             better="lower",
-            note=f"{notes[name]}; median of {len(traces)} frames",
+            note=f"{notes[name]}; median of {len(plain)} plainly stepped frames (stages in series)",
+        )
+    ahead = traces[AHEAD]
+    if ahead:
+        serial = _median([t.timings_ms["total_ms"] for t in ahead])
+        overlapped = _median([t.timings_ms.get("ahead_ms", 0.0) for t in ahead])
+        yield Figure(
+            "pipeline frame time median, next frame computed during the wait",
+            serial,
+            "ms",
+            limit=wire_ms,
+            better="lower",
+            note=f"median Pipeline.step(next_frame=) wall time; median {overlapped:.3f} ms of muscle + "
+            f"calibration + gate per frame ran while the previous frame's replies were on the wire; "
+            f"median of {len(ahead)} frames",
         )
     for label, kinds in (("accepted", ("accept",)), ("clipped or rejected", ("clip", "reject"))):
-        gate_ms = [t.timings_ms["gate_ms"] for t in traces if t.verdict in kinds]
+        gate_ms = [t.timings_ms["gate_ms"] for t in plain + ahead if t.verdict in kinds]
         if gate_ms:
             yield Figure(
                 f"pipeline gate median, {label} frames",
@@ -161,11 +234,3 @@ def run(quick: bool = False) -> Iterator[Figure]:
                 note=f"TwinGate.check on the {len(gate_ms)} {label} frames (a failing request is scaled "
                 "back: several candidate commands re-checked)",
             )
-    yield Figure(
-        "pipeline open (configure + torque on + gate build)",
-        open_s * 1e3,
-        "ms",
-        better="lower",
-        note="Driver.configure/torque_on of 24 servos + Pipeline (TwinGate: TSS tables from the cache, "
-        "~6 s to build cold)",
-    )

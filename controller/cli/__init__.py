@@ -25,6 +25,9 @@ COMMANDS: dict[str, str] = {
     "scan": "servoface.controller.cli.scan",
     "bench": "servoface.controller.cli.bench",
     "list": "servoface.controller.cli.list",
+    "new": "servoface.controller.cli.new",
+    "say": "servoface.controller.cli.say",
+    "lipsync": "servoface.controller.cli.lipsync",
 }
 
 

@@ -296,6 +296,7 @@ def _run(args: argparse.Namespace) -> int:
         print(f"servoface calibrate: {err}", file=sys.stderr)
         return 1
     _report(result)
+    print(f"next: servoface check {args.head}")
     return 0
 
 

@@ -1,39 +1,140 @@
-"""`servoface check HEAD`: validate a head profile and its calibration; print the servos, limits, ranges."""
+"""`servoface check HEAD`: validate a head profile and its calibration, and report what the head can express.
+
+Prints the servos (limits, ranges), then the gaps a builder must fix (each with the command that fixes
+it: a missing calibration, a role it lacks, a servo model or id that differs from the profile), warnings
+(an implausible size: a mesh in metres), and what the head can express: per AU and per library
+expression, how much of the muscle-model target the servos' achievable face shows (landmark error in mm)
+and the AUs it cannot show at all, with the reason.
+"""
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
+from typing import Any
 
-HELP = "validate a head profile and its calibration; print a table of servos, limits and ranges"
+HELP = "validate a head profile and its calibration; report servos, limits and what the head can express"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("head", help="built-in head (human, dog) or a profile folder")
     parser.add_argument("--calibration", type=Path, help="calibration JSON (default: the one the profile names)")
+    parser.add_argument("--json", type=Path, metavar="FILE", help="also write the expressiveness report as JSON")
+    parser.add_argument("--no-report", action="store_true", help="validation only, skip the expressiveness report")
+
+
+def _cal_hint(head_arg: str, roles: list[str] | None = None) -> str:
+    roles_part = f" --roles {','.join(roles)}" if roles else ""
+    template = Path(head_arg) / "calibration_template.csv"
+    csv = str(template) if template.is_file() else "measured.csv"
+    return (
+        f"run `servoface calibrate --head {head_arg}{roles_part} --port /dev/ttyUSB0` (on the head), "
+        f"or `--csv {csv}` (role,target,tick rows you measured)"
+    )
+
+
+def _calibration_gaps(head: Any, cal: Any, head_arg: str) -> list[str]:
+    """Roles, ids and servo models where the calibration and the profile disagree (each with its fix)."""
+    from servoface.controller.head_servos import driver_model_name
+
+    problems = []
+    missing = [a.role for a in head.actuators if a.role not in cal.roles]
+    if missing:
+        names = ", ".join(repr(r) for r in missing)
+        problems.append(f"calibration has no servo for role {names}: {_cal_hint(head_arg, missing)}")
+    extra = [r for r in cal.roles if r not in head.roles]
+    if extra:
+        problems.append(
+            f"calibration names role(s) {extra} the profile does not have: recalibrate "
+            f"(`servoface calibrate --head {head_arg} ...`) or add the actuators to head.toml"
+        )
+    for a in head.actuators:
+        if a.role not in cal.roles:
+            continue
+        c = cal[a.role]
+        if c.servo_id != a.servo.id:
+            problems.append(
+                f"{a.role}: servo id {a.servo.id} in head.toml but {c.servo_id} in the calibration: fix the id "
+                f"(`servoface scan --port ...` lists the ids) or {_cal_hint(head_arg, [a.role])}"
+            )
+        try:
+            same = driver_model_name(c.model) == driver_model_name(a.servo.model)
+        except KeyError:
+            same = c.model == a.servo.model
+        if not same:
+            problems.append(
+                f"{a.role}: servo model {a.servo.model} in head.toml but {c.model} in the calibration: "
+                f"fix the model in head.toml or {_cal_hint(head_arg, [a.role])}"
+            )
+    return problems
 
 
 def run(args: argparse.Namespace) -> int:
-    from servoface.calibration import CalibrationError
+    from servoface.calibration import CalibrationError, load_calibration
     from servoface.controller.errors import ControllerError
-    from servoface.controller.face import head_calibration
-    from servoface.controller.head_servos import servo_specs
     from servoface.sim.errors import SimError
     from servoface.sim.heads import load_head
+    from servoface.sim.heads.sizes import size_warnings
 
     try:
         head = load_head(args.head)
-        cal = head_calibration(head, args.calibration)
-        specs = servo_specs(head, cal)
-    except (SimError, CalibrationError, ControllerError) as err:
+    except (SimError, OSError) as err:
         print(f"servoface check: {err}", file=sys.stderr)
+        print("  next: fix head.toml at that key and run `servoface check` again", file=sys.stderr)
         return 1
     print(
         f"head {head.name!r} ({head.face_type}): {len(head.joints)} joints, {len(head.parts)} parts, "
-        f"{head.skin.vertices_mm.shape[0]} skin vertices, {len(head.muscles)} muscles, {len(specs)} servos"
+        f"{head.skin.vertices_mm.shape[0]} skin vertices{'' if head.has_skin else ' (mechanical: no skin)'}, "
+        f"{len(head.muscles)} muscles, {len(head.actuators)} servos"
     )
-    print(f"calibration: {head.calibration_path if args.calibration is None else args.calibration}")
+    for w in size_warnings(head):
+        print(f"warning: {w}")
+    problems: list[str] = []
+    cal_path = args.calibration if args.calibration is not None else head.calibration_path
+    cal = None
+    if cal_path is None or not Path(cal_path).is_file():
+        where = "head.toml names no calibration file" if cal_path is None else f"no calibration file {cal_path} yet"
+        problems.append(f"{where}: {_cal_hint(args.head)}")
+    else:
+        try:
+            cal = load_calibration(cal_path)
+        except (CalibrationError, OSError) as err:
+            problems.append(f"{err}: {_cal_hint(args.head)}")
+    if cal is not None:
+        print(f"calibration: {cal_path}")
+        problems += _calibration_gaps(head, cal, args.head)
+    if cal is not None and not problems:
+        problems += _servo_table(head, cal)
+    uncalibrated = cal is None
+    if (not problems or uncalibrated) and not args.no_report:
+        if uncalibrated:
+            print("\n(no calibration yet: the report below uses the profile's actuator ranges, without the twin gate)")
+        try:
+            _report(head, cal, args)
+        except (SimError, CalibrationError, ControllerError) as err:
+            problems.append(f"expressiveness report: {err}")
+    for p in problems:
+        print(f"problem: {p}")
+    if problems:
+        print(f"{len(problems)} problem(s); fix them and run `servoface check {args.head}` again")
+        return 1
+    print(f"ok: next `servoface preview --all --head {args.head} -o sheet.png`, then `servoface play happiness "
+          f"--head {args.head} --emulate` (or --port /dev/ttyUSB0)")  # fmt: skip
+    return 0
+
+
+def _servo_table(head: Any, cal: Any) -> list[str]:
+    from servoface.calibration import CalibrationError
+    from servoface.controller.head_servos import servo_specs
+    from servoface.sim.errors import SimError
+
+    problems: list[str] = []
+    try:
+        specs = servo_specs(head, cal)
+    except (SimError, CalibrationError) as err:
+        return [str(err)]
     header = f"{'id':>3} {'role':16} {'model':11} {'kind':6} {'target range':>20}"
     header += f" {'ticks min..max':>15} {'neutral':>7}"
     print(header)
@@ -46,12 +147,11 @@ def run(args: argparse.Namespace) -> int:
             f"{spec.servo_id:>3} {spec.role:16} {spec.model:11} {actuator.kind:6} {rng:>20} "
             f"{c.min_tick:>6}..{c.max_tick:<6}  {c.neutral_tick:>7}"
         )
-    problems = []
     try:
-        from servoface.sim.face_model import FaceModel
         from servoface.sim.gate import TwinGate
+        from servoface.sim.render.twin import face_model
 
-        face = FaceModel(head)
+        face = face_model(head)
         gate = TwinGate(head, cal, 0.02, face_model=face)
         neutral = cal.neutral_goals()
         verdict = gate.check(neutral, neutral)
@@ -61,11 +161,65 @@ def run(args: argparse.Namespace) -> int:
             if abs(target - cal[role].neutral_target) > cal[role].target_resolution():
                 problems.append(
                     f"{role}: the muscle model's neutral {target:.2f} differs from the calibrated "
-                    f"neutral {cal[role].neutral_target:.2f} {cal[role].unit}"
+                    f"neutral {cal[role].neutral_target:.2f} {cal[role].unit}: set neutral_deg/neutral_mm in "
+                    f"head.toml or recalibrate the role"
                 )
     except (SimError, CalibrationError) as err:
         problems.append(str(err))
-    for p in problems:
-        print(f"problem: {p}")
-    print("ok" if not problems else f"{len(problems)} problem(s)")
-    return 0 if not problems else 1
+    return problems
+
+
+def _report(head: Any, cal: Any, args: argparse.Namespace) -> None:
+    from servoface.sim.achievable import AchievableFace
+    from servoface.sim.expressions import load_library
+    from servoface.sim.expressiveness import Expressiveness
+
+    report = Expressiveness(AchievableFace(head, cal))
+    aus = report.au_scores()
+    library = load_library(head.expressions_path or head.face_type)
+    exprs = report.expression_scores({k: v for k, v in library.items() if k != "neutral"})
+    cannot = [s for s in aus if s.cannot_show]
+    cannot_numbers = {s.name for s in cannot}
+    shown = [s for s in aus if not s.cannot_show]
+    print(
+        f"\nwhat this head can express (the servos' achievable face vs the muscle-model target, {len(aus)} AU cases):"
+    )
+    print(f"  {'AU':7} {'shown':>6} {'max err':>8} {'moves':>7}  notes")
+    for s in shown:
+        note = "; ".join(s.reasons) if s.shown < 0.9 else ""
+        print(f"  {s.name:7} {s.shown:6.0%} {s.max_error_mm:6.1f}mm {s.achieved_motion_mm:5.1f}mm  {note}")
+    print(f"cannot show ({len(cannot)}): {', '.join(s.name for s in cannot) or 'none'}")
+    for s in cannot:
+        print(f"  {s.name:7} {'; '.join(s.reasons) or 'moves nothing'}")
+    print(f"library expressions ({len(exprs)}):")
+    rows = []
+    for s in exprs:
+        expr_aus = sorted({_au_key(k) for k in _apex(library[s.name])} & cannot_numbers, key=_au_order)
+        lost = f"; without {', '.join(expr_aus)}" if expr_aus else ""
+        print(f"  {s.name:12} {s.shown:6.0%} {s.max_error_mm:6.1f}mm{lost}")
+        rows.append({**s.as_dict(), "aus_it_cannot_show": expr_aus})
+    if args.json is not None:
+        data = {
+            "head": head.name,
+            "aus": [s.as_dict() for s in aus],
+            "cannot_show": [s.name for s in cannot],
+            "expressions": rows,
+        }
+        args.json.write_text(json.dumps(data, indent=2) + "\n")
+        print(f"wrote {args.json}")
+
+
+def _apex(expression: Any) -> dict[str, float]:
+    from servoface.sim.render.clips import apex_aus
+
+    return dict(apex_aus(expression))
+
+
+def _au_key(name: str) -> str:
+    from servoface.sim.au.mapping import canonical_au_name
+
+    return f"AU{canonical_au_name(name)[0]}"
+
+
+def _au_order(name: str) -> int:
+    return int(name[2:].rstrip("-L"))

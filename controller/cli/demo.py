@@ -1,4 +1,5 @@
-"""`servoface demo [--out DIR] [--head human|dog]`: the built-in head on the emulated chain, end to end."""
+"""`servoface demo [--out DIR] [--head human|dog|PATH] [--show achievable|target|both]`: a head on the
+emulated chain, end to end (a profile folder plays its expression library)."""
 
 from __future__ import annotations
 
@@ -6,12 +7,18 @@ import argparse
 import sys
 from pathlib import Path
 
-HELP = "play the built-in performance on the emulated chain; write twin video, contact sheet, report.json"
+HELP = "play a head's performance on the emulated chain; write twin video, contact sheet, report.json"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder (default out/demo)")
-    parser.add_argument("--head", choices=["human", "dog"], default="human", help="built-in head (default human)")
+    parser.add_argument("--head", default="human", help="built-in head (human, dog; default human) or a profile folder")
+    parser.add_argument(
+        "--show",
+        choices=["achievable", "target", "both"],
+        default="achievable",
+        help="what the video and sheet draw: the face the servos make (default), the muscle target, or both",
+    )
     parser.add_argument("--format", choices=["mp4", "gif"], default="mp4", help="twin video format (default mp4)")
     parser.add_argument("--baud", type=int, default=1_000_000, help="emulated bus speed (default 1000000)")
     parser.add_argument("--rate", type=float, default=50.0, help="control rate in Hz (default 50)")
@@ -35,14 +42,25 @@ def run(args: argparse.Namespace) -> int:
         print(f"servoface demo: --out {args.out}: {describe_os_error(err)}", file=sys.stderr)
         return 1
     head = args.head
-    out = run_demo(
-        args.out,
-        head=head,
-        video_format=args.format,
-        baud=args.baud,
-        rate_hz=args.rate,
-        progress=lambda msg: print(f"servoface demo: {msg}", file=sys.stderr, flush=True),
-    )
+    from servoface.calibration import CalibrationError
+    from servoface.controller.errors import ControllerError
+    from servoface.hardware.errors import HardwareError
+    from servoface.sim.errors import SimError
+
+    try:
+        out = run_demo(
+            args.out,
+            head=head,
+            video_format=args.format,
+            baud=args.baud,
+            rate_hz=args.rate,
+            progress=lambda msg: print(f"servoface demo: {msg}", file=sys.stderr, flush=True),
+            show=args.show,
+        )
+    except (SimError, CalibrationError, ControllerError, HardwareError) as err:
+        print(f"servoface demo: --head {head}: {err}", file=sys.stderr)
+        print(f"  next: `servoface check {head}` names what to fix", file=sys.stderr)
+        return 1
     r = out.report_data
     loop = r["loop"]
     print(

@@ -1,6 +1,12 @@
-"""`servoface emulate --ids 1-24 --model XL330-M288 --baud 1000000 [--no-wire-time]`: serve an emulated chain.
+"""`servoface emulate`: serve an emulated chain on a pseudo-terminal (prints its path first).
+
+    servoface emulate --head human                        # exactly the head's servos (ids, models), at rest
+    servoface emulate --servos 1-17:XL330-M288,18-21:XL430-W250
+    servoface emulate --ids 1-24 --model XL330-M288 --baud 1000000 [--no-wire-time] [--realism]
+    servoface emulate --head dog --fault 3:no_reply@2s+0.5s --fault 5:overload@10s
 
 Prints the pseudo-terminal path as the first line of output, then serves until Ctrl-C or SIGTERM (exit 0).
+Fault times count from when serving starts.
 """
 
 from __future__ import annotations
@@ -14,64 +20,50 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
+from servoface.controller.cli.emulate_args import FaultSpec, parse_fault, parse_ids, parse_servos
+
 HELP = "serve an emulated Dynamixel chain on a pseudo-terminal (prints its path first)"
+__all__ = ["HELP", "add_arguments", "parse_ids", "run"]
 
 
-def parse_ids(text: str) -> list[int]:
-    """``"1-4,7,10-12"`` -> [1, 2, 3, 4, 7, 10, 11, 12]; raises ValueError naming the bad part."""
-    ids: list[int] = []
-    for part in text.split(","):
-        part = part.strip()
-        if not part:
-            raise ValueError(f"empty element in id list {text!r}")
-        if "-" in part:
-            lo_text, _, hi_text = part.partition("-")
-            try:
-                lo, hi = int(lo_text), int(hi_text)
-            except ValueError:
-                raise ValueError(f"id range {part!r}: expected two integers like 1-24") from None
-            if lo > hi:
-                raise ValueError(f"id range {part!r}: start must not exceed end")
-            ids.extend(range(lo, hi + 1))
-        else:
-            try:
-                ids.append(int(part))
-            except ValueError:
-                raise ValueError(f"id {part!r}: expected an integer or a range like 1-24") from None
-    bad = [i for i in ids if not 0 <= i <= 252]
-    if bad:
-        raise ValueError(f"ids {bad}: expected 0..252")
-    if len(set(ids)) != len(ids):
-        raise ValueError(f"id list {text!r} names some id twice")
-    return ids
+def _typed(parse: Any) -> Any:
+    def convert(text: str) -> Any:
+        try:
+            return parse(text)
+        except ValueError as err:
+            raise argparse.ArgumentTypeError(str(err)) from None
 
-
-def _ids_type(text: str) -> list[int]:
-    try:
-        return parse_ids(text)
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
+    return convert
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--ids",
-        type=_ids_type,
-        default=parse_ids("1-24"),
-        help="servo ids: ranges and lists, e.g. 1-4,7,10-12 (default 1-24)",
+    chain = parser.add_mutually_exclusive_group()
+    chain.add_argument("--head", help="serve exactly this head's servos: a built-in name (human, dog) or a profile")
+    chain.add_argument(
+        "--servos",
+        type=_typed(parse_servos),
+        help="a mixed chain: IDS:MODEL groups, e.g. 1-17:XL330-M288,18-21:XL430-W250",
     )
+    chain.add_argument("--ids", type=_typed(parse_ids), help="servo ids of one model: e.g. 1-4,7,10-12 (default 1-24)")
     parser.add_argument(
         "--model",
-        default="XL330-M288",
-        help="servo model: XL330-M288, XL430-W250, XM430-W350 or MX-28(2.0) (default XL330-M288)",
+        default=None,
+        help="model for --ids: XL330-M288 (default), XL430-W250, XM430-W350 or MX-28(2.0)",
     )
     parser.add_argument("--baud", type=int, default=1_000_000, help="bus baud rate in bps (default 1000000)")
     parser.add_argument("--no-wire-time", action="store_true", help="answer at once instead of at wire speed")
     parser.add_argument(
-        "--head",
-        help="emulate this head's chain instead (built-in name or profile folder): its ids and models, each "
-        "servo at rest at its calibration's neutral tick (overrides --ids/--model)",
+        "--fault",
+        action="append",
+        default=[],
+        type=_typed(parse_fault),
+        metavar="ID:KIND[@START[+DURATION]]",
+        help="script a fault (repeatable), e.g. 3:no_reply@2s+0.5s, 5:late_reply=20ms@1s, 2:overload@3s",
     )
+    parser.add_argument(
+        "--realism", action="store_true", help="non-ideal servos: backlash, settling error and lag, encoder noise"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="random seed of --realism's noise (default 0)")
     parser.add_argument(
         "--fault-on-signal",
         action="append",
@@ -111,62 +103,112 @@ def chain_state(chain: Any) -> dict[str, Any]:
     }
 
 
-def _parse_fault(text: str) -> tuple[int, str, float]:
-    parts = text.split(":")
-    if len(parts) not in (2, 3):
-        raise ValueError(f"{text!r}: expected ID:KIND or ID:KIND:DELAY_S")
-    try:
-        sid = int(parts[0])
-        delay = float(parts[2]) if len(parts) == 3 else 0.010
-    except ValueError:
-        raise ValueError(f"{text!r}: ID must be an integer and DELAY_S a number") from None
-    from servoface.hardware.emulator.faults import KINDS
-
-    if parts[1] not in KINDS:
-        raise ValueError(f"{text!r}: unknown fault {parts[1]!r}; expected one of {sorted(KINDS)}")
-    return sid, parts[1], delay
-
-
-def _head_chain(args: argparse.Namespace) -> tuple[Any, dict[int, int]]:
-    from servoface.controller.face import head_calibration
-    from servoface.controller.head_servos import servo_specs
-    from servoface.hardware.emulator import ServoChain
-    from servoface.sim.heads import load_head
-
-    head = load_head(args.head)
-    cal = head_calibration(head)
-    specs = servo_specs(head, cal)
-    chain = ServoChain.create([(s.servo_id, s.model) for s in specs], baud=args.baud, wire_time=not args.no_wire_time)
-    return chain, {s.servo_id: cal.by_id(s.servo_id).neutral_tick for s in specs}
-
-
 def write_state(chain: Any, path: Path) -> None:
     from servoface.calibration.fileformat import write_atomic
 
     write_atomic(path, json.dumps(chain_state(chain)))
 
 
+def _parse_signal_fault(text: str) -> tuple[int, str, float]:
+    parts = text.split(":")
+    if len(parts) not in (2, 3):
+        raise ValueError(f"--fault-on-signal {text!r}: expected ID:KIND or ID:KIND:DELAY_S")
+    try:
+        sid = int(parts[0])
+        delay = float(parts[2]) if len(parts) == 3 else 0.010
+    except ValueError:
+        raise ValueError(f"--fault-on-signal {text!r}: ID must be an integer and DELAY_S a number") from None
+    from servoface.hardware.emulator.faults import KINDS
+
+    if parts[1] not in KINDS:
+        raise ValueError(f"--fault-on-signal {text!r}: unknown fault {parts[1]!r}; expected one of {sorted(KINDS)}")
+    return sid, parts[1], delay
+
+
+def _head_chain(name: str) -> tuple[list[tuple[int, str]], dict[int, int]]:
+    """(id, model) of every servo of head ``name`` and, if it has a calibration, its neutral ticks."""
+    from servoface.controller.face import head_calibration
+    from servoface.controller.head_servos import driver_model_name
+    from servoface.sim.heads import load_head
+
+    head = load_head(name)
+    pairs = [(a.servo.id, driver_model_name(a.servo.model)) for a in head.actuators]
+    neutral: dict[int, int] = {}
+    if head.calibration_path is not None:
+        cal = head_calibration(head)
+        neutral = {sid: cal.by_id(sid).neutral_tick for sid, _ in pairs if sid in cal.ids}
+    return pairs, neutral
+
+
+def _chain_description(args: argparse.Namespace) -> tuple[list[tuple[int, str]], dict[int, int], str]:
+    if args.model is not None and args.ids is None:
+        raise ValueError("--model goes with --ids (--servos and --head name each servo's model)")
+    if args.head is not None:
+        pairs, neutral = _head_chain(args.head)
+        return pairs, neutral, f"head {args.head!r}"
+    if args.servos is not None:
+        return args.servos, {}, "chain"
+    ids = args.ids if args.ids is not None else parse_ids("1-24")
+    model = args.model or "XL330-M288"
+    return [(sid, model) for sid in ids], {}, "chain"
+
+
+def _summary(pairs: list[tuple[int, str]]) -> str:
+    groups: list[tuple[str, list[int]]] = []
+    for sid, model in pairs:
+        if groups and groups[-1][0] == model:
+            groups[-1][1].append(sid)
+        else:
+            groups.append((model, [sid]))
+    parts = [f"{len(ids)} x {model} ({'ids' if len(ids) > 1 else 'id'} {_ranges(ids)})" for model, ids in groups]
+    return ", ".join(parts)
+
+
+def _ranges(ids: list[int]) -> str:
+    out: list[str] = []
+    start = prev = ids[0]
+    for sid in [*ids[1:], None]:
+        if sid is not None and sid == prev + 1:
+            prev = sid
+            continue
+        out.append(str(start) if start == prev else f"{start}-{prev}")
+        if sid is not None:
+            start = prev = sid
+    return ",".join(out)
+
+
+def _inject(chain: Any, faults: list[FaultSpec]) -> None:
+    now = chain.time_s
+    for f in faults:
+        options: dict[str, Any] = {"start_s": now + f.start_s, "duration_s": f.duration_s}
+        if f.value is not None:
+            options["delay_s" if f.kind == "late_reply" else "drop_bytes"] = (
+                f.value if f.kind == "late_reply" else int(f.value)
+            )
+        chain.faults.inject(f.servo_id, f.kind, **options)
+
+
 def run(args: argparse.Namespace) -> int:
-    from servoface.hardware.emulator import EmulatorError, ServoChain
+    from servoface.controller.errors import ControllerError
+    from servoface.hardware.emulator import FAULT_KINDS, EmulatorError, ServoChain
+    from servoface.sim.errors import SimError
 
     try:
-        faults = [_parse_fault(text) for text in args.fault_on_signal]
-    except ValueError as err:
-        print(f"servoface emulate: --fault-on-signal: {err}", file=sys.stderr)
-        return 2
-    try:
-        if args.head is not None:
-            chain, rest = _head_chain(args)
-        else:
-            chain = ServoChain.create(ids=args.ids, model=args.model, baud=args.baud, wire_time=not args.no_wire_time)
-            rest = {}
-        for sid, tick in rest.items():
+        pairs, neutral, what = _chain_description(args)
+        for f in args.fault:
+            parse_fault(f"{f.servo_id}:{f.kind}", FAULT_KINDS)  # the kind, checked against the emulator's list
+        chain = ServoChain.create(
+            ids=pairs,
+            baud=args.baud,
+            wire_time=not args.no_wire_time,
+            realism={"seed": args.seed} if args.realism else None,
+        )
+        for sid, tick in neutral.items():  # the head powers up at rest, as Face.open(emulate=True) does
             chain.servo(sid).move_by_hand(tick)
-    except EmulatorError as err:
+        _inject(chain, args.fault)
+        on_signal_faults = [_parse_signal_fault(text) for text in args.fault_on_signal]
+    except (ValueError, EmulatorError, SimError, ControllerError, OSError) as err:
         print(f"servoface emulate: {err}", file=sys.stderr)
-        return 2
-    except Exception as err:  # noqa: BLE001 - a bad head profile or calibration: reported, no traceback
-        print(f"servoface emulate: --head {args.head}: {err}", file=sys.stderr)
         return 2
     stop = threading.Event()
 
@@ -174,7 +216,7 @@ def run(args: argparse.Namespace) -> int:
         stop.set()
 
     def on_fault_signal(signum: int, frame: FrameType | None) -> None:
-        for sid, kind, delay in faults:
+        for sid, kind, delay in on_signal_faults:
             chain.faults.inject_now(sid, kind, delay_s=delay)
 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
@@ -187,10 +229,11 @@ def run(args: argparse.Namespace) -> int:
                 print(f"servoface emulate: {err}", file=sys.stderr)
                 return 1
             print(path, flush=True)
+            extras = [" (no wire time)" if args.no_wire_time else "", " with realism" if args.realism else ""]
+            faults = f"; {len(args.fault)} scripted fault(s)" if args.fault else ""
             print(
-                f"# serving {len(chain.ids)} x {args.model if args.head is None else 'servos of ' + args.head} "
-                f"at {args.baud} bps"
-                f"{' (no wire time)' if args.no_wire_time else ''}; Ctrl-C to stop",
+                f"# serving {what}: {_summary(pairs)} at {args.baud} bps{''.join(extras)}{faults}; "
+                f"pty thread {chain.pty_priority}; Ctrl-C to stop",
                 file=sys.stderr,
                 flush=True,
             )

@@ -16,6 +16,7 @@ from servoface.controller.cli.head_args import (
     print_stop,
     rate_problem,
 )
+from servoface.controller.cli.input_args import add_input_arguments, input_problem, read_options
 from servoface.controller.cli.terminal import printable
 from servoface.controller.stop_signals import StopSignals
 
@@ -36,9 +37,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "ARKit/MediaPipe blendshape CSV or JSON lines, MPEG-4 .fap) or a shipped sample "
         "(sample:openface_smile, see `servoface list samples`); see README 'Inputs'",
     )
-    parser.add_argument("--mirror", action="store_true", help="with --input: imitate a person facing the robot")
+    add_input_arguments(parser)
     add_head_arguments(parser)
-    parser.add_argument("--hold", type=float, default=1.5, help="seconds to hold an expression's apex (default 1.5)")
+    parser.add_argument(
+        "--hold",
+        type=float,
+        default=None,
+        help="seconds to hold an expression's apex, or the last frame of --input (default 1.5; 0 after a "
+        "recording of several rows, 1.5 for a one-row still)",
+    )
     parser.add_argument(
         "--duration",
         type=float,
@@ -51,7 +58,10 @@ def run(args: argparse.Namespace) -> int:
     if (problem := rate_problem(args)) is not None:
         print(f"servoface play: {problem}", file=sys.stderr)
         return 2
-    if not (args.hold >= 0):
+    if (problem := input_problem(args)) is not None:
+        print(f"servoface play: {problem}", file=sys.stderr)
+        return 2
+    if args.hold is not None and not (args.hold >= 0):
         print(f"servoface play: --hold must be >= 0 s, got {args.hold}", file=sys.stderr)
         return 2
     if args.duration is not None and not (0 < args.duration < 1e6):
@@ -88,7 +98,8 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
             if args.input is not None:
                 from servoface.controller.inputs import load_recording
 
-                recording = load_recording(args.input, head.face_type, mirror=args.mirror)
+                recording = load_recording(args.input, head.face_type, options=read_options(args))
+                print("\n".join(recording.report.lines()))
             elif is_script:
                 what = load_script(args.what)
             else:
@@ -121,17 +132,19 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
         if recording is not None:
             from servoface.controller.performance import play_timeline
 
+            hold_s = args.hold if args.hold is not None else (1.5 if len(recording) == 1 else 0.0)
+            length_s = recording.duration_s + hold_s
             perf = play_timeline(
                 face.pipeline,
                 recording,
-                recording.duration_s if args.duration is None else min(recording.duration_s, args.duration),
+                length_s if args.duration is None else min(length_s, args.duration),
                 on_frame=face.traces.append,
                 stop_on_interrupt=True,
             )
         elif is_script:
             perf = face.play(what, duration_s=args.duration)
         else:
-            perf = face.express(args.what, hold_s=args.hold)
+            perf = face.express(args.what, hold_s=1.5 if args.hold is None else args.hold)
     except (ControllerError, SimError, ValueError) as err:
         print(f"servoface play: {printable(err)}", file=sys.stderr)
         code, reason = 2, f"error: {type(err).__name__}"
@@ -150,6 +163,7 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
         written = trace_file.finish()
     if perf is not None:
         _summary(args, perf)
+        _say_unshown(face, perf, args.head)
         if perf.bus_failure is not None:
             failed = True
             print(f"servoface play: stopped early: {perf.bus_failure}", file=sys.stderr)
@@ -174,3 +188,16 @@ def _summary(args: argparse.Namespace, perf: Any) -> None:
             reasons[key] = reasons.get(key, 0) + 1
     for reason, count in sorted(reasons.items(), key=lambda kv: -kv[1])[:12]:
         print(f"  {count:5d} x {printable(reason)}")
+
+
+def _say_unshown(face: object, perf: object, head_arg: str) -> None:
+    """Name the AUs of what was played that move nothing on this head (the preview shows the same)."""
+    from servoface.sim.au.mapping import canonical_au_name
+
+    model = face.pipeline.face  # type: ignore[attr-defined]
+    unreachable = getattr(model, "unreachable", {})
+    played = {canonical_au_name(au)[0] for t in perf.traces for au, v in t.aus.items() if abs(v) > 1e-6}  # type: ignore[attr-defined]
+    lost = sorted(played & set(unreachable))
+    if lost:
+        names = ", ".join(f"AU{n}" for n in lost)
+        print(f"  this head cannot show {names} (they move nothing here): `servoface check {head_arg}` says why")

@@ -33,10 +33,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         choices=["front", "three-quarter", "side"],
         help="camera (default: front for a human head, three-quarter for a dog)",
     )
-    parser.add_argument("--duration", type=float, default=2.0, help="clip length in seconds (default 2.0)")
+    parser.add_argument(
+        "--input",
+        type=Path,
+        help="instead of EXPR: a recorded tracker file (as `play --input`): a still of its most expressive "
+        "frame (or --at S), or a clip of it",
+    )
+    parser.add_argument("--at", type=float, default=None, help="with --input and a still: the time to show (s)")
+    parser.add_argument(
+        "--duration", type=float, default=None, help="clip length in seconds (default 2.0; --input: its length)"
+    )
     parser.add_argument("--fps", type=float, default=20.0, help="clip frame rate (default 20)")
     parser.add_argument("--columns", type=int, default=None, help="sheet columns with --all (default: about square)")
+    parser.add_argument(
+        "--show",
+        choices=["achievable", "target", "both"],
+        default="achievable",
+        help="achievable (default): the face the servos make (gated command posed by the twin); "
+        "target: the muscle model's wish; both: side by side",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    from servoface.controller.cli.input_args import add_input_arguments
+
+    add_input_arguments(parser, fps_flag="--input-fps")
 
 
 def _fail(message: str, code: int = 2) -> int:
@@ -46,8 +65,12 @@ def _fail(message: str, code: int = 2) -> int:
 
 def run(args: argparse.Namespace) -> int:
     # cheap checks first: nothing heavy is imported and nothing is written on bad input
-    if args.all == (args.expression is not None):
-        return _fail("give one expression name, or --all for the whole library")
+    if args.all + (args.expression is not None) + (args.input is not None) != 1:
+        return _fail("give one expression name, or --all for the whole library, or --input FILE")
+    from servoface.controller.cli.input_args import input_problem
+
+    if args.input is not None and (problem := input_problem(args)) is not None:
+        return _fail(problem)
     suffix = args.output.suffix.lower()
     allowed = STILL if args.all else STILL + CLIP
     if suffix not in allowed:
@@ -66,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
     if args.columns is not None and args.columns < 1:
         return _fail(f"--columns must be >= 1, got {args.columns}")
 
-    from servoface.sim.errors import ExpressionError, HeadProfileError, RenderError
+    from servoface.sim.errors import ExpressionError, HeadProfileError, RenderError, SimError
     from servoface.sim.render.renderer import parse_size
 
     try:
@@ -77,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
         from servoface.sim.render.video import there_and_back
 
         try:
-            there_and_back(args.duration, args.fps)
+            there_and_back(2.0 if args.duration is None else args.duration, args.fps)
         except ValueError as err:
             return _fail(str(err))
 
@@ -93,27 +116,75 @@ def run(args: argparse.Namespace) -> int:
         head = load_head(args.head)
     except (HeadProfileError, FileNotFoundError, KeyError, ValueError) as err:
         return _fail(f"--head {args.head!r}: {err}")
+    if args.input is not None:
+        from servoface.controller.cli.preview_input import preview_input
+
+        return preview_input(args, head, (width, height), suffix in CLIP)
     try:
         library = load_library(head.expressions_path or head.face_type)  # a profile may bring its own
         aus = None if args.all else pick_expression(library, args.expression)
     except ExpressionError as err:
         return _fail(str(err))
 
-    show = False if args.quiet else None
+    bar = False if args.quiet else None
     view = args.view or default_view(head.face_type)
+    twin = None
+    if args.show != "target":
+        from servoface.calibration import CalibrationError
+        from servoface.sim.achievable import AchievableFace
+
+        try:
+            twin = AchievableFace(head, frame_period_s=1.0 / args.fps if suffix in CLIP else 0.02)
+        except (SimError, CalibrationError) as err:
+            return _fail(f"{err}\n  next: `servoface check {args.head}` names what to fix", code=1)
+        if twin.note:
+            print(f"servoface preview: note: {twin.note}", file=sys.stderr)
+    shown_as = {"achievable": "what the servos make", "target": "muscle-model target", "both": "target | servos"}
     try:
         with HeadRenderer(width, height, view=view) as renderer:
             if args.all:
-                sheet, names = library_sheet(renderer, head, library, args.columns, show_progress=show)
+                sheet, names = library_sheet(
+                    renderer, head, library, args.columns, show_progress=bar, show=args.show, achievable=twin
+                )
                 save_image(sheet, args.output)
-                print(f"wrote {args.output}: {len(names)} expressions of {head.name!r}: {', '.join(names)}")
+                print(
+                    f"wrote {args.output}: {len(names)} expressions of {head.name!r} ({shown_as[args.show]}): "
+                    f"{', '.join(names)}"
+                )
             elif suffix in CLIP:
-                frames = clip_frames(renderer, head, aus or {}, args.duration, args.fps, show_progress=show)
+                duration_s = 2.0 if args.duration is None else args.duration
+                frames = clip_frames(
+                    renderer, head, aus or {}, duration_s, args.fps, show_progress=bar, show=args.show,
+                    achievable=twin,
+                )  # fmt: skip
                 count = WRITERS[suffix](frames, args.output, args.fps)
-                print(f"wrote {args.output}: {count} frames at {args.fps:g} fps ({args.expression})")
+                print(
+                    f"wrote {args.output}: {count} frames at {args.fps:g} fps "
+                    f"({args.expression}, {shown_as[args.show]})"
+                )
             else:
-                save_image(render_aus(renderer, head, aus or {}), args.output)
-                print(f"wrote {args.output}: {args.expression} at apex on {head.name} ({width}x{height})")
+                save_image(render_aus(renderer, head, aus or {}, show=args.show, achievable=twin), args.output)
+                print(
+                    f"wrote {args.output}: {args.expression} at apex on {head.name} ({width}x{height}, "
+                    f"{shown_as[args.show]})"
+                )
+                if twin is not None:
+                    _say_gap(twin, aus or {})
     except RenderError as err:
         return _fail(str(err), code=1)
+    except (HeadProfileError, ExpressionError) as err:
+        return _fail(f"{err}\n  next: `servoface check {args.head}` names what to fix", code=1)
+    except SimError as err:
+        return _fail(f"{err}\n  next: `servoface check {args.head}` names what to fix", code=1)
     return 0
+
+
+def _say_gap(twin: object, aus: dict[str, float]) -> None:
+    """One line on how far the servos fall short of the muscle model's targets (the honest part)."""
+    got = twin.still(aus)  # type: ignore[attr-defined]
+    gaps = sorted(((abs(got.wanted[r] - got.targets[r]), r) for r in got.targets), reverse=True)
+    short = [f"{r} {got.targets[r]:.1f} of {got.wanted[r]:.1f}" for g, r in gaps if g > 0.5][:4]
+    if short:
+        print(f"  the servos fall short of the muscle model: {', '.join(short)} (deg/mm); --show both compares")
+    if got.verdict not in ("accept", "ranges"):
+        print(f"  twin gate: {got.verdict}: {'; '.join(got.reasons[:2])}")

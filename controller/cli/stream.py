@@ -20,6 +20,7 @@ from servoface.controller.cli.head_args import (
     print_stop,
     rate_problem,
 )
+from servoface.controller.cli.input_args import add_input_arguments, input_problem, load_shape_ranges
 from servoface.controller.cli.terminal import printable
 from servoface.controller.stop_signals import StopSignals
 
@@ -32,10 +33,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     src.add_argument("--udp", metavar="[HOST:]PORT", help="JSON datagrams, e.g. 127.0.0.1:9100")
     src.add_argument("--tcp", metavar="[HOST:]PORT", help="a TCP server, one JSON object per line")
     src.add_argument("--stdin", action="store_true", help="one JSON object per line on standard input")
-    parser.add_argument("--allow-remote", action="store_true", help="allow binding a non-loopback address")
+    parser.add_argument(
+        "--allow-remote", action="store_true", help="allow binding a non-loopback address (needs a token)"
+    )
+    add_stream_guard_arguments(parser)
     parser.add_argument("--duration", type=float, help="seconds to follow (default: until Ctrl-C / end of stdin)")
-    parser.add_argument("--mirror", action="store_true", help="imitate a person facing the robot (swap L/R)")
-    parser.add_argument("--vergence", action="store_true", help="map eye look differences to AU65/66")
+    add_input_arguments(parser, files=False)
+    parser.add_argument(
+        "--arrival",
+        action="store_true",
+        help="with --stdin: feed each line as it arrives (default: paced by the messages' own t)",
+    )
     parser.add_argument("--dropout-ms", type=float, default=250.0, help="no data for this long = dropout (250)")
     parser.add_argument(
         "--dropout",
@@ -50,20 +58,54 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=0.0,
         help="sample this far in the past, interpolating (evens out jitter)",
     )
-    parser.add_argument("--min-confidence", type=float, default=0.0, help="ignore messages below this confidence")
-    parser.add_argument(
-        "--shape-ranges",
-        type=Path,
-        help="per-user blendshape rest/full ranges JSON (controller/inputs/shape_ranges.py)",
-    )
     parser.add_argument("--no-smoothing", action="store_true", help="switch the One-Euro filter off")
     parser.add_argument("--min-cutoff", type=float, default=1.5, help="One-Euro cutoff at rest, Hz (1.5)")
     parser.add_argument("--beta", type=float, default=0.5, help="One-Euro speed coefficient (0.5)")
     parser.add_argument(
         "--record",
         type=Path,
-        help="write every accepted message's AUs as JSON lines (replay: play --input FILE)",
+        help="write every accepted message's AUs as JSON lines, timed by the messages' own t "
+        "(replay: play --input FILE)",
     )
+
+
+def add_stream_guard_arguments(parser: argparse.ArgumentParser) -> None:
+    """Token, rate limit, TCP client limits and the control rule (controller/inputs/admission.py)."""
+    group = parser.add_argument_group("stream server", "who may drive the head (README 'Inputs')")
+    token = group.add_mutually_exclusive_group()
+    token.add_argument("--token-file", type=Path, help="shared token: the first line of this file")
+    token.add_argument("--token-env", metavar="VAR", help="shared token: the value of this environment variable")
+    group.add_argument("--max-rate", type=float, default=240.0, help="messages/s per client (default 240)")
+    group.add_argument("--burst", type=float, default=60.0, help="messages a client may send at once (60)")
+    group.add_argument("--max-clients", type=int, default=4, help="TCP connections at once (default 4)")
+    group.add_argument("--idle-timeout", type=float, default=10.0, help="close a silent TCP client after S s (10)")
+    group.add_argument(
+        "--takeover-s",
+        type=float,
+        default=1.0,
+        help="another client may take control after the controller sent nothing valid for S s (1)",
+    )
+
+
+def _token(args: argparse.Namespace) -> str | None:
+    import os
+
+    from servoface.controller.inputs import InputError
+
+    if args.token_file is not None:
+        try:
+            text = args.token_file.read_text(encoding="utf-8").splitlines()
+        except (OSError, UnicodeDecodeError) as err:
+            raise InputError(f"--token-file {args.token_file}: cannot read: {err}") from err
+        if not text or not text[0].strip():
+            raise InputError(f"--token-file {args.token_file}: empty, expected the token on its first line")
+        return text[0].strip()
+    if args.token_env is not None:
+        value = os.environ.get(args.token_env, "").strip()
+        if not value:
+            raise InputError(f"--token-env {args.token_env}: the variable is not set or empty")
+        return value
+    return None
 
 
 def _fail(message: str) -> int:
@@ -76,8 +118,8 @@ def run(args: argparse.Namespace) -> int:
         return _fail(problem)
     if args.duration is not None and not (0 < args.duration < 1e7):
         return _fail(f"--duration must be a positive number of seconds, got {args.duration}")
-    if not 0.0 <= args.min_confidence <= 1.0:
-        return _fail(f"--min-confidence must be within 0..1, got {args.min_confidence}")
+    if (problem := input_problem(args)) is not None:
+        return _fail(problem)
     with StopSignals() as signals:  # SIGINT (once: ease then torque off; twice: torque off now), SIGTERM, SIGHUP
         return _stream(args, signals)
 
@@ -102,27 +144,27 @@ def _stream(args: argparse.Namespace, signals: StopSignals) -> int:
     from servoface.sim.errors import SimError
     from servoface.sim.heads import load_head
 
+    trace_file = TraceFile(args.trace)
     receiver: UdpReceiver | TcpReceiver | LineReceiver | None = None
     recorder: StreamRecorder | None = None
-    trace_file = TraceFile(args.trace)
     try:  # everything that can fail on bad arguments happens before the port opens (torque stays off)
         with interruptible():
             head = load_head(args.head)
             validator = FrameValidator.for_head(head)
-            ranges = None
-            if args.shape_ranges is not None:
-                from servoface.controller.inputs import ShapeRanges, load_blendshape_map
-
-                ranges = ShapeRanges.load(args.shape_ranges, load_blendshape_map().names)
             decoder = MessageDecoder(
                 head.face_type,
                 allowed=validator.allowed,
                 mirror=args.mirror,
                 vergence=args.vergence,
-                shape_ranges=ranges,
+                shape_ranges=load_shape_ranges(args),
+                face_id=args.face_id or 0,
+                gaze=not args.no_gaze,
+                head_pose=not args.no_head_pose,
             )
+            from servoface.controller.inputs.admission import StreamGuard
+
+            guard = StreamGuard(_token(args), rate_hz=args.max_rate, burst=args.burst, takeover_s=args.takeover_s)
             smoothing = None if args.no_smoothing else AUSmoother(args.min_cutoff, args.beta)
-            trace_file.open()
             if args.record is not None:
                 recorder = StreamRecorder(args.record)
             source = StreamSource(
@@ -130,8 +172,10 @@ def _stream(args: argparse.Namespace, signals: StopSignals) -> int:
                 dropout_ms=args.dropout_ms,
                 dropout=args.dropout,
                 ease_s=args.ease,
-                min_confidence=args.min_confidence,
+                min_confidence=args.min_confidence or 0.0,
                 smoothing=smoothing,
+                guard=guard,
+                rest_s=args.rest_s,
                 on_message=recorder,
                 playout_ms=args.playout_ms,
             )
@@ -141,11 +185,19 @@ def _stream(args: argparse.Namespace, signals: StopSignals) -> int:
                 where = f"udp {host}:{receiver.address[1]}"
             elif args.tcp is not None:
                 host, port = parse_address(args.tcp)
-                receiver = TcpReceiver(source, host, port, allow_remote=args.allow_remote)
+                receiver = TcpReceiver(
+                    source,
+                    host,
+                    port,
+                    allow_remote=args.allow_remote,
+                    max_clients=args.max_clients,
+                    idle_timeout_s=args.idle_timeout,
+                )
                 where = f"tcp {host}:{receiver.address[1]}"
             else:
-                receiver = LineReceiver(source, sys.stdin)
+                receiver = LineReceiver(source, sys.stdin, pace=not args.arrival)
                 where = "stdin"
+            trace_file.open()
         face = open_face(args, head)
     except (StopRequested, *open_errors()) as err:
         if receiver is not None:
@@ -227,6 +279,23 @@ def _stream(args: argparse.Namespace, signals: StopSignals) -> int:
         f"{1e3 * stats.latency_s_max:.1f} ms (mean {1e3 * stats.age_s.mean:.1f} ms)"
     )
     print(f"verdicts {summary['verdicts']}")
+    if stats.rest:
+        print(f"{stats.rest} ({stats.calibrating} messages taken as the rest pose, not shown)")
+    if args.stdin:
+        print(f"stdin {'fed on arrival' if args.arrival else 'paced by the messages t'}")
+    else:
+        g = guard.stats
+        print(
+            f"refused: {g.unauthenticated} without the token, {g.rate_limited} over the rate limit, "
+            f"{g.not_controlling} from a client without control (control changed {g.control_changes} x); "
+            f"superseded {stats.superseded}"
+            + (
+                f"; tcp connections {g.connections}: {g.idle_closed} closed idle, {g.evicted} evicted at the "
+                f"cap of {args.max_clients}, {g.lines_too_long} lines too long"
+                if args.tcp is not None
+                else ""
+            )
+        )
     for error in list(stats.errors)[-5:]:
         print(f"  bad: {printable(error)}")
     if recorder is not None:

@@ -7,13 +7,16 @@ Live: :class:`StreamSource` fed by :class:`UdpReceiver`, :class:`TcpReceiver` or
 Mapping: :func:`load_blendshape_map` (ARKit/MediaPipe -> AU prior), :func:`head_pose_aus`, :func:`mirror_aus`.
 """
 
+from servoface.controller.inputs.assemble import ReadOptions
 from servoface.controller.inputs.blendshapes import BlendshapeMap, load_blendshape_map
 from servoface.controller.inputs.errors import InputError
-from servoface.controller.inputs.face_files import load_recording, read_blendshape_csv, read_jsonl
+from servoface.controller.inputs.face_files import read_blendshape_csv, read_jsonl
 from servoface.controller.inputs.head_pose import head_pose_aus, matrix_to_ypr_deg
+from servoface.controller.inputs.loader import detect_format, load_recording
 from servoface.controller.inputs.messages import Message, MessageDecoder
 from servoface.controller.inputs.openface import read_openface_csv, read_pyfeat_csv
-from servoface.controller.inputs.recorded import InputReport, Recording
+from servoface.controller.inputs.recorded import Recording
+from servoface.controller.inputs.report import InputReport
 from servoface.controller.inputs.shape_ranges import ShapeRanges
 from servoface.controller.inputs.sides import mirror_aus
 from servoface.controller.inputs.smoothing import AUSmoother, OneEuroFilter
@@ -29,12 +32,14 @@ __all__ = [
     "Message",
     "MessageDecoder",
     "OneEuroFilter",
+    "ReadOptions",
     "Recording",
     "ShapeRanges",
     "StreamSource",
     "StreamStats",
     "TcpReceiver",
     "UdpReceiver",
+    "detect_format",
     "head_pose_aus",
     "load_blendshape_map",
     "load_recording",

@@ -95,9 +95,11 @@ class BlendshapeMap:
         vergence: bool = False,
         ranges: ShapeRanges | None = None,
         where: str = "blendshapes",
+        clamped: list[str] | None = None,
     ) -> dict[str, float]:
         """Validate ``shapes`` (name -> score 0..1) and map them to AUs (0..1, canonical names); ``ranges``
-        rescales the validated scores per user first (shape_ranges.py)."""
+        rescales the validated scores per user first (shape_ranges.py). A score within ``SCORE_SLACK`` of
+        0..1 is clamped (its field appended to ``clamped``), beyond that it is an error."""
         if not isinstance(shapes, Mapping):
             raise InputError(
                 f"{where}: expected a mapping of blendshape name -> score 0..1, got {type(shapes).__name__}"
@@ -108,7 +110,7 @@ class BlendshapeMap:
             name = self.resolve(raw, field=field)
             if name in scores:
                 raise InputError(f"{field}: {name} is given twice")
-            scores[name] = check_score(value, field=field)
+            scores[name] = check_score(value, field=field, clamped=clamped)
         if ranges is not None:
             scores = ranges.apply(scores)
         out: dict[str, float] = {}
@@ -144,14 +146,30 @@ def gaze_aus(look: Mapping[tuple[str, str], float], *, vergence: bool = False) -
     return out
 
 
-def check_score(value: Any, *, field: str) -> float:
-    """A finite blendshape score in 0..1, or InputError naming the field."""
+SCORE_SLACK = 0.1  # Live Link Face writes eye-look scores up to 1.076; py-feat/MediaPipe -1e-7
+
+
+def check_score(value: Any, *, field: str, clamped: list[str] | None = None) -> float:
+    """A finite blendshape score in 0..1 (within ``SCORE_SLACK`` beyond: clamped, noted in ``clamped``), or
+    InputError naming the field."""
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise InputError(f"{field}: expected a blendshape score (a number 0..1), got {value!r}")
-    number = float(value)
-    if not math.isfinite(number) or not 0.0 <= number <= 1.0:
-        raise InputError(f"{field}: blendshape score {value!r} is out of range, expected a finite 0..1")
+        raise InputError(f"{field}: expected a blendshape score (a number 0..1), got {_short(value)}")
+    try:
+        number = float(value)
+    except OverflowError:
+        number = math.inf
+    if not math.isfinite(number) or not -SCORE_SLACK <= number <= 1.0 + SCORE_SLACK:
+        raise InputError(f"{field}: blendshape score {_short(value)} is out of range, expected a finite 0..1")
+    if not 0.0 <= number <= 1.0:
+        if clamped is not None:
+            clamped.append(field)
+        number = min(1.0, max(0.0, number))
     return number
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else f"{text[:30]}... ({len(text)} characters)"
 
 
 def load_blendshape_map(path: str | Path | None = None, allowed: frozenset[str] | None = None) -> BlendshapeMap:

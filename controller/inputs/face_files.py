@@ -1,76 +1,157 @@
-"""Recorded blendshape / AU files -> a Recording: JSON lines (one message per line, messages.py) and
-blendshape CSVs (ARKit / MediaPipe names as columns; Live Link Face's CSV export included).
+"""Recorded blendshape / AU files -> a Recording: JSON lines (one message per line, messages.py, or one
+MediaPipe result per line, mediapipe_result.py) and blendshape CSVs (ARKit / MediaPipe names as columns; Live
+Link Face's CSV export included).
 
-JSON lines: every line is a message object with a time ``t`` (s); blank lines and lines starting with
-``#`` are skipped. Errors name the file, the line and the field (``aus.AU12``).
+JSON lines: every line is a message object with a time ``t`` (s) or ``timestamp_ms``; a file without any
+times is timed by row at ``fps`` (default 60, reported). Blank lines and lines starting with ``#`` are
+skipped. A bad line is a bad row (tolerance.py); errors name the file, the line and the field (``aus.AU12``).
 
-Blendshape CSV: one column per blendshape (exact ARKit spelling or Live Link Face's capitalised one), a
-time column ``t`` / ``t_s`` / ``timestamp`` (s), or ``frame`` / ``Timecode`` (HH:MM:SS:FF[.sub]) with
-``fps``; optional ``yaw_deg, pitch_deg, roll_deg`` (head_pose.py convention) and ``confidence``. Live Link
-Face's ``BlendShapeCount`` and its head/eye rotation columns (units not documented) are ignored with a
-note; any other unknown column is an error.
-
-:func:`load_recording` picks the reader from the file: ``.jsonl``/``.ndjson``, ``.fap``, or a ``.csv`` by
-its header (OpenFace ``AUxx_r`` columns, py-feat ``AUxx`` columns, else blendshapes).
+Blendshape CSV: one column per blendshape (ARKit spelling, or Live Link Face's ``EyeBlinkLeft`` /
+``EYE_BLINK_LEFT``), a time column ``t`` / ``t_s`` / ``time`` / ``timestamp`` / ``timestamp_ms`` (unit
+detected, timebase.py) or ``frame`` / ``Timecode`` (HH:MM:SS:FF[.sub], at ``fps``), or none (rows at
+``fps``, default 60); optional ``yaw_deg, pitch_deg, roll_deg`` (head_pose.py convention) and
+``confidence``. Live Link Face's ``BlendShapeCount`` and head/eye rotation columns (units not documented; any
+spelling) and any other unknown column are ignored and listed in the report.
 """
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
+from typing import Any
 
 from servoface.controller.frame import check_face_type
-from servoface.controller.inputs.csv_table import CsvTable
+from servoface.controller.inputs.assemble import RawRow, ReadOptions, assemble, fill_cells
+from servoface.controller.inputs.blendshapes import SCORE_SLACK, _fold
+from servoface.controller.inputs.csv_table import CsvTable, read_text
 from servoface.controller.inputs.errors import InputError
-from servoface.controller.inputs.head_pose import head_pose_aus
+from servoface.controller.inputs.head_pose import parse_head
+from servoface.controller.inputs.mediapipe_result import NoFace, is_result, normalise_result
 from servoface.controller.inputs.messages import MessageDecoder
-from servoface.controller.inputs.recorded import InputReport, Recording, frames_with_policy
-from servoface.controller.inputs.sides import mirror_aus
+from servoface.controller.inputs.openface import _options
+from servoface.controller.inputs.recorded import Recording
+from servoface.controller.inputs.report import InputReport
+from servoface.controller.inputs.tolerance import BadRow, Tolerance
 from servoface.sim.rig import FaceType
 
-_TIME_COLUMNS = ("t", "t_s", "timestamp")
+_TIME_COLUMNS = ("t", "t_s", "time", "timestamp", "timestamp_s", "timestamp_ms", "timestamp_us", "frame", "timecode")
 _POSE_COLUMNS = ("yaw_deg", "pitch_deg", "roll_deg")
-_LLF_IGNORED = frozenset({
-    "BlendShapeCount", "HeadYaw", "HeadPitch", "HeadRoll", "LeftEyeYaw", "LeftEyePitch", "LeftEyeRoll",
-    "RightEyeYaw", "RightEyePitch", "RightEyeRoll",
-})  # fmt: skip
+_LLF_IGNORED = frozenset(
+    _fold(n)
+    for n in (
+        "BlendShapeCount", "HeadYaw", "HeadPitch", "HeadRoll", "LeftEyeYaw", "LeftEyePitch", "LeftEyeRoll",
+        "RightEyeYaw", "RightEyePitch", "RightEyeRoll",
+    )
+)  # fmt: skip
 
 
 def read_jsonl(
     path: str | Path,
     face_type: FaceType = "human",
     *,
-    mirror: bool = False,
-    min_confidence: float = 0.0,
-    lost: str = "hold",
-    decay_s: float = 0.5,
-    interpolate: bool = True,
+    options: ReadOptions | None = None,
+    mirror: bool | None = None,
+    min_confidence: float | None = None,
+    lost: str | None = None,
+    decay_s: float | None = None,
+    interpolate: bool | None = None,
+    bad_rows: str | None = None,
 ) -> Recording:
-    """Read a JSON-lines file of messages (each with ``t``) into a Recording."""
+    """Read a JSON-lines file of messages (or MediaPipe results) into a Recording."""
+    opts = _options(
+        options, mirror=mirror, min_confidence=min_confidence, lost=lost, decay_s=decay_s,
+        interpolate=interpolate, bad_rows=bad_rows,
+    )  # fmt: skip
     file = Path(path)
-    try:
-        lines = file.read_text(encoding="utf-8").splitlines()
-    except (OSError, UnicodeDecodeError) as err:
-        raise InputError(f"{file}: cannot read: {err}") from err
-    decoder = MessageDecoder(check_face_type(face_type), mirror=mirror)
-    rows: list[tuple[float, dict[str, float] | None]] = []
-    report = InputReport(str(file))
-    last_t = -math.inf
-    for number, line in enumerate(lines, start=1):
+    kind_face = check_face_type(face_type)
+    report = InputReport(str(file), reader="JSON lines")
+    tol = Tolerance(report, opts.bad_rows)
+    decoder = MessageDecoder(kind_face)
+    gate = opts.min_confidence or 0.0
+    rows: list[RawRow] = []
+    timed: list[bool] = []
+    total = 0
+    clamped: list[str] = []
+    for number, line in enumerate(read_text(file).splitlines(), start=1):
         if not line.strip() or line.lstrip().startswith("#"):
             continue
-        msg = decoder.decode_line(line, where=f"{file}: line {number}")
-        if msg.t_s is None:
-            raise InputError(f"{file}: line {number}.t: missing; every line of a recording needs a time t (s)")
-        if msg.t_s < last_t:
-            raise InputError(f"{file}: line {number}.t: {msg.t_s:g} s is earlier than the line before")
-        last_t = msg.t_s
-        report.rows += 1
-        rows.append((msg.t_s, msg.aus if msg.confidence >= min_confidence else None))
-    if not rows:
+        total += 1
+        where = f"{file}: line {number}"
+        try:
+            row, has_t = _jsonl_row(line, number, where, decoder, opts, gate, clamped)
+        except BadRow as err:
+            tol.handle(err)
+            continue
+        rows.append(row)
+        timed.append(has_t)
+    report.cells_clamped += len(clamped)
+    if not total:
         raise InputError(f"{file}: no messages")
-    frames, report.held = frames_with_policy(rows, face_type, lost=lost, decay_s=decay_s)
-    return Recording(frames, face_type, interpolate=interpolate, source=str(file), report=report)
+    if any(timed) and not all(timed):
+        first = next(r.line for r, has in zip(rows, timed, strict=True) if not has)
+        raise InputError(f"{file}: line {first}.t: missing; the other lines have a time t (s), every line needs one")
+    kind = "blendshapes" if kind_face == "human" else "aus"
+    return assemble(
+        rows, report, opts, tol, kind=kind, time_column="t" if all(timed) and rows else None,
+        default_fps=60.0, face_type=kind_face, total_rows=total,
+    )  # fmt: skip
+
+
+def _jsonl_row(
+    line: str,
+    number: int,
+    where: str,
+    decoder: MessageDecoder,
+    opts: ReadOptions,
+    gate: float,
+    clamped: list[str],
+) -> tuple[RawRow, bool]:
+    try:
+        obj: Any = json.loads(line)
+    except (ValueError, RecursionError) as err:
+        raise BadRow(f"{where}: not valid JSON: {err}", "lines that are not JSON") from err
+    try:
+        if is_result(obj):
+            obj = normalise_result(obj, face_id=opts.face_id or 0, where=where)
+    except NoFace:
+        t = obj.get("timestamp_ms") if isinstance(obj, dict) else None
+        return RawRow(number, float(t) / 1e3 if isinstance(t, int | float) else float(number), None), t is not None
+    except InputError as err:
+        raise BadRow(str(err), "malformed MediaPipe results") from err
+    try:
+        if not isinstance(obj, dict):
+            raise InputError(f"{where}: expected a JSON object, got {type(obj).__name__}")
+        msg = decoder.decode(obj, where=where)  # validates every field; a recording's t is checked by the caller
+        if decoder.face_type != "human":
+            values: dict[str, float] | None = dict(msg.aus)
+            extra: dict[str, float] = {}
+            head = None
+        else:
+            bmap = decoder.blendshape_map
+            shapes = obj.get("blendshapes") or {}
+            if not isinstance(shapes, dict):
+                raise InputError(f"{where}.blendshapes: expected an object of name -> score")
+            values = {}
+            for raw, score in shapes.items():
+                name = bmap.resolve(raw, field=f"{where}.blendshapes.{raw}")
+                values[name] = _score(score, f"{where}.blendshapes.{raw}", clamped)
+            extra = decoder.validator.pose(obj["aus"], where=f"{where}.aus") if "aus" in obj else {}
+            head = parse_head(obj["head"], field=f"{where}.head") if "head" in obj else None
+    except InputError as err:
+        raise BadRow(str(err), "messages with a bad field") from err
+    except Exception as err:  # FrameError from the validator
+        raise BadRow(f"{where}: {err}", "messages with a bad field") from err
+    t = msg.t_s if msg.t_s is not None else float(number)
+    if msg.confidence < gate:
+        return RawRow(number, t, None), msg.t_s is not None
+    return RawRow(number, t, values, head, None, extra), msg.t_s is not None
+
+
+def _score(value: Any, field: str, clamped: list[str]) -> float:
+    from servoface.controller.inputs.blendshapes import check_score
+
+    return check_score(value, field=field, clamped=clamped)
 
 
 def _timecode_s(text: str, fps: float, where: str) -> float:
@@ -78,103 +159,90 @@ def _timecode_s(text: str, fps: float, where: str) -> float:
     try:
         h, m, s, f = (float(p) for p in parts)
     except ValueError as err:
-        raise InputError(f"{where}: {text!r} is not a timecode HH:MM:SS:FF[.sub]") from err
+        raise BadRow(f"{where}: {text!r} is not a timecode HH:MM:SS:FF[.sub]", "bad Timecode") from err
     return h * 3600 + m * 60 + s + f / fps
 
 
 def read_blendshape_csv(
     path: str | Path,
     *,
-    fps: float = 60.0,
-    mirror: bool = False,
-    min_confidence: float = 0.0,
-    lost: str = "hold",
-    decay_s: float = 0.5,
-    interpolate: bool = True,
+    options: ReadOptions | None = None,
+    fps: float | None = None,
+    mirror: bool | None = None,
+    min_confidence: float | None = None,
+    lost: str | None = None,
+    decay_s: float | None = None,
+    interpolate: bool | None = None,
+    bad_rows: str | None = None,
 ) -> Recording:
     """Read a blendshape CSV into a human Recording (see the module doc for the columns)."""
-    if not (isinstance(fps, int | float) and 0 < fps <= 10_000):
-        raise InputError(f"fps: expected a frame rate 0 < fps <= 10000, got {fps!r}")
-    table = CsvTable(path)
-    decoder = MessageDecoder("human")
-    bmap = decoder.blendshape_map
-    time_col = next((c for c in _TIME_COLUMNS if c in table.columns), None)
-    if time_col is None:
-        time_col = next((c for c in ("frame", "Timecode") if c in table.columns), None)
-    if time_col is None:
-        raise InputError(
-            f"{table.path}: missing a time column; expected one of {list(_TIME_COLUMNS) + ['frame', 'Timecode']}"
-        )
+    opts = _options(
+        options, fps=fps, mirror=mirror, min_confidence=min_confidence, lost=lost, decay_s=decay_s,
+        interpolate=interpolate, bad_rows=bad_rows,
+    )  # fmt: skip
+    report = InputReport(str(path), reader="blendshape CSV")
+    tol = Tolerance(report, opts.bad_rows)
+    table = CsvTable(path, report=report, tolerance=tol)
+    bmap = MessageDecoder("human").blendshape_map
+    by_fold = {c.lower(): c for c in table.header}
+    time_col = next((by_fold[c] for c in _TIME_COLUMNS if c in by_fold), None)
+    conf_col = by_fold.get("confidence")
+    pose_cols = [by_fold.get(c) for c in _POSE_COLUMNS]
     shape_cols: dict[str, str] = {}
-    report = InputReport(str(table.path))
-    ignored = []
     for column in table.header:
-        if column in (time_col, "confidence", *_POSE_COLUMNS, *_TIME_COLUMNS, "frame", "Timecode"):
+        if column in (time_col, conf_col, *pose_cols):
             continue
-        if column in _LLF_IGNORED:
-            ignored.append(column)
-            continue
-        shape_cols[column] = bmap.resolve(column, field=f"{table.path}: line 1, column {column!r}")
+        try:
+            shape_cols[column] = bmap.resolve(column, field=column)
+        except InputError:
+            report.columns_ignored.append(column)
     if not shape_cols:
-        raise InputError(f"{table.path}: no blendshape columns found (expected e.g. mouthSmileLeft)")
-    if ignored:
-        report.notes.append(f"ignored columns {ignored}")
-    has_pose = any(c in table.columns for c in _POSE_COLUMNS)
-    rows: list[tuple[float, dict[str, float] | None]] = []
-    last_t = -math.inf
+        raise InputError(
+            f"{table.path}: no blendshape columns found (expected ARKit/MediaPipe names such as mouthSmileLeft); "
+            f"header has {', '.join(table.header[:8])}"
+        )
+    llf = [c for c in report.columns_ignored if _fold(c) in _LLF_IGNORED]
+    if llf:
+        report.notes.append(f"Live Link Face head/eye rotation columns ignored (units undocumented): {llf[:4]}")
+    is_timecode = time_col is not None and time_col.lower() == "timecode"
+    rate = opts.fps or 60.0
+    rows: list[RawRow] = []
+    last: dict[str, float] = {}
+    total = 0
     for line, cells in table.rows():
-        if time_col == "Timecode":
-            t_s = _timecode_s(table.cell(cells, line, time_col), fps, table.where(line, time_col))
-        else:
-            t_s = table.number(cells, line, time_col) / (fps if time_col == "frame" else 1.0)
-        if t_s < last_t:
-            raise InputError(f"{table.where(line, time_col)}: time goes backwards ({t_s:g} s)")
-        last_t = t_s
-        shapes = {name: table.number(cells, line, col) for col, name in shape_cols.items()}
-        aus = bmap.to_aus(shapes, where=f"{table.path}: line {line}")
-        if has_pose:
-            ypr = [table.number(cells, line, c) if c in table.columns else 0.0 for c in _POSE_COLUMNS]
-            for c, v in zip(_POSE_COLUMNS, ypr, strict=True):
-                if abs(v) > 180:
-                    raise InputError(f"{table.where(line, c)}: {v:g} deg is outside ±180")
-            aus.update(head_pose_aus(ypr[0], ypr[1], ypr[2]))
-        confidence = table.number(cells, line, "confidence") if "confidence" in table.columns else 1.0
-        report.rows += 1
-        good = confidence >= min_confidence
-        rows.append((t_s, (mirror_aus(aus, "human") if mirror else aus) if good else None))
-    if not rows:
-        raise InputError(f"{table.path}: no data rows")
-    frames, report.held = frames_with_policy(rows, "human", lost=lost, decay_s=decay_s)
-    return Recording(frames, "human", interpolate=interpolate, source=str(table.path), report=report)
+        total += 1
+        try:
+            if time_col is None:
+                t = float(len(rows))
+            elif is_timecode:
+                t = _timecode_s(table.cell(cells, line, time_col), rate, table.where(line, time_col))
+            else:
+                t = table.number(cells, line, time_col)
+            values: dict[str, float] = {}
+            for col, name in shape_cols.items():
+                raw = table.value(cells, line, col)
+                where = table.where(line, col)
+                values[name] = raw if math.isnan(raw) else tol.ranged(raw, 0.0, 1.0, where=where, what="a score")
+            head = None
+            if any(pose_cols):
+                ypr = [table.number(cells, line, c) if c else 0.0 for c in pose_cols]
+                for c, v in zip(pose_cols, ypr, strict=True):
+                    if c and abs(v) > 180:
+                        raise BadRow(f"{table.where(line, c)}: {v:g} deg is outside ±180", "head angles beyond ±180")
+                head = (ypr[0], ypr[1], ypr[2])
+            confidence = table.number(cells, line, conf_col) if conf_col else 1.0
+        except BadRow as err:
+            tol.handle(err)
+            continue
+        good = confidence >= (opts.min_confidence or 0.0)
+        filled = fill_cells(values, last, report) if good else None
+        rows.append(RawRow(line, t, filled, head if filled is not None else None))
+    if is_timecode:
+        opts = _options(opts, time_unit="s" if opts.time_unit == "auto" else None)
+        report.notes.append(f"Timecode frames at {rate:g} fps ({'--fps' if opts.fps else 'default; set --fps'})")
+    return assemble(
+        rows, report, opts, tol, kind="blendshapes", time_column=time_col, default_fps=60.0, total_rows=total
+    )
 
 
-def load_recording(
-    path: str | Path, face_type: FaceType = "human", *, mirror: bool = False, fps: float | None = None
-) -> Recording:
-    """Read any supported recorded file, choosing the reader by extension and CSV header. A shipped sample
-    is reachable by name: ``sample:openface_smile`` (see ``servoface list samples``)."""
-    from servoface.controller.errors import ControllerError
-    from servoface.controller.inputs.openface import read_openface_csv, read_pyfeat_csv
-    from servoface.controller.shipped import resolve_sample
-
-    try:
-        file = resolve_sample(path)
-    except ControllerError as err:
-        raise InputError(str(err)) from err
-    suffix = file.suffix.lower()
-    if suffix in (".jsonl", ".ndjson", ".json"):
-        return read_jsonl(file, face_type, mirror=mirror)
-    if face_type != "human":
-        raise InputError(f"{file}: only JSON-lines recordings with DFACS 'aus' can drive a {face_type} head")
-    if suffix == ".fap":
-        from servoface.controller.inputs.fap import read_fap
-
-        return read_fap(file, mirror=mirror, fps=fps)
-    if suffix != ".csv":
-        raise InputError(f"{file}: unknown recording type {suffix!r}; expected .csv, .jsonl or .fap")
-    header = CsvTable(file).header
-    if any(h.endswith("_r") and h.startswith("AU") for h in header):
-        return read_openface_csv(file, mirror=mirror)
-    if any(h.startswith("AU") and h[2:].isdigit() for h in header):
-        return read_pyfeat_csv(file, mirror=mirror, fps=fps or 30.0)
-    return read_blendshape_csv(file, mirror=mirror, fps=fps or 60.0)
+__all__ = ["SCORE_SLACK", "read_blendshape_csv", "read_jsonl"]

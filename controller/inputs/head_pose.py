@@ -104,3 +104,20 @@ def parse_head(head: Any, *, field: str = "head") -> tuple[float, float, float]:
             raise InputError(f"{field}.{key}: expected a finite angle in degrees within ±180, got {value!r}")
         out.append(float(value))
     return out[0], out[1], out[2]
+
+
+def openface_pose_deg(rx_rad: float, ry_rad: float, rz_rad: float) -> tuple[float, float, float]:
+    """(yaw, pitch, roll) in this module's convention from OpenFace's ``pose_Rx, pose_Ry, pose_Rz``.
+
+    OpenFace wiki ("Output Format"): radians about the camera's X, Y, Z axes (x right, y down, z away from
+    the camera), ``R = Rx * Ry * Rz``, "pitch (Rx), yaw (Ry), roll (Rz)", relative to the camera. So a head
+    tipped up reads Rx < 0 and a head turned to the subject's own right reads Ry > 0 (as OpenFace users
+    report, e.g. OpenFace issue #966). The camera frame flipped in y and z (``C = diag(1, -1, -1)``) is the
+    canonical-face frame of :func:`matrix_to_ypr_deg`: ``yaw = -Ry, pitch = -Rx, roll = +Rz`` for small
+    angles, exact by decomposing ``C R C``."""
+    cx, sx, cy, sy, cz, sz = (f(a) for a in (rx_rad, ry_rad, rz_rad) for f in (math.cos, math.sin))
+    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    flip = np.diag([1.0, -1.0, -1.0])
+    return matrix_to_ypr_deg(flip @ (rx @ ry @ rz) @ flip, field="pose_R*")

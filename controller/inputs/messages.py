@@ -26,12 +26,15 @@ from servoface.controller.frame import FrameValidator, check_face_type
 from servoface.controller.inputs.blendshapes import BlendshapeMap, load_blendshape_map
 from servoface.controller.inputs.errors import InputError
 from servoface.controller.inputs.head_pose import head_pose_aus, parse_head
+from servoface.controller.inputs.mediapipe_result import is_result, normalise_result
 from servoface.controller.inputs.shape_ranges import ShapeRanges
 from servoface.controller.inputs.sides import mirror_aus
 from servoface.sim.rig import FaceType
 
-KEYS = frozenset({"t", "aus", "blendshapes", "head", "confidence"})
+KEYS = frozenset({"t", "aus", "blendshapes", "head", "confidence", "token"})
 MAX_MESSAGE_BYTES = 65_536
+_EYE_AUS = ("AU61", "AU62", "AU63", "AU64", "AU65", "AU66")
+_HEAD_AUS = ("AU51", "AU52", "AU53", "AU54", "AU55", "AU56", "AU57", "AU58")
 
 
 @dataclass(frozen=True)
@@ -55,8 +58,15 @@ class MessageDecoder:
         vergence: bool = False,
         blendshape_map: BlendshapeMap | None = None,
         shape_ranges: ShapeRanges | None = None,
+        face_id: int = 0,
+        gaze: bool = True,
+        head_pose: bool = True,
     ) -> None:
         self.face_type = check_face_type(face_type)
+        self.face_id = int(face_id)
+        self.gaze = bool(gaze)  # False: drop eye AUs 61-66 (the eyes stay the robot's own)
+        self.head_pose = bool(head_pose)  # False: drop head AUs 51-58
+        self.head_rest_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)  # subtracted (a rest pose)
         self.validator = FrameValidator(self.face_type, allowed)
         self.mirror = bool(mirror)
         self.vergence = bool(vergence)
@@ -71,14 +81,7 @@ class MessageDecoder:
 
     def decode_line(self, line: str | bytes, *, where: str = "message") -> Message:
         """Decode one JSON text (a line or a datagram)."""
-        if len(line) > MAX_MESSAGE_BYTES:
-            raise InputError(f"{where}: {len(line)} bytes, more than the {MAX_MESSAGE_BYTES} allowed")
-        try:
-            text = line.decode("utf-8") if isinstance(line, bytes) else line
-            obj = json.loads(text, parse_constant=_reject_constant)
-        except (UnicodeDecodeError, ValueError) as err:
-            raise InputError(f"{where}: not valid JSON: {err}") from err
-        return self.decode(obj, where=where)
+        return self.decode(parse_json(line, where=where), where=where)
 
     def decode(self, obj: Any, *, where: str = "message") -> Message:
         """Decode one parsed JSON object."""
@@ -86,9 +89,12 @@ class MessageDecoder:
             raise InputError(
                 f'{where}: expected a JSON object like {{"aus": {{"AU12": 0.5}}}}, got {type(obj).__name__}'
             )
+        if is_result(obj):
+            obj = normalise_result(obj, face_id=self.face_id, where=where)
         unknown = set(obj) - KEYS
         if unknown:
-            raise InputError(f"{where}: unknown key(s) {sorted(unknown)}; expected {sorted(KEYS)}")
+            shown = sorted(str(k)[:40] for k in unknown)[:5]
+            raise InputError(f"{where}: unknown key(s) {shown}; expected {sorted(KEYS)}")
         if not ({"aus", "blendshapes", "head"} & set(obj)):
             raise InputError(f"{where}: no face data; expected at least one of aus, blendshapes, head")
         t_s = None
@@ -116,21 +122,52 @@ class MessageDecoder:
                 )
             )
         if "head" in obj:
-            aus.update(head_pose_aus(*parse_head(obj["head"], field=f"{where}.head")))
+            ypr = parse_head(obj["head"], field=f"{where}.head")
+            aus.update(head_pose_aus(*(a - r for a, r in zip(ypr, self.head_rest_deg, strict=True))))
         if "aus" in obj:
             try:
                 aus.update(self.validator.pose(obj["aus"], where=f"{where}.aus"))
             except FrameError as err:
                 raise InputError(str(err)) from err
+        if self.face_type == "human" and not (self.gaze and self.head_pose):
+            drop = (() if self.gaze else _EYE_AUS) + (() if self.head_pose else _HEAD_AUS)
+            aus = {k: v for k, v in aus.items() if k not in drop}
         if self.mirror:
             aus = mirror_aus(aus, self.face_type)
         return Message(t_s, aus, confidence)
 
 
+def parse_json(raw: str | bytes, *, where: str = "message") -> Any:
+    """One JSON text -> a Python value, surviving anything: more than ``MAX_MESSAGE_BYTES``, invalid UTF-8,
+    nesting deeper than the parser's recursion limit, huge integers (read as floats: 400 digits -> inf,
+    then refused as not finite), NaN/Infinity constants -> InputError naming ``where``."""
+    if len(raw) > MAX_MESSAGE_BYTES:
+        raise InputError(f"{where}: {len(raw)} bytes, more than the {MAX_MESSAGE_BYTES} allowed")
+    try:
+        text = raw.decode("utf-8") if isinstance(raw, bytes) else raw
+        return json.loads(text, parse_constant=_reject_constant, parse_int=_parse_int)
+    except UnicodeDecodeError as err:
+        raise InputError(f"{where}: not valid JSON: not UTF-8 text (byte {err.start})") from err
+    except RecursionError as err:
+        raise InputError(f"{where}: JSON nested too deeply") from err
+    except ValueError as err:
+        raise InputError(f"{where}: not valid JSON: {str(err)[:120]}") from err
+
+
+def _parse_int(text: str) -> int | float:
+    return int(text) if len(text) <= 18 else float(text)
+
+
 def _finite(value: Any, field: str, what: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise InputError(f"{field}: expected {what}, got {value!r}")
-    return float(value)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise InputError(f"{field}: expected {what}, got {type(value).__name__}")
+    try:
+        number = float(value)
+    except OverflowError:
+        number = math.inf
+    if not math.isfinite(number):
+        raise InputError(f"{field}: expected {what}, got a non-finite number")
+    return number
 
 
 def _reject_constant(name: str) -> float:

@@ -10,21 +10,11 @@ from __future__ import annotations
 
 import bisect
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 
 from servoface.controller.frame import AUFrame
 from servoface.controller.inputs.errors import InputError
+from servoface.controller.inputs.report import InputReport
 from servoface.sim.rig import FaceType
-
-
-@dataclass
-class InputReport:
-    """What a reader made of a file: rows read, rows dropped/held and why."""
-
-    source: str
-    rows: int = 0
-    held: int = 0  # rows replaced by the dropout policy (tracking failed / low confidence)
-    notes: list[str] = field(default_factory=list)
 
 
 class Recording:

@@ -22,7 +22,7 @@ back or the stream is in dropout: then the sender restarted its clock and the me
 * smoothing: a One-Euro filter per AU (smoothing.py; ``smoothing=None`` switches it off).
 
 ``on_message(msg, arrival_s)`` sees every accepted message (e.g. :class:`StreamRecorder` writes them to a
-JSON-lines file that ``servoface play --input`` replays, timed by arrival). The clock is injectable
+JSON-lines file that ``servoface play --input`` replays, timed by the messages' own ``t``). The clock is injectable
 (``clock() -> s``; default ``time.monotonic``): arrival stamps and dropout ages use it, so tests drive
 time by hand.
 """
@@ -33,15 +33,18 @@ import json
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
 from servoface.controller.errors import FrameError
 from servoface.controller.frame import AUFrame
+from servoface.controller.inputs.admission import StreamGuard
 from servoface.controller.inputs.errors import InputError
-from servoface.controller.inputs.messages import Message, MessageDecoder
+from servoface.controller.inputs.head_pose import parse_head
+from servoface.controller.inputs.messages import Message, MessageDecoder, parse_json
+from servoface.controller.inputs.rest_pose import RestPose
 from servoface.controller.inputs.smoothing import AUSmoother
 from servoface.controller.loop import RunningStat
 
@@ -63,6 +66,8 @@ class StreamStats:
     dropouts: int = 0  # newest messages seen going stale by sample()
     samples: int = 0
     samples_in_dropout: int = 0
+    calibrating: int = 0  # messages taken as the rest pose (rest_s), not shown
+    rest: str = ""  # what the rest pose was
     latency_s_max: float = 0.0  # largest age of the newest message at a sample (outside dropouts)
     age_s: RunningStat = field(default_factory=RunningStat)  # age of the newest message at each fresh sample
     errors: deque[str] = field(default_factory=lambda: deque(maxlen=20))
@@ -98,8 +103,10 @@ class StreamSource:
         min_confidence: float = 0.0,
         smoothing: AUSmoother | None | str = "default",
         clock: Clock = time.monotonic,
+        guard: StreamGuard | None = None,
         on_message: Callable[[Message, float], None] | None = None,
         playout_ms: float = 0.0,
+        rest_s: float = 0.0,
     ) -> None:
         if dropout not in ("neutral", "hold"):
             raise InputError(f"dropout: expected 'neutral' or 'hold', got {dropout!r}")
@@ -123,6 +130,12 @@ class StreamSource:
         self._history: deque[tuple[float, Message]] = deque(maxlen=16)
         self.clock = clock
         self.on_message = on_message  # called (receiver thread, under the lock) with each accepted message
+        self.guard = guard  # token, rate limits, control (admission.py); None = take every valid message
+        if isinstance(rest_s, bool) or not isinstance(rest_s, int | float) or not 0.0 <= rest_s < 1e4:
+            raise InputError(f"rest_s: expected 0 <= rest_s < 10000 s, got {rest_s!r}")
+        self.rest_s = float(rest_s)
+        self._rest_until: float | None = None
+        self._rest_rows: list[tuple[dict[str, float], tuple[float, float, float] | None]] = []
         self.stats = StreamStats()
         self._lock = threading.Lock()
         self._latest: Message | None = None
@@ -131,20 +144,95 @@ class StreamSource:
         self._lo, self._hi = self.decoder.validator.range
 
     # -- receiver side (any thread) ------------------------------------------------------------------
-    def feed(self, raw: str | bytes, *, where: str = "message") -> bool:
-        """Decode one raw message; True if it became the latest value. Never raises on bad data."""
+    def feed(
+        self,
+        raw: str | bytes,
+        *,
+        where: str = "message",
+        client: Hashable = None,
+        authenticated: bool = False,
+        rate_checked: bool = False,
+    ) -> bool:
+        """Decode one raw message from ``client``; True if it became the latest value. Never raises, whatever
+        ``raw`` holds. With a guard: rate limit, token (unless the connection already ``authenticated``) and
+        the control rule apply, in that order."""
         arrival = self.clock()
         with self._lock:
             self.stats.messages += 1
             index = self.stats.messages
-        try:
-            msg = self.decoder.decode_line(raw, where=f"{where} #{index}")
-        except FrameError as err:  # InputError is a FrameError
-            with self._lock:
-                self.stats.bad += 1
-                self.stats.errors.append(str(err))
+        guard = self.guard
+        if guard is not None and not rate_checked and not guard.rate_ok(client):
             return False
+        try:
+            obj = parse_json(raw, where=f"{where} #{index}")
+            if guard is not None and not authenticated and not guard.token_ok(obj):
+                return False
+            msg = self.decoder.decode(obj, where=f"{where} #{index}")
+        except FrameError as err:  # InputError is a FrameError
+            self._bad(str(err))
+            return False
+        except Exception as err:  # noqa: BLE001 - a receiver must survive any single message
+            self._bad(f"{where} #{index}: unreadable message ({type(err).__name__})")
+            return False
+        if guard is not None and not guard.claim(client):
+            return False
+        if self.rest_s > 0 and not self.stats.rest:
+            if self._collect_rest(obj, arrival):
+                return False
+            msg = self.decoder.decode(obj, where=f"{where} #{index}")  # the window closed: with the rest pose
         return self.offer(msg, arrival)
+
+    def _collect_rest(self, obj: Any, arrival: float) -> bool:
+        """Rest-pose window (``rest_s`` from the first accepted message): True = collected, not shown; False
+        = the window has passed (the rest pose is now set on the decoder)."""
+        if self._rest_until is None:
+            self._rest_until = arrival + self.rest_s
+        if arrival <= self._rest_until:
+            scores: dict[str, float] = {}
+            head = None
+            if self.decoder.face_type == "human":  # the message decoded: its fields are valid
+                bmap = self.decoder.blendshape_map
+                for name, value in (obj.get("blendshapes") or {}).items():
+                    scores[bmap.resolve(name, field="rest")] = min(1.0, max(0.0, float(value)))
+                head = parse_head(obj["head"]) if "head" in obj else None
+            with self._lock:
+                self._rest_rows.append((scores, head))
+                self.stats.calibrating += 1
+            return True
+        rows = [(0.0, shapes, ypr, None) for shapes, ypr in self._rest_rows if shapes or ypr]
+        if rows:
+            rest = RestPose.from_rows(rows, 1.0)
+            if rest.values:
+                self.decoder.shape_ranges = rest.shape_ranges(self.decoder.shape_ranges)
+            self.decoder.head_rest_deg = rest.head_deg
+            self.stats.rest = rest.describe(self.rest_s)
+        else:
+            self.stats.rest = f"rest pose: no blendshapes or head pose in the first {self.rest_s:g} s"
+        return False
+
+    def _bad(self, error: str) -> None:
+        with self._lock:
+            self.stats.bad += 1
+            self.stats.errors.append(error if len(error) <= 300 else error[:297] + "...")
+
+    def admit(self, client: Hashable, count: int) -> bool:
+        """``count`` raw messages arrived from ``client`` in one read and only the newest will be decoded:
+        all are counted as received, the guard's rate limit takes its share, the rest of what fits is
+        superseded. True if the newest is to be fed (with ``rate_checked=True``)."""
+        allowed = count if self.guard is None else self.guard.take(client, count)
+        with self._lock:
+            self.stats.messages += count - (1 if allowed else 0)
+            self.stats.superseded += max(0, allowed - 1)
+        return allowed > 0
+
+    def rate_ok(self, client: Hashable) -> bool:
+        """The guard's rate limit for one raw message from ``client`` (counted as received if refused); a
+        receiver that checks it itself passes ``rate_checked=True`` to :meth:`feed`."""
+        if self.guard is None or self.guard.rate_ok(client):
+            return True
+        with self._lock:
+            self.stats.messages += 1
+        return False
 
     def supersede(self, count: int) -> None:
         """Count ``count`` messages a receiver dropped unread because a newer one was already waiting."""
@@ -225,8 +313,11 @@ class StreamSource:
 
 
 class StreamRecorder:
-    """Writes accepted messages as JSON lines (``{"t": arrival - first arrival, "aus": {...}}``): a recording
-    of what the robot was asked to do, replayable with ``read_jsonl`` / ``servoface play --input``."""
+    """Writes accepted messages as JSON lines (``{"t": ..., "aus": {...}}``): a recording of what the robot
+    was asked to do, replayable with ``read_jsonl`` / ``servoface play --input``. ``t`` keeps the messages'
+    own times (from the first message's), so a file piped in faster than real time records at its own
+    pace; a message without ``t``, or one whose ``t`` jumps back (a restarted sender), continues by arrival
+    time from the last line written."""
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
@@ -234,15 +325,29 @@ class StreamRecorder:
             self._fh: IO[str] | None = self.path.open("w", encoding="utf-8")
         except OSError as err:
             raise InputError(f"{self.path}: cannot write the recording: {err}") from err
-        self._t0: float | None = None
+        self._origin: tuple[float, float] | None = None  # (message t, recording t) of the last anchor
+        self._last_t = 0.0
+        self._last_arrival: float | None = None
         self.count = 0
+
+    def _time(self, msg: Message, arrival_s: float) -> float:
+        by_arrival = self._last_t + (arrival_s - self._last_arrival if self._last_arrival is not None else 0.0)
+        if msg.t_s is None:
+            self._origin = None
+            return by_arrival
+        if self._origin is not None:
+            t = self._origin[1] + (msg.t_s - self._origin[0])
+            if t >= self._last_t:
+                return t
+        self._origin = (msg.t_s, by_arrival)
+        return by_arrival
 
     def __call__(self, msg: Message, arrival_s: float) -> None:
         if self._fh is None:
             return
-        if self._t0 is None:
-            self._t0 = arrival_s
-        line = {"t": round(arrival_s - self._t0, 6), "aus": {k: round(v, 6) for k, v in msg.aus.items()}}
+        t = self._time(msg, arrival_s)
+        self._last_t, self._last_arrival = t, arrival_s
+        line = {"t": round(t, 6), "aus": {k: round(v, 6) for k, v in msg.aus.items()}}
         try:
             self._fh.write(json.dumps(line) + "\n")
         except ValueError:  # closed by the main thread while a receiver thread was still delivering

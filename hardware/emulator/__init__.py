@@ -29,6 +29,7 @@ from servoface.hardware.emulator.packet import (
     parse_packet,
 )
 from servoface.hardware.emulator.packet_log import LogEntry
+from servoface.hardware.emulator.realism import Realism
 from servoface.hardware.emulator.serial_port import EmulatedSerial
 from servoface.hardware.emulator.servo import EmulatedServo
 
@@ -50,6 +51,7 @@ __all__ = [
     "PacketError",
     "PortClosedError",
     "RealClock",
+    "Realism",
     "Register",
     "RegisterError",
     "ServoChain",

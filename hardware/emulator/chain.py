@@ -9,6 +9,7 @@ readable at once (fast unit tests).
 from __future__ import annotations
 
 import threading
+import time
 from collections import deque
 from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
@@ -20,12 +21,17 @@ from servoface.hardware.emulator.instructions import dispatch
 from servoface.hardware.emulator.models import ModelSpec, baud_code_for, get_model
 from servoface.hardware.emulator.packet import MAX_ID, Packet, PacketReceiver
 from servoface.hardware.emulator.packet_log import LogEntry, register_writes
+from servoface.hardware.emulator.realism import Realism
 from servoface.hardware.emulator.servo import EmulatedServo
 
 if TYPE_CHECKING:
     from servoface.hardware.emulator.serial_port import EmulatedSerial
 
 REBOOT_SILENCE_S = 0.1  # a rebooting servo hears nothing for this long
+# How far the host may write ahead of the wire before write() blocks: the transmit buffer of an FT232H-class
+# USB adapter (the U2D2 family) is 1 KB (FTDI FT232H datasheet); a Linux usb-serial port adds up to a page
+# (4 KB) of kernel fifo on top, and a pty adds its own kernel buffer (about 18 KB measured here).
+TX_BUFFER_BYTES = 1024
 GOAL_ADDRESS = 116
 
 
@@ -42,7 +48,13 @@ class ServoChain:
         log_limit: int | None = 1_000_000,
         delivery: str = "byte",
         goal_limit: str = "reject",
+        tx_buffer_bytes: int = TX_BUFFER_BYTES,
+        realism: Realism | bool | dict[str, Any] | None = None,
     ) -> None:
+        self.realism = Realism.coerce(realism)
+        if int(tx_buffer_bytes) < 0:
+            raise EmulatorConfigError(f"tx_buffer_bytes {tx_buffer_bytes}: expected >= 0")
+        self.tx_buffer_bytes = int(tx_buffer_bytes)
         if clock is None or clock == "real":
             self._clock: Callable[[], float] = RealClock()
         elif clock == "manual":
@@ -77,7 +89,15 @@ class ServoChain:
             seen.add(sid)
             code = baud_code_for(self.baud, spec)
             self.servos.append(
-                EmulatedServo(sid, spec, baud_code=code, clock=self._clock, faults=self.faults, lock=self.lock)
+                EmulatedServo(
+                    sid,
+                    spec,
+                    baud_code=code,
+                    clock=self._clock,
+                    faults=self.faults,
+                    lock=self.lock,
+                    realism=self.realism,
+                )
             )
         self._by_id: dict[int, list[EmulatedServo]] = {}
         self._silence_until_s = -1.0
@@ -105,6 +125,8 @@ class ServoChain:
         log_limit: int | None = 1_000_000,
         delivery: str = "byte",
         goal_limit: str = "reject",
+        tx_buffer_bytes: int = TX_BUFFER_BYTES,
+        realism: Realism | bool | dict[str, Any] | None = None,
     ) -> ServoChain:
         """A chain of servos: ``ids`` are ints (all of ``model``) or ``(id, model)`` pairs.
 
@@ -113,7 +135,12 @@ class ServoChain:
         each arrives) or "packet" (each status packet readable whole when its last byte arrives).
         ``goal_limit``: a Goal Position outside Min/Max Position Limit (position mode) gets a Data Limit
         Error and is not stored ("reject"), or is accepted and the motion clamped to the limit ("clamp");
-        the e-manual leaves this open, so tests can check a driver against both.
+        the e-manual leaves this open, so tests can check a driver against both. ``tx_buffer_bytes``: how
+        far the host may write ahead of the wire before the in-process port's ``write()`` blocks (the pty
+        stops reading instead, so the client blocks once the kernel's pty buffer is full too). ``realism``:
+        off (None, default), True (the documented default magnitudes), a dict of overrides (e.g.
+        ``{"seed": 3, "backlash_tick": 6}``) or a :class:`Realism`: non-ideal servos (backlash, load- and
+        speed-dependent settling error and lag, encoder noise, temperature-dependent current).
         """
         specs: list[tuple[int, ModelSpec]] = []
         for item in ids:
@@ -130,6 +157,8 @@ class ServoChain:
             log_limit=log_limit,
             delivery=delivery,
             goal_limit=goal_limit,
+            tx_buffer_bytes=tx_buffer_bytes,
+            realism=realism,
         )
 
     # ----------------------------------------------------------------- clock and servos
@@ -191,11 +220,42 @@ class ServoChain:
             now = self._clock()
             n = len(data)
             byte_s = 10.0 / host_baud if self.wire_time and host_baud > 0 else 0.0
-            t_rx = max(now, self._tx_free_s) + n * byte_s
+            start = max(now, self._tx_free_s)
+            t_rx = start + n * byte_s
             self._tx_free_s = t_rx
-            for packet in self._receiver.feed(data, now):
+            for packet in self._receiver.feed(data, start, t_rx):
                 self._handle(packet, t_rx, host_baud)
             return n
+
+    def tx_backlog_s(self) -> float:
+        """How long the host -> servos line stays busy with bytes already written (0 when idle)."""
+        with self.lock:
+            return max(0.0, self._tx_free_s - self._clock())
+
+    def tx_room_bytes(self, host_baud: int) -> int | None:
+        """How many more bytes fit ahead of the wire before writing must wait (None: no wire time)."""
+        if not self.wire_time or host_baud <= 0:
+            return None
+        backlog_bytes = self.tx_backlog_s() * host_baud / 10.0
+        return max(0, int(self.tx_buffer_bytes - backlog_bytes))
+
+    def wait_tx(self, host_baud: int, *, drain: bool = False) -> None:
+        """Block until the bytes ahead of the wire fit the transmit buffer (``drain``: until all are sent),
+        as a real port's ``write()`` (``flush()``) does. A manual clock is moved on instead of sleeping;
+        another callable clock cannot be waited on and does not block."""
+        if not self.wire_time or host_baud <= 0:
+            return
+        limit_s = 0.0 if drain else self.tx_buffer_bytes * 10.0 / host_baud
+        while True:
+            wait_s = self.tx_backlog_s() - limit_s
+            if wait_s <= 0:
+                return
+            if isinstance(self._clock, ManualClock):
+                self.advance(wait_s)
+                return
+            if not isinstance(self._clock, RealClock):
+                return
+            time.sleep(wait_s)
 
     def _listeners(self, t_s: float, host_baud: int) -> list[EmulatedServo]:
         faults = self.faults
@@ -311,6 +371,16 @@ class ServoChain:
                     seg[3] = max(seg[3], arrived)
                     break
 
+    def rx_burst_times_s(self) -> tuple[float, float] | None:
+        """(when the next unread reply byte arrives, when the last pending one has arrived), or None."""
+        with self.lock:
+            if not self._rx:
+                return None
+            data, start, byte_s, done, whole = self._rx[0]
+            first = float(start + (len(data) if whole else done + 1) * byte_s)
+            data, start, byte_s, _, _ = self._rx[-1]
+            return first, float(start + len(data) * byte_s)
+
     def next_reply_time_s(self) -> float | None:
         """When the next unread reply byte arrives (None if nothing is pending)."""
         with self.lock:
@@ -326,16 +396,25 @@ class ServoChain:
 
         return EmulatedSerial(self, port=port)
 
-    def serve_pty(self) -> str:
-        """Serve the chain on a pseudo-terminal from a background thread; returns the slave device path."""
+    def serve_pty(self, *, realtime: bool = True) -> str:
+        """Serve the chain on a pseudo-terminal from a background thread; returns the slave device path.
+
+        ``realtime``: ask for real-time scheduling of the serving thread where the system allows it (replies
+        then keep to the SDK's reply window on a loaded machine); :attr:`pty_priority` says what it got."""
         from servoface.hardware.emulator.pty_transport import PtyServer
 
         with self.lock:
             if self._pty is None:
-                server = PtyServer(self)
+                server = PtyServer(self, realtime=realtime)
                 server.start()
                 self._pty = server
             return self._pty.path  # type: ignore[attr-defined,no-any-return]
+
+    @property
+    def pty_priority(self) -> str | None:
+        """The pty thread's scheduling ("real-time (SCHED_RR 10)" or "normal (...)"); None without a pty."""
+        server = self._pty
+        return None if server is None else str(server.priority)  # type: ignore[attr-defined]
 
     def close(self) -> None:
         """Stop the pty thread (if any). The in-process endpoints stop working."""

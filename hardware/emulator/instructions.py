@@ -16,6 +16,7 @@ from servoface.hardware.emulator.packet import BROADCAST_ID, ErrorNumber, Instru
 from servoface.hardware.emulator.servo import EmulatedServo
 
 CLEAR_MULTI_TURN = b"\x01\x44\x58\x4c\x22"
+BACKUP_KEY = b"CTRL"  # 0x43 0x54 0x52 0x4C after P1 of Control Table Backup
 
 
 def dispatch(
@@ -25,6 +26,10 @@ def dispatch(
     out = Outcome([], [], [])
     for servo in listeners:
         servo.heard(t_s)
+    if packet.id != BROADCAST_ID or packet.instruction in _STATE_BROADCASTS:
+        # every instruction acts on the servo as it is when the packet arrives: physics first
+        for servo in listeners if packet.id == BROADCAST_ID else by_id.get(packet.id, ()):
+            servo.advance(t_s)
     inst = packet.instruction
     pid = packet.id
     params = packet.params
@@ -211,8 +216,23 @@ def _backup(
     by_id: dict[int, list[EmulatedServo]],
     targets: list[EmulatedServo],
 ) -> None:
+    option = params[0] if len(params) == 5 and bytes(params[1:]) == BACKUP_KEY else -1
     for servo in targets:
-        status(out, servo, Instruction.CONTROL_TABLE_BACKUP, 0)
+        if option not in (0x01, 0x02):
+            err = int(ErrorNumber.DATA_RANGE)
+        elif servo.torque_on:  # "works properly only if Torque Enable is 0"
+            err = int(ErrorNumber.ACCESS)
+        elif option == 0x01:
+            servo.backup_control_table()
+            err = 0
+        elif servo.backup is None:
+            err = int(ErrorNumber.RESULT_FAIL)  # nothing stored to restore from
+        else:
+            servo.restore_eeprom()
+            out.reboot.append(servo)  # "after processing packets, DYNAMIXEL reboots itself"
+            out.ids_changed = True
+            err = 0
+        status(out, servo, Instruction.CONTROL_TABLE_BACKUP, err)
 
 
 def _sync_read(
@@ -299,6 +319,23 @@ def _bulk_write(
             if addr <= 8 and addr + length > 7:
                 out.ids_changed = True
 
+
+# broadcast instructions whose handlers look at (or change) live servo state
+_STATE_BROADCASTS = frozenset(
+    {
+        Instruction.WRITE,
+        Instruction.REG_WRITE,
+        Instruction.ACTION,
+        Instruction.CLEAR,
+        Instruction.REBOOT,
+        Instruction.SYNC_READ,
+        Instruction.BULK_READ,
+        Instruction.SYNC_WRITE,
+        Instruction.BULK_WRITE,
+        Instruction.FAST_SYNC_READ,
+        Instruction.FAST_BULK_READ,
+    }
+)
 
 _HANDLERS: dict[int, Callable[..., None]] = {
     Instruction.PING: _ping,

@@ -51,6 +51,8 @@ class ModelSpec:
     present_kind: str
     current_unit_ma: float
     max_baud_code: int
+    # Protocol Type (13) values the page defines (XL330: 2, 20, 21, 22; the others: 1, 2)
+    protocol_types: frozenset[int] = frozenset({1, 2})
 
     @property
     def no_load_speed_tick_s(self) -> float:
@@ -75,6 +77,10 @@ def _x_series_table(
     indirect: tuple[tuple[int, int, int], ...],
     extra: tuple[Register, ...] = (),
     present_name: str = "Present Current",
+    drive_mode_max: int = 13,
+    protocol_range: tuple[int, int] = (1, 2),
+    indirect_max: int = 661,
+    startup_configuration: bool = True,
 ) -> ControlTable:
     vi, vp, pd, pi, pp = gains
     v_lo, v_hi = voltage_range
@@ -85,10 +91,10 @@ def _x_series_table(
         RW("ID", 7, 1, 1, lo=0, hi=252),
         RW("Baud Rate", 8, 1, 1, unit="code", lo=0, hi=max_baud_code),
         RW("Return Delay Time", 9, 1, 250, unit="2 us", lo=0, hi=254),
-        RW("Drive Mode", 10, 1, 0, unit="bits", lo=0, hi=15),
+        RW("Drive Mode", 10, 1, 0, unit="bits", lo=0, hi=drive_mode_max),
         RW("Operating Mode", 11, 1, 3, lo=0, hi=16),
         RW("Secondary(Shadow) ID", 12, 1, 255, lo=0, hi=255),
-        RW("Protocol Type", 13, 1, 2, lo=1, hi=2),
+        RW("Protocol Type", 13, 1, 2, lo=protocol_range[0], hi=protocol_range[1]),
         RW("Homing Offset", 20, 4, 0, signed=True, unit="pulse", lo=-1_044_479, hi=1_044_479),
         RW("Moving Threshold", 24, 4, 10, unit="0.229 rpm", lo=0, hi=1023),
         RW("Temperature Limit", 31, 1, temperature_limit, unit="degC", lo=0, hi=100),
@@ -130,6 +136,8 @@ def _x_series_table(
         R("Present Temperature", 146, 1, unit="degC"),
         *extra,
     ]
+    if startup_configuration:  # bit 0 Startup Torque On, bit 1 RAM Restore (firmware >= 45, XL330 >= 46)
+        regs.append(RW("Startup Configuration", 60, 1, 0, unit="bits", lo=0, hi=3))
     if current_limit is not None:
         regs.append(RW("Current Limit", 38, 2, current_limit, lo=0, hi=current_limit))
         regs.append(RW("Goal Current", 102, 2, current_limit, signed=True))
@@ -139,7 +147,7 @@ def _x_series_table(
         count = (data_base - address_base) // 2 if first == 1 and data_base - address_base <= 56 else 28
         for i in range(count):
             n = first + i
-            regs.append(RW(f"Indirect Address {n}", address_base + 2 * i, 2, data_base + i, lo=64, hi=661))
+            regs.append(RW(f"Indirect Address {n}", address_base + 2 * i, 2, data_base + i, lo=64, hi=indirect_max))
             regs.append(RW(f"Indirect Data {n}", data_base + i, 1, 0, lo=0, hi=255))
     return ControlTable(regs)
 
@@ -164,6 +172,8 @@ XL330_M288 = ModelSpec(
         max_baud_code=6,
         indirect=((1, 168, 208),),  # 20 pairs: addresses 168..206, data 208..227 (firmware >= 52)
         extra=(RW("PWM Slope", 62, 1, 140, lo=1, hi=255), R("Backup Ready", 147, 1)),
+        protocol_range=(2, 22),  # only 2, 20, 21, 22 are defined: see protocol_types
+        indirect_max=227,  # the last Indirect Data byte of this table
     ),
     operating_modes=frozenset({0, 1, 3, 4, 5, 16}),
     no_load_speed_rpm=103.0,
@@ -173,6 +183,7 @@ XL330_M288 = ModelSpec(
     present_kind="current",
     current_unit_ma=1.0,
     max_baud_code=6,
+    protocol_types=frozenset({2, 20, 21, 22}),
 )
 
 XL430_W250 = ModelSpec(
@@ -249,7 +260,7 @@ MX28_2 = ModelSpec(
         max_voltage=160,
         min_voltage=95,
         voltage_range=(95, 160),
-        velocity_limit=380,
+        velocity_limit=230,
         velocity_limit_max=1023,
         shutdown=52,
         gains=(1920, 100, 0, 0, 850),
@@ -258,6 +269,8 @@ MX28_2 = ModelSpec(
         max_baud_code=7,
         indirect=((1, 168, 224), (29, 578, 634)),
         present_name="Present Load",
+        drive_mode_max=5,  # bits 0 (reverse) and 2 (time-based profile); no Torque On by Goal Update
+        startup_configuration=False,  # not on the MX-28(2.0) page
     ),
     operating_modes=frozenset({1, 3, 4, 16}),
     no_load_speed_rpm=55.0,

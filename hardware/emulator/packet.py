@@ -162,12 +162,14 @@ class PacketReceiver:
     def pending(self) -> int:
         return len(self._buf)
 
-    def feed(self, data: bytes | bytearray, t_s: float | None = None) -> list[Packet]:
+    def feed(self, data: bytes | bytearray, t_s: float | None = None, end_s: float | None = None) -> list[Packet]:
+        """Packets completed by ``data``, which starts arriving at ``t_s`` (and ends at ``end_s``, if the
+        caller models the wire: the idle gap is then measured from the end of the previous chunk)."""
         buf = self._buf
         if t_s is not None:
             if buf and t_s - self._last_s > self.timeout_s:
                 buf.clear()  # the rest of that packet never came
-            self._last_s = t_s
+            self._last_s = t_s if end_s is None else end_s
         whole = len(data) >= 10 and data[:4] == HEADER and len(data) == 7 + (data[5] | data[6] << 8)
         if whole and (not buf or crc16(data[:-2]) == (data[-2] | data[-1] << 8)):
             buf.clear()

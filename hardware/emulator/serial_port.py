@@ -54,7 +54,9 @@ class EmulatedSerial:
         self._check()
         if not isinstance(data, bytes | bytearray):
             data = bytes(data)
-        return self._chain.host_write(data, self._baudrate)
+        n = self._chain.host_write(data, self._baudrate)
+        self._chain.wait_tx(self._baudrate)  # back-pressure: a real port blocks at the wire rate
+        return n
 
     def read(self, size: int = 1) -> bytes:
         self._check()
@@ -79,7 +81,9 @@ class EmulatedSerial:
         self._check()
 
     def flush(self) -> None:
+        """Wait until every written byte is on the wire (pyserial: tcdrain)."""
         self._check()
+        self._chain.wait_tx(self._baudrate, drain=True)
 
     def open(self) -> None:
         self.is_open = True

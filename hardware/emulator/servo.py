@@ -18,6 +18,7 @@ from servoface.hardware.emulator.faults import FaultSchedule
 from servoface.hardware.emulator.indirect import IndirectMap
 from servoface.hardware.emulator.models import BAUD_CODES, HW_INPUT_VOLTAGE, TICKS_PER_REV, ModelSpec
 from servoface.hardware.emulator.packet import ErrorNumber
+from servoface.hardware.emulator.realism import Realism
 from servoface.hardware.emulator.servo_motion import (
     A_DRIVE,
     A_GOAL_POS,
@@ -30,6 +31,11 @@ from servoface.hardware.emulator.servo_motion import (
 )
 
 _F = TypeVar("_F", bound=Callable[..., Any])
+A_PROTOCOL = 13
+A_STARTUP = 60
+A_BACKUP_READY = 147
+GAINS = slice(76, 92)  # the RAM a Control Table Backup keeps: velocity PI, position PID, feedforward gains
+GOAL_ADDRESSES = (100, 102, 104, 116)  # Goal PWM, Current, Velocity, Position
 
 
 def _locked(method: _F) -> _F:
@@ -65,6 +71,7 @@ class EmulatedServo(ServoMotion):
         clock: Callable[[], float],
         faults: FaultSchedule,
         lock: threading.RLock | None = None,
+        realism: Realism | None = None,
     ) -> None:
         self.uid = uid
         self._lock = lock if lock is not None else threading.RLock()
@@ -77,7 +84,8 @@ class EmulatedServo(ServoMotion):
         self.silent_until_s = -math.inf
         self.on_change: Callable[[EmulatedServo], None] | None = None  # chain hook: id/baud/silence changed
         self.mem = bytearray()
-        self._init_motion(spec, clock)
+        self.backup: bytes | None = None  # Control Table Backup (0x20): the image RAM Restore brings back
+        self._init_motion(spec, clock, realism)
         self._indirect = IndirectMap(spec.table)
         self._indirect_lo = self._indirect.data_lo
         self._indirect_hi = self._indirect.data_hi
@@ -136,14 +144,14 @@ class EmulatedServo(ServoMotion):
         """Present Position now (ticks)."""
         with self._lock:
             self.advance()
-            return round(self._to_present(self.motor.pos))
+            return round(self._to_present(self.physical_tick))
 
     @property
     def shaft_tick(self) -> float:
         """Physical shaft angle in ticks (differs from Present Position by homing offset and reverse)."""
         with self._lock:
             self.advance()
-            return self.motor.pos
+            return self.physical_tick
 
     @property
     def temperature_c(self) -> float:
@@ -190,6 +198,8 @@ class EmulatedServo(ServoMotion):
         if self.torque_on:
             raise EmulatorConfigError(f"servo {self.id}: move_by_hand needs torque off (the motor holds its goal)")
         self.motor.pos = self.motor.target = self._to_shaft(float(present_tick))
+        if self._real is not None:
+            self._real.reset(self.motor.pos)
         self._plan_key = ()
         self._live_dirty = True
         self.motor.vel = 0.0
@@ -220,7 +230,15 @@ class EmulatedServo(ServoMotion):
         self._plan_key = ()
         self.motor.overload_s = 0.0
         _put(self.mem, A_GOAL_POS, 4, round(self._to_present(self.motor.pos)))
+        startup = self.mem[A_STARTUP] if A_STARTUP in self.table else 0
+        if startup & 0x02 and self.backup is not None:  # RAM Restore: the backed-up gains
+            self.mem[GAINS] = self.backup[GAINS]
+        if A_BACKUP_READY in self.table:
+            self.mem[A_BACKUP_READY] = 1 if self.backup is not None else 0
         self._recheck_causes()
+        if startup & 0x01 and not self.mem[A_HW_ERR] & self.mem[63]:  # Startup Torque On
+            self.mem[A_TORQUE] = 1
+            self._start_move()
         self._sync_live()
 
     @_locked
@@ -243,6 +261,22 @@ class EmulatedServo(ServoMotion):
             self.mem[8] = old[8]
         self._changed()
 
+    @_locked
+    def backup_control_table(self) -> None:
+        """Control Table Backup (0x20, P1 = 0x01): keep EEPROM and the gains (for restore / RAM Restore)."""
+        self.advance()
+        self.backup = bytes(self.mem)
+        if A_BACKUP_READY in self.table:
+            self.mem[A_BACKUP_READY] = 1
+
+    @_locked
+    def restore_eeprom(self) -> None:
+        """Control Table Backup, P1 = 0x02: EEPROM back from the backup area (the servo then reboots)."""
+        self.advance()
+        if self.backup is not None:
+            self.mem[:EEPROM_END] = self.backup[:EEPROM_END]
+            self._changed()
+
     def _changed(self) -> None:
         if self.on_change is not None:
             self.on_change(self)
@@ -257,13 +291,23 @@ class EmulatedServo(ServoMotion):
         self.motor.pos += shift
         self.motor.target += shift
         self._plan_key = ()
+        self._live_dirty = True  # Present Position (132) shows the cleared value at once
 
     # ----------------------------------------------------------------- reads
     def read_bytes(self, address: int, length: int) -> tuple[int, bytes]:
         """(error number, data) for a Read of ``length`` bytes at ``address``."""
         size = self.table.size
-        if address + length > size or length < 0:
-            return ErrorNumber.ACCESS, b""
+        if length < 0:
+            return ErrorNumber.DATA_LENGTH, b""
+        if address + length > size:
+            # past the end of the table: Access Error ("an address that has not been defined"), with the
+            # Read's data field still ``length`` bytes long (defined bytes, zeros past the end), so a
+            # reader that ignores the error byte gets zeros instead of a short packet
+            self.advance()
+            if address < size:
+                self._sync_live()
+            head = bytes(self.mem[address:size]) if address < size else b""
+            return ErrorNumber.ACCESS, head + bytes(length - len(head))
         self.advance()
         end = address + length
         if address < 147 and end > 120:
@@ -309,6 +353,8 @@ class EmulatedServo(ServoMotion):
         a = reg.address
         mem = self.mem
         if a == A_MODE and value not in self.spec.operating_modes:
+            return ErrorNumber.DATA_RANGE
+        if a == A_PROTOCOL and value not in self.spec.protocol_types:
             return ErrorNumber.DATA_RANGE
         if a == A_GOAL_POS:
             if self._watchdog_tripped:
@@ -377,6 +423,15 @@ class EmulatedServo(ServoMotion):
                 self.motor.target = self.motor.pos
                 self._plan_key = ()
                 self.motor.vel = 0.0
+        if (
+            mem[A_DRIVE] & 0x08
+            and not mem[A_TORQUE]
+            and any(address <= g < end for g in GOAL_ADDRESSES)
+            and not mem[A_HW_ERR] & mem[63]
+        ):
+            mem[A_TORQUE] = 1  # Drive Mode bit 3, Torque On by Goal Update: the goal switches torque on
+            self.motor.target = self.motor.pos
+            self._plan_key = ()
         if mem[A_TORQUE] and ((address < 120 and end > 100) or (address < 56 and end > 44)):
             self._start_move()
 

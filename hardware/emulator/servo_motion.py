@@ -23,6 +23,7 @@ from servoface.hardware.emulator.models import (
     VELOCITY_UNIT_RPM,
     ModelSpec,
 )
+from servoface.hardware.emulator.realism import Realism, RealState
 
 VEL_UNIT_TICK_S = VELOCITY_UNIT_RPM / 60.0 * TICKS_PER_REV  # one Present Velocity LSB in ticks/s
 ACC_UNIT_TICK_S2 = ACCELERATION_UNIT_RPM2 / 3600.0 * TICKS_PER_REV
@@ -59,8 +60,9 @@ class ServoMotion:
     _watchdog_tripped: bool
     _reports_load: bool
     _stall_units: float
+    _real: RealState | None
 
-    def _init_motion(self, spec: ModelSpec, clock: Callable[[], float]) -> None:
+    def _init_motion(self, spec: ModelSpec, clock: Callable[[], float], realism: Realism | None = None) -> None:
         self.ambient_c = 25.0
         self.input_voltage_v = spec.nominal_voltage_v
         self.obstacle = None
@@ -76,6 +78,12 @@ class ServoMotion:
         self._stall_units = spec.stall_current_a * 1000.0 / spec.current_unit_ma
         self._last_rx_s = self._t
         self._watchdog_tripped = False
+        self._real = None if realism is None else RealState.create(realism, self.uid, self.motor.pos)
+
+    @property
+    def physical_tick(self) -> float:
+        """Where the output shaft physically is (raw ticks): the ideal position, or the non-ideal one."""
+        return self.motor.pos if self._real is None else self._real.pos
 
     def _power_on(self, keep: bytes | None) -> None:
         raise NotImplementedError  # provided by EmulatedServo
@@ -119,6 +127,18 @@ class ServoMotion:
 
     def advance(self, t_s: float | None = None) -> None:
         """Bring the physics up to ``t_s`` (default: now)."""
+        real = self._real
+        if real is None:
+            self._advance_ideal(t_s)
+            return
+        t0 = self._t
+        self._advance_ideal(t_s)
+        if self._t > t0:
+            motor = self.motor
+            real.update(motor.pos, motor.vel, motor.load, self._t - t0)
+            self._live_dirty = True
+
+    def _advance_ideal(self, t_s: float | None) -> None:
         t1 = self._clock() if t_s is None else t_s
         t0 = self._t
         if t1 <= t0:
@@ -278,7 +298,8 @@ class ServoMotion:
     def _sync_live(self) -> None:
         """Write the live (read-only) registers 120..146 from the physics state into memory (one pack)."""
         mem = self.mem
-        if not self._live_dirty:
+        real = self._real
+        if not self._live_dirty and real is None:
             _TICK.pack_into(mem, 120, int(self._t * 1000.0) % 32768)  # at rest only the clock moves
             return
         self._live_dirty = False
@@ -287,13 +308,14 @@ class ServoMotion:
         rev = mem[A_DRIVE] & 1
         offset = _I32.unpack_from(mem, 20)[0]
         prof_a, prof_v = _PROFILE.unpack_from(mem, 108)
+        pos = motor.pos if real is None else real.pos
         if rev:
-            present = 4095.0 - motor.pos + offset
+            present = 4095.0 - pos + offset
             target = 4095.0 - motor.target + offset
             load = -motor.load
             vel = -vel
         else:
-            present = motor.pos + offset
+            present = pos + offset
             target = motor.target + offset
             load = motor.load
         moving = vel != 0.0
@@ -301,6 +323,9 @@ class ServoMotion:
         if prof_v:
             status |= 0x30 if prof_a else 0x10
         present_load = load * (1000.0 if self._reports_load else self._stall_units)
+        if real is not None:
+            present_load *= real.current_scale(motor.temperature_c)
+            present = real.read_tick(present)
         vel_units = round(vel / VEL_UNIT_TICK_S)
         values = (
             int(self._t * 1000.0) % 32768,

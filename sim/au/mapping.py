@@ -37,9 +37,12 @@ def canonical_au_name(name: object) -> tuple[int, str]:
 class AUMapping:
     """An AU table bound to a head's muscle order and joint order.
 
-    A muscle or joint the table names but the head lacks is an error (HeadProfileError naming the AU),
-    unless ``allow_missing``: then it is skipped and listed in ``missing`` (a smaller head reusing a
-    built-in table: its AUs still validate, the parts it lacks just do not move).
+    The table is applied to what the head has: with ``allow_missing`` (the default) a muscle or joint the
+    table names but the head lacks is skipped, listed in ``missing`` and noted per AU in ``notes``; an AU
+    whose row reaches nothing on this head is listed in ``unreachable`` (it still validates, it just moves
+    nothing). ``allow_missing=False`` makes a missing name a HeadProfileError naming the AU (strict, for a
+    table written for exactly this head). ``skip``: AUs whose rows are not compiled (driven elsewhere, e.g.
+    by a direct table).
     """
 
     def __init__(
@@ -47,11 +50,14 @@ class AUMapping:
         table: AUTable,
         muscle_names: Sequence[str],
         joint_names: Sequence[str],
-        allow_missing: bool = False,
+        allow_missing: bool = True,
+        skip: frozenset[int] = frozenset(),
     ) -> None:
         self.table = table
         self.allow_missing = allow_missing
+        self.skip = skip
         self.missing: set[str] = set()
+        self._missing_by_au: dict[int, dict[str, list[str]]] = {}
         self.muscle_names = tuple(muscle_names)
         self.joint_names = tuple(joint_names)
         m_index = {n: i for i, n in enumerate(self.muscle_names)}
@@ -70,10 +76,27 @@ class AUMapping:
         for col, (number, side) in enumerate(self.channels):
             entry = table.entries[number]
             self.low[col], self.high[col] = entry.range
+            if number in skip:
+                continue
             counter = entry.counter if entry.counter is not None else _mirror(entry.action)
             for offset, action in ((0, entry.action), (k, counter)):
                 self._fill(entry, side, action, col + offset, m_index, j_index)
         self.contraction_low, self.contraction_high = table.contraction
+        self.notes: dict[int, list[str]] = {
+            n: [_missing_note(kind, names, bool(m_index)) for kind, names in by_kind.items()]
+            for n, by_kind in self._missing_by_au.items()
+        }
+        self.unreachable: dict[int, str] = {}
+        used = (np.abs(self.to_muscles).sum(axis=0) + np.abs(self.to_joints).sum(axis=0)) > 0
+        for number in sorted(table.entries):
+            cols = [i for i, (n, _) in enumerate(self.channels) if n == number]
+            if number in skip or used[cols].any() or used[[c + k for c in cols]].any():
+                continue
+            notes = self.notes.get(number)
+            if notes:
+                self.unreachable[number] = "; ".join(notes)
+            else:
+                self.unreachable[number] = table.entries[number].note or "its AU table row moves nothing"
 
     def _fill(
         self,
@@ -96,6 +119,9 @@ class AUMapping:
                     name, share = template, (0.5 if side else 1.0)
                 if name not in index and self.allow_missing:
                     self.missing.add(name)
+                    self._missing_by_au.setdefault(entry.number, {}).setdefault(kind, [])
+                    if name not in self._missing_by_au[entry.number][kind]:
+                        self._missing_by_au[entry.number][kind].append(name)
                     continue
                 if name not in index:
                     raise HeadProfileError(
@@ -116,10 +142,17 @@ class AUMapping:
 
     # --- evaluation -------------------------------------------------------------------------------------
 
+    def split(self, aus: Mapping[str, float]) -> FloatArray:
+        """(2K,) validated channel values split into positive parts and counter magnitudes."""
+        x = self.channel_values(aus)
+        return np.concatenate([np.maximum(x, 0.0), np.maximum(-x, 0.0)])
+
     def evaluate(self, aus: Mapping[str, float]) -> tuple[FloatArray, FloatArray]:
         """(contractions (M,) clamped to the table's range, joint offsets (J,) deg, unclamped)."""
-        x = self.channel_values(aus)
-        split = np.concatenate([np.maximum(x, 0.0), np.maximum(-x, 0.0)])
+        return self.evaluate_split(self.split(aus))
+
+    def evaluate_split(self, split: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """`evaluate` from an already validated `split` vector."""
         contractions = np.clip(self.to_muscles @ split, self.contraction_low, self.contraction_high)
         return contractions, self.to_joints @ split
 
@@ -140,6 +173,15 @@ def check_au(table: AUTable, name: object, value: object) -> tuple[int, str, flo
         hint = " (this AU has no counter AU)" if entry.range[0] >= 0.0 and x < 0.0 else ""
         raise ActionUnitValueError(f"{name}: expected a finite intensity in {list(entry.range)}, got {value!r}{hint}")
     return number, side, x
+
+
+def _missing_note(kind: str, names: list[str], has_muscles: bool) -> str:
+    """'muscles zygomatic_major_l, zygomatic_major_r are not in the head' (or: the head has no muscles)."""
+    listed = ", ".join(names)
+    if kind == "muscle" and not has_muscles:
+        return f"this head has no muscles ({listed})"
+    plural = f"{kind}s {listed} are" if len(names) > 1 else f"{kind} {listed} is"
+    return f"{plural} not in the head"
 
 
 def _mirror(action: AUAction) -> AUAction:

@@ -189,3 +189,23 @@ def load_au_table(face_type_or_path: str | Path) -> AUTable:
     if not entries:
         raise HeadProfileError(f"{where}: the table has no AU rows")
     return AUTable(face_type, intensity, contraction, entries, path)
+
+
+def with_vocabulary(table: AUTable, base: AUTable) -> AUTable:
+    """``table`` plus an empty row for every AU of ``base`` it lacks (same face type): a head's own table
+    need not list every AU of its face type; the AUs it leaves out validate as usual and move nothing."""
+    if table.face_type != base.face_type:
+        return table
+    entries = dict(table.entries)
+    for number, entry in base.entries.items():
+        if number not in entries:
+            entries[number] = AUEntry(
+                number,
+                entry.source,
+                entry.sided,
+                entry.range,
+                AUAction(entry.action.name, (), ()),
+                None,
+                f"not in this head's AU table ({table.path.name})",
+            )
+    return AUTable(table.face_type, table.intensity, table.contraction, entries, table.path)

@@ -255,12 +255,10 @@ class TwinGate:
             else np.zeros(self.table.n, dtype=np.int64)
         )
         table, health_findings = derate(self.table, health, self.config.health)
-        fraction = 1.0
-        if elapsed_s is not None:
-            table, last_step, fraction = lim.per_time(
+        if elapsed_s is not None:  # (a check without it, e.g. a speculative one, leaves the memory alone)
+            table, last_step, self._last_fraction = lim.per_time(
                 table, last_step, elapsed_s, self.frame_period_s, self._last_fraction
             )
-        self._last_fraction = fraction
         req, bad = self._vector(goals_tick, last, "goals_tick")
         requested = {sid: int(t) for sid, t in zip(self.table.ids, req, strict=True)}
         if bad:
@@ -322,6 +320,16 @@ class TwinGate:
             if g + 1 >= len(fracs):
                 break
         return best, best_frac
+
+    def step_state(self) -> tuple[IntArray | None, IntArray]:
+        """What `check` carries from one call to the next (the last command it passed and that step), for
+        a caller that checks a command speculatively and puts the state back (`restore_step_state`)."""
+        return (None if self._last_sent is None else self._last_sent.copy(), self._last_step.copy())
+
+    def restore_step_state(self, state: tuple[IntArray | None, IntArray]) -> None:
+        last_sent, last_step = state
+        self._last_sent = None if last_sent is None else last_sent.copy()
+        self._last_step = last_step.copy()
 
     def reset(self) -> None:
         """Forget the previous step (the next check assumes the servos start from rest)."""

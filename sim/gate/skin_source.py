@@ -54,7 +54,8 @@ class SkinSource:
         key = id(rows)
         cached = self._rows.get(key)
         if cached is None or cached[0] is not rows:
-            sub = self.bumps.reshape(-1, 3, self.bumps.shape[1])[rows].reshape(-1, self.bumps.shape[1])
+            n_anchor = self.bumps.shape[1]  # explicit shapes: a head may have no skin or no anchors (size 0)
+            sub = self.bumps.reshape(len(self.base), 3, n_anchor)[rows].reshape(3 * len(rows), n_anchor)
             # anchor bumps are local (a few % non-zero): sparse rows make the product ~10x cheaper
             cached = (rows, sp.csr_matrix(sub), self.base[rows])
             self._rows[key] = cached
@@ -70,7 +71,7 @@ class SkinSource:
         """(k, n, 3) for (k, A) pulls."""
         p = np.clip(pulls_mm, self.lower_mm, self.upper_mm)
         if self.contract is None:
-            return self.base + (p @ self.bumps.T).reshape(p.shape[0], -1, 3)
+            return self.base + (p @ self.bumps.T).reshape(p.shape[0], len(self.base), 3)
         return np.stack([self.offsets(row) for row in p])
 
 
@@ -128,6 +129,17 @@ def face_model_source(face_model: Any, anchors: Sequence[Any]) -> SkinSource:
             c[m] = value
             movable |= np.abs(np.asarray(fm.field.offsets(c))).sum(axis=1) > 0
     unit_pull = np.asarray(fm.fit.unit_pull, dtype=np.float64)
+    if n_muscles == 0:  # anchors only (or nothing at all): the face model's skin is its anchor bumps
+        return SkinSource(
+            base=np.zeros((n, 3)),
+            bumps=bumps,
+            unit_pull=unit_pull.reshape(n_anchors, 0),
+            contract=None,
+            field=None,
+            lower_mm=np.array([a.lower_mm for a in anchors], dtype=np.float64),
+            upper_mm=np.array([a.upper_mm for a in anchors], dtype=np.float64),
+            movable=movable,
+        )
     solver = BoxLsq(np.vstack([unit_pull, float(fm.fit.mu) * np.eye(n_muscles)]), low, high)
     zeros = np.zeros(n_muscles)
 

@@ -24,6 +24,10 @@ def _lid(fn: Callable[[float, bool], tuple[F64, I64]], side: float, upper: bool)
     return lambda: fn(side, upper)
 
 
+def _crease(fn: Callable[[float, bool, bool], tuple[F64, I64]], side: float) -> MeshFn:
+    return lambda: fn(side, True, True)
+
+
 def _human() -> dict[str, MeshFn]:
     h = human_gen
     out: dict[str, MeshFn] = {
@@ -41,6 +45,9 @@ def _human() -> dict[str, MeshFn]:
         out[f"human_ear_{tag}"] = _sided(h.ear, side)
         out[f"human_upper_lid_{tag}"] = _lid(h.eyelid, side, True)
         out[f"human_lower_lid_{tag}"] = _lid(h.eyelid, side, False)
+        out[f"human_upper_lash_{tag}"] = _lid(h.lid_line, side, True)
+        out[f"human_lower_lash_{tag}"] = _lid(h.lid_line, side, False)
+        out[f"human_lid_crease_{tag}"] = _crease(h.lid_line, side)
     return out
 
 
@@ -52,6 +59,7 @@ def _dog() -> dict[str, MeshFn]:
         "dog_teeth_upper": d.teeth_upper,
         "dog_mouth_cavity": d.mouth_cavity,
         "dog_neck": d.neck,
+        "dog_neck_collar": d.neck_collar,
         "dog_nose": d.nose,
         "dog_tongue_root": d.tongue_root,
         "dog_tongue_tip": d.tongue_tip,

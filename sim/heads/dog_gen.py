@@ -290,6 +290,15 @@ def neck() -> tuple[F64, I64]:
     return _out(*mt.tube_along(pts, np.array([44.0, 44.0, 46.0]), 28))
 
 
+def neck_collar() -> tuple[F64, I64]:
+    """Visual only: the neck's top bent forward into the back of the head, so the head sits on its neck
+    with no gap or ring (issue 11); fixed to the base like the neck, hidden inside the skin at the front."""
+    top = np.array([0.0, 40.0, -55.0])  # the neck's top, continued along its own axis into the head
+    axis = np.array([0.0, 30.0, 20.0]) / np.hypot(30.0, 20.0)
+    pts = np.array([top - 4.0 * axis, top + 20.0 * axis, top + 44.0 * axis])
+    return _out(*mt.tube_along(pts, np.array([44.0, 42.0, 36.0]), 28))
+
+
 def ear(side: float) -> tuple[F64, I64]:
     """A cropped, erect ear: a tapered cup opening sideways-forward, base on the top of the skull."""
     nb, nt = 12, 14

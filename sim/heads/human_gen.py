@@ -210,6 +210,22 @@ def eyelid(side: float, upper: bool) -> tuple[F64, I64]:
     return _outward(v, f)
 
 
+def lid_line(side: float, upper: bool, crease: bool = False) -> tuple[F64, I64]:
+    """A thin tube along a lid: the lash line on the margin, or (``crease``) the upper lid's crease.
+
+    Visual only: a closed lid reads as a lid (a dark margin and a fold above it), not as a skin bulb."""
+    c = np.array([side * EYE_CENTRE_L[0], EYE_CENTRE_L[1], EYE_CENTRE_L[2]])
+    if crease:
+        beta, r_mm, thick_mm, psi = 40.0, EYE_RADIUS + 2.75, 0.45, 70.0
+    elif upper:
+        beta, r_mm, thick_mm, psi = 16.6, EYE_RADIUS + 2.5, 1.1, 80.0
+    else:
+        beta, r_mm, thick_mm, psi = -24.6, EYE_RADIUS + 1.2, 0.45, 78.0
+    spine = mt.sphere_patch(c, r_mm, (beta, beta), (-psi, psi), 1, 25)[0]
+    taper = thick_mm * (0.45 + 0.55 * np.cos(np.linspace(-1.2, 1.2, len(spine))))
+    return mt.tube_along(spine, taper, 8)
+
+
 def _outward(v: F64, f: I64) -> tuple[F64, I64]:
     import trimesh
 
@@ -232,11 +248,14 @@ def skull() -> tuple[F64, I64]:
 
 
 def mouth_cavity() -> tuple[F64, I64]:
-    """A dark cup open towards the lips: what shows between the teeth when the mouth opens."""
-    c = np.array([0.0, 68.0, 75.0])
+    """A dark cup open towards the lips: what shows between the teeth when the mouth opens.
+
+    Its rim sits 6+ mm behind the skin at the mouth corners, so a corner pulled back (AU20, AU14) does
+    not uncover it (the dark crease lines of issue 11)."""
+    c = np.array([0.0, 68.0, 68.0])
     flip = np.array([-1.0, 1.0, -1.0])
     outer = mt.sphere_patch(np.zeros(3), 1.0, (-89.0, 89.0), (-89.0, 89.0), 18, 18) * flip
-    semi = np.array([23.0, 22.0, 40.0])
+    semi = np.array([25.0, 23.0, 36.0])
     return _outward(*mt.shell_from_grids(c + outer * (semi + 1.0), c + outer * semi))
 
 

@@ -76,8 +76,8 @@ def _portrait_crop(
     if span <= 0:
         return lo, hi
     lo, hi = lo.copy(), hi.copy()
-    lo[1] = max(lo[1], chin_y - 0.3 * span)
-    hi[1] = min(hi[1], eye_y + 1.1 * span)
+    lo[1] = max(lo[1], chin_y - 0.2 * span)
+    hi[1] = min(hi[1], eye_y + 0.8 * span)  # issue 11: the face fills the frame (0.3 / 1.1 showed the crown)
     return lo, hi
 
 
@@ -231,7 +231,9 @@ class HeadRenderer:
         transforms = part_transforms(head, pose.joint_deg)
         items = [MeshItem(p.mesh, tuple(p.color_rgba), transforms[p.name], p.name) for p in head.parts]
         skin = head.skin
-        posed = (posed_skin_vertices(head, pose), skin.faces, skin.color_rgba, _skin_colors(skin))
+        posed = None  # a mechanical head has no skin: parts only
+        if len(skin.vertices_mm) and len(skin.faces):
+            posed = (posed_skin_vertices(head, pose), skin.faces, skin.color_rgba, _skin_colors(skin))
         view = view or self.view or default_view(str(head.face_type))
         return self.render_posed(items, posed, view, self.head_box(head), depth=depth, face_type=str(head.face_type))
 
@@ -274,10 +276,18 @@ class HeadRenderer:
                     if not p.name.startswith("neck")
                 ]
                 v = np.asarray(posed_skin_vertices(head, pose))
-                lo, hi = np.minimum(lo, v.min(axis=0)), np.maximum(hi, v.max(axis=0))
+                if len(v):
+                    lo, hi = np.minimum(lo, v.min(axis=0)), np.maximum(hi, v.max(axis=0))
                 if items:
                     plo, phi = _box_of(items)
                     lo, hi = np.minimum(lo, plo), np.maximum(hi, phi)
+            if not np.all(np.isfinite(lo)) and head.parts:  # only neck parts: frame them
+                transforms = part_transforms(head, rest.joint_deg)
+                lo, hi = _box_of(
+                    [MeshItem(p.mesh, tuple(p.color_rgba), transforms[p.name], p.name) for p in head.parts]
+                )
+            if not np.all(np.isfinite(lo)):
+                raise RenderError(f"head {getattr(head, 'name', '?')!r} has nothing to draw: no skin and no parts")
             lo, hi = _portrait_crop(lo, hi, getattr(head, "landmarks_mm", {}))
             # keep the head referenced so its id cannot be reused by another object
             self._head_box[key] = (head, lo, hi)

@@ -29,7 +29,7 @@ def test_forward_and_inverse_match_every_servo(calibration: HeadCalibration) -> 
 
 
 @settings(max_examples=50, deadline=None)
-@given(frac=st.lists(st.floats(0.0, 1.0), min_size=21, max_size=21))
+@given(frac=st.lists(st.floats(0.0, 1.0), min_size=30, max_size=30))
 def test_head_round_trip_target_goal_target_within_one_tick(frac: list[float]) -> None:
     from pathlib import Path
 

@@ -21,9 +21,9 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_fixture_gives_the_human_calibration(calibration: HeadCalibration, dog_calibration: HeadCalibration) -> None:
-    assert calibration.head == "human" and len(calibration) == 21
-    assert dog_calibration.head == "dog" and len(dog_calibration) == 20
-    assert calibration.ids == tuple(range(1, 22)) and dog_calibration.ids == tuple(range(1, 21))
+    assert calibration.head == "human" and len(calibration) == 30
+    assert dog_calibration.head == "dog" and len(dog_calibration) == 29
+    assert calibration.ids == tuple(range(1, 31)) and dog_calibration.ids == tuple(range(1, 30))
     for cal in (calibration, dog_calibration):
         assert set(cal.neutral_goals().values()) == {2048}
         for s in cal.servos:

@@ -16,7 +16,7 @@ def test_csv_mode_through_the_cli(tmp_path: Path, capsys: pytest.CaptureFixture[
     rows = ["role,target,tick"]
     for t in (0.0, 5.0, 12.5, 20.0, 25.0):
         rows.append(f"jaw,{t},{round(2048 + t * 4096 / 360)}")
-    for t, tick in ((-4.0, 1700), (0.0, 2048), (4.0, 2420), (8.0, 2650), (12.0, 2800)):
+    for t, tick in ((-4.0, 1700), (0.0, 2048), (4.0, 2420), (8.0, 2650), (13.5, 2850)):
         rows.append(f"lip_corner_l,{t},{tick}")
     (tmp_path / "m.csv").write_text("\n".join(rows) + "\n")
     out = tmp_path / "human.json"
@@ -39,7 +39,7 @@ def test_csv_mode_through_the_cli(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert code == 0, text
     assert "saved" in text and "EEPROM backstop" in text
     cal = load_calibration(out)
-    assert len(cal) == 21  # the other servos are kept from the head's calibration file
+    assert len(cal) == 30  # the other servos are kept from the head's calibration file
     assert cal["lip_corner_l"].to_tick(4.0) == 2420 and cal["lip_corner_l"].curve.kind == "pchip"
     assert cal["jaw"].curve.kind == "linear"
     assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == ["jaw.png", "lip_corner_l.png"]

@@ -38,7 +38,7 @@ def _assert_table(name: str, status: int, out: str, err: str) -> None:
         assert f"{servo.min_tick}..{servo.max_tick}" in " ".join(cells), cells
         assert int(cells[-1]) == servo.neutral_tick
     assert f"{len(head.actuators)} servos" in out.splitlines()[0]
-    assert out.splitlines()[-1] == "ok"
+    assert out.splitlines()[-1].startswith("ok: next `servoface preview")
 
 
 def test_check_human_prints_its_table_and_passes(capsys: pytest.CaptureFixture[str]) -> None:
@@ -83,8 +83,9 @@ def test_check_calibration_missing_a_servo(tmp_path: Path, capsys: pytest.Captur
     bad = tmp_path / "calibration.json"
     bad.write_text(json.dumps(data))
     assert main(["check", "human", "--calibration", str(bad)]) != 0
-    err = capsys.readouterr().err
-    assert "brow_inner_l" in err or "role" in err, err
+    out, err = capsys.readouterr()
+    assert "calibration has no servo for role 'brow_inner_l'" in out, out + err
+    assert "servoface calibrate --head human --roles brow_inner_l" in out  # the next step, spelled out
 
 
 def test_check_needs_a_head_argument(capsys: pytest.CaptureFixture[str]) -> None:

@@ -59,7 +59,7 @@ def test_demo_cli_writes_video_sheet_clip_and_report(short_demo: Path, capsys: p
     assert report["verdicts"]["clip"] + report["verdicts"]["reject"] > 0  # the jaw snap is too fast
     assert report["clip_reasons"] and report["bus"]["bytes_written"] > 0
     assert report["max_goal_error_tick"] is not None and report["max_goal_error_tick"] <= 1
-    assert set(report["goal_error_tick"]) == {str(i) for i in range(1, 22)}
+    assert set(report["goal_error_tick"]) == {str(i) for i in range(1, 31)}
     gif = Image.open(short_demo / "twin.gif")
     n_video = report["outputs"]["video_frames"]
     assert n_video >= 10

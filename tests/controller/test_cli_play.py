@@ -21,7 +21,7 @@ def test_play_expression_on_the_emulator(tmp_path: Path, capsys: pytest.CaptureF
     assert lines[-1]["aus"] == {} and "stop (end): eased to neutral" in out and "on every servo" in out
     assert {line["verdict"] for line in lines} <= {"accept", "clip", "reject"}
     apex = max(lines, key=lambda d: d["aus"].get("AU12", 0.0))
-    assert apex["aus"]["AU12"] > 0.5 and len(apex["goals_sent"]) == 21
+    assert apex["aus"]["AU12"] > 0.5 and len(apex["goals_sent"]) == 30
 
 
 def test_play_script_on_the_emulator(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -120,7 +120,7 @@ BAD: list[tuple[object, str]] = [
     ({"aus": {"AU99": 0.1}}, "AU99"),
     ({"aus": {"AU12": 0.2}, "extra": 1}, "extra"),
     ({"blendshapes": {"mouthSmileLeft": 1.2}}, "blendshapes.mouthSmileLeft"),
-    ({"blendshapes": {"mouthSmileLeft": -0.1}}, "blendshapes.mouthSmileLeft"),
+    ({"blendshapes": {"mouthSmileLeft": -0.15}}, "blendshapes.mouthSmileLeft"),
     ({"blendshapes": {"smile": 0.5}}, "blendshapes.smile"),
     ({"blendshapes": {"jawOpen": True}}, "blendshapes.jawOpen"),
     ({"blendshapes": [0.1, 0.2]}, "blendshapes"),

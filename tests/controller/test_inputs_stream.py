@@ -28,6 +28,7 @@ from servoface.controller.inputs import (
     TcpReceiver,
     UdpReceiver,
 )
+from servoface.controller.inputs.admission import StreamGuard
 from servoface.controller.inputs.follow import follow
 from servoface.controller.inputs.transports import check_host, parse_address
 from servoface.controller.performance import play_timeline
@@ -185,7 +186,7 @@ def test_udp_loopback_counts_a_malformed_datagram_and_keeps_the_last_good() -> N
 
 
 def test_udp_burst_leaves_no_backlog_the_newest_wins() -> None:
-    src = StreamSource(smoothing=None)
+    src = StreamSource(smoothing=None, guard=StreamGuard(burst=200))
     with UdpReceiver(src, "127.0.0.1", 0) as rx, socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
         for k in range(100):
             tx.sendto(json.dumps({"t": k, "aus": {"AU12": k / 100}}).encode(), rx.address)
@@ -286,7 +287,8 @@ def test_recording_plays_through_play_timeline(face: Face) -> None:
 def test_cli_stream_stdin_summary(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
     lines = [json.dumps({"t": k / 30, "aus": {"AU12": 0.05 * k}}) for k in range(10)] + ['{"aus": {"AU12": 9}}']
     monkeypatch.setattr("sys.stdin", io.StringIO("\n".join(lines) + "\n"))
-    rc = cli_main(["stream", "--emulate", "--stdin", "--duration", "0.4", "--dropout-ms", "100", "--ease", "0.1"])
+    argv = ["stream", "--emulate", "--stdin", "--arrival", "--duration", "0.4", "--dropout-ms", "100", "--ease", "0.1"]
+    rc = cli_main(argv)
     out = capsys.readouterr().out
     assert rc == 0
     assert "messages 11: good 10, bad 1" in out and "dropouts 1" in out and "verdicts" in out

@@ -14,8 +14,8 @@ def test_bench_pipeline_prints_figures_against_the_wire_limit(capsys: pytest.Cap
     figures = {d["name"]: d for d in map(json.loads, capsys.readouterr().out.splitlines())}
     fps = next(d for name, d in figures.items() if name.startswith("pipeline frames/s"))
     assert fps["unit"] == "frames/s" and fps["value"] > 0
-    # 21 goals written, 24 positions read: a little less traffic than a full 24-servo cycle
-    assert cycle_budget(24, 1_000_000).limit_hz < fps["limit"] < cycle_budget(21, 1_000_000).limit_hz
+    # 30 goals written, 33 positions read: a little less traffic than a full 33-servo cycle
+    assert cycle_budget(33, 1_000_000).limit_hz < fps["limit"] < cycle_budget(30, 1_000_000).limit_hz
     assert fps["ratio"] == pytest.approx(fps["value"] / fps["limit"], rel=1e-3)
     assert "corrupt 0" in fps["note"]
     stages = {name.rsplit(" ", 1)[-1]: d for name, d in figures.items() if name.startswith("pipeline stage median")}

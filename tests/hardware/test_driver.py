@@ -218,8 +218,28 @@ def test_fast_sync_read_falls_back_when_the_firmware_lacks_it(monkeypatch: pytes
             raise BusTimeoutError("fast sync read: no reply", tuple(ids))
         return real_sync_read(ids, registers, fast=fast)
 
+    real_start = driver.bus.sync_read_start
+
+    def old_firmware_start(ids, registers, *, fast=False):  # type: ignore[no-untyped-def]
+        if fast:  # the instruction goes out; the silence shows as a timeout, here at once
+            raise BusTimeoutError("fast sync read: no reply", tuple(ids))
+        return real_start(ids, registers, fast=fast)
+
     monkeypatch.setattr(driver.bus, "sync_read", old_firmware)
+    monkeypatch.setattr(driver.bus, "sync_read_start", old_firmware_start)
     snaps = run(chain, driver, {1: 2600}, 0.5)
     assert not driver.fast_sync_read and snaps[-1][1].position_tick == 2600
     assert not any(s.missing or s.stale for s in snaps[-1])
     assert any("Fast Sync Read failed" in e.reaction for e in driver.events)
+
+
+def test_model_mismatch_says_which_id_answered_as_which_model() -> None:
+    """A wrong servo on an id reads as that, not as a failed write (issue 19)."""
+    from servoface.hardware.errors import ServoModelMismatch
+
+    chain, driver = make_driver(torque=False)
+    with pytest.raises(ServoModelMismatch) as err:
+        configure_servo(driver.bus, ServoSpec(3, "XL430-W250"))
+    text = str(err.value)
+    assert "servo 3" in text and "XL330-M288" in text and "1200" in text and "XL430-W250" in text and "1060" in text
+    assert "after writing" not in text

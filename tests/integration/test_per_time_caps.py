@@ -18,7 +18,7 @@ def _speeds(face: Face, steps: list[dict[str, float]], sleep_s: list[float]) -> 
         face.pipeline.step(aus)
         if pause:
             time.sleep(pause)
-    writes = chain.goal_writes()[start - 21 if start >= 21 else 0 :]
+    writes = chain.goal_writes()[max(0, start - len(face.pipeline.gate.table.ids)) :]
     table = face.pipeline.gate.table
     period = face.pipeline.gate.frame_period_s
     cap = {sid: int(table.max_step_tick[i]) / period for i, sid in enumerate(table.ids)}  # ticks per second
@@ -27,7 +27,8 @@ def _speeds(face: Face, steps: list[dict[str, float]], sleep_s: list[float]) -> 
     for t, sid, goal in writes:
         if sid in last:
             t0, g0 = last[sid]
-            out.append((sid, abs(goal - g0), cap[sid] * (t - t0) + 1e-6))
+            # 5 % + 1 tick: the emulator stamps a packet when it parses it, not when the host wrote it
+            out.append((sid, abs(goal - g0), 1.05 * cap[sid] * (t - t0) + 1.0))
         last[sid] = (t, goal)
     return out
 

@@ -110,8 +110,8 @@ def test_antagonists_sum_then_clamp() -> None:
 def test_dog_counter_aus_use_their_own_row_or_mirror() -> None:
     m = _mapping("dog")
     assert _joint(m, {"AU5": 1.0}, "ear_pan_l") == pytest.approx(30.0)
-    assert _joint(m, {"AU5": -1.0}, "ear_pan_l") == pytest.approx(-40.0)
-    assert _joint(m, {"AU5R": -0.5}, "ear_pan_r") == pytest.approx(-20.0)
+    assert _joint(m, {"AU5": -1.0}, "ear_pan_l") == pytest.approx(-50.0)  # issue 11: about x, back and flat
+    assert _joint(m, {"AU5R": -0.5}, "ear_pan_r") == pytest.approx(-25.0)
     assert _joint(m, {"AU5R": -0.5}, "ear_pan_l") == 0.0
     assert _muscle(m, {"AU1": -1.0}, "levator_nasolabialis_l") == pytest.approx(-0.3)
     assert _joint(m, {"AU19": -1.0}, "tongue_tip") == pytest.approx(35.0)  # mirrored counter (name lost)
@@ -177,10 +177,13 @@ def test_table_file_errors_name_the_file_and_key(tmp_path: Path, body: str, word
         assert word in str(info.value)
 
 
-def test_a_table_naming_a_missing_muscle_fails_to_bind(tmp_path: Path) -> None:
+def test_a_table_naming_a_missing_muscle_is_noted_or_strictly_refused(tmp_path: Path) -> None:
     table = load_au_table(_write(tmp_path, '[AU1]\nsource = "s"\nmuscles = { "nasalis" = 1.0 }\n'))
     with pytest.raises(HeadProfileError, match="nasalis.*known muscles"):
-        AUMapping(table, ["procerus"], [])
+        AUMapping(table, ["procerus"], [], allow_missing=False)
+    mapping = AUMapping(table, ["procerus"], [])
+    assert mapping.missing == {"nasalis"}
+    assert mapping.unreachable == {1: "muscle nasalis is not in the head"}
     with pytest.raises(HeadProfileError, match="not found"):
         load_au_table(tmp_path / "nope.toml")
 

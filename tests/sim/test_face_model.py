@@ -366,13 +366,13 @@ def test_the_model_exposes_its_au_vocabulary(model: FaceModel) -> None:
         model.au_range("AU26L")
 
 
-def test_a_smaller_head_may_reuse_the_table_when_allowed() -> None:
+def test_a_smaller_head_reuses_the_table_unless_strict() -> None:
     head = synthetic_human(8.0)
     keep = tuple(m for m in head.muscles if not m.name.startswith(("risorius", "buccinator")))
     small = SimpleNamespace(**{**vars(head), "muscles": keep})
     with pytest.raises(HeadProfileError, match="(buccinator|risorius)_l.* is not in the head"):
-        FaceModel(small)
-    model = FaceModel(small, allow_missing=True)
+        FaceModel(small, allow_missing=False)
+    model = FaceModel(small)  # the default: applied to what the head has
     assert {"risorius_l", "risorius_r", "buccinator_l", "buccinator_r"} == model.mapping.missing
     assert np.allclose(model.solve({"AU20": 1.0}).skin_offset_mm, 0.0)  # validated, moves nothing here
     assert np.abs(model.solve({"AU12": 1.0}).skin_offset_mm).max() > 1.0

@@ -77,7 +77,7 @@ def test_face_model_skin_is_exactly_pose_from_targets(gate: TwinGate, face_model
         p = rng.uniform([a.lower_mm - 1 for a in anchors], [a.upper_mm + 1 for a in anchors])
         ref = face_model.pose_from_targets({**neutral, **{a.role: float(v) for a, v in zip(anchors, p, strict=True)}})
         full = gate.skin_source.offsets(p)
-        assert np.allclose(full, ref.skin_offset_mm, atol=1e-9)
+        assert np.allclose(full, ref.skin_offset_mm, atol=1e-7)  # 30 servos: BVLS vs BoxLsq differ by ~1e-8 mm
         rows = gate.skin.active_vertices
         part = gate.skin_source.offsets_rows(p, rows)
         assert np.allclose(part, full[rows], atol=1e-12)
@@ -162,7 +162,7 @@ def test_au_frames_through_the_face_model_only_pass_safe_commands(gate: TwinGate
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(st.lists(st.lists(st.integers(-300, 300), min_size=21, max_size=21), min_size=1, max_size=5))
+@given(st.lists(st.lists(st.integers(-300, 300), min_size=30, max_size=30), min_size=1, max_size=5))
 def test_random_goal_vectors_on_the_human_head(gate: TwinGate, steps: list[list[int]]) -> None:
     t = gate.table
     gate.reset()

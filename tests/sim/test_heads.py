@@ -11,14 +11,17 @@ from servoface.sim.rig import SERVO_MODELS, AnchorActuator, JointActuator
 
 HUMAN_ROLES = [
     "brow_inner_l", "brow_inner_r", "brow_outer_l", "brow_outer_r", "upper_lid_l", "upper_lid_r",
-    "lower_lids", "eye_pan", "eye_tilt", "nose_wrinkle", "upper_lip", "lip_corner_l", "lip_corner_r",
+    "lower_lid_l", "eye_pan_l", "eye_tilt", "nose_wrinkle", "upper_lip", "lip_corner_l", "lip_corner_r",
     "lip_depressor_l", "lip_depressor_r", "lower_lip", "lip_pucker", "jaw", "neck_pan", "neck_tilt",
-    "neck_roll",
+    "neck_roll", "lower_lid_r", "eye_pan_r", "cheek_l", "cheek_r", "chin", "brow_knit_l", "brow_knit_r",
+    "corner_stretch_l", "corner_stretch_r",
 ]  # fmt: skip
 DOG_ROLES = [
     "lip_raise_l", "lip_raise_r", "mouth_corner_l", "mouth_corner_r", "nostrils", "upper_lid_l",
     "upper_lid_r", "ear_pan_l", "ear_pan_r", "ear_tilt_l", "ear_tilt_r", "jaw", "jaw_lateral",
-    "neck_pitch", "neck_yaw", "neck_roll", "eye_pan", "eye_tilt", "tongue_extend", "tongue_tip",
+    "neck_pitch", "neck_yaw", "neck_roll", "eye_pan", "eye_tilt", "tongue_extend", "tongue_tip", "brow_l",
+    "brow_r", "forehead_l", "forehead_r", "ear_root_l", "ear_root_r", "nostril_wing_l", "nostril_wing_r",
+    "muzzle",
 ]  # fmt: skip
 HUMAN_MUSCLES = [
     "frontalis_medial_l", "frontalis_medial_r", "frontalis_lateral_l", "frontalis_lateral_r", "corrugator_l",

@@ -45,7 +45,7 @@ def test_copied_builtin_folder_loads_with_user_meshes(tmp_path: Path) -> None:
     assert head.calibration_path == folder / "calibration.json"
     np.testing.assert_allclose(head.part("jaw").mesh.bounds, load_head("human").part("jaw").mesh.bounds, atol=1e-3)
     assert len(head.skin.vertices_mm) == len(skin.vertices_mm)
-    assert len(head.actuators) == 21
+    assert len(head.actuators) == 30
 
 
 def test_user_glb_part_mesh_loads(tmp_path: Path) -> None:
@@ -151,7 +151,7 @@ BAD_CASES = [
         'roles = ["lip_corner_l", "smile"]',
         r"coupling\[0\]\.roles\[1\]: expected an actuator role of this head",
     ),
-    ("max_sum_share = 1.2", "max_sum_share = -1.0", r"coupling\[0\]\.max_sum_share: expected a number in"),
+    ("max_sum_share = 1.5", "max_sum_share = -1.0", r"coupling\[0\]\.max_sum_share: expected a number in"),
     ("rs_mm = 46.0", "rs_mm = 80.0", r"muscle\[0\]\.rf_mm: expected 0 < rs_mm < rf_mm"),
     (
         'type = "sphincter"\ncentre_mm = [0.0, 72.0, 80.0]',
@@ -257,7 +257,7 @@ def test_missing_profile_file(tmp_path: Path) -> None:
 def test_coupling_rules_and_muscle_mirrors_are_loaded() -> None:
     head = load_head("human")
     rule = head.coupling_rules[0]
-    assert rule.roles == ("lip_corner_l", "lip_depressor_l") and rule.max_sum_share == 1.2
+    assert rule.roles == ("lip_corner_l", "lip_depressor_l") and rule.max_sum_share == 1.5
     left, right = head.muscle("zygomatic_major_l"), head.muscle("zygomatic_major_r")
     assert right.insertion_mm == (-left.insertion_mm[0], left.insertion_mm[1], left.insertion_mm[2])  # type: ignore[union-attr]
     a_l, a_r = head.actuator("lip_corner_l"), head.actuator("lip_corner_r")

@@ -287,9 +287,10 @@ def test_control_table_backup_answers() -> None:
     assert (st.id, st.error) == (1, OK)
 
 
-def test_indirect_address_beyond_the_table_reads_zero() -> None:
-    chain, ser = quick_chain(ids=[1])  # XL330: a 228-byte table, Indirect Address accepts up to 661
-    assert transact(ser, 1, I.WRITE, wr(168, 600, 2))[0].error == OK
+def test_indirect_address_beyond_the_table_is_refused() -> None:
+    """e-manual XL330-M288, Indirect Address: range 64~227 (the table ends at 227)."""
+    chain, ser = quick_chain(ids=[1])
+    assert transact(ser, 1, I.WRITE, wr(168, 600, 2))[0].error == RANGE
     (st,) = transact(ser, 1, I.READ, rd(208, 1))
     assert (st.error, st.data) == (OK, b"\x00")
 

@@ -52,7 +52,7 @@ DEFAULTS = {
     "XL330-M288": (1200, 70, 70, 35, 445, 53, "Present Current"),
     "XL430-W250": (1060, 72, 140, 60, 265, 52, "Present Load"),
     "XM430-W350": (1020, 80, 160, 95, 200, 52, "Present Current"),
-    "MX-28(2.0)": (30, 80, 160, 95, 380, 52, "Present Load"),
+    "MX-28(2.0)": (30, 80, 160, 95, 230, 52, "Present Load"),  # e-manual MX-28(2.0): Velocity Limit 230
 }
 
 

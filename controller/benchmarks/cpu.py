@@ -1,0 +1,92 @@
+"""The controller's CPU at 50 Hz: the human head's performance played over a pty, the emulator in another
+process (`python -m servoface.controller.benchmarks.cpu human` serves it), as a share of one core.
+
+What a Raspberry-Pi-class computer beside a face tracker has to spare: the budget is 10 % of one core. The
+share is this process's CPU time (user + system, every thread) over the wall time of the run.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+
+from servoface.controller.benchmarks.figure import Figure
+from servoface.controller.benchmarks.interleave import load_text
+
+HEAD = "human"
+RATE_HZ = 50.0
+BUDGET_PERCENT = 10.0
+
+
+def serve(head_name: str) -> None:
+    """Serve ``head_name``'s servo chain (its models, at neutral) on a pty; print the path; run until stdin
+    closes."""
+    from servoface.controller.face import head_calibration
+    from servoface.controller.head_servos import servo_specs
+    from servoface.hardware.emulator import ServoChain
+    from servoface.sim.heads import load_head
+
+    head = load_head(head_name)
+    cal = head_calibration(head)
+    specs = servo_specs(head, cal)
+    chain = ServoChain.create([(s.servo_id, s.model) for s in specs], baud=1_000_000, wire_time=True)
+    for s in specs:
+        chain.servo(s.servo_id).move_by_hand(cal.by_id(s.servo_id).neutral_tick)
+    path = chain.serve_pty()
+    sys.stdout.write(path + "\n")
+    sys.stdout.flush()
+    sys.stdin.read()
+    chain.close()
+
+
+def cpu_budget_figures(quick: bool) -> Iterator[Figure]:
+    from servoface.controller.face import Face
+    from servoface.controller.performance import play_timeline
+    from servoface.controller.script import SCRIPTS_DIR, load_script
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "servoface.controller.benchmarks.cpu", HEAD],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stdout is not None
+        path = proc.stdout.readline().strip()
+        if not path:
+            raise RuntimeError("the emulator process printed no pty path")
+        face = Face.open(HEAD, port=path, rate_hz=RATE_HZ)
+        try:
+            script = load_script(SCRIPTS_DIR / "human_performance.toml")
+            duration_s = 3.0 if quick else min(30.0, script.end_s)
+            cpu0, wall0 = time.process_time(), time.perf_counter()
+            result = play_timeline(face.pipeline, script, duration_s, rate_hz=RATE_HZ, keep_traces=True)
+            wall_s = time.perf_counter() - wall0
+            cpu_s = time.process_time() - cpu0
+            stats = face.driver.bus.stats if face.driver is not None else None
+        finally:
+            face.close(ease_s=0.0)
+    finally:
+        if proc.stdin is not None:
+            proc.stdin.close()
+        try:
+            proc.wait(timeout=5.0)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+    frames = len(result.traces)
+    yield Figure(
+        f"controller CPU at {RATE_HZ:g} Hz over a pty ({HEAD}, emulator in another process)",
+        100.0 * cpu_s / wall_s,
+        "% of a core",
+        limit=BUDGET_PERCENT,
+        better="lower",
+        note=f"process CPU {cpu_s:.2f} s over {wall_s:.1f} s wall, {frames} frames "
+        f"({result.stats.achieved_hz:.1f} Hz achieved) of the shipped performance; "
+        f"{0 if stats is None else stats.timeouts} timeouts; {load_text()}",
+    )
+
+
+if __name__ == "__main__":
+    serve(sys.argv[1] if len(sys.argv) > 1 else HEAD)

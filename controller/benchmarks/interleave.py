@@ -1,0 +1,80 @@
+"""Interleaved windows: every contender measured in turn, round after round, in the same run.
+
+The machine is shared, so a rate measured alone says little; measured in short windows that alternate with a
+reference (the plain stock-SDK loop, `servoface.hardware.stock_loop`), each round's ratio compares two runs
+that saw the same load. A figure quotes the median window rate and the median of the per-round ratios; the
+best window goes in the note.
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+Step = Callable[[int], object]  # one cycle / frame; gets a running counter
+
+
+@dataclass
+class WindowStats:
+    """Rates (per second) of one contender's windows, and its ratio to the reference in each round."""
+
+    rates: list[float] = field(default_factory=list)
+    ratios: list[float] = field(default_factory=list)
+    count: int = 0
+
+    @property
+    def median(self) -> float:
+        return float(statistics.median(self.rates)) if self.rates else 0.0
+
+    @property
+    def best(self) -> float:
+        return max(self.rates, default=0.0)
+
+    @property
+    def median_ratio(self) -> float:
+        return float(statistics.median(self.ratios)) if self.ratios else 0.0
+
+
+def _window(step: Step, start: int, window_s: float) -> tuple[float, int]:
+    n, t0 = 0, time.perf_counter()
+    while (elapsed := time.perf_counter() - t0) < window_s:
+        step(start + n)
+        n += 1
+    return n / elapsed, n
+
+
+def interleaved(
+    contenders: Mapping[str, Step], reference: str, rounds: int, window_s: float, warm: int = 3
+) -> dict[str, WindowStats]:
+    """``rounds`` rounds of one ``window_s`` window per contender (order rotated each round, so no one
+    always follows the same neighbour); ratios are to ``reference``'s window of the same round."""
+    names = list(contenders)
+    if reference not in contenders:
+        raise ValueError(f"reference {reference!r} is not among the contenders {names}")
+    out = {name: WindowStats() for name in names}
+    for name in names:  # first cycles (group objects, caches) outside the measurement
+        for k in range(warm):
+            contenders[name](k)
+    for r in range(rounds):
+        order = names[r % len(names) :] + names[: r % len(names)]
+        rates: dict[str, float] = {}
+        for name in order:
+            stats = out[name]
+            rates[name], n = _window(contenders[name], stats.count, window_s)
+            stats.count += n
+            stats.rates.append(rates[name])
+        for name in names:
+            out[name].ratios.append(rates[name] / rates[reference] if rates[reference] > 0 else 0.0)
+    return out
+
+
+def load_text() -> str:
+    """The machine's load averages (1/5/15 min) and CPU count, for every figure's note."""
+    try:
+        one, five, fifteen = os.getloadavg()
+    except OSError:
+        return "load unknown"
+    return f"load {one:.2f}/{five:.2f}/{fifteen:.2f} on {os.cpu_count()} cpu"

@@ -1,0 +1,58 @@
+"""`servoface lipsync AUDIO.wav [--text T | --transcript FILE] --head NAME|PATH [--out DIR]`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+HELP = "lip sync for recorded speech: a timeline script (speech.toml) and a twin video with the sound"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("audio", type=Path, help="a PCM WAV file (any rate, mono or stereo)")
+    what = parser.add_mutually_exclusive_group()
+    what.add_argument("--text", help="its transcript: forced alignment (pocketsphinx, English)")
+    what.add_argument("--transcript", type=Path, help="a text file with its transcript")
+    parser.add_argument("--head", default="human", help="built-in head (human, dog) or a profile folder")
+    parser.add_argument("--out", type=Path, default=Path("out/lipsync"), help="output folder (default out/lipsync)")
+    parser.add_argument("--lead-ms", type=float, default=50.0, help="mouth ahead of the sound, ms (default 50)")
+    parser.add_argument("--no-video", action="store_true", help="write only the script and the audio")
+
+
+def run(args: argparse.Namespace) -> int:
+    from servoface.controller.au_names import head_au_names
+    from servoface.controller.cli.head_args import open_errors
+    from servoface.controller.cli.outputs import writable_folder
+    from servoface.controller.speech.errors import SpeechError
+    from servoface.controller.speech.lipsync import speech_from_recording
+    from servoface.controller.speech.say import say_on_face, write_outputs
+    from servoface.sim.heads import load_head
+
+    if not 0 <= args.lead_ms <= 500:
+        print(f"servoface lipsync: --lead-ms must be within 0..500, got {args.lead_ms}", file=sys.stderr)
+        return 2
+    try:
+        head = load_head(args.head)
+        transcript = args.text
+        if args.transcript is not None:
+            transcript = args.transcript.read_text(encoding="utf-8")
+        writable_folder(args.out)
+        speech = speech_from_recording(args.audio, transcript, lead_s=args.lead_ms / 1e3)
+        wav, script = write_outputs(speech, head.face_type, args.out, allowed=head_au_names(head))
+    except (SpeechError, *open_errors()) as err:
+        print(f"servoface lipsync: {err}", file=sys.stderr)
+        return 2
+    print(f"{speech.method}: {len(speech.plan.segments) or 'envelope'} visemes over {speech.duration_s:.2f} s")
+    print(f"wrote {script} (servoface play {script} --head {args.head} --emulate) and {wav}")
+    if args.no_video:
+        return 0
+    from servoface.controller.face import Face
+    from servoface.controller.speech.video import render_talking
+
+    with Face.open(head, emulate=True) as face:
+        perf = say_on_face(face, speech, audio_out=False).performance
+        video = args.out / "speech.mp4"
+        count = render_talking(face, perf, speech, video)
+    print(f"wrote {video}: {count} frames, the achievable face with the sound")
+    return 0

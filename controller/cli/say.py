@@ -1,0 +1,65 @@
+"""`servoface say "TEXT" --head NAME|PATH (--port P | --emulate) [--voice V] [--out DIR]`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from servoface.controller.cli.head_args import add_head_arguments, open_errors, open_face, rate_problem
+
+HELP = "speak a text with lip sync on a head (espeak-ng); write speech.wav, speech.toml and a twin video"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("text", help="what to say (plain text)")
+    parser.add_argument("--voice", default="en-us", help="espeak-ng voice (default en-us)")
+    parser.add_argument("--rate-wpm", type=int, default=None, help="speaking rate, words per minute (80..450)")
+    parser.add_argument("--lead-ms", type=float, default=50.0, help="mouth ahead of the sound, ms (default 50)")
+    parser.add_argument("--expression", default=None, help="hold this library expression while speaking")
+    parser.add_argument("--out", type=Path, default=None, help="write speech.wav, speech.toml, speech.mp4 here")
+    add_head_arguments(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    from servoface.controller.au_names import head_au_names
+    from servoface.controller.speech.errors import SpeechError
+    from servoface.controller.speech.lipsync import speech_from_text
+    from servoface.controller.speech.say import say_on_face, write_outputs
+    from servoface.sim.heads import load_head
+
+    if (problem := rate_problem(args)) is not None:
+        print(f"servoface say: {problem}", file=sys.stderr)
+        return 2
+    if not 0 <= args.lead_ms <= 500:
+        print(f"servoface say: --lead-ms must be within 0..500, got {args.lead_ms}", file=sys.stderr)
+        return 2
+    try:
+        head = load_head(args.head)
+        speech = speech_from_text(args.text, voice=args.voice, rate_wpm=args.rate_wpm, lead_s=args.lead_ms / 1e3)
+        if args.out is not None:
+            from servoface.controller.cli.outputs import writable_folder
+
+            writable_folder(args.out)
+            wav, script = write_outputs(speech, head.face_type, args.out, allowed=head_au_names(head))
+            print(f"wrote {wav} and {script} (play it again: servoface play {script} --head {args.head} ...)")
+        face = open_face(args, head)
+    except (SpeechError, *open_errors()) as err:
+        print(f"servoface say: {err}", file=sys.stderr)
+        return 2
+    with face:
+        if args.expression:
+            face.express(args.expression, hold_s=0.0)
+        spoken = say_on_face(face, speech)
+        perf = spoken.performance
+        if args.out is not None:
+            from servoface.controller.speech.video import plot_timing, render_talking
+
+            plot = plot_timing(face, perf, speech, args.out / "speech_timing.png", latency_s=spoken.latency_s)
+            print(f"wrote {plot}: the waveform against the jaw")
+            video = args.out / "speech.mp4"
+            count = render_talking(face, perf, speech, video)
+            print(f"wrote {video}: {count} frames with sound ({speech.duration_s:.2f} s of speech)")
+    s = perf.summary()
+    print(f"{s['frames']} frames; verdicts {s['verdicts']}; {len(speech.plan.segments)} visemes")
+    return 130 if perf.interrupted else 0

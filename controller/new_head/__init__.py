@@ -1,0 +1,112 @@
+"""`servoface new DIR --from human|dog|mechanical`: write a commented head profile to edit.
+
+- ``human`` / ``dog``: a copy of the built-in profile (its procedural meshes stay ``builtin:``), plus a
+  ``direct.toml`` derived from its muscle model (switched off: uncomment ``au_direct`` to use it);
+- ``mechanical``: an 8-servo head of rigid parts and no skin (meshes written as STL into ``meshes/``)
+  with a direct table for its brows.
+
+Every kind also gets ``calibration_template.csv``: ``role,target,tick`` rows at the lower limit, neutral,
+upper limit and two points between, with the ticks of an ideal servo (2048 = neutral). Replace the ticks
+by what you measure on your head and run ``servoface calibrate --head DIR --csv DIR/calibration_template.csv``.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from servoface.controller.errors import ControllerError
+
+KINDS = ("human", "dog", "mechanical")
+TEMPLATE_CSV = "calibration_template.csv"
+
+
+@dataclass(frozen=True)
+class NewHead:
+    folder: Path
+    files: tuple[Path, ...]
+    kind: str
+
+
+def _name_for(folder: Path) -> str:
+    name = re.sub(r"[^A-Za-z0-9_-]+", "_", folder.resolve().name).strip("_")
+    return name or "my_head"
+
+
+def _copy_builtin(folder: Path, kind: str, name: str) -> str:
+    from servoface.sim.heads import builtin_profile_dir
+
+    text = (builtin_profile_dir(kind) / "head.toml").read_text(encoding="utf-8")
+    text = re.sub(r'(?m)^name = "[^"]*"', f'name = "{name}"', text, count=1)
+    text = re.sub(r'(?m)^calibration = "[^"]*"', 'calibration = "calibration.json"', text, count=1)
+    header = (
+        f"# servoface head profile `{name}`, written by `servoface new --from {kind}` from the built-in {kind} head.\n"
+        "# Edit it to match your head: servo ids and models (`servoface scan` lists them), joint pivots/axes/limits,\n"
+        '# anchor points and lines, ranges. Replace "builtin:..." meshes by your STL/OBJ/GLB files (mm; for a\n'
+        "# mesh in metres set scale = 1000). Remove what your head lacks: every section is optional, the AU\n"
+        "# table is applied to what the head has and `servoface check` lists what it then cannot show.\n"
+        "# To drive servos straight from AUs instead of the muscle model, uncomment:\n"
+        '# au_direct = "direct.toml"\n'
+        f"# Next: `servoface calibrate --head {folder} --csv {folder / TEMPLATE_CSV}` (put your measured\n"
+        f"# ticks in it first), or on the head: `servoface calibrate --head {folder} --port /dev/ttyUSB0`.\n"
+    )
+    return header + text
+
+
+def write_template_csv(head_dir: Path) -> Path:
+    """``calibration_template.csv`` for the profile in ``head_dir`` (ideal-servo ticks, to be replaced)."""
+    import numpy as np
+    from servoface.calibration.builtin import builtin_calibration
+    from servoface.controller.cli.calibrate import specs_from_head
+    from servoface.sim.heads import load_head
+
+    head = load_head(head_dir)
+    specs = specs_from_head(head)
+    cal = builtin_calibration(head.name, specs)
+    lines = [
+        "# role,target,tick: the Present Position (tick) you read when the actuator is at target (deg or mm).",
+        "# These ticks are an IDEAL servo's (2048 = neutral): measure yours and replace them (jog the servo,",
+        "# read the tick with the Dynamixel Wizard or `servoface calibrate --port ...`). Ticks must be strictly",
+        "# monotone in the target. Then: servoface calibrate --head DIR --csv DIR/calibration_template.csv",
+        "role,target,tick",
+    ]
+    for spec in specs:
+        servo = cal[spec.role]
+        targets = sorted({*np.linspace(spec.lower, spec.upper, 5).round(3).tolist(), round(spec.neutral, 3)})
+        for t in targets:
+            lines.append(f"{spec.role},{t:g},{servo.to_tick(float(t))}")
+    path = head_dir / TEMPLATE_CSV
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def write_new_head(folder: Path, kind: str, *, force: bool = False) -> NewHead:
+    """Write a new profile of ``kind`` into ``folder`` (created; an existing head.toml needs ``force``)."""
+    from servoface.sim.au.direct import derive_direct_table
+    from servoface.sim.face_model import FaceModel
+    from servoface.sim.heads import load_head
+
+    if kind not in KINDS:
+        raise ControllerError(f"--from: expected one of {list(KINDS)}, got {kind!r}")
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise ControllerError(f"{folder}: exists and is not a folder")
+    if (folder / "head.toml").exists() and not force:
+        raise ControllerError(f"{folder / 'head.toml'} exists already; pick another folder or pass --force")
+    folder.mkdir(parents=True, exist_ok=True)
+    name = _name_for(folder)
+    files: list[Path] = []
+    if kind == "mechanical":
+        from servoface.controller.new_head import mechanical
+
+        files += mechanical.write_meshes(folder / "meshes")
+        (folder / "head.toml").write_text(mechanical.HEAD_TOML.format(folder=folder, name=name), encoding="utf-8")
+        (folder / "direct.toml").write_text(mechanical.DIRECT_TOML, encoding="utf-8")
+    else:
+        (folder / "head.toml").write_text(_copy_builtin(folder, kind, name), encoding="utf-8")
+        model = FaceModel(load_head(folder))
+        note = f"switched off: uncomment au_direct in head.toml to use it (from the built-in {kind} muscle model)"
+        (folder / "direct.toml").write_text(derive_direct_table(model, note=note), encoding="utf-8")
+    files += [folder / "head.toml", folder / "direct.toml", write_template_csv(folder)]
+    return NewHead(folder, tuple(files), kind)

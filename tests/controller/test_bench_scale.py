@@ -1,0 +1,39 @@
+"""The scale and interleave benchmarks' pieces (figures are printed by `servoface bench`, never asserted on time)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+from servoface.controller.benchmarks import interleave, scale
+from servoface.sim.heads import load_head
+
+
+def test_a_subdivided_human_profile_loads_with_four_times_the_skin(tmp_path: Path) -> None:
+    base = load_head("human")
+    head = load_head(scale.subdivided_profile(1, tmp_path / "sub1"))
+    n0, n1 = len(base.skin.vertices_mm), len(head.skin.vertices_mm)
+    assert 3.5 * n0 < n1 < 4.5 * n0
+    assert len(head.skin.faces) == 4 * len(base.skin.faces)
+    assert [m.name for m in head.muscles] == [m.name for m in base.muscles]
+    assert [a.role for a in head.actuators] == [a.role for a in base.actuators]
+
+
+def test_growth_exponent_is_one_for_linear_costs() -> None:
+    assert scale.exponent([1.0, 4.0, 16.0], [2.0, 8.0, 32.0]) == pytest.approx(1.0)
+    assert scale.exponent([1.0, 16.0], [1.0, 4.0]) == pytest.approx(0.5)
+    assert math.isnan(scale.exponent([1.0], [1.0]))
+
+
+def test_interleaved_windows_rotate_and_ratio_to_the_reference() -> None:
+    calls: list[str] = []
+    out = interleave.interleaved(
+        {"ref": lambda n: calls.append("ref"), "other": lambda n: calls.append("other")}, "ref", 3, 0.002, warm=1
+    )
+    assert len(out["ref"].rates) == len(out["other"].ratios) == 3
+    assert out["ref"].ratios == [1.0, 1.0, 1.0] and out["other"].median_ratio > 0
+    assert "ref" in calls and "other" in calls
+    with pytest.raises(ValueError, match="reference"):
+        interleave.interleaved({"a": lambda n: None}, "b", 1, 0.001)
+    assert "load" in interleave.load_text()
