@@ -384,7 +384,6 @@ class Face:
                     max_ease_s=max_ease_s,
                     hurry=hurry,
                     reason=reason,
-                    on_frame=self.traces.append,
                 )
                 self.pose = {}
             elif self.bus is not None:

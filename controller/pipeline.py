@@ -100,6 +100,8 @@ class Pipeline:
         self._ids = frozenset(s.servo_id for s in self._servos)
         self.last_snapshot: ChainSnapshot | None = None
         self.last_cycle_s: float | None = None  # time.monotonic() of the last driver cycle (pacing)
+        self.last_write_s: float | None = None  # time.monotonic() when the last goals went on the wire
+        self.per_time_caps = True  # False: the gate's per-frame caps only (deterministic replays in tests)
         self._index = 0
         self._ahead: Ahead | None = None  # the next frame, computed during this one's wait (step(next_frame=))
 
@@ -164,8 +166,10 @@ class Pipeline:
         t2 = time.perf_counter()
         health = self._health()
         elapsed_s = (
-            None if self.driver is None or self.last_cycle_s is None else time.monotonic() - self.last_cycle_s
-        )  # since the last frame went on the wire: the gate's caps hold per second, not per call
+            None
+            if self.driver is None or self.last_write_s is None or not self.per_time_caps
+            else time.monotonic() - self.last_write_s
+        )  # since the last goals went on the wire: the gate's caps hold per second, not per call
         per_frame = elapsed_s is None or (
             elapsed_s >= self.gate.frame_period_s and getattr(self.gate, "_last_fraction", 1.0) >= 1.0
         )  # a speculative verdict was checked against whole-frame caps: usable only when those apply
@@ -183,6 +187,7 @@ class Pipeline:
         if self.driver is not None:
             before = self.driver.bus.stats.bytes_written
             self.driver.cycle_start(sent)
+            self.last_write_s = time.monotonic()  # after: the goals are on the wire by now (conservative)
             if next_frame is not None:  # while the replies are on the wire
                 self._ahead = self._prepare(next_frame, sent, health)
             self.last_snapshot = self.driver.cycle_finish()
@@ -273,6 +278,6 @@ class Pipeline:
         if self.driver is None:
             return None
         self.last_snapshot = self.driver.cycle(self.last_goals_tick)
-        self.last_cycle_s = time.monotonic()
+        self.last_cycle_s = self.last_write_s = time.monotonic()
         self.gate.reset()  # the servos got a zero step: the next frame starts from rest (accel cap)
         return self.last_snapshot
