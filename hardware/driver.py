@@ -437,6 +437,9 @@ class Driver(ChainReads):
                 self._start_positions(now)
         except BusDisconnectedError as err:
             self._on_disconnect(err)
+        except BaseException:
+            self._cycle_now = None  # the cycle did not start: the next one may
+            raise
 
     def cycle_finish(self) -> ChainSnapshot:
         """The second half of `cycle`: collect positions, due telemetry, fault policy; the snapshot."""

@@ -78,7 +78,8 @@ class LandmarkSet:
         """(3,) float: one landmark by name (KeyError naming the known ones if unknown)."""
         if name not in self.index:
             raise KeyError(f"landmark {name!r}: not in this head's set ({', '.join(self.names)})")
-        return self.positions(pose)[self.index[name]]
+        out: FloatArray = self.positions(pose)[self.index[name]]
+        return out
 
 
 def landmark_set(head: Any) -> LandmarkSet:
@@ -140,7 +141,9 @@ class FidelityCase:
     landmark: str
 
 
-def fidelity(landmarks: LandmarkSet, model: Any, calibration: Any, aus: Mapping[str, float], case: str = "") -> FidelityCase:
+def fidelity(
+    landmarks: LandmarkSet, model: Any, calibration: Any, aus: Mapping[str, float], case: str = ""
+) -> FidelityCase:
     """Max landmark distance (mm) between the muscle model's face for ``aus`` and the achievable face."""
     target = model.solve(aus)
     got = achievable_pose(model, calibration, target)

@@ -6,8 +6,9 @@ Position), three loops on the same chain, interleaved (`interleave`: 20 rounds o
 the plain stock-SDK loop (`servoface.hardware.stock_loop`), `ServoBus` sync write + sync read, and a full
 `Driver.cycle`. Each figure is the median window rate next to the wire limit from
 `servoface.hardware.wire.cycle_budget` (packet sizes, baud, return delay), plus its ratio to the stock SDK
-loop (median of per-round ratios); the best window and the machine's load are in the note. A last group of
-figures splits the CPU time of one cycle (no wire time) between dynamixel-sdk, the emulator and servoface.
+loop (median of per-round ratios); the best window and the machine's load are in the note. The same three
+at 1 Mbps over a pty with the emulator in another process (its CPU then is not the measured process's). A
+last group of figures splits the CPU time of one cycle (no wire time) between dynamixel-sdk, the emulator and servoface.
 """
 
 from __future__ import annotations
@@ -16,13 +17,14 @@ import cProfile
 import pstats
 import statistics
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 from servoface.controller.benchmarks.figure import Figure
 from servoface.controller.benchmarks.interleave import Step, interleaved, load_text
 from servoface.hardware.bus import ServoBus, open_bus
 from servoface.hardware.driver import Driver
 from servoface.hardware.emulator import ServoChain
+from servoface.hardware.errors import BusCorruptError, BusTimeoutError
 from servoface.hardware.registers import Register
 from servoface.hardware.servo_config import ServoSpec
 from servoface.hardware.stock_loop import StockSdkLoop
@@ -106,10 +108,11 @@ def cpu_split_ms(baud: int, fast: bool, cycles: int) -> dict[str, float]:
 
 
 def run(quick: bool = False) -> Iterator[Figure]:
-    rounds, window_s = (4, 0.1) if quick else (20, 0.1)
+    rounds, window_s = (4, 0.1) if quick else (20, 0.25)
     for baud in BAUDS:
         for fast in (False, True):
             yield from _interleaved_figures(baud, fast, rounds, window_s)
+    yield from _pty_figures(rounds, window_s)
     yield Figure(
         "return delay time (bench configuration)",
         RETURN_DELAY_US,
@@ -135,11 +138,12 @@ def run(quick: bool = False) -> Iterator[Figure]:
             )
 
 
-def contenders(chain: ServoChain, baud: int, fast: bool) -> tuple[dict[str, Step], Driver, list[ServoBus]]:
+def contenders(
+    open_port: Callable[[], ServoBus], ids: list[int], fast: bool
+) -> tuple[dict[str, Step], Driver, list[ServoBus]]:
     """The three loops compared on one chain, each on its own port: the plain stock-SDK loop, servoface's
     `ServoBus` sync write + sync read, and a full `Driver.cycle` (telemetry + fault policy)."""
-    ids = chain.ids
-    buses = [open_bus("emulator", chain=chain, baud=baud) for _ in range(3)]
+    buses = [open_port() for _ in range(3)]
     stock = StockSdkLoop(buses[0], ids, fast=fast)
     specs = [ServoSpec(sid, "XL330-M288", return_delay_us=RETURN_DELAY_US) for sid in ids]
     driver = Driver(buses[2], specs, fast_sync_read=fast)
@@ -148,7 +152,10 @@ def contenders(chain: ServoChain, baud: int, fast: bool) -> tuple[dict[str, Step
     bus = buses[1]
 
     def bus_cycle(n: int) -> None:
-        _cycle(bus, ids, n, fast)
+        try:
+            _cycle(bus, ids, n, fast)
+        except (BusTimeoutError, BusCorruptError):
+            pass  # counted in the bus's stats (the note's timeouts / corrupt)
 
     def driver_cycle(n: int) -> None:
         driver.cycle({sid: 2048 + (n & 1) for sid in ids})
@@ -164,7 +171,50 @@ def contenders(chain: ServoChain, baud: int, fast: bool) -> tuple[dict[str, Step
 def _interleaved_figures(baud: int, fast: bool, rounds: int, window_s: float) -> Iterator[Figure]:
     chain, setup = _chain_and_bus(baud, wire_time=True)
     setup.close()
-    steps, driver, buses = contenders(chain, baud, fast)
+    steps, driver, buses = contenders(lambda: open_bus("emulator", chain=chain, baud=baud), chain.ids, fast)
+    try:
+        yield from _figures(steps, driver, buses, baud, fast, rounds, window_s, "")
+    finally:
+        for b in buses:
+            b.close()
+        chain.close()
+
+
+def _pty_figures(rounds: int, window_s: float) -> Iterator[Figure]:
+    """The same three loops over a pty at 1 Mbps, the emulator in another process (as `servoface emulate`
+    serves it): the in-process figures above pay for the emulator's CPU in the measured process."""
+    from servoface.controller.benchmarks.cpu import EmulatorProcess
+
+    baud = BAUDS[0]
+    emulator = EmulatorProcess("--servos", str(N_SERVOS))
+    try:
+        setup = open_bus("dynamixel", port=emulator.path, baud=baud, warn_latency=False)
+        ids = list(range(1, N_SERVOS + 1))
+        for sid in ids:
+            setup.write(sid, Register.RETURN_DELAY_TIME, RETURN_DELAY_US // 2)
+        setup.close()
+        steps, driver, buses = contenders(
+            lambda: open_bus("dynamixel", port=emulator.path, baud=baud, warn_latency=False), ids, False
+        )
+        try:
+            yield from _figures(steps, driver, buses, baud, False, rounds, window_s, ", over a pty")
+        finally:
+            for b in buses:
+                b.close()
+    finally:
+        emulator.close()
+
+
+def _figures(
+    steps: dict[str, Step],
+    driver: Driver,
+    buses: list[ServoBus],
+    baud: int,
+    fast: bool,
+    rounds: int,
+    window_s: float,
+    where: str,
+) -> Iterator[Figure]:
     reads0 = dict(driver.telemetry_reads)
     t0 = time.perf_counter()
     stats = interleaved(steps, STOCK, rounds, window_s)
@@ -172,7 +222,7 @@ def _interleaved_figures(baud: int, fast: bool, rounds: int, window_s: float) ->
     load = load_text()
     budget = cycle_budget(N_SERVOS, baud, return_delay_us=RETURN_DELAY_US, fast=fast)
     read = "fast sync read" if fast else "sync read"
-    tag = f"{read}, {N_SERVOS} servos @{baud // 1_000_000}M"
+    tag = f"{read}, {N_SERVOS} servos @{baud // 1_000_000}M{where}"
     ref = stats[STOCK]
     telemetry = {k: (v - reads0.get(k, 0)) / driver_s for k, v in driver.telemetry_reads.items()}
     timeouts = sum(b.stats.timeouts for b in buses)
@@ -207,6 +257,3 @@ def _interleaved_figures(baud: int, fast: bool, rounds: int, window_s: float) ->
                 note=f"median over {rounds} rounds of (this window's rate / the stock SDK loop's window in the "
                 f"same round); best round x{max(st.ratios, default=0):.3f}; {load}",
             )
-    for b in buses:
-        b.close()
-    chain.close()

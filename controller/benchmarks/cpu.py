@@ -88,5 +88,45 @@ def cpu_budget_figures(quick: bool) -> Iterator[Figure]:
     )
 
 
+def serve_servos(n_servos: int) -> None:
+    """Serve ``n_servos`` XL330 (ids 1..n, 1 Mbps, wire time on) on a pty; print the path; run until stdin
+    closes."""
+    from servoface.hardware.emulator import ServoChain
+
+    chain = ServoChain.create(ids=range(1, n_servos + 1), model="XL330-M288", baud=1_000_000, wire_time=True)
+    sys.stdout.write(chain.serve_pty() + "\n")
+    sys.stdout.flush()
+    sys.stdin.read()
+    chain.close()
+
+
+class EmulatorProcess:
+    """An emulated chain served from another process (``python -m servoface.controller.benchmarks.cpu``)."""
+
+    def __init__(self, *args: str) -> None:
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "servoface.controller.benchmarks.cpu", *args],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        assert self.proc.stdout is not None
+        self.path = self.proc.stdout.readline().strip()
+        if not self.path:
+            self.close()
+            raise RuntimeError("the emulator process printed no pty path")
+
+    def close(self) -> None:
+        if self.proc.stdin is not None:
+            self.proc.stdin.close()
+        try:
+            self.proc.wait(timeout=5.0)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+
+
 if __name__ == "__main__":
-    serve(sys.argv[1] if len(sys.argv) > 1 else HEAD)
+    if len(sys.argv) > 2 and sys.argv[1] == "--servos":
+        serve_servos(int(sys.argv[2]))
+    else:
+        serve(sys.argv[1] if len(sys.argv) > 1 else HEAD)

@@ -40,8 +40,8 @@ def _solve_figures(quick: bool) -> Iterator[Figure]:
 
 
 def _fidelity_figures() -> Iterator[Figure]:
-    from servoface.sim.landmarks import landmark_set, library_fidelity
     from servoface.sim.heads import load_head
+    from servoface.sim.landmarks import landmark_set, library_fidelity
 
     for name in HEADS:
         cases = library_fidelity(name)

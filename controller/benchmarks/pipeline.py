@@ -1,20 +1,21 @@
-"""`servoface bench pipeline`: whole control frames per second vs the wire limit, and where the time goes.
+"""`servoface bench pipeline`: whole control frames per second vs the wire limit and the stock SDK, and
+where the time goes.
 
 One frame = `Pipeline.step`: muscle model (AU frame -> actuator targets) + calibration (targets -> goals) +
 twin gate (verdict) + `Driver.cycle` (one Sync Write of the head's goals, a Sync Read of every servo's
-Present Position, the due slow telemetry group, the fault policy). The bus is the in-process emulator at
-1 Mbps with wire time on and Return Delay Time 0.
+Present Position, due slow telemetry, the fault policy). The bus is the in-process emulator at 1 Mbps with
+wire time on and Return Delay Time 0.
 
-33 servos on the chain: the built-in human head's 30 actuators plus 3 spare XL330-M288 (ids 31-33) that the
-driver also configures and reads every frame (the head never sends them goals). So one frame writes 30 goals
-and reads 33 positions; the wire limit is that traffic's wire time (`servoface.hardware.wire`: sync write of 30 x 4
-bytes, sync read instruction for 33, 33 status packets of 4 bytes, no return delay). The slow telemetry reads
-the driver adds on some frames are not in the limit, so a ratio near 1 is out of reach by design; the bus
-stage is compared with the same limit.
-
-The AU frames are the shipped human performance script sampled at 50 Hz, run back to back (no sleeping), so
-the gate sees real motion (clips included). Figures use medians of per-frame stage times; the note carries the
-mean rate and the on-CPU share (under 1: other processes had the CPU).
+The chain: the built-in human head's servos (30 now) plus 3 spare XL330-M288 that the driver also
+configures and reads every frame (the head never sends them goals). So one frame writes the head's goals and
+reads every position; the wire limit is that traffic's wire time (`servoface.hardware.wire`). Three loops on
+the same chain, interleaved (`interleave`): the plain stock-SDK loop with the same traffic (re-sending the
+goals the pipeline last sent, so the head does not move), the pipeline stepped plainly (stages in series),
+and the pipeline with the next frame computed while this frame's replies are on the wire (`Pipeline.step(...,
+next_frame=)`). One motion runs through all pipeline windows: the shipped human performance sampled at 50
+Hz, back to back, so the gate sees real motion (clips included). Rates are medians of windows, ratios are
+medians of per-round ratios to the stock loop; the best window and the machine's load are in the notes.
+Last: the controller's CPU at 50 Hz over a pty with the emulator in another process (`cpu`).
 """
 
 from __future__ import annotations

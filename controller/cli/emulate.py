@@ -141,7 +141,7 @@ def _head_chain(name: str) -> tuple[list[tuple[int, str]], dict[int, int]]:
 
 
 def _chain_description(args: argparse.Namespace) -> tuple[list[tuple[int, str]], dict[int, int], str]:
-    if args.model is not None and args.ids is None:
+    if args.model is not None and (args.head is not None or args.servos is not None):
         raise ValueError("--model goes with --ids (--servos and --head name each servo's model)")
     if args.head is not None:
         pairs, neutral = _head_chain(args.head)
@@ -241,6 +241,7 @@ def run(args: argparse.Namespace) -> int:
                 pass
             if args.state_file is not None:
                 write_state(chain, args.state_file)
+            print(f"# pty: {chain.pty_stats}", file=sys.stderr, flush=True)
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)

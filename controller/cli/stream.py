@@ -279,6 +279,8 @@ def _stream(args: argparse.Namespace, signals: StopSignals) -> int:
         f"{1e3 * stats.latency_s_max:.1f} ms (mean {1e3 * stats.age_s.mean:.1f} ms)"
     )
     print(f"verdicts {summary['verdicts']}")
+    if decoder.clamped:
+        print(f"{decoder.clamped} blendshape scores slightly outside 0..1 clamped (tolerance 0.1)")
     if stats.rest:
         print(f"{stats.rest} ({stats.calibrating} messages taken as the rest pose, not shown)")
     if args.stdin:

@@ -239,7 +239,8 @@ def read_blendshape_csv(
         rows.append(RawRow(line, t, filled, head if filled is not None else None))
     if is_timecode:
         opts = _options(opts, time_unit="s" if opts.time_unit == "auto" else None)
-        report.notes.append(f"Timecode frames at {rate:g} fps ({'--fps' if opts.fps else 'default; set --fps'})")
+        how = "given" if opts.fps else "default; set the fps option"
+        report.notes.append(f"Timecode frames at {rate:g} fps ({how})")
     return assemble(
         rows, report, opts, tol, kind="blendshapes", time_column=time_col, default_fps=60.0, total_rows=total
     )

@@ -67,6 +67,7 @@ class MessageDecoder:
         self.gaze = bool(gaze)  # False: drop eye AUs 61-66 (the eyes stay the robot's own)
         self.head_pose = bool(head_pose)  # False: drop head AUs 51-58
         self.head_rest_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)  # subtracted (a rest pose)
+        self.clamped = 0  # blendshape scores slightly outside 0..1 (within SCORE_SLACK) clamped so far
         self.validator = FrameValidator(self.face_type, allowed)
         self.mirror = bool(mirror)
         self.vergence = bool(vergence)
@@ -113,14 +114,17 @@ class MessageDecoder:
                 f"send DFACS 'aus' for a {self.face_type} head"
             )
         if "blendshapes" in obj:
+            clamped: list[str] = []
             aus.update(
                 self.blendshape_map.to_aus(
                     obj["blendshapes"],
                     vergence=self.vergence,
                     ranges=self.shape_ranges,
                     where=f"{where}.blendshapes",
+                    clamped=clamped,
                 )
             )
+            self.clamped += len(clamped)
         if "head" in obj:
             ypr = parse_head(obj["head"], field=f"{where}.head")
             aus.update(head_pose_aus(*(a - r for a, r in zip(ypr, self.head_rest_deg, strict=True))))

@@ -55,7 +55,7 @@ def resolve_times(
     if unit not in TIME_UNITS:
         raise InputError(f"time_unit: expected one of {TIME_UNITS}, got {unit!r}")
     rate = check_fps(fps) or default_fps
-    rate_from = "--fps" if fps is not None else "default; set --fps"
+    rate_from = "given" if fps is not None else "the reader's default; set it with the fps option"
     note = ""
     if column is None:
         note = f"no time column: rows timed at {rate:g} fps ({rate_from})"

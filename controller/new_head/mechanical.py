@@ -72,7 +72,7 @@ def meshes() -> dict[str, object]:
         ]
     )
     out: dict[str, object] = {
-        "base": _cylinder(26.0, -70.0, -4.0),
+        "neck_base": _cylinder(26.0, -70.0, -4.0),
         "neck": _cylinder(22.0, 0.0, 76.0, -32.0),
         "skull": skull,
         "jaw": _box((-40.0, 38.0, 18.0), (40.0, 70.0, 62.0)),
@@ -192,8 +192,8 @@ limits_deg = [-25.0, 25.0]
 
 # --- rigid parts (collides = false: drawn only, the twin gate ignores it) --------------------------------
 [[part]]
-name = "base"
-mesh = "meshes/base.stl"
+name = "neck_base"
+mesh = "meshes/neck_base.stl"
 color_rgba = [0.30, 0.31, 0.34, 1.0]
 
 [[part]]

@@ -22,14 +22,21 @@ class Speech:
     plan: LipSyncPlan
     method: str
     text: str = ""
+    phonemes: tuple[tuple[str, float], ...] = ()  # (phoneme, start s) the plan was made from (text, aligned)
 
     @property
     def duration_s(self) -> float:
         return len(self.samples) / self.rate_hz
 
 
-def speech_from_text(text: str, *, voice: str = "en-us", rate_wpm: int | None = None, lead_s: float = DEFAULT_LEAD_S,
-                     intensity: float = 1.0) -> Speech:  # fmt: skip
+def speech_from_text(
+    text: str,
+    *,
+    voice: str = "en-us",
+    rate_wpm: int | None = None,
+    lead_s: float = DEFAULT_LEAD_S,
+    intensity: float = 1.0,
+) -> Speech:
     """Synthesise ``text`` with espeak-ng; the plan's visemes come from its own phoneme events."""
     from servoface.controller.speech.espeak import synthesize
 
@@ -37,10 +44,15 @@ def speech_from_text(text: str, *, voice: str = "en-us", rate_wpm: int | None = 
     samples = to_float(synth.samples)
     segments = visemes_from_phonemes([(p.phoneme, p.t_s) for p in synth.phonemes], synth.duration_s)
     plan = plan_from_visemes(
-        segments, audio_duration_s=synth.duration_s, samples=samples, sample_rate_hz=synth.sample_rate_hz,
-        lead_s=lead_s, intensity=intensity,
-    )  # fmt: skip
-    return Speech(samples, synth.sample_rate_hz, plan, "text", text)
+        segments,
+        audio_duration_s=synth.duration_s,
+        samples=samples,
+        sample_rate_hz=synth.sample_rate_hz,
+        lead_s=lead_s,
+        intensity=intensity,
+    )
+    events = tuple((p.phoneme, p.t_s) for p in synth.phonemes)
+    return Speech(samples, synth.sample_rate_hz, plan, "text", text, events)
 
 
 def speech_from_recording(
@@ -61,7 +73,11 @@ def speech_from_recording(
     phones = align(samples, rate, transcript)
     segments = visemes_from_phonemes([(p.phone, p.start_s) for p in phones], len(samples) / rate, alphabet="arpabet")
     plan = plan_from_visemes(
-        segments, audio_duration_s=len(samples) / rate, samples=samples, sample_rate_hz=rate, lead_s=lead_s,
+        segments,
+        audio_duration_s=len(samples) / rate,
+        samples=samples,
+        sample_rate_hz=rate,
+        lead_s=lead_s,
         intensity=intensity,
-    )  # fmt: skip
-    return Speech(samples, rate, plan, "aligned", transcript)
+    )
+    return Speech(samples, rate, plan, "aligned", transcript, tuple((p.phone, p.start_s) for p in phones))

@@ -52,9 +52,26 @@ def mux(video: Path, audio: Path, out: Path) -> Path:
 
     out.parent.mkdir(parents=True, exist_ok=True)
     cmd = [
-        imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-loglevel", "error", "-i", str(video), "-i", str(audio),
-        "-map", "0:v:0", "-map", "1:a:0", "-c:v", "copy", "-c:a", "aac", "-b:a", "96k", str(out),
-    ]  # fmt: skip
+        imageio_ffmpeg.get_ffmpeg_exe(),
+        "-y",
+        "-loglevel",
+        "error",
+        "-i",
+        str(video),
+        "-i",
+        str(audio),
+        "-map",
+        "0:v:0",
+        "-map",
+        "1:a:0",
+        "-c:v",
+        "copy",
+        "-c:a",
+        "aac",
+        "-b:a",
+        "96k",
+        str(out),
+    ]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     if proc.returncode != 0:
         raise SpeechError(f"{out}: ffmpeg could not mux the audio: {proc.stderr.strip()[:300]}")
@@ -82,15 +99,26 @@ def plot_timing(face: Face, perf: Performance, speech: Speech, path: Path, *, la
         if seg.viseme != "sil":
             ax_audio.axvline(seg.start_s, color="#c63", lw=0.4, alpha=0.5)
             ax_audio.text(seg.start_s, 0.9 * float(np.max(np.abs(speech.samples)) or 1), seg.viseme, fontsize=6)
-    ax_jaw.plot(speech.plan.times_s - speech.plan.audio_start_s, speech.plan.feature("open"), color="#888",
-                lw=1, label="plan: jaw opening (0..1)")  # fmt: skip
+    ax_jaw.plot(
+        speech.plan.times_s - speech.plan.audio_start_s,
+        speech.plan.feature("open"),
+        color="#888",
+        lw=1,
+        label="plan: jaw opening (0..1)",
+    )
     ax_jaw.set_ylabel("opening")
     if jaw is not None and traces:
         ticks = np.array([t.goals_sent[jaw] for t in traces], dtype=float)
         span = float(np.ptp(ticks)) or 1.0
         times = np.array([t.t_s - t0 for t in traces]) - shift + latency_s
-        ax_jaw.step(times, (ticks - ticks.min()) / span, where="post", color="#17a", lw=1,
-                    label=f"jaw goal sent (servo {jaw}, scaled)")  # fmt: skip
+        ax_jaw.step(
+            times,
+            (ticks - ticks.min()) / span,
+            where="post",
+            color="#17a",
+            lw=1,
+            label=f"jaw goal sent (servo {jaw}, scaled)",
+        )
     ax_jaw.set_xlabel("audio time (s)")
     ax_jaw.legend(loc="upper right", fontsize=7)
     fig.tight_layout()

@@ -40,28 +40,22 @@ class WireChecker:
     def assert_goals_within_limits(self, record: WireRecord | None = None) -> None:
         """Every goal inside its servo's calibrated (or configured) limits."""
         rec = record or self.record()
-        if wire._observed(rec, "goals within limits"):
+        if wire.observed_or_warn(rec, "goals within limits"):
             wire.fail("goals outside the limits", wire.goal_limit_violations(rec, self.limits), rec)
 
     def assert_goal_steps_within_caps(self, record: WireRecord | None = None) -> None:
         """Consecutive goals of each servo within the gate's per-frame speed and acceleration caps (at the
         limits' ``rate_hz``: one goal write counts as one frame)."""
         rec = record or self.record()
-        if not wire._observed(rec, "goal steps within the caps"):
+        if not wire.observed_or_warn(rec, "goal steps within the caps"):
             return
-        if self.limits.uncapped:
-            wire.warnings.warn(
-                wire.WireNotObservedWarning(
-                    f"goal steps of servos {list(self.limits.uncapped)} not checked: no known speed for their model"
-                ),
-                stacklevel=2,
-            )
+        wire.warn_uncapped(self.limits)
         wire.fail("goal steps beyond the speed/acceleration caps", wire.goal_step_violations(rec, self.limits), rec)
 
     def assert_no_goal_while_torque_off(self, record: WireRecord | None = None, *, pin_tolerance_tick: int = 1) -> None:
         """No goal reached a servo with its torque off, except pinning it where it stood before torque-on."""
         rec = record or self.record()
-        if wire._observed(rec, "no goal while torque off"):
+        if wire.observed_or_warn(rec, "no goal while torque off"):
             violations = wire.torque_off_goal_violations(rec, self.limits, pin_tolerance_tick=pin_tolerance_tick)
             wire.fail("goals written while torque was off", violations, rec)
 
@@ -69,11 +63,12 @@ class WireChecker:
         """All three history checks at once; at least ``min_goals`` goals must have reached the servos (a
         check of nothing is not a pass). Returns the record checked."""
         rec = record or self.record()
-        if not wire._observed(rec, "safe goals"):
+        if not wire.observed_or_warn(rec, "safe goals"):
             return rec
         n = len(rec.goals or ())
         if n < min_goals:
             raise AssertionError(f"only {n} goal write(s) reached the servos ({rec.source}); expected >= {min_goals}")
+        wire.warn_uncapped(self.limits)
         violations = [
             *wire.goal_limit_violations(rec, self.limits),
             *wire.goal_step_violations(rec, self.limits),

@@ -11,6 +11,7 @@ from typing import Any
 from servoface.testing.errors import TestKitConfigError
 from servoface.testing.record import ServoEnd, WireRecord
 
+READ_TRIES = 3  # a reply lost on a real (or busy) line is asked for again
 ENV = {
     "port": "SERVOFACE_PORT",
     "baud": "SERVOFACE_BAUD",
@@ -64,7 +65,25 @@ class RealServos:
 
     def record(self) -> WireRecord:
         from servoface.hardware.bus import open_bus
+        from servoface.hardware.errors import BusCorruptError, BusTimeoutError
         from servoface.hardware.registers import Register
+
+        registers = [
+            Register.TORQUE_ENABLE,
+            Register.HARDWARE_ERROR_STATUS,
+            Register.GOAL_POSITION,
+            Register.PRESENT_POSITION,
+        ]
+
+        def read(sid: int) -> dict[Any, int]:
+            for attempt in range(READ_TRIES):
+                try:
+                    values: dict[Any, int] = bus.read_many(sid, registers)
+                    return values
+                except (BusTimeoutError, BusCorruptError):
+                    if attempt == READ_TRIES - 1:
+                        raise
+            raise AssertionError("unreachable")  # pragma: no cover
 
         bus: Any = self.bus if self.bus is not None and self.bus.is_open else None
         own = bus is None
@@ -73,15 +92,7 @@ class RealServos:
         try:
             end = {}
             for sid in self.ids:
-                values = bus.read_many(
-                    sid,
-                    [
-                        Register.TORQUE_ENABLE,
-                        Register.HARDWARE_ERROR_STATUS,
-                        Register.GOAL_POSITION,
-                        Register.PRESENT_POSITION,
-                    ],
-                )
+                values = read(sid)
                 end[sid] = ServoEnd(
                     sid,
                     bool(values[Register.TORQUE_ENABLE]),

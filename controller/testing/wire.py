@@ -30,7 +30,8 @@ def fail(title: str, violations: list[str], record: WireRecord) -> None:
     raise AssertionError(f"{title} ({record.source}), {len(violations)} violation(s):\n  {lines}{more}")
 
 
-def _observed(record: WireRecord, check: str) -> bool:
+def observed_or_warn(record: WireRecord, check: str) -> bool:
+    """True when the record has the write history; else warn that ``check`` was not made (real servos)."""
     if record.observed:
         return True
     warnings.warn(
@@ -40,6 +41,17 @@ def _observed(record: WireRecord, check: str) -> bool:
         stacklevel=3,
     )
     return False
+
+
+def warn_uncapped(limits: WireLimits) -> None:
+    """Say which servos' steps the caps cannot check (no known speed for their model)."""
+    if limits.uncapped:
+        warnings.warn(
+            WireNotObservedWarning(
+                f"goal steps of servos {list(limits.uncapped)} not checked: no known speed for their model"
+            ),
+            stacklevel=3,
+        )
 
 
 def _events(record: WireRecord) -> list[GoalWrite | TorqueWrite]:
@@ -109,15 +121,17 @@ def goal_step_violations(record: WireRecord, limits: WireLimits) -> list[str]:
 
 def torque_off_goal_violations(record: WireRecord, limits: WireLimits, *, pin_tolerance_tick: int = 1) -> list[str]:
     """Goals that reached a servo while its torque was off, other than pinning it where it stands (Goal :=
-    Present, clamped into its limits, before torque-on): any other goal makes the servo jump when torque
-    comes on, or is a command the code believes moves a servo that is not holding."""
+    Present before torque-on; a servo standing outside its limits may be pinned anywhere between where it
+    stands and the nearest limit): any other goal makes the servo jump when torque comes on, or is a command
+    the code believes moves a servo that is not holding."""
     out = []
     for g in record.goals or ():
         if g.torque_on:
             continue
         s = limits.servos.get(g.servo_id)
-        pin = g.present_tick if s is None else min(max(g.present_tick, s.min_tick), s.max_tick)
-        if abs(g.goal_tick - pin) > pin_tolerance_tick:
+        edge = g.present_tick if s is None else min(max(g.present_tick, s.min_tick), s.max_tick)
+        lo, hi = min(edge, g.present_tick) - pin_tolerance_tick, max(edge, g.present_tick) + pin_tolerance_tick
+        if not lo <= g.goal_tick <= hi:
             out.append(
                 f"t={g.t_s:.3f}s {limits.label(g.servo_id)}: goal {g.goal_tick} tick written while its torque was "
                 f"off (it stood at {g.present_tick} tick): torque-on would jump it {g.goal_tick - g.present_tick} tick"

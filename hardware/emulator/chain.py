@@ -411,6 +411,12 @@ class ServoChain:
             return self._pty.path  # type: ignore[attr-defined,no-any-return]
 
     @property
+    def pty_stats(self) -> str | None:
+        """The pty thread's punctuality so far (bursts, late ones, latest), or None without a pty."""
+        server = self._pty
+        return None if server is None else str(server.stats())  # type: ignore[attr-defined]
+
+    @property
     def pty_priority(self) -> str | None:
         """The pty thread's scheduling ("real-time (SCHED_RR 10)" or "normal (...)"); None without a pty."""
         server = self._pty

@@ -38,6 +38,7 @@ if TYPE_CHECKING:
 IDLE_WAIT_S = 0.05
 RT_PRIORITY = 10  # SCHED_RR priority of the serving thread (1..99; low, above every normal process)
 MAX_HOLD_S = 0.016  # longest a reply byte waits for the rest of its burst (FTDI default latency timer)
+LATE_S = 0.010  # a burst handed over later than this after it was due counts as late (stats only)
 READ_CHUNK = 65536
 
 
@@ -73,6 +74,9 @@ class PtyServer:
         self.error: BaseException | None = None
         self.wakeups = 0  # select() calls (for the benchmark's cost figure)
         self.writes = 0  # write() calls to the pty
+        self.bursts = 0  # reply bursts handed over
+        self.late_bursts = 0  # ... of which later than LATE_S after their last byte was due
+        self.max_late_s = 0.0
 
     def start(self) -> None:
         self._thread.start()
@@ -149,8 +153,13 @@ class PtyServer:
                     if data:
                         baud = self.host_baud()
                         chain.host_write(data, baud)  # replies it schedules arrive later: next round
-                if deliver_at is not None and chain.time_s >= deliver_at:
+                if deliver_at is not None and (now := chain.time_s) >= deliver_at:
                     pending += chain.host_read(1 << 20)
+                    late_s = now - deliver_at
+                    self.bursts += 1
+                    self.max_late_s = max(self.max_late_s, late_s)
+                    if late_s > LATE_S:
+                        self.late_bursts += 1
                 if pending:
                     try:
                         written = os.write(master, pending)
@@ -160,6 +169,13 @@ class PtyServer:
                     pending = pending[written:]
         except BaseException as err:  # noqa: BLE001 - reported through .error, the thread must not die silently
             self.error = err
+
+    def stats(self) -> str:
+        """One line on the serving thread's punctuality (for logs and benchmarks)."""
+        return (
+            f"{self.bursts} reply bursts, {self.late_bursts} handed over more than {LATE_S * 1e3:g} ms late, "
+            f"latest {self.max_late_s * 1e3:.1f} ms; {self.wakeups} wake-ups, {self.writes} writes"
+        )
 
     def stop(self) -> None:
         """Stop serving and close the pty (clients see the device vanish)."""

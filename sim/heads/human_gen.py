@@ -275,12 +275,12 @@ def _teeth(y: float, height: float, z_front: float) -> tuple[F64, I64]:
 
 
 def teeth_upper() -> tuple[F64, I64]:
-    return _teeth(MOUTH_Y + 4.5, 7.5, 80.0)
+    return _teeth(MOUTH_Y + 2.6, 7.5, 80.0)  # incisal edge 1.2 mm below the lip line: they show when the lips part
 
 
 def jaw() -> tuple[F64, I64]:
     """Lower teeth on a U-shaped mandible, inside the skin."""
-    teeth = _teeth(MOUTH_Y - 4.5, 7.0, 79.5)
+    teeth = _teeth(MOUTH_Y - 5.6, 7.0, 79.5)
     t = np.linspace(-1.0, 1.0, 17)
     spine = np.stack([40.0 * np.sin(t * 1.35), 56.0 + 14.0 * np.abs(t) ** 2, 74.0 - 62.0 * (1 - np.cos(t * 1.35))], 1)
     bone = mt.tube_along(spine, np.full(len(spine), 5.0), 12)

@@ -52,12 +52,20 @@ def pick_expression(library: Mapping[str, Any], name: str) -> dict[str, float]:
     return apex_aus(library[name])
 
 
+_TWINS: dict[int, tuple[Any, Any]] = {}  # id(head) -> (head, AchievableFace): stills need one twin per head
+
+
 def _achievable(head: Any, achievable: Any) -> Any:
+    """The given twin, or the cached one of ``head`` (its gate is built once; `still` resets it)."""
     if achievable is not None:
         return achievable
-    from servoface.sim.achievable import AchievableFace
+    known = _TWINS.get(id(head))
+    if known is None or known[0] is not head:
+        from servoface.sim.achievable import AchievableFace
 
-    return AchievableFace(head)
+        known = (head, AchievableFace(head))
+        _TWINS[id(head)] = known
+    return known[1]
 
 
 def _draw(renderer: HeadRenderer, head: Any, target: Any, achieved: Any, show: str, view: str | None) -> Image:
@@ -100,8 +108,13 @@ def render_sequence(
     achievable face is gated frame after frame, so the servos' rate caps show as lag."""
     check_show(show)
     model = face_model(head)
-    twin = None if show == "target" else _achievable(head, achievable)
-    if twin is not None:
+    twin = None
+    if show != "target":
+        if achievable is None:
+            from servoface.sim.achievable import AchievableFace
+
+            achievable = AchievableFace(head)  # its own: a sequence keeps the gate's state between frames
+        twin = achievable
         twin.reset()
     for aus in frames:
         target = model.solve(aus)

@@ -6,15 +6,26 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from servoface.controller.cli import main as cli_main
+from servoface.controller.face import Face
 from servoface.controller.inputs import InputError, ReadOptions, detect_format, load_recording
 from servoface.controller.inputs.fap import fap_to_aus
 from servoface.controller.inputs.head_pose import openface_pose_deg
 
 OF = "frame, face_id, timestamp, confidence, success, AU01_r, AU12_r"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _warm_head() -> Iterator[None]:
+    """Build the head's twin once before the CLI runs: the first build in a process is CPU-heavy, and on a
+    loaded machine it can starve the emulated chain's replies while `play` opens the bus."""
+    face = Face.open("human", emulate=True, wire_time=False)
+    face.close(ease_s=0.0)
+    yield
 
 
 def _write(tmp_path: Path, name: str, text: str) -> Path:
@@ -177,7 +188,7 @@ def test_mediapipe_csv_without_times_takes_fps(tmp_path: Path, capsys: pytest.Ca
     path = _write(tmp_path, "mp_rows.csv", "eyeBlinkLeft,mouthSmileLeft\n" + "0.1,0.2\n" * 31)
     assert load_recording(path).duration_s == pytest.approx(0.5)  # default 60 fps, printed
     assert load_recording(path, fps=30.0).duration_s == pytest.approx(1.0)
-    assert "no time column: rows timed at 30 fps (--fps)" in _play(path, capsys, "--fps", "30")
+    assert "no time column: rows timed at 30 fps (given)" in _play(path, capsys, "--fps", "30")
 
 
 def test_pyfeat_two_faces_follow_one_person(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -302,9 +302,12 @@ def test_cli_stream_with_a_token_file_counts_refusals(tmp_path: Path, capsys: py
     stop = threading.Event()
 
     def send() -> None:
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
+        with (
+            socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx,
+            socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as bad,
+        ):
             while not stop.is_set():
-                tx.sendto(_msg(aus={"AU26": 1.0}), ("127.0.0.1", port))  # no token
+                bad.sendto(_msg(aus={"AU26": 1.0}), ("127.0.0.1", port))  # another sender, without the token
                 tx.sendto(_msg(aus={"AU12": 0.5}, token=TOKEN), ("127.0.0.1", port))
                 time.sleep(0.02)
 
@@ -370,3 +373,11 @@ def test_stream_rest_pose_from_the_first_seconds() -> None:
     src.feed(json.dumps({"blendshapes": {"eyeBlinkLeft": 1.0}, "head": {"yaw_deg": 30.5}}))
     shut = src.sample(1.2)
     assert shut.get("AU43L") == 1.0 and shut.get("AU51") == pytest.approx(0.5)  # 22.5 deg of 45 from rest
+
+
+def test_stream_blendshape_scores_a_hair_over_one_are_clamped_and_counted() -> None:
+    decoder = MessageDecoder()
+    msg = decoder.decode({"blendshapes": {"eyeLookInRight": 1.0033, "mouthSmileLeft": -1e-7}})
+    assert decoder.clamped == 2 and msg.aus.get("AU12L", 0.0) == 0.0
+    with pytest.raises(InputError, match="out of range"):
+        decoder.decode({"blendshapes": {"eyeLookInRight": 1.2}})

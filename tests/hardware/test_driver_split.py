@@ -68,3 +68,19 @@ def test_telemetry_reads_fill_idle_time_and_fall_to_the_floor_rate_without_it() 
     assert driver._due_group(now) is group  # fits in the idle time: nominal rate
     group.due_s, driver._idle_s = float("-inf"), 0.0
     assert driver._due_group(now) is group  # asked for (an alert, a reaction): at once
+
+
+def test_a_cycle_that_fails_to_start_does_not_block_the_next(monkeypatch: pytest.MonkeyPatch) -> None:
+    from servoface.hardware.errors import BusError
+
+    chain, driver = make_driver()
+    real = driver._write_goals
+
+    def busy(goals):  # type: ignore[no-untyped-def]
+        raise BusError("sync write: port in use")
+
+    monkeypatch.setattr(driver, "_write_goals", busy)
+    with pytest.raises(BusError):
+        driver.cycle_start(GOALS)
+    monkeypatch.setattr(driver, "_write_goals", real)
+    assert driver.cycle(GOALS)[1].goal_tick == GOALS[1]

@@ -89,8 +89,8 @@ axis = [-1.0, 0.0, 0.0]
 limits_deg = [-20.0, 20.0]
 
 [[part]]
-name = "base"
-mesh = "stl/base.stl"
+name = "neck_base"
+mesh = "stl/neck_base.stl"
 
 [[part]]
 name = "neck"

@@ -164,7 +164,8 @@ def test_new_from_human_keeps_the_builtin_face_and_derives_a_direct_table(
     folder = tmp_path / "copy"
     assert main(["new", str(folder), "--from", "human"]) == 0
     head = load_head(folder)
-    assert head.name == "copy" and head.au_direct_path is None and len(head.actuators) == 21
+    assert head.name == "copy" and head.au_direct_path is None
+    assert [a.role for a in head.actuators] == [a.role for a in load_head("human").actuators]
     table = load_direct_table(folder / "direct.toml")
     assert {1, 12, 26, 51} <= set(table.rows)
     # switched on, the derived table reproduces the muscle model's actuator targets for one AU alone
@@ -182,7 +183,11 @@ def test_a_copy_of_the_human_head_without_lower_lids_needs_no_dummy_parts(tmp_pa
     folder = tmp_path / "lidless"
     assert main(["new", str(folder), "--from", "human"]) == 0
     blocks = (folder / "head.toml").read_text().split("\n\n")
-    kept = [b for b in blocks if "lower_lid" not in b or b.lstrip().startswith("#")]
+
+    def code(block: str) -> str:
+        return "\n".join(line for line in block.splitlines() if not line.lstrip().startswith("#"))
+
+    kept = [b for b in blocks if "lower_lid" not in code(b)]  # the lower-lid joints, parts and servos
     (folder / "head.toml").write_text("\n\n".join(kept))
     head = load_head(folder)
     assert not any("lower_lid" in j.name for j in head.joints)

@@ -101,7 +101,9 @@ def test_au4_lowers_the_brows_and_draws_them_together(human: Face) -> None:
     d = human.moved({"AU4": 1.0})
     for side in "lr":
         assert d[f"anchor_brow_inner_{side}"][Y] <= -human.d(0.035)
-    together = _gap(rest, "anchor_brow_inner_l", "anchor_brow_inner_r") - _gap(p, "anchor_brow_inner_l", "anchor_brow_inner_r")
+    together = _gap(rest, "anchor_brow_inner_l", "anchor_brow_inner_r") - _gap(
+        p, "anchor_brow_inner_l", "anchor_brow_inner_r"
+    )
     assert together >= human.d(0.05)
     knit = _gap(rest, "anchor_brow_knit_l", "anchor_brow_knit_r") - _gap(p, "anchor_brow_knit_l", "anchor_brow_knit_r")
     assert knit >= human.d(0.1)
@@ -114,7 +116,9 @@ def test_au1_with_au4_raises_the_inner_brows_while_drawing_them_together(human: 
     d = human.moved({"AU1": 1.0, "AU4": 1.0})
     for side in "lr":
         assert d[f"anchor_brow_inner_{side}"][Y] >= human.d(0.04)
-    together = _gap(rest, "anchor_brow_inner_l", "anchor_brow_inner_r") - _gap(p, "anchor_brow_inner_l", "anchor_brow_inner_r")
+    together = _gap(rest, "anchor_brow_inner_l", "anchor_brow_inner_r") - _gap(
+        p, "anchor_brow_inner_l", "anchor_brow_inner_r"
+    )
     assert together >= human.d(0.05)
 
 
@@ -286,9 +290,13 @@ def test_anger_lowers_and_knits_the_brows_and_presses_the_lips(human: Face) -> N
     rest, p = human.rest, human.at(human.expression("anger"))
     d = {k: p[k] - rest[k] for k in p}
     assert d["anchor_brow_inner_l"][Y] <= -human.d(0.03) and d["anchor_brow_inner_r"][Y] <= -human.d(0.03)
-    assert _gap(rest, "anchor_brow_knit_l", "anchor_brow_knit_r") - _gap(p, "anchor_brow_knit_l", "anchor_brow_knit_r") >= human.d(0.08)
+    assert _gap(rest, "anchor_brow_knit_l", "anchor_brow_knit_r") - _gap(
+        p, "anchor_brow_knit_l", "anchor_brow_knit_r"
+    ) >= human.d(0.08)
     assert d["margin_lower_lid_l"][Y] >= human.d(0.03)
-    assert _gap(rest, "anchor_upper_lip", "anchor_lower_lip", Y) - _gap(p, "anchor_upper_lip", "anchor_lower_lip", Y) >= human.d(0.02)
+    assert _gap(rest, "anchor_upper_lip", "anchor_lower_lip", Y) - _gap(
+        p, "anchor_upper_lip", "anchor_lower_lip", Y
+    ) >= human.d(0.02)
 
 
 def test_disgust_wrinkles_the_nose_and_raises_the_upper_lip(human: Face) -> None:
@@ -324,7 +332,9 @@ def test_sadness_raises_the_inner_brows_and_drops_the_corners(human: Face) -> No
     # the head is pitched down 7.5 deg in sadness (AU54): brows against the eye centres, corners
     # against the mouth centre
     assert d["anchor_brow_inner_l"][Y] - d["eye_centre_l"][Y] >= human.d(0.04)
-    assert _gap(rest, "anchor_brow_inner_l", "anchor_brow_inner_r") - _gap(p, "anchor_brow_inner_l", "anchor_brow_inner_r") >= human.d(0.03)
+    assert _gap(rest, "anchor_brow_inner_l", "anchor_brow_inner_r") - _gap(
+        p, "anchor_brow_inner_l", "anchor_brow_inner_r"
+    ) >= human.d(0.03)
     for side in "lr":
         assert (d[f"mouth_corner_{side}"][Y] - d["mouth_centre"][Y]) <= -human.d(0.06)
 

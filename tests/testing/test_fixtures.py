@@ -144,3 +144,28 @@ def test_a_face_on_the_chain_matches_its_twin(face, servo_wire, servo_chain) -> 
     servo_wire.assert_safe()
     servo_wire.assert_torque_on()
     servo_wire.assert_matches_twin(face, tolerance_tick=1, within_s=2.0)
+
+
+def test_a_servo_standing_outside_its_limits_may_be_pinned_towards_them(servo_chain, dxl_bus, servo_wire) -> None:  # type: ignore[no-untyped-def]
+    servo_chain.move_by_hand(3, 3200)  # outside 1024..3072, torque off
+    for goal in (3200, 3100, 3072):  # where it stands, or anywhere towards the nearest limit
+        dxl_bus.write(3, Register.GOAL_POSITION, goal)
+    servo_wire.assert_no_goal_while_torque_off()
+    dxl_bus.write(3, Register.GOAL_POSITION, 2048)  # a jump of 1152 tick at torque-on
+    with pytest.raises(AssertionError, match=r"servo 3 'servo_3': goal 2048 tick written while its torque was off"):
+        servo_wire.assert_no_goal_while_torque_off()
+
+
+@pytest.mark.servoface(head="human")
+def test_a_servo_away_from_the_twin_is_named_with_its_targets(face, servo_chain, servo_wire, calibration) -> None:  # type: ignore[no-untyped-def]
+    face.set_aus({"AU26": 0.5}, transition_s=0.2, hold_s=0.2)
+    jaw = calibration.id_of("jaw")
+    servo_wire.assert_matches_twin(face, within_s=2.0)
+    there = face.pipeline.last_goals_tick[jaw]
+    servo_chain.write_register(jaw, "Torque Enable", 0)  # lost torque and pushed: not where the twin has it
+    servo_chain.move_by_hand(jaw, there + 40)
+    with pytest.raises(
+        AssertionError, match=rf"servo {jaw} 'jaw': stands at \d+ tick, the twin has it at {there} tick"
+    ) as err:
+        servo_wire.assert_matches_twin(face, within_s=1.0)
+    assert "'jaw': stands at" in str(err.value) and "the twin's target" in str(err.value)

@@ -48,6 +48,7 @@ import time
 from dynamixel_sdk import COMM_SUCCESS, GroupSyncWrite, PacketHandler, PortHandler
 
 TORQUE_ENABLE, GOAL_POSITION, PRESENT_POSITION = 64, 116, 132
+TRIES = 3  # a reply lost on a busy line is asked for again
 
 
 class Mouth:
@@ -60,13 +61,15 @@ class Mouth:
         self.goals: dict[int, int] = {}
 
     def answering(self) -> list[int]:
-        return [sid for sid in self.ids if self.packet.ping(self.port, sid)[1] == COMM_SUCCESS]
+        ok = [sid for sid in self.ids if any(self.packet.ping(self.port, sid)[1] == COMM_SUCCESS for _ in range(TRIES))]
+        return ok
 
     def present(self, sid: int) -> int:
-        value, comm, _ = self.packet.read4ByteTxRx(self.port, sid, PRESENT_POSITION)
-        if comm != COMM_SUCCESS:
-            raise OSError(f"servo {sid}: {self.packet.getTxRxResult(comm)}")
-        return value - (1 << 32) if value >= 1 << 31 else value
+        for _ in range(TRIES):
+            value, comm, _ = self.packet.read4ByteTxRx(self.port, sid, PRESENT_POSITION)
+            if comm == COMM_SUCCESS:
+                return value - (1 << 32) if value >= 1 << 31 else value
+        raise OSError(f"servo {sid}: {self.packet.getTxRxResult(comm)}")
 
     def enable(self) -> None:
         """Goal := Present Position first, then torque on: no jump."""

@@ -18,9 +18,13 @@ ENV = {**os.environ, "PYOPENGL_PLATFORM": "egl"}
 
 def _servoface(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "servoface.controller.cli", *args], cwd=cwd, env=ENV, capture_output=True,
-        text=True, timeout=300,
-    )  # fmt: skip
+        [sys.executable, "-m", "servoface.controller.cli", *args],
+        cwd=cwd,
+        env=ENV,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 def _streams(path: Path) -> str:
@@ -63,8 +67,17 @@ def test_lipsync_of_a_recording_with_and_without_its_text(tmp_path: Path) -> Non
     from servoface.controller.speech.audio import write_wav
 
     wav = write_wav(tmp_path / "take.wav", (speech.samples * 32767).astype(np.int16), speech.rate_hz)
-    aligned = _servoface("lipsync", str(wav), "--text", "Bob bought a big blue balloon.", "--head", "dog",
-                         "--out", "aligned", cwd=tmp_path)  # fmt: skip
+    aligned = _servoface(
+        "lipsync",
+        str(wav),
+        "--text",
+        "Bob bought a big blue balloon.",
+        "--head",
+        "dog",
+        "--out",
+        "aligned",
+        cwd=tmp_path,
+    )
     assert aligned.returncode == 0, aligned.stderr
     assert aligned.stdout.startswith("aligned:")
     assert "Audio: aac" in _streams(tmp_path / "aligned" / "speech.mp4")

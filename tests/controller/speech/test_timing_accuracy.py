@@ -39,12 +39,14 @@ def test_corpus_is_large_enough() -> None:
 
 
 def test_text_path_onsets_are_espeaks_events() -> None:
+    """The plan of a synthesised text is made from the phoneme events of the very audio it plays with:
+    its viseme onsets are those events, to the sample (espeak-ng's own timing varies by a few ms from one
+    synthesis to the next, so the comparison is within one synthesis)."""
     for text in SENTENCES[:5]:
-        truth, _ = _truth(text)
-        plan = speech_from_text(text).plan
-        got = onsets(list(plan.segments))
-        assert [v for v, _ in got] == [v for v, _ in truth]
-        assert max(abs(a - b) for (_, a), (_, b) in zip(got, truth, strict=True)) <= 0.002  # espeak: +-1 ms run to run
+        speech = speech_from_text(text)
+        truth = onsets(visemes_from_phonemes(list(speech.phonemes), speech.duration_s))
+        assert onsets(list(speech.plan.segments)) == truth
+        assert len(truth) >= 8
 
 
 @pytest.mark.slow
@@ -57,8 +59,10 @@ def test_forced_alignment_onsets_match_espeak_events() -> None:
         errors += _errors(truth, onsets(list(speech.plan.segments)))
     e = np.array(errors)
     median_ms, within = float(np.median(e) * 1e3), float(np.mean(e <= 0.05))
-    print(f"forced alignment over {len(SENTENCES)} sentences, {len(e)} onsets: median {median_ms:.1f} ms, "
-          f"{within:.1%} within 50 ms")  # fmt: skip
+    print(
+        f"forced alignment over {len(SENTENCES)} sentences, {len(e)} onsets: median {median_ms:.1f} ms, "
+        f"{within:.1%} within 50 ms"
+    )
     assert median_ms <= 20.0
     assert within >= 0.85
 

@@ -24,10 +24,20 @@ def test_every_table_entry_is_one_of_the_15_visemes() -> None:
 
 @pytest.mark.parametrize(
     ("phoneme", "alphabet", "viseme"),
-    [("p", "espeak", "PP"), ("'m", "espeak", "PP"), ("f", "espeak", "FF"), ("tS", "espeak", "CH"),
-     ("'aI", "espeak", "aa"), ("u:", "espeak", "ou"), ("_:", "espeak", "sil"), ("B", "arpabet", "PP"),
-     ("OW1", "arpabet", "oh"), ("SIL", "arpabet", "sil"), ("TH", "arpabet", "TH")],
-)  # fmt: skip
+    [
+        ("p", "espeak", "PP"),
+        ("'m", "espeak", "PP"),
+        ("f", "espeak", "FF"),
+        ("tS", "espeak", "CH"),
+        ("'aI", "espeak", "aa"),
+        ("u:", "espeak", "ou"),
+        ("_:", "espeak", "sil"),
+        ("B", "arpabet", "PP"),
+        ("OW1", "arpabet", "oh"),
+        ("SIL", "arpabet", "sil"),
+        ("TH", "arpabet", "TH"),
+    ],
+)
 def test_phonemes_map_to_their_visemes(phoneme: str, alphabet: str, viseme: str) -> None:
     assert viseme_of(phoneme, alphabet) == viseme
 
