@@ -16,6 +16,7 @@ is done; every frame passes the twin gate. ``face.traces`` keeps the recent fram
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import TracebackType
@@ -154,6 +155,7 @@ class Face:
             }
             pipeline.pin_to(present)
             pipeline.last_snapshot = snapshot
+            pipeline.last_write_s = time.monotonic()  # goals were just pinned: the first frame's caps run from now
         except BaseException:
             try:
                 if driver is not None:  # whatever went wrong, every servo ends with torque off
