@@ -73,6 +73,15 @@ _SERVO_KEYS = {
 _LIMIT_KEYS = {"min_tick", "max_tick", "min_target", "max_target"}
 
 
+def shown(value: Any, limit: int = 60) -> str:
+    """A short repr for messages (never raises: deep nesting, huge integers, lone surrogates)."""
+    try:
+        text = repr(value)
+    except (RecursionError, ValueError):
+        text = f"<{type(value).__name__} nested too deeply>"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 class _Reader:
     """Typed access into parsed JSON that reports the file and JSON path on every failure."""
 
@@ -95,21 +104,27 @@ class _Reader:
 
     def integer(self, value: Any, path: str) -> int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise self.fail(path, f"expected an integer, got {value!r} ({type(value).__name__})")
+            raise self.fail(path, f"expected an integer, got {shown(value)} ({type(value).__name__})")
+        if not -(2**31) <= value < 2**31:
+            raise self.fail(path, f"expected an integer that fits 32 bits, got {shown(value)}")
         return value
 
     def number(self, value: Any, path: str) -> float:
         if isinstance(value, bool) or not isinstance(value, int | float):
-            raise self.fail(path, f"expected a number, got {value!r} ({type(value).__name__})")
-        if not math.isfinite(value):
-            raise self.fail(path, f"expected a finite number, got {value!r}")
-        return float(value)
+            raise self.fail(path, f"expected a number, got {shown(value)} ({type(value).__name__})")
+        try:
+            number = float(value)
+        except OverflowError:
+            number = math.inf
+        if not math.isfinite(number):
+            raise self.fail(path, f"expected a finite number, got {shown(value)}")
+        return number
 
     def string(self, value: Any, path: str, choices: tuple[str, ...] = ()) -> str:
         if not isinstance(value, str) or not value:
-            raise self.fail(path, f"expected a non-empty string, got {value!r}")
+            raise self.fail(path, f"expected a non-empty string, got {shown(value)}")
         if choices and value not in choices:
-            raise self.fail(path, f"expected one of {list(choices)}, got {value!r}")
+            raise self.fail(path, f"expected one of {list(choices)}, got {shown(value)}")
         return value
 
     def rows(self, value: Any, path: str, width: int | None) -> list[list[float]]:
@@ -118,7 +133,7 @@ class _Reader:
         out = []
         for i, row in enumerate(value):
             if not isinstance(row, list) or (width is not None and len(row) != width):
-                raise self.fail(f"{path}[{i}]", f"expected a list of {width} numbers, got {row!r}")
+                raise self.fail(f"{path}[{i}]", f"expected a list of {width} numbers, got {shown(row)}")
             out.append([self.number(v, f"{path}[{i}][{j}]") for j, v in enumerate(row)])
         return out
 
@@ -217,12 +232,14 @@ def calibration_from_dict(data: Any, file: str = "<dict>") -> HeadCalibration:
     top = r.obj(data, "", _TOP_KEYS, _TOP_KEYS - {"metadata"})
     version = top["schema_version"]
     if isinstance(version, bool) or not isinstance(version, int) or version != SCHEMA_VERSION:
-        raise r.fail("schema_version", f"unknown schema version {version!r}; this servoface reads {SCHEMA_VERSION}")
+        raise r.fail(
+            "schema_version", f"unknown schema version {shown(version)}; this servoface reads {SCHEMA_VERSION}"
+        )
     head = r.string(top["head"], "head")
     units = top["units"]
     if not isinstance(units, dict) or units.get("ticks_per_turn") != TICKS_PER_TURN:
         got = units.get("ticks_per_turn") if isinstance(units, dict) else units
-        raise r.fail("units.ticks_per_turn", f"expected {TICKS_PER_TURN}, got {got!r}")
+        raise r.fail("units.ticks_per_turn", f"expected {TICKS_PER_TURN}, got {shown(got)}")
     meta = _metadata(r, top.get("metadata", {}))
     servos_raw = top["servos"]
     if not isinstance(servos_raw, list) or not servos_raw:
@@ -252,10 +269,10 @@ def _metadata(r: _Reader, value: Any) -> CalibrationMetadata:
     fields = {}
     for key in ("created_utc", "method", "source", "notes"):
         if key in value and not isinstance(value[key], str):
-            raise r.fail(f"metadata.{key}", f"expected a string, got {value[key]!r}")
+            raise r.fail(f"metadata.{key}", f"expected a string, got {shown(value[key])}")
         fields[key] = value.get(key, "")
     if fields["method"] and fields["method"] not in METHODS:
-        raise r.fail("metadata.method", f"expected one of {list(METHODS)}, got {fields['method']!r}")
+        raise r.fail("metadata.method", f"expected one of {list(METHODS)}, got {shown(fields['method'])}")
     extra = {k: v for k, v in value.items() if k not in fields}
     return CalibrationMetadata(
         fields["created_utc"], fields["method"] or "builtin", fields["source"], fields["notes"], extra
@@ -314,6 +331,8 @@ def load_calibration(path: str | os.PathLike[str]) -> HeadCalibration:
         raise CalibrationFileError(
             str(p), "", f"not valid JSON at line {err.lineno} column {err.colno}: {err.msg}"
         ) from err
+    except RecursionError as err:
+        raise CalibrationFileError(str(p), "", "nested too deeply to be a calibration file") from err
     return calibration_from_dict(data, str(p))
 
 

@@ -15,6 +15,7 @@ A capture that fails the checks is reported to the operator and the servo is mea
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -138,6 +139,15 @@ class ProcedureOptions:
     attempts: int = 3
     max_jogs: int = 500
     guide: HeadCalibration | None = None
+    max_step_tick: int = 300  # one jog or go-to moves at most this far from the present position (~26 deg)
+    window_margin_tick: int = 40  # slack around the declared range before the limits are captured
+    unknown_window_tick: int = 600  # +-window around the start when the range in ticks is not known
+
+
+class PositionLimits(Protocol):
+    """Optional on a `ServoAccess`: write the captured limits to the servo's Min/Max Position Limit."""
+
+    def set_position_limits(self, servo_id: int, min_tick: int, max_tick: int) -> None: ...
 
 
 def _kind_for(options: ProcedureOptions, role: str) -> str | None:
@@ -165,6 +175,53 @@ class _Session:
         self.options = options
         self.torque_on = False
         self.goal: int | None = None  # last goal written while torque is on
+        self.window: tuple[int, int] = (MIN_POSITION_TICK, MAX_POSITION_TICK)  # where goals may go
+        self.window_why = ""
+
+    def open_window(self, spec: ServoSpec) -> None:
+        """Before the limits are captured: the declared range (through an earlier calibration of this servo,
+        else the joint's span in degrees, else a fixed window) around where the servo is now, widened by
+        a margin. Goals outside it are refused, never written."""
+        opts = self.options
+        start = self.present(spec)
+        guide = opts.guide
+        if guide is not None and spec.role in guide and guide[spec.role].servo_id == spec.servo_id:
+            g = guide[spec.role]
+            lo, hi = g.min_tick - opts.window_margin_tick, g.max_tick + opts.window_margin_tick
+            why = f"the earlier calibration's {g.min_tick}..{g.max_tick} + {opts.window_margin_tick} ticks"
+        elif spec.kind == "joint":
+            span = int(math.ceil((spec.upper - spec.lower) * 4096 / 360)) + opts.window_margin_tick
+            lo, hi = start - span, start + span
+            why = f"the declared {spec.lower:g}..{spec.upper:g} deg around where the servo stood ({start})"
+        else:
+            lo, hi = start - opts.unknown_window_tick, start + opts.unknown_window_tick
+            why = f"+-{opts.unknown_window_tick} ticks around where the servo stood ({start})"
+        self.window = (max(MIN_POSITION_TICK, lo), min(MAX_POSITION_TICK, hi))
+        self.window_why = why
+
+    def narrow_window(self, spec: ServoSpec, lo: int, hi: int) -> None:
+        """Lower and upper captured: goals stay between them, and the servo's own limits say so too."""
+        lo, hi = min(lo, hi), max(lo, hi)
+        self.window = (lo, hi)
+        self.window_why = f"the captured limits {lo}..{hi}"
+        setter = getattr(self.access, "set_position_limits", None)
+        if setter is not None:
+            self.torque_off(spec)  # EEPROM: written with torque off
+            setter(spec.servo_id, lo, hi)
+            self.operator.tell(f"'{spec.role}': Min/Max Position Limit set to {lo}..{hi} before the other points")
+
+    def refused(self, spec: ServoSpec, tick: int) -> str | None:
+        """Why a goal of ``tick`` may not be written (None: it may)."""
+        lo, hi = self.window
+        if not lo <= tick <= hi:
+            return f"outside the safe window {lo}..{hi} ({self.window_why})"
+        present = self.present(spec)
+        if abs(tick - present) > self.options.max_step_tick:
+            return (
+                f"{tick - present:+d} ticks from where the servo is ({present}); one move is at most "
+                f"{self.options.max_step_tick} ticks (jog in steps)"
+            )
+        return None
 
     def present(self, spec: ServoSpec) -> int:
         tick = int(self.access.read_present_tick(spec.servo_id))
@@ -193,19 +250,29 @@ class _Session:
         self.goal = None
 
     def move_to(self, spec: ServoSpec, tick: int) -> None:
-        """Goal ``tick`` under torque; the first move pins the goal to the present tick, then torque on."""
+        """Goal ``tick`` under torque; the first move pins the goal to the present tick, then torque on.
+        A goal outside the safe window, or too far from the present position, is refused with a message
+        and nothing is written."""
+        tick = int(tick)
+        why = self.refused(spec, tick)
+        if why is not None:
+            self.operator.tell(f"'{spec.role}': move to {tick} refused: {why}")
+            return
         if not self.torque_on or self.goal is None:
             present = self.present(spec)
             self.access.write_goal_tick(spec.servo_id, present)  # pin first: no jump on torque-on
             self.access.set_torque(spec.servo_id, True)
             self.torque_on, self.goal = True, present
-        self.goal = min(max(int(tick), MIN_POSITION_TICK), MAX_POSITION_TICK)
+        self.goal = tick
         self.access.write_goal_tick(spec.servo_id, self.goal)
 
     def jog(self, spec: ServoSpec, delta: int) -> None:
         """Jog from the last goal (not the lagging present position), so quick key presses add up."""
+        if isinstance(delta, bool) or not isinstance(delta, int) or abs(delta) > MAX_POSITION_TICK:
+            self.operator.tell(f"'{spec.role}': jog {delta!r} refused: expected whole ticks within one turn")
+            return
         base = self.goal if self.torque_on and self.goal is not None else self.present(spec)
-        self.move_to(spec, base + int(delta))
+        self.move_to(spec, base + delta)
 
     def step(self, spec: ServoSpec, step: Step, target: float | None) -> Measurement | None:
         for _ in range(self.options.max_jogs):
@@ -246,12 +313,20 @@ class _Session:
 
     def measure(self, spec: ServoSpec) -> list[Measurement]:
         self.torque_off(spec)
+        self.open_window(spec)
         points: list[Measurement] = []
+        ends: list[int] = []
+        plan = _plan(spec, self.options.intermediate)
+        last_end = max(i for i, (step, _) in enumerate(plan) if step in ("neutral", "lower", "upper"))
         try:
-            for step, target in _plan(spec, self.options.intermediate):
+            for i, (step, target) in enumerate(plan):
                 m = self.step(spec, step, target)
                 if m is not None:
                     points.append(m)
+                    if step in ("neutral", "lower", "upper"):
+                        ends.append(m.tick)
+                if i == last_end and len(ends) >= 2:  # both ends known: the window shrinks to them
+                    self.narrow_window(spec, min(ends), max(ends))
             while self.options.free_points:
                 m = self.step(spec, "extra", None)
                 if m is None:

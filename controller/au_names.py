@@ -13,13 +13,14 @@ AUs 1-19, dfacs-dog.md §2). Every validator takes the allowed set as a paramete
 from __future__ import annotations
 
 import re
+import unicodedata
 from functools import cache
 from typing import Any
 
 from servoface.controller.errors import FrameError
 from servoface.sim.rig import FaceType
 
-_NAME_RE = re.compile(r"^AU0*(\d{1,3})([LR]?)$")
+_NAME_RE = re.compile(r"AU0*([0-9]{1,3})([LR]?)", re.ASCII)  # fullmatch: ASCII digits, nothing around
 
 #: Human FACS AUs a robot face uses (facs-human.md §1): facial 1-46, head 51-58, eyes 61-66.
 HUMAN_FACIAL_AUS: tuple[int, ...] = (
@@ -67,18 +68,26 @@ def canonical_au(name: str, *, field: str = "AU name") -> str:
     spellings such as ``-AU7`` or ``AU7c`` are not AU names and are rejected with that hint.
     """
     if not isinstance(name, str):
-        raise FrameError(f"{field}: expected an AU name string like 'AU12' or 'AU12L', got {name!r}")
-    text = name.strip().upper()
-    match = _NAME_RE.match(text)
+        raise FrameError(f"{field}: expected an AU name string like 'AU12' or 'AU12L', got {_shown(name)}")
+    text = unicodedata.normalize("NFC", name)  # then matched exactly: no stray whitespace, ASCII digits only
+    match = _NAME_RE.fullmatch(text.upper()) if text.isascii() else None
     if match is None:
         hint = ""
-        if text.startswith("-") or text.endswith("C"):
+        if text.startswith("-") or text.upper().endswith("C"):
             hint = " (a DFACS counter AU is a negative value on the plain name, e.g. AU7 = -0.5)"
         raise FrameError(
-            f"{field}: {name!r} is not an AU name; expected 'AU<number>' with optional side L/R, "
+            f"{field}: {_shown(name)} is not an AU name; expected 'AU<number>' with optional side L/R, "
             f"e.g. 'AU12', 'AU12L'{hint}"
         )
     return f"AU{int(match.group(1))}{match.group(2)}"
+
+
+def _shown(value: object) -> str:
+    try:
+        text = repr(value)  # escapes control characters and lone surrogates
+    except (RecursionError, ValueError):
+        text = f"<{type(value).__name__} nested too deeply>"
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def au_number(name: str) -> int:

@@ -27,22 +27,34 @@ from servoface.controller.errors import FrameError
 from servoface.sim.rig import FaceType
 
 FACE_TYPES: tuple[FaceType, ...] = ("human", "dog")
+MAX_AUS = 256  # far more than any face has names for
+
+
+def _shown(value: Any) -> str:
+    try:
+        text = repr(value)  # escapes control characters and lone surrogates
+    except (RecursionError, ValueError):
+        text = f"<{type(value).__name__} nested too deeply>"
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def check_face_type(face_type: Any, *, field: str = "face type") -> FaceType:
     """Return ``face_type`` if it is "human" or "dog", else raise FrameError."""
     if face_type not in FACE_TYPES:
-        raise FrameError(f"{field}: expected 'human' or 'dog', got {face_type!r}")
+        raise FrameError(f"{field}: expected 'human' or 'dog', got {_shown(face_type)}")
     return face_type  # type: ignore[no-any-return]
 
 
 def check_intensity(value: Any, *, field: str, lo: float = -1.0, hi: float = 1.0, what: str = "AU intensity") -> float:
     """Return ``value`` as a float if it is a finite real number in [lo, hi], else raise FrameError."""
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise FrameError(f"{field}: expected a number ({what} {lo:g}..{hi:g}), got {value!r}")
-    number = float(value)
+        raise FrameError(f"{field}: expected a number ({what} {lo:g}..{hi:g}), got {_shown(value)}")
+    try:
+        number = float(value)
+    except OverflowError:  # a huge integer
+        number = math.inf if value > 0 else -math.inf
     if not math.isfinite(number):
-        raise FrameError(f"{field}: expected a finite {what} in {lo:g}..{hi:g}, got {value!r}")
+        raise FrameError(f"{field}: expected a finite {what} in {lo:g}..{hi:g}, got {_shown(value)}")
     if number < lo or number > hi:
         raise FrameError(f"{field}: {what} {number:g} is out of range, expected {lo:g}..{hi:g}")
     return number
@@ -70,8 +82,11 @@ def validate_aus(
         names = allowed if allowed is not None else default_au_names(face_type)
         ranges = au_ranges(face_type)
     out: dict[str, float] = {}
+    if len(aus) > MAX_AUS:
+        raise FrameError(f"{where or 'aus'}: {len(aus)} entries; an AU frame has at most {MAX_AUS}")
     for raw, value in aus.items():
-        field = f"{where}.{raw}" if where else str(raw)
+        shown = raw if isinstance(raw, str) and raw.isprintable() and len(raw) <= 40 else _shown(raw)
+        field = f"{where}.{shown}" if where else str(shown)
         name = raw if names is not None and raw in names else canonical_au(raw, field=field)
         if names is not None and name not in names:
             raise FrameError(f"{field}: {name} is not an AU of the {face_type} face; expected one of {_sample(names)}")
@@ -109,7 +124,7 @@ class AUFrame:
         allowed: frozenset[str] | None = None,
     ) -> None:
         if isinstance(t_s, bool) or not isinstance(t_s, int | float) or not math.isfinite(t_s):
-            raise FrameError(f"t_s: expected a finite time in seconds, got {t_s!r}")
+            raise FrameError(f"t_s: expected a finite time in seconds, got {_shown(t_s)}")
         if face_type is not None:
             check_face_type(face_type)
         elif allowed is not None:

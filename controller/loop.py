@@ -234,6 +234,13 @@ class FixedRateLoop:
 def stop_on_sigint(loop: FixedRateLoop) -> Iterator[None]:
     """Within the block, Ctrl-C stops ``loop`` cleanly instead of raising (main thread only; restores the
     previous handler on exit). A second Ctrl-C raises KeyboardInterrupt as usual."""
+    from servoface.controller import stop_signals
+
+    installed = stop_signals.active()
+    if installed is not None:  # the CLI's handlers (SIGINT, SIGTERM, SIGHUP) stop the loop; they never raise
+        with installed.watching(loop):
+            yield
+        return
     previous = signal.getsignal(signal.SIGINT)
 
     def handler(signum: int, frame: Any) -> None:

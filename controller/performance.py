@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import threading
 import time
-from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -16,6 +15,8 @@ from typing import Any, Protocol
 from servoface.controller.frame import AUFrame
 from servoface.controller.loop import FixedRateLoop, LoopStats, Tick, stop_on_sigint
 from servoface.controller.pipeline import FrameTrace, Pipeline
+from servoface.controller.safe_stop import bus_problem
+from servoface.controller.trace_ring import TraceRing
 
 
 class Samples(Protocol):
@@ -28,14 +29,19 @@ class Samples(Protocol):
 class Performance:
     """Traces and loop statistics of one played timeline."""
 
-    traces: list[FrameTrace] = field(default_factory=list)
+    traces: TraceRing = field(default_factory=TraceRing)  # the newest frames; counts cover every frame
     stats: LoopStats | None = None
     rate_hz: float = 50.0
     interrupted: bool = False
+    bus_failure: str | None = None  # why the loop stopped early because the chain was gone
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.traces, TraceRing):
+            self.traces = TraceRing(self.traces)
 
     @property
     def verdicts(self) -> dict[str, int]:
-        counts = Counter(t.verdict for t in self.traces)
+        counts = self.traces.verdict_counts
         return {k: counts.get(k, 0) for k in ("accept", "clip", "reject")}
 
     def clipped(self) -> list[FrameTrace]:
@@ -43,7 +49,7 @@ class Performance:
 
     def summary(self) -> dict[str, Any]:
         out: dict[str, Any] = {
-            "frames": len(self.traces),
+            "frames": self.traces.total,
             "verdicts": self.verdicts,
             "target_rate_hz": self.rate_hz,
         }
@@ -54,7 +60,7 @@ class Performance:
             out["median_stage_ms"] = {
                 s: round(sorted(t.timings_ms[s] for t in self.traces)[len(self.traces) // 2], 4) for s in stages
             }
-            out["bytes_written"] = sum(t.bytes_written for t in self.traces)
+            out["bytes_written"] = self.traces.bytes_written
         return out
 
 
@@ -89,6 +95,9 @@ def play_timeline(
             result.traces.append(trace)
         if on_frame is not None:
             on_frame(trace)
+        if (problem := bus_problem(pipeline.last_snapshot)) is not None:
+            result.bus_failure = problem  # driving blind helps nobody: stop, and let the stop path report
+            return False
         return None
 
     loop = FixedRateLoop(frame, rate, clock=clock, sleep=sleep)
@@ -97,9 +106,13 @@ def play_timeline(
             result.stats = loop.run(duration_s=duration_s + 0.5 / rate)
     else:
         result.stats = loop.run(duration_s=duration_s + 0.5 / rate)
-    result.interrupted = loop.stopping
+    result.interrupted = loop.stopping and result.bus_failure is None
     last_t = result.traces[-1].t_s if result.traces else None
-    if not result.interrupted and (last_t is None or last_t < start_s + duration_s - 1e-9):
+    if (
+        not result.interrupted
+        and result.bus_failure is None
+        and (last_t is None or last_t < start_s + duration_s - 1e-9)
+    ):
         # the loop skipped the last slot(s): land the final keyframe anyway, so a motion always ends
         # where it was asked to (late, and counted as such)
         t_end = start_s + duration_s

@@ -100,6 +100,8 @@ class Pipeline:
         self._ids = frozenset(s.servo_id for s in self._servos)
         self.last_snapshot: ChainSnapshot | None = None
         self.last_cycle_s: float | None = None  # time.monotonic() of the last driver cycle (pacing)
+        self.last_write_s: float | None = None  # time.monotonic() when the last goals went on the wire
+        self.per_time_caps = True  # False: the gate's per-frame caps only (deterministic replays in tests)
         self._index = 0
         self._ahead: Ahead | None = None  # the next frame, computed during this one's wait (step(next_frame=))
 
@@ -163,13 +165,21 @@ class Pipeline:
             timings["calibration_ms"] = (time.perf_counter() - t1) * 1e3
         t2 = time.perf_counter()
         health = self._health()
-        spec = ahead.verdict_for(self.last_goals_tick, health, self.gate.step_state()) if ahead else None
+        elapsed_s = (
+            None
+            if self.driver is None or self.last_write_s is None or not self.per_time_caps
+            else time.monotonic() - self.last_write_s
+        )  # since the last goals went on the wire: the gate's caps hold per second, not per call
+        per_frame = elapsed_s is None or (
+            elapsed_s >= self.gate.frame_period_s and getattr(self.gate, "_last_fraction", 1.0) >= 1.0
+        )  # a speculative verdict was checked against whole-frame caps: usable only when those apply
+        spec = ahead.verdict_for(self.last_goals_tick, health, self.gate.step_state()) if ahead and per_frame else None
         if spec is not None and ahead is not None:
             verdict = spec
             self.gate.restore_step_state(ahead.state_after)
             timings["ahead_ms"] = sum(ahead.timings_ms.values())
         else:
-            verdict = self.gate.check(requested, self.last_goals_tick, health)
+            verdict = self.gate.check(requested, self.last_goals_tick, health, elapsed_s=elapsed_s)
             timings["gate_ms"] = (time.perf_counter() - t2) * 1e3
         t3 = time.perf_counter()
         sent = dict(verdict.goals_tick)
@@ -177,6 +187,7 @@ class Pipeline:
         if self.driver is not None:
             before = self.driver.bus.stats.bytes_written
             self.driver.cycle_start(sent)
+            self.last_write_s = time.monotonic()  # after: the goals are on the wire by now (conservative)
             if next_frame is not None:  # while the replies are on the wire
                 self._ahead = self._prepare(next_frame, sent, health)
             self.last_snapshot = self.driver.cycle_finish()
@@ -267,6 +278,6 @@ class Pipeline:
         if self.driver is None:
             return None
         self.last_snapshot = self.driver.cycle(self.last_goals_tick)
-        self.last_cycle_s = time.monotonic()
+        self.last_cycle_s = self.last_write_s = time.monotonic()
         self.gate.reset()  # the servos got a zero step: the next frame starts from rest (accel cap)
         return self.last_snapshot

@@ -40,7 +40,7 @@ from servoface.controller.alive import BlinkConfig, BlinkLayer, GazeLayer, IdleC
 from servoface.controller.alive.gaze import gaze_config_for
 from servoface.controller.errors import FrameError, ScriptError, TimelineError
 from servoface.controller.frame import AUFrame, FrameValidator
-from servoface.controller.script_fields import Reader
+from servoface.controller.script_fields import Reader, shown
 from servoface.controller.timeline import (
     BlendPolicy,
     ChannelClip,
@@ -64,6 +64,15 @@ SCRIPTS_DIR = Path(__file__).resolve().parent / "scripts"
 ALIVE_LAYERS = ("gaze", "blink", "idle")
 _TOP = ("script", "poses", "expressions", "play", "gaze", "gaze_setup", "blink", "idle", "blend")
 _TRACK_RE = re.compile(r"^[a-z][a-z0-9_]*$")
+
+
+MAX_SCRIPT_S = 24 * 3600.0  # a script is at most a day long (loop it from code for longer)
+MAX_REPEAT = 10_000
+MAX_EVENTS = 1000
+ALIVE_MINIMUMS = {  # seconds: blinks and idle motion no faster than a head can follow
+    "blink": {"mean_interval_s": 0.5, "min_duration_s": 0.05, "max_duration_s": 0.05},
+    "idle": {"head_period_s": 0.2, "eye_period_s": 0.2},
+}
 
 
 @dataclass
@@ -111,6 +120,8 @@ def parse_script(text: str, *, source: str = "<script>", allowed: frozenset[str]
     r = Reader(source, text)
     try:
         data = tomllib.loads(text)
+    except RecursionError as err:
+        raise ScriptError(f"{source}: nested too deeply to be a script") from err
     except tomllib.TOMLDecodeError as err:
         match = re.search(r"line (\d+)", str(err))
         line = int(match.group(1)) if match else None
@@ -129,12 +140,13 @@ class _Builder:
 
     def build(self, data: Mapping[str, Any]) -> Script:
         r = self.r
+        data = r.table(data, "")
         r.keys(data, "", _TOP)
         head = r.table(r.get(data, "script", "", required=True), "script")
         r.keys(head, "script", ("face", "title", "end_s", "initial", "audio", "audio_start_s"))
         face = r.string(head, "face", "script")
         if face not in ("human", "dog"):
-            r.fail("script.face", f"expected 'human' or 'dog', got {face!r}")
+            r.fail("script.face", f"expected 'human' or 'dog', got {shown(face)}")
         self.face: FaceType = face  # type: ignore[assignment]
         self.validator = FrameValidator(self.face, self.allowed)
         self.poses = {
@@ -153,7 +165,7 @@ class _Builder:
         self.gaze(r.array(data, "gaze", "", []), r.table(r.get(data, "gaze_setup", "", {}), "gaze_setup"))
         self.alive(data)
         end = max(self.timeline.end_s, self.gaze_end_s)
-        end_s = r.number(head, "end_s", "script", None, lo=0.0, what="an end time in seconds")
+        end_s = r.number(head, "end_s", "script", None, lo=0.0, hi=MAX_SCRIPT_S, what="an end time in seconds")
         title = r.string(head, "title", "script", Path(r.source).stem)
         audio = r.string(head, "audio", "script", "")
         if audio and (Path(audio).is_absolute() or ".." in Path(audio).parts):
@@ -176,7 +188,7 @@ class _Builder:
         if isinstance(value, str) and by_name:
             if value not in self.poses:
                 known = ", ".join(sorted(self.poses)) or "none defined"
-                self.r.fail(path, f"unknown pose {value!r}; expected a pose name ({known}) or an inline table")
+                self.r.fail(path, f"unknown pose {shown(value)}; expected a pose name ({known}) or an inline table")
             return self.poses[value]
         table = self.r.table(value, path)
         try:
@@ -324,7 +336,15 @@ class _Builder:
         else:
             events = parse_events(r.array(spec, "events", path), field=f"{path}.events")
         timing = self.timing(r.table(r.get(spec, "timing", path, {}), f"{path}.timing"), f"{path}.timing")
-        clip = events_clip(events, timing, repeat=r.integer(spec, "repeat", path, 1, lo=1), name=name)
+        repeat = r.integer(spec, "repeat", path, 1, lo=1, hi=MAX_REPEAT)
+        clip = events_clip(events[:MAX_EVENTS], timing, repeat=1, name=name)
+        if len(events) > MAX_EVENTS or clip.duration_s * repeat > MAX_SCRIPT_S:
+            r.fail(
+                f"{path}.repeat",
+                f"{len(events)} events x {repeat} repeats ({clip.duration_s * repeat:g} s) is more than a script may "
+                f"hold ({MAX_EVENTS} events, {MAX_SCRIPT_S:g} s)",
+            )
+        clip = events_clip(events, timing, repeat=repeat, name=name)
         for au, value in clip.targets():
             self.pose({au: value}, f"{path}.events")
         return clip
@@ -351,7 +371,7 @@ class _Builder:
             r.fail(
                 f"{path}.track",
                 f"expected a track name like 'face', 'gesture', 'speech' "
-                f"(not {', '.join(ALIVE_LAYERS)}), got {track!r}",
+                f"(not {', '.join(ALIVE_LAYERS)}), got {shown(track)}",
             )
         kinds = [k for k in ("expression", "sequence", "recipe", "library") if k in entry]
         if len(kinds) != 1:
@@ -384,7 +404,7 @@ class _Builder:
     def clip_ref(self, name: Any, path: str) -> Clip:
         if not isinstance(name, str) or name not in self.clips:
             known = ", ".join(sorted(self.clips)) or "none defined"
-            self.r.fail(path, f"unknown expression {name!r}; expected one of: {known}")
+            self.r.fail(path, f"unknown expression {shown(name)}; expected one of: {known}")
         return self.clips[name]
 
     def gaze(self, entries: list[Any], setup: Mapping[str, Any]) -> None:
@@ -405,7 +425,7 @@ class _Builder:
             if key.endswith("_mm") and key in setup:
                 raw = self.r.array(setup, key, "gaze_setup")
                 if len(raw) != 3 or not all(isinstance(c, int | float) and not isinstance(c, bool) for c in raw):
-                    self.r.fail(f"gaze_setup.{key}", f"expected [x, y, z] in mm (head frame), got {raw!r}")
+                    self.r.fail(f"gaze_setup.{key}", f"expected [x, y, z] in mm (head frame), got {shown(raw)}")
                 values[key] = tuple(float(c) for c in raw)
             elif key in setup:
                 values[key] = self.r.number(setup, key, "gaze_setup", lo=1e-6, what="a positive number")
@@ -426,7 +446,7 @@ class _Builder:
             if "look_at_mm" in entry:
                 raw = self.r.array(entry, "look_at_mm", path)
                 if len(raw) != 3 or not all(isinstance(c, int | float) and not isinstance(c, bool) for c in raw):
-                    self.r.fail(f"{path}.look_at_mm", f"expected [x, y, z] in mm (head frame), got {raw!r}")
+                    self.r.fail(f"{path}.look_at_mm", f"expected [x, y, z] in mm (head frame), got {shown(raw)}")
                 target = (float(raw[0]), float(raw[1]), float(raw[2]))
             try:
                 layer.look_at(at, target)
@@ -446,6 +466,13 @@ class _Builder:
             seed = self.r.integer(table, "seed", key, 0)
             table.pop("seed", None)
             values = {k: self.r.number(table, k, key) for k in table}
+            for field_name, minimum in ALIVE_MINIMUMS.get(key, {}).items():
+                if field_name in values and values[field_name] < minimum:
+                    self.r.fail(
+                        f"{key}.{field_name}",
+                        f"{values[field_name]:g} s is below the {minimum:g} s a head can follow "
+                        "(a faster layer only floods the loop)",
+                    )
             try:
                 config = config_cls(**values)
             except TimelineError as err:
@@ -462,7 +489,7 @@ class _Builder:
         rules = r.table(r.get(table, "rules", "blend", {}), "blend.rules")
         priority = r.array(table, "priority", "blend", [])
         if not all(isinstance(p, str) for p in priority):
-            r.fail("blend.priority", f"expected an array of track names, got {priority!r}")
+            r.fail("blend.priority", f"expected an array of track names, got {shown(priority)}")
         try:
             return BlendPolicy.for_face(self.face, rules, priority or None, r.string(table, "default", "blend", "max"))
         except (TimelineError, FrameError) as err:

@@ -87,24 +87,27 @@ class Reader:
         hi: float = math.inf, what: str = "a number",
     ) -> Any:  # fmt: skip
         value = self.get(table, key, path, default)
-        if value is None:
-            return None
-        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-            self.fail(_join(path, key), f"expected {what}, got {value!r}")
-        if not lo <= value <= hi:
-            self.fail(_join(path, key), f"expected {what} in {lo:g}..{hi:g}, got {value!r}")
-        return float(value)
+        if value is None and (key not in table or table[key] is not None):
+            return None  # the default None: not given
+        number = _finite(value)
+        if number is None:
+            self.fail(_join(path, key), f"expected {what}, got {shown(value)}")
+        if not lo <= number <= hi:
+            self.fail(_join(path, key), f"expected {what} in {lo:g}..{hi:g}, got {shown(value)}")
+        return number
 
-    def integer(self, table: Mapping[str, Any], key: str, path: str, default: Any = ..., *, lo: int = 0) -> int:
+    def integer(
+        self, table: Mapping[str, Any], key: str, path: str, default: Any = ..., *, lo: int = 0, hi: int = 2**31 - 1
+    ) -> int:
         value = self.get(table, key, path, default)
-        if isinstance(value, bool) or not isinstance(value, int) or value < lo:
-            self.fail(_join(path, key), f"expected an integer >= {lo}, got {value!r}")
+        if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+            self.fail(_join(path, key), f"expected an integer within {lo}..{hi}, got {shown(value)}")
         return value
 
     def string(self, table: Mapping[str, Any], key: str, path: str, default: Any = ...) -> str:
         value = self.get(table, key, path, default)
         if not isinstance(value, str):
-            self.fail(_join(path, key), f"expected a string, got {_kind(value)} {value!r}")
+            self.fail(_join(path, key), f"expected a string, got {_kind(value)} {shown(value)}")
         return value
 
     def array(self, table: Mapping[str, Any], key: str, path: str, default: Any = ...) -> list[Any]:
@@ -112,6 +115,25 @@ class Reader:
         if not isinstance(value, list):
             self.fail(_join(path, key), f"expected an array, got {_kind(value)}")
         return value
+
+
+def _finite(value: Any) -> float | None:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:
+        return None
+    return number if math.isfinite(number) else None
+
+
+def shown(value: Any, limit: int = 60) -> str:
+    """A short repr for messages (never raises: deep nesting, huge integers; escapes control characters)."""
+    try:
+        text = repr(value)
+    except (RecursionError, ValueError):
+        text = f"<{type(value).__name__} nested too deeply>"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _join(path: str, key: str) -> str:

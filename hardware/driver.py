@@ -26,6 +26,7 @@ from servoface.hardware.errors import (
     DriverThreadError,
     GoalRejectedError,
     HardwareConfigError,
+    ServoStatusError,
 )
 from servoface.hardware.fault_policy import FaultPolicy, ThermalTrend, eased_goal
 from servoface.hardware.fault_reactions import FaultReactions
@@ -34,6 +35,8 @@ from servoface.hardware.registers import Register
 from servoface.hardware.servo_config import ConfigReport, ServoSpec, check_specs, configure_servo
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind
+
+TORQUE_OFF_QUIET_S = (0.03, 0.12, 0.3)  # after a failed torque-off, wait this long for quiet (per pass)
 
 
 class Driver(ChainReads):
@@ -86,6 +89,9 @@ class Driver(ChainReads):
         self._group_failed = False
         self._fast_failures = 0
         self._last: ChainSnapshot | None = None
+        self._last_tx_s: float | None = None  # driver clock of the last cycle (feeds the Bus Watchdog)
+        self.watchdog_rearms = 0  # times a pause made the driver clear and re-arm the watchdog
+        self._stop_reopened = False  # a stop re-opens a failed port at most once
         self._cycle_now: float | None = None  # set between cycle_start and cycle_finish
         self._position_ids: list[int] | None = None
         self._idle_s = float("inf")
@@ -151,13 +157,20 @@ class Driver(ChainReads):
         return report
 
     def _pin_and_enable(self, rec: ServoRecord) -> None:
-        """Goal Position := Present Position (clamped into the limits), then Torque Enable = 1."""
+        """Bus Watchdog cleared, Goal Position := Present Position (clamped into the limits), Torque Enable = 1,
+        then the watchdog armed (`FaultPolicy.watchdog_s`): if the host stops talking, the servo stops."""
+        units = self.policy.watchdog_units
+        if units:  # a tripped watchdog (an earlier controller died) refuses goals until it is cleared
+            self.bus.write(rec.servo_id, Register.BUS_WATCHDOG, 0)
         present = self.bus.read(rec.servo_id, Register.PRESENT_POSITION)
         goal = rec.clamp(present)
         self._write_goal_single(rec, goal)
         self.bus.write(rec.servo_id, Register.TORQUE_ENABLE, 1)
+        if units:
+            self.bus.write(rec.servo_id, Register.BUS_WATCHDOG, units)
         rec.position_tick, rec.position_t_s = present, self._clock()
         rec.torque_on = True
+        self._last_tx_s = self._clock()
 
     def torque_on(self, servo_ids: Iterable[int] | None = None) -> None:
         """Torque on, each servo's goal first pinned to where it is (no jump)."""
@@ -170,13 +183,101 @@ class Driver(ChainReads):
                 except (BusTimeoutError, BusCorruptError):  # pinned and enabled when it answers again
                     self._mark_missing(rec, self._clock(), "did not answer torque-on")
 
-    def torque_off(self, servo_ids: Iterable[int] | None = None) -> None:
+    def torque_off(self, servo_ids: Iterable[int] | None = None, *, attempts: int | None = None) -> tuple[int, ...]:
+        """Torque Enable = 0 on every servo (missing ones too: they may answer), each tried up to ``attempts``
+        times (default `FaultPolicy.torque_off_attempts`), carrying on past any servo that fails.
+
+        Returns the ids that could not be reached — their torque may still be on; an empty tuple means
+        every servo confirmed torque off. Never raises for a bus failure (a dead port: every servo not yet
+        reached is returned after one re-open attempt).
+        """
         self._check_owner()
-        for rec in self._select(servo_ids):
+        tries = max(1, attempts if attempts is not None else self.policy.torque_off_attempts)
+        records = self._select(servo_ids)
+        for rec in records:
             rec.torque_wanted = False
-            if not rec.missing:
-                self.bus.write(rec.servo_id, Register.TORQUE_ENABLE, 0)
-            rec.torque_on = False
+        if self._connected or self._reopen_once():
+            try:  # one broadcast first: every servo that hears it stops at once, whatever its replies do
+                self.bus.sync_write(Register.TORQUE_ENABLE, {rec.servo_id: 0 for rec in records})
+            except BusError:
+                pass
+        pending = list(records)
+        for attempt in range(tries):  # then confirm servo by servo; failures are retried in the next pass
+            failed = []
+            quiet_s = TORQUE_OFF_QUIET_S[min(attempt, len(TORQUE_OFF_QUIET_S) - 1)]  # longer each pass
+            for rec in pending:
+                if self._write_confirmed(rec.servo_id, Register.TORQUE_ENABLE, 0):
+                    rec.torque_on = False
+                else:
+                    failed.append(rec)
+                    self._drain(quiet_s)
+            if len(failed) == len(pending) == len(records) and attempt >= 1:
+                pending = failed  # nothing answers at all (the chain is gone): do not wait out every pass
+                break
+            pending = failed
+            if not pending or not self._connected:
+                break
+        for rec in pending:
+            self._emit(rec.servo_id, FaultKind.UNREACHED, f"torque off not confirmed after {tries} attempt(s)")
+        return tuple(rec.servo_id for rec in pending)
+
+    def _drain(self, quiet_s: float) -> None:
+        """Let a late reply pass before the next servo is asked (it would collide with, or be taken for, its reply)."""
+        drain = getattr(self.bus, "drain", None)
+        if drain is not None and self._connected:
+            drain(quiet_s=quiet_s, max_s=max(0.3, 2 * quiet_s))
+
+    def _write_confirmed(self, servo_id: int, register: Register, value: int) -> bool:
+        """One write; True once the servo acknowledged it (or reads ``value`` back after an error reply)."""
+        try:
+            self.bus.write(servo_id, register, value)
+            return True
+        except BusDisconnectedError:
+            self._reopen_once()
+            return False
+        except ServoStatusError:  # answered with an error: believe only a read-back
+            try:
+                return bool(self.bus.read(servo_id, register) == value)
+            except BusError:
+                return False
+        except BusError:  # timeout, corrupt reply, port busy: the next pass tries again
+            return False
+
+    def _reopen_once(self) -> bool:
+        """One attempt to re-open a failed port while stopping (False: the port stays dead)."""
+        if self._stop_reopened:
+            return self._connected
+        self._stop_reopened = True
+        try:
+            self.bus.reopen()
+        except BusError:
+            self._connected = False
+            return False
+        self._connected = True
+        return True
+
+    def disarm_watchdog(self, servo_ids: Iterable[int] | None = None) -> None:
+        """Bus Watchdog := 0 (one attempt per servo, failures ignored): a clean close leaves no timer."""
+        self._check_owner()
+        if not self.policy.watchdog_units or not self._connected:
+            return
+        for rec in self._select(servo_ids):
+            try:
+                self.bus.write(rec.servo_id, Register.BUS_WATCHDOG, 0)
+            except BusError:
+                continue
+
+    def _feed_watchdog(self, now: float) -> None:
+        """After a pause longer than half the watchdog time (a slow frame, a caller that waited between
+        motions), the watchdog may have tripped and would refuse every goal: clear and re-arm it first."""
+        units = self.policy.watchdog_units
+        if not units or self._last_tx_s is None or now - self._last_tx_s <= 0.5 * self.policy.watchdog_s:
+            return
+        ids = [rec.servo_id for rec in self._records.values() if rec.in_service]
+        if ids:
+            self.bus.sync_write(Register.BUS_WATCHDOG, {sid: 0 for sid in ids})
+            self.bus.sync_write(Register.BUS_WATCHDOG, {sid: units for sid in ids})
+            self.watchdog_rearms += 1
 
     def clear_fault(self, servo_id: int) -> None:
         """Acknowledge a latched fault: reboot the servo and bring it back (re-configured, goal re-pinned)."""
@@ -235,7 +336,13 @@ class Driver(ChainReads):
         each reboot counts toward `FaultPolicy.max_reboots`, after which the servo latches off.
         """
         now = self._clock()
-        for k in (FaultKind.OVERLOAD, FaultKind.OVERHEATING, FaultKind.VOLTAGE_HIGH, FaultKind.VOLTAGE_LOW):
+        for k in (
+            FaultKind.OVERLOAD,
+            FaultKind.OVERHEATING,
+            FaultKind.VOLTAGE_HIGH,
+            FaultKind.VOLTAGE_LOW,
+            FaultKind.INPUT_VOLTAGE,
+        ):
             if k != FaultKind.VOLTAGE_LOW or rec.voltage_count == 0:
                 rec.faults.discard(k)
         rec.derated = FaultKind.THERMAL_DERATE in rec.faults or FaultKind.VOLTAGE_LOW in rec.faults
@@ -325,6 +432,7 @@ class Driver(ChainReads):
             if not self._connected:
                 self._try_reopen(now)
             if self._connected:
+                self._feed_watchdog(now)
                 self._write_goals(goals)
                 self._start_positions(now)
         except BusDisconnectedError as err:
@@ -349,6 +457,7 @@ class Driver(ChainReads):
                 self._probe_missing(now)
         except BusDisconnectedError as err:
             self._on_disconnect(err)
+        self._last_tx_s = now
         self._cycle += 1
         snapshot = self._freeze(now)
         self._last_end_s = self._clock()
@@ -375,12 +484,26 @@ class Driver(ChainReads):
         self._last = snap
         return snap
 
-    def close(self, *, torque_off: bool = False) -> None:
-        """Optionally torque everything off, then close the bus."""
+    def close(self, *, torque_off: bool = False) -> tuple[int, ...]:
+        """Optionally torque everything off (retried per servo) and disarm the Bus Watchdog, then close the bus.
+
+        Returns the ids whose torque-off was not confirmed (empty without ``torque_off``).
+        """
         self._check_owner()
-        if torque_off and self._connected:
-            try:
-                self.torque_off()
-            except BusError:
-                pass
-        self.bus.close()
+        unreached: tuple[int, ...] = ()
+        try:
+            if torque_off:
+                unreached = self.torque_off()
+                reached = [sid for sid in self.servo_ids if sid not in unreached]
+                if reached:
+                    self.disarm_watchdog(reached)
+        finally:
+            self.bus.close()
+        return unreached
+
+    def servo_problems(self) -> dict[str, tuple[int, ...]]:
+        """Servos that ended the run out of service: ``latched`` (needs `clear_fault`), ``missing``."""
+        return {
+            "latched": tuple(sid for sid, r in self._records.items() if r.latched),
+            "missing": tuple(sid for sid, r in self._records.items() if r.missing),
+        }

@@ -93,8 +93,9 @@ class DriverThread:
     def torque_on(self) -> None:
         self.call(lambda d: d.torque_on())
 
-    def torque_off(self) -> None:
-        self.call(lambda d: d.torque_off())
+    def torque_off(self) -> tuple[int, ...]:
+        """Torque off on every servo (retried, carrying on); the ids that did not confirm it."""
+        return self.call(lambda d: d.torque_off(), timeout_s=30.0)
 
     def _raise_if_dead(self) -> None:
         if self.error is not None:

@@ -30,6 +30,7 @@ from servoface.hardware.errors import (
     ServoStatusError,
 )
 from servoface.hardware.latency import read_latency_timer, sdk_latency_ms, warn_if_high
+from servoface.hardware.port_lock import PortLock
 from servoface.hardware.registers import STATUS_ALERT_BIT, STATUS_ERROR_NAMES, Register, slice_value, span
 
 SDK_BAUDS = (
@@ -195,10 +196,12 @@ class DynamixelBus:
         self.alerts: set[int] = set()
         self._packet = sdk.PacketHandler(2.0)
         self._sync_reads: dict[tuple[int, int, tuple[int, ...]], Any] = {}
+        self._lock: PortLock | None = None
         self._pending: tuple[list[int], tuple[Register, ...], int, int, bool, str] | None = None
         self._parse_s = PARSE_S_START  # measured CPU per status packet already waiting (see _nap_for_replies)
         if isinstance(port, str):
             self.port_name = port
+            self._lock = PortLock(port)  # one controller per chain: held while the port is open
             self._port: _WindowedPort = _WindowedPort(port)
             timer = read_latency_timer(port)
             if warn_latency:
@@ -220,19 +223,24 @@ class DynamixelBus:
         return bool(self._port.is_open)
 
     def open(self) -> None:
+        """Take the port's lock (`PortLockedError` names the holder's pid), then open it."""
         if self.is_open:
             return
+        if self._lock is not None:
+            self._lock.acquire()
         self._port.baudrate = self.baud
         try:
             ok = self._port.openPort()
         except (OSError, ValueError) as err:
+            self._release_lock()
             raise BusDisconnectedError(
                 f"cannot open port {self.port_name} at {self.baud} bps: {err}{_open_hint(err)}"
             ) from err
         if not ok:
+            self._release_lock()
             raise BusError(f"cannot open port {self.port_name} at {self.baud} bps")
 
-    def close(self) -> None:
+    def _close_port(self) -> None:
         if self._port.is_open:
             try:
                 self._port.closePort()
@@ -240,12 +248,42 @@ class DynamixelBus:
                 self._port.is_open = False
         self._port.is_using = False
 
+    def _release_lock(self) -> None:
+        if self._lock is not None:
+            self._lock.release()
+
+    def close(self) -> None:
+        self._close_port()
+        self._release_lock()
+
     def reopen(self) -> None:
-        """Close and open the port again (after a USB re-plug or a dropped pty)."""
-        self.close()
+        """Close and open the port again (after a USB re-plug or a dropped pty), keeping its lock."""
+        self._close_port()
         self._sync_reads.clear()
         self._pending = None
         self.open()
+
+    def drain(self, quiet_s: float = 0.05, max_s: float = 0.3) -> int:
+        """Discard what arrives until the line has been quiet for ``quiet_s`` (at most ``max_s``); returns
+        the bytes dropped. After a timeout, a late reply still on its way must neither collide with the next
+        instruction's reply nor be taken for it."""
+        if not self._port.is_open:
+            return 0
+        dropped = 0
+        start = last = time.monotonic()
+        try:
+            while True:
+                now = time.monotonic()
+                if now - last >= quiet_s or now - start >= max_s:
+                    return dropped
+                n = self._port.getBytesAvailable()
+                if n:
+                    dropped += len(self._port.readPort(n))
+                    last = time.monotonic()
+                else:
+                    time.sleep(0.002)
+        except OSError:
+            return dropped
 
     def __enter__(self) -> DynamixelBus:
         self.open()

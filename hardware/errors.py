@@ -93,3 +93,16 @@ class GoalRejectedError(HardwareConfigError):
 
 class DriverThreadError(HardwareError):
     """The driver was used from a thread that does not own the bus."""
+
+
+class PortLockedError(BusError):
+    """Another process holds the port (names its pid): two controllers must never drive one chain."""
+
+    def __init__(self, port: str, holder_pid: int | None, lock_file: object) -> None:
+        self.port = port
+        self.holder_pid = holder_pid
+        who = f"process {holder_pid}" if holder_pid is not None else "another process"
+        super().__init__(
+            f"port {port} is in use by {who} (lock {lock_file}); stop that controller first "
+            "— two controllers on one chain would fight over its servos"
+        )

@@ -10,6 +10,8 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
+WATCHDOG_UNIT_S = 0.02  # Bus Watchdog (address 98) counts 20 ms units
+
 
 @dataclass(frozen=True)
 class FaultPolicy:
@@ -26,6 +28,10 @@ class FaultPolicy:
     reboot_settle_s: float = 0.1  # a rebooted servo is silent this long
     max_reboots: int = 3  # per servo within reboot_window_s; one more -> latched (torque stays off)
     reboot_window_s: float = 60.0
+    reboot_backoff_s: float = 0.25  # a hardware-error reboot waits this, doubled per recent reboot of that servo
+    # stopping and host death
+    torque_off_attempts: int = 3  # Torque Enable = 0 tries per servo when stopping (carrying on past failures)
+    watchdog_s: float = 0.1  # Bus Watchdog armed while driving (20 ms units, 0.02..2.54 s); 0 = never armed
     # temperature
     thermal_margin_c: float = 5.0  # derate at (limit - margin) ...
     thermal_derate_horizon_s: float = 120.0  # ... or when predicted to reach the limit within this
@@ -48,7 +54,7 @@ class FaultPolicy:
     telemetry_floor_share: float = 0.25
 
     def __post_init__(self) -> None:
-        for name in ("retries", "missing_after_failures", "max_reboots", "voltage_debounce"):
+        for name in ("retries", "missing_after_failures", "max_reboots", "voltage_debounce", "torque_off_attempts"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < (1 if name != "retries" else 0):
                 raise ValueError(f"FaultPolicy.{name} = {value!r}: expected a positive int")
@@ -61,6 +67,22 @@ class FaultPolicy:
             )
         if not 0 <= self.backoff_gain <= 1:
             raise ValueError(f"FaultPolicy.backoff_gain = {self.backoff_gain}: expected 0..1")
+        if self.watchdog_s and not WATCHDOG_UNIT_S <= self.watchdog_s <= 127 * WATCHDOG_UNIT_S:
+            raise ValueError(
+                f"FaultPolicy.watchdog_s = {self.watchdog_s}: expected 0 (off) or "
+                f"{WATCHDOG_UNIT_S:g}..{127 * WATCHDOG_UNIT_S:g} s (the register counts 20 ms units)"
+            )
+
+    @property
+    def watchdog_units(self) -> int:
+        """The Bus Watchdog register value (20 ms units, 1..127), or 0 when the watchdog is off."""
+        if not self.watchdog_s:
+            return 0
+        return max(1, min(127, round(self.watchdog_s / WATCHDOG_UNIT_S)))
+
+    def reboot_delay_s(self, recent_reboots: int) -> float:
+        """Exponential back-off: how long a hardware-error reboot waits after the fault was seen."""
+        return self.reboot_backoff_s * 2.0 ** min(recent_reboots, 16)
 
 
 def eased_goal(goal_tick: int, present_tick: int, scale: float, min_tick: int, max_tick: int) -> int:

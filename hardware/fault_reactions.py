@@ -66,11 +66,14 @@ class FaultReactions:
         rec.derated = on
 
     def schedule_reboot(self, rec: ServoRecord, now: float, at_s: float, reason: FaultKind) -> None:
+        """Reboot no earlier than ``at_s`` and the exponential back-off (`FaultPolicy.reboot_delay_s` of the
+        servo's recent reboots), so a fault that lasts a moment recovers instead of burning the reboot budget."""
         if rec.reboot_at_s is None and not rec.latched:
-            rec.reboot_at_s = at_s
+            recent = sum(1 for t in rec.reboots if t > now - self.policy.reboot_window_s)
+            rec.reboot_at_s = max(at_s, now + self.policy.reboot_delay_s(recent))
             rec.reboot_reason = reason
             rec.fault_t_s = now
-            if reason in (FaultKind.OVERHEATING, FaultKind.VOLTAGE_LOW):
+            if reason in (FaultKind.OVERHEATING, FaultKind.INPUT_VOLTAGE):
                 self.request_read("thermal")  # the reboot waits for a temperature/voltage read after the fault
 
     # -- telemetry handlers -------------------------------------------------------------------------
@@ -100,12 +103,14 @@ class FaultReactions:
                 f"torque off; reboot once below {self._resume_c(rec):g} C",
             )
         if new & HardwareErrorBits.INPUT_VOLTAGE:
-            rec.faults.add(FaultKind.VOLTAGE_LOW if (rec.voltage_count <= 0) else FaultKind.VOLTAGE_HIGH)
-            self.schedule_reboot(rec, now, now, FaultKind.VOLTAGE_LOW)  # gated on voltage in service()
+            rec.faults.add(FaultKind.INPUT_VOLTAGE)  # the bit, not a reading: the supply may read fine
+            self.schedule_reboot(rec, now, now, FaultKind.INPUT_VOLTAGE)  # gated on voltage in service()
+            reading = "" if rec.voltage_v is None else f" (last supply reading {rec.voltage_v:.1f} V)"
             self.emit(
                 rec.servo_id,
-                FaultKind.VOLTAGE_LOW,
-                "input voltage error: torque off; reboot once the supply is back in range",
+                FaultKind.INPUT_VOLTAGE,
+                f"Input Voltage Error bit{reading}: torque off; reboot with back-off once a fresh reading "
+                "is back in range",
             )
         if new & _LATCHING:
             rec.faults.add(FaultKind.HARDWARE_ERROR)
@@ -234,6 +239,10 @@ class FaultReactions:
         return len(recent) < self.policy.max_reboots
 
     def _reboot_condition_met(self, rec: ServoRecord, now: float) -> bool:
+        """The back-off time has passed and, for heat and supply faults, a reading taken after the fault
+        is below its threshold (a reboot into a persisting cause would only trip again)."""
+        if rec.reboot_at_s is None or now < rec.reboot_at_s:
+            return False
         fresh = rec.telemetry_t_s is not None and rec.telemetry_t_s > rec.fault_t_s
         if rec.reboot_reason == FaultKind.OVERHEATING:
             return (
@@ -241,9 +250,9 @@ class FaultReactions:
                 and rec.temperature_c is not None
                 and (rec.temperature_c <= rec.temperature_limit_c - self.policy.thermal_resume_margin_c)
             )
-        if rec.reboot_reason == FaultKind.VOLTAGE_LOW:
+        if rec.reboot_reason in (FaultKind.INPUT_VOLTAGE, FaultKind.VOLTAGE_LOW):
             return fresh and rec.voltage_count == 0 and rec.voltage_v is not None
-        return rec.reboot_at_s is not None and now >= rec.reboot_at_s
+        return True
 
     def service(self, rec: ServoRecord, now: float) -> None:
         """Run a due reboot or recovery of ``rec`` (at most one bus action per call)."""

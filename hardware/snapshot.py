@@ -24,8 +24,10 @@ class FaultKind(Enum):
     OVERHEATING = "overheating"  # overheating bit, or temperature at the limit
     THERMAL_DERATE = "thermal_derate"  # temperature rising toward the limit: profile velocity lowered
     THERMAL_TORQUE_OFF = "thermal_torque_off"  # predicted to reach the limit soon: torque off until cool
-    VOLTAGE_LOW = "voltage_low"
-    VOLTAGE_HIGH = "voltage_high"
+    VOLTAGE_LOW = "voltage_low"  # a supply reading below the low threshold
+    VOLTAGE_HIGH = "voltage_high"  # a supply reading above the high threshold
+    INPUT_VOLTAGE = "input_voltage_error"  # the servo's own Input Voltage Error bit (whatever the reading)
+    UNREACHED = "unreached"  # a stop could not turn this servo's torque off (it may still be powered)
     HARDWARE_ERROR = "hardware_error"  # encoder / electrical shock: latched, needs `clear_fault`
     REBOOTED = "rebooted"  # the driver rebooted a servo to clear its error
     RECOVERED = "recovered"  # a servo returned to service (torque back on, goal re-pinned)

@@ -42,6 +42,14 @@ _TOP_KEYS = {
 }  # fmt: skip
 
 
+def _shown(value: Any, limit: int = 60) -> str:
+    try:
+        text = repr(value)
+    except (RecursionError, ValueError):
+        text = f"<{type(value).__name__} nested too deeply>"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 class _Reader:
     """Typed access to a TOML table with errors naming the file and key path."""
 
@@ -49,7 +57,7 @@ class _Reader:
         self.file = file
 
     def fail(self, key: str, expected: str, got: Any = None, cause: BaseException | None = None) -> HeadProfileError:
-        got_s = "" if got is None else f", got {got!r}"
+        got_s = "" if got is None else f", got {_shown(got)}"
         return HeadProfileError(f"{self.file}: {key}: expected {expected}{got_s}")
 
     def table(self, d: Any, key: str) -> dict[str, Any]:
@@ -140,7 +148,20 @@ def load_profile(path: Path) -> Head:
         data = tomllib.loads(file.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
         raise HeadProfileError(f"{file}: not valid TOML: {err}") from err
-    return _build(_Reader(file), data, file.parent)
+    except RecursionError as err:
+        raise HeadProfileError(f"{file}: nested too deeply to be a head profile") from err
+    return build_checked(_Reader(file), data, file.parent)
+
+
+def build_checked(r: _Reader, data: dict[str, Any], folder: Path) -> Head:
+    """`_build`, with any value of the wrong shape that slipped past a field check (a list where a name
+    was expected, a number too large for a float) reported as `HeadProfileError` naming the file."""
+    try:
+        return _build(r, data, folder)
+    except HeadProfileError:
+        raise
+    except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError, RecursionError) as err:
+        raise HeadProfileError(f"{r.file}: a value has the wrong type or size ({type(err).__name__}: {err})") from err
 
 
 def _build(r: _Reader, data: dict[str, Any], folder: Path) -> Head:
@@ -204,7 +225,9 @@ def _build(r: _Reader, data: dict[str, Any], folder: Path) -> Head:
         au_table_path=_data_file(r, data, "au_table", folder),
         expressions_path=_data_file(r, data, "expressions", folder),
         au_direct_path=_data_file(r, data, "au_direct", folder),
-        calibration_path=(folder / r.string(data, "calibration", "")) if "calibration" in data else None,
+        calibration_path=_inside(r, "calibration", r.string(data, "calibration", ""), folder)
+        if "calibration" in data
+        else None,
         profile_dir=folder,
         landmarks_mm=landmarks,
     )
@@ -217,9 +240,25 @@ def _data_file(r: _Reader, data: dict[str, Any], name: str, folder: Path) -> Pat
     v = r.string(data, name, "")
     if v == "builtin" or v.startswith("builtin:"):
         return None
-    p = folder / v
+    p = _inside(r, name, v, folder)
     if not p.is_file():
         raise r.fail(name, f'an existing file relative to {folder} (or "builtin")', v)
+    return p
+
+
+def _inside(r: _Reader, name: str, value: str, folder: Path) -> Path:
+    """``folder / value``, refused when it leaves the profile folder (``../``, an absolute path, a symlink
+    out): a profile must not make servoface read or overwrite files elsewhere (``calibrate --builtin``
+    writes the calibration file the profile names). Pass ``--calibration`` / ``--out`` for a file elsewhere."""
+    if not value or "\x00" in value:
+        raise r.fail(name, "a file name inside the profile folder", value)
+    p = folder / value
+    try:
+        p.resolve().relative_to(folder.resolve())
+    except ValueError:
+        raise r.fail(
+            name, f"a path inside the profile folder {folder} (pass the file on the command line instead)", value
+        ) from None
     return p
 
 

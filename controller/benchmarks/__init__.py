@@ -3,6 +3,8 @@
 Suites: ``bus`` (hardware), ``face`` (muscle model, rendering), ``gate`` (twin gate, TSS), ``pipeline``
 (end to end), ``timeline`` (sampling cost), ``pty`` (sync-read loop over the pty under CPU load), ``scale``
 (growth with skin vertices and servos), ``service`` (command-to-wire latency, e-stop).
+(growth with skin vertices and servos), ``soak`` (memory growth and loop-rate drift over minutes; only when
+named: ``servoface bench soak --minutes 30``).
 Each suite module defines ``run(quick: bool = False) -> Iterator[Figure]``.
 """
 
@@ -17,4 +19,6 @@ SUITES: dict[str, str] = {
     "service": "servoface.controller.benchmarks.service",
     "speech": "servoface.controller.benchmarks.speech",
     "network": "servoface.controller.benchmarks.network",
+    "soak": "servoface.controller.benchmarks.soak",
 }
+LONG_SUITES = frozenset({"soak"})  # run only when named (minutes of wall time)

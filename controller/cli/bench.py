@@ -17,14 +17,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--json", action="store_true", help="one JSON object per figure per line")
     parser.add_argument("--quick", action="store_true", help="fewer repetitions (smoke run)")
-    parser.add_argument("--minutes", type=float, default=None, help="duration of long-running suites (pty: 2)")
+    parser.add_argument("--minutes", type=float, default=None, help="duration of long-running suites (pty: 2, soak: 1)")
 
 
 def run(args: argparse.Namespace) -> int:
-    from servoface.controller.benchmarks import SUITES
+    from servoface.controller.benchmarks import LONG_SUITES, SUITES
     from servoface.controller.benchmarks.figure import machine_description
 
-    names = args.suites or list(SUITES)
+    names = args.suites or [n for n in SUITES if n not in LONG_SUITES]
     unknown = [n for n in names if n not in SUITES]
     if unknown:
         print(f"servoface bench: unknown suite(s) {unknown}; expected some of {list(SUITES)}", file=sys.stderr)

@@ -134,6 +134,14 @@ class BusServoAccess:
 
         self.bus.write(servo_id, Register.GOAL_POSITION, int(tick))
 
+    def set_position_limits(self, servo_id: int, min_tick: int, max_tick: int) -> None:
+        """Min/Max Position Limit (EEPROM, torque off): the servo itself refuses goals past the captured ends."""
+        from servoface.hardware.registers import Register
+
+        self.bus.write(servo_id, Register.TORQUE_ENABLE, 0)
+        self.bus.write(servo_id, Register.MIN_POSITION_LIMIT, int(min_tick))
+        self.bus.write(servo_id, Register.MAX_POSITION_LIMIT, int(max_tick))
+
 
 class TerminalOperator:
     """`servoface.calibration.procedure.Operator` that asks through input() and answers with print()."""
@@ -201,6 +209,25 @@ def _default_out(head: Any, name: str) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
+    """SIGTERM and SIGHUP (a closed terminal) end a calibration like Ctrl-C: the servo being measured
+    gets torque off, nothing half-written is left (files are written atomically), exit 130."""
+    import signal
+    import threading
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        previous = {s: signal.signal(s, interrupt) for s in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        return _run(args)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def _run(args: argparse.Namespace) -> int:
     from servoface.calibration.builtin import write_builtin
     from servoface.calibration.errors import CalibrationError, ProcedureAborted
     from servoface.calibration.fileformat import load_calibration, save_calibration

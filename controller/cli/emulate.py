@@ -12,9 +12,11 @@ Fault times count from when serving starts.
 from __future__ import annotations
 
 import argparse
+import json
 import signal
 import sys
 import threading
+from pathlib import Path
 from types import FrameType
 from typing import Any
 
@@ -62,6 +64,65 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--realism", action="store_true", help="non-ideal servos: backlash, settling error and lag, encoder noise"
     )
     parser.add_argument("--seed", type=int, default=0, help="random seed of --realism's noise (default 0)")
+    parser.add_argument(
+        "--fault-on-signal",
+        action="append",
+        default=[],
+        metavar="ID:KIND[:DELAY_S]",
+        help="on SIGUSR1, start fault KIND (no_reply, late_reply, corrupt_crc, overload, ...) on servo ID "
+        "until the end (repeatable; tests use it to break a servo at a chosen moment)",
+    )
+    parser.add_argument(
+        "--state-file",
+        type=Path,
+        help="on exit, write every servo's final state (torque, goal, present, watchdog, error) and every "
+        "Goal Position / Torque Enable decoded from the wire as JSON here (tests check from this side)",
+    )
+
+
+def chain_state(chain: Any) -> dict[str, Any]:
+    """The emulated servos as the far end of the wire sees them, JSON-ready."""
+    servos = {}
+    for sid in chain.ids:
+        servo = chain.servo(sid)
+        servos[str(sid)] = {
+            "torque_enable": servo.read_register("Torque Enable"),
+            "goal_position": servo.read_register("Goal Position"),
+            "present_position": servo.position_tick,
+            "bus_watchdog": servo.read_register("Bus Watchdog"),
+            "hardware_error_status": servo.hardware_error,
+            "moving": servo.read_register("Moving"),
+            "min_position_limit": servo.read_register("Min Position Limit"),
+            "max_position_limit": servo.read_register("Max Position Limit"),
+        }
+    return {
+        "t_s": chain.time_s,
+        "servos": servos,
+        "goal_writes": [[round(t, 6), sid, tick] for t, sid, tick in chain.goal_writes()],
+        "torque_writes": [[round(t, 6), sid, v] for t, sid, v in chain.register_writes(64, 1)],
+    }
+
+
+def write_state(chain: Any, path: Path) -> None:
+    from servoface.calibration.fileformat import write_atomic
+
+    write_atomic(path, json.dumps(chain_state(chain)))
+
+
+def _parse_signal_fault(text: str) -> tuple[int, str, float]:
+    parts = text.split(":")
+    if len(parts) not in (2, 3):
+        raise ValueError(f"--fault-on-signal {text!r}: expected ID:KIND or ID:KIND:DELAY_S")
+    try:
+        sid = int(parts[0])
+        delay = float(parts[2]) if len(parts) == 3 else 0.010
+    except ValueError:
+        raise ValueError(f"--fault-on-signal {text!r}: ID must be an integer and DELAY_S a number") from None
+    from servoface.hardware.emulator.faults import KINDS
+
+    if parts[1] not in KINDS:
+        raise ValueError(f"--fault-on-signal {text!r}: unknown fault {parts[1]!r}; expected one of {sorted(KINDS)}")
+    return sid, parts[1], delay
 
 
 def _head_chain(name: str) -> tuple[list[tuple[int, str]], dict[int, int]]:
@@ -145,6 +206,7 @@ def run(args: argparse.Namespace) -> int:
         for sid, tick in neutral.items():  # the head powers up at rest, as Face.open(emulate=True) does
             chain.servo(sid).move_by_hand(tick)
         _inject(chain, args.fault)
+        on_signal_faults = [_parse_signal_fault(text) for text in args.fault_on_signal]
     except (ValueError, EmulatorError, SimError, ControllerError, OSError) as err:
         print(f"servoface emulate: {err}", file=sys.stderr)
         return 2
@@ -153,7 +215,12 @@ def run(args: argparse.Namespace) -> int:
     def on_signal(signum: int, frame: FrameType | None) -> None:
         stop.set()
 
+    def on_fault_signal(signum: int, frame: FrameType | None) -> None:
+        for sid, kind, delay in on_signal_faults:
+            chain.faults.inject_now(sid, kind, delay_s=delay)
+
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous[signal.SIGUSR1] = signal.signal(signal.SIGUSR1, on_fault_signal)
     try:
         with chain:
             try:
@@ -172,6 +239,8 @@ def run(args: argparse.Namespace) -> int:
             )
             while not stop.wait(0.2):
                 pass
+            if args.state_file is not None:
+                write_state(chain, args.state_file)
             print(f"# pty: {chain.pty_stats}", file=sys.stderr, flush=True)
     finally:
         for s, handler in previous.items():

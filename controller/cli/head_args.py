@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from servoface.controller.face import Face
+    from servoface.controller.safe_stop import StopReport
     from servoface.sim.head import Head
 
 
@@ -65,3 +66,87 @@ def open_face(args: argparse.Namespace, head: Head) -> Face:
             "then pass --baud",
             err.servo_ids,
         ) from err
+
+
+EXIT_OK = 0
+EXIT_FAILURE = 1  # the bus failed, or servos ended latched / missing
+EXIT_USAGE = 2  # bad arguments or input: nothing was driven
+EXIT_UNSAFE = 3  # torque-off not confirmed on some servo: it may still be powered
+
+
+class TraceFile:
+    """``--trace FILE``: every frame's trace streamed as a JSON line into a temp file beside FILE as the run
+    goes (nothing kept in memory), renamed onto FILE when the run ends — however it ends."""
+
+    def __init__(self, path: Path | None) -> None:
+        self.path = path
+        self._fh: Any = None
+        self._tmp: Path | None = None
+        self.writer: Any = None
+
+    def open(self) -> TraceFile:
+        if self.path is None:
+            return self
+        import os
+        import tempfile
+
+        from servoface.controller.cli.outputs import writable_file
+        from servoface.controller.trace_ring import TraceWriter
+
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        writable_file(self.path)
+        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
+        self._tmp = Path(tmp)
+        self._fh = os.fdopen(fd, "w", encoding="utf-8")
+        self.writer = TraceWriter(self._fh)
+        return self
+
+    def sink(self, trace: Any) -> None:
+        if self.writer is not None:
+            self.writer(trace)
+
+    def finish(self) -> str | None:
+        """Close and rename into place; the line to print (None without --trace)."""
+        if self._fh is None or self._tmp is None or self.path is None:
+            return None
+        import os
+
+        fh, self._fh = self._fh, None
+        try:
+            fh.flush()
+            os.fsync(fh.fileno())
+            fh.close()
+            os.replace(self._tmp, self.path)
+        except BaseException:
+            if self._tmp.exists():
+                self._tmp.unlink()
+            raise
+        return f"trace written to {self.path} ({self.writer.count} frames)"
+
+
+def exit_status(report: StopReport | None, *, failed: bool, signal_code: int | None) -> int:
+    """3 if any servo was not reached, 1 after a bus failure or with servos latched/missing, else 128+signal
+    for a run a signal stopped (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), else 0."""
+    if report is not None and not report.safe:
+        return EXIT_UNSAFE
+    if failed or (report is not None and (report.latched or report.missing)):
+        return EXIT_FAILURE
+    if signal_code is not None:
+        return signal_code
+    return EXIT_OK
+
+
+def print_stop(command: str, report: StopReport | None) -> None:
+    """The stop path's closing lines (stdout), and a warning on stderr when a servo was not reached."""
+    import sys
+
+    if report is None:
+        return
+    for line in report.lines():
+        print(line)
+    if not report.safe:
+        print(
+            f"servoface {command}: torque-off NOT confirmed on servo(s) {list(report.unreached)}: "
+            "they may still be powered; switch the servo supply off",
+            file=sys.stderr,
+        )

@@ -226,11 +226,16 @@ def dxl_bus(servo_target: Any, servoface_config: Any) -> Iterator[Any]:
 
 
 @pytest.fixture
-def driver(dxl_bus: Any, servo_specs: list[Any]) -> Iterator[Any]:
-    """A configured `Driver` (torque off) on ``dxl_bus``; torque is switched off again at teardown."""
-    from servoface.hardware.driver import Driver
+def driver(dxl_bus: Any, servo_specs: list[Any], servoface_config: Any) -> Iterator[Any]:
+    """A configured `Driver` (torque off) on ``dxl_bus``; torque is switched off again at teardown.
 
-    drv = Driver(dxl_bus, servo_specs)
+    On a manual clock the Bus Watchdog is left off: ``servo_chain.advance(0.5)`` is half a second without a
+    packet, and an armed watchdog would stop the servos then — as real ones do when the host goes quiet."""
+    from servoface.hardware.driver import Driver
+    from servoface.hardware.fault_policy import FaultPolicy
+
+    manual = getattr(servoface_config, "clock", "real") == "manual"
+    drv = Driver(dxl_bus, servo_specs, policy=FaultPolicy(watchdog_s=0) if manual else None)
     drv.configure()
     yield drv
     try:

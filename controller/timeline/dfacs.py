@@ -110,8 +110,16 @@ class EventTiming:
         return replace(self, **changes)
 
 
+def _finite(value: float) -> bool:
+    """``math.isfinite`` that is False (not OverflowError) for an integer too large for a float."""
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
+
+
 def _check_nonneg(value: Any, name: str) -> None:
-    ok = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    ok = isinstance(value, int | float) and not isinstance(value, bool) and _finite(value)
     if not ok or value < 0:
         raise TimelineError(f"{name}: expected a finite duration in seconds >= 0, got {value!r}")
 
@@ -147,7 +155,7 @@ def _event_from_mapping(token: Mapping[str, Any], field: str) -> Event:
     base = parse_event(token["au"], field=f"{field}.au")
     value = token.get("value")
     if value is not None:
-        ok = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+        ok = isinstance(value, int | float) and not isinstance(value, bool) and _finite(value)
         if not ok or not -1.0 <= value <= 1.0:
             raise TimelineError(f"{field}.value: expected a signed DFACS intensity -1..1, got {value!r}")
         value = float(value) * base.sign

@@ -115,6 +115,7 @@ class TwinGate:
         self.collisions = PartCollisions(head, self.tree, pairs, cfg.tss, cache)
         self._last_sent: IntArray | None = None
         self._last_step: IntArray = np.zeros(self.table.n, dtype=np.int64)
+        self._last_fraction = 1.0  # share of a frame period the previous check's step was allowed (per_time)
         self._memo: tuple[bytes, list[Finding]] = (b"", [])  # (command bytes, its state findings)
 
     # ---- set-up ---------------------------------------------------------------------------------------
@@ -237,8 +238,13 @@ class TwinGate:
         goals_tick: Mapping[int, int],
         last_goals_tick: Mapping[int, int],
         health: Mapping[int, ServoHealth] | None = None,
+        elapsed_s: float | None = None,
     ) -> Verdict:
-        """The verdict for sending ``goals_tick`` after ``last_goals_tick`` (see the module docstring)."""
+        """The verdict for sending ``goals_tick`` after ``last_goals_tick`` (see the module docstring).
+
+        ``elapsed_s``: time since ``last_goals_tick`` went on the wire; when shorter than a frame period the
+        rate caps shrink with it (`limits.per_time`), so the caps hold per second whatever the call pattern.
+        None: one frame period (the per-frame caps)."""
         last, bad_last = self._vector(last_goals_tick, None, "last_goals_tick")
         if bad_last:
             raise GateInputError("; ".join(f.message for f in bad_last))
@@ -249,6 +255,10 @@ class TwinGate:
             else np.zeros(self.table.n, dtype=np.int64)
         )
         table, health_findings = derate(self.table, health, self.config.health)
+        if elapsed_s is not None:  # (a check without it, e.g. a speculative one, leaves the memory alone)
+            table, last_step, self._last_fraction = lim.per_time(
+                table, last_step, elapsed_s, self.frame_period_s, self._last_fraction
+            )
         req, bad = self._vector(goals_tick, last, "goals_tick")
         requested = {sid: int(t) for sid, t in zip(self.table.ids, req, strict=True)}
         if bad:

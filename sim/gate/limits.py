@@ -8,6 +8,7 @@ the servo's own controller stops at its goal, and refusing to slow down would ov
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -88,6 +89,29 @@ def rate_caps_tick(
     frames_to_full = max(1.0, accel_time_s / frame_period_s)
     speedup = np.maximum(1, np.floor(step / frames_to_full)).astype(np.int64)
     return step, speedup
+
+
+def per_time(
+    table: ServoTable, last_step: IntArray, elapsed_s: float, frame_period_s: float, last_fraction: float
+) -> tuple[ServoTable, IntArray, float]:
+    """Rate caps for a frame that follows the last one on the wire after ``elapsed_s`` (caps are per
+    ``frame_period_s``): with ``f = min(1, elapsed / period)`` the step and speed-up caps shrink to ``f`` of
+    theirs, and the previous step is taken at the same speed over the shorter time (never scaled up), so
+    frames sent back to back cannot add up to more than the caps per second. Returns (table, last_step, f)."""
+    if not np.isfinite(elapsed_s) or elapsed_s <= 0:
+        f = 0.0
+    else:
+        f = min(1.0, float(elapsed_s) / frame_period_s)
+    if f >= 1.0 and last_fraction >= 1.0:
+        return table, last_step, 1.0
+    step = np.floor(table.max_step_tick * f).astype(np.int64)
+    speedup = np.floor(table.max_speedup_tick * f).astype(np.int64)
+    ratio = min(1.0, f / last_fraction) if last_fraction > 0 else 0.0
+    scaled_last = np.trunc(last_step * ratio).astype(np.int64)
+    scaled = copy.copy(table)  # caps below 1 tick are legal here (0 = hold): bypass the per-frame check
+    object.__setattr__(scaled, "max_step_tick", step)
+    object.__setattr__(scaled, "max_speedup_tick", speedup)
+    return scaled, scaled_last, f
 
 
 def step_bounds(last_step: IntArray, table: ServoTable) -> tuple[IntArray, IntArray]:

@@ -89,7 +89,7 @@ class ScriptedHand:
         assert prompt.target is not None
         want = round(true_tick(spec, prompt.target))
         if self.jog_first and prompt.present_tick != want:
-            return Jog(want - prompt.present_tick)  # jog straight there under torque
+            return Jog(max(-300, min(300, want - prompt.present_tick)))  # jog there under torque, in steps
         if not self.servos.torque.get(spec.servo_id):
             self.servos.present[spec.servo_id] = want  # move the horn by hand
         return Capture()

@@ -64,7 +64,7 @@ class EmulatedHand:
                 self.jogs += 1
                 self.chain.advance(0.5)  # type: ignore[attr-defined]  # let the last jog finish
                 if servo.position_tick != want:
-                    return Jog(want - servo.position_tick)
+                    return Jog(max(-300, min(300, want - servo.position_tick)))  # one move <= 300 ticks
             return Capture()
         servo.move_by_hand(want)
         return Capture()

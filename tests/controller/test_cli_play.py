@@ -18,6 +18,7 @@ def test_play_expression_on_the_emulator(tmp_path: Path, capsys: pytest.CaptureF
     assert frames >= 10 and "verdicts" in out
     lines = [json.loads(line) for line in trace.read_text().splitlines()]
     assert len(lines) == frames
+    assert "stop (end): eased to neutral" in out and "on every servo" in out
     assert {line["verdict"] for line in lines} <= {"accept", "clip", "reject"}
     apex = max(lines, key=lambda d: d["aus"].get("AU12", 0.0))
     assert apex["aus"]["AU12"] > 0.5 and len(apex["goals_sent"]) == 30

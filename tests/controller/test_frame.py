@@ -88,7 +88,10 @@ def test_default_names_match_the_builtin_sets() -> None:
 
 def test_canonical_names() -> None:
     assert canonical_au("au4l") == "AU4L"
-    assert canonical_au(" AU045 ") == "AU45"
+    assert canonical_au("AU045") == "AU45"
+    for stray in (" AU045 ", "AU12\n", "AU１２", "AU\u200b12"):  # matched exactly: ASCII digits, no whitespace
+        with pytest.raises(FrameError):
+            canonical_au(stray)
     with pytest.raises(FrameError):
         canonical_au(12)  # type: ignore[arg-type]
 

@@ -163,7 +163,7 @@ def test_toml_syntax_error_carries_the_line() -> None:
         (MINIMAL + "\n[[gaze]]\nat_s = 1\n", "gaze[0]: expected exactly one of look_at_mm", 16),
         (
             MINIMAL + "\n[blink]\nmean_interval_s = 0.1\n",
-            "blink.mean_interval_s: value 0.1 is not allowed",
+            "blink.mean_interval_s: 0.1 s is below the 0.5 s a head can follow",
             None,
         ),
         (MINIMAL + "\n[blink]\nrate = 3\n", "blink.rate: unknown key", 17),

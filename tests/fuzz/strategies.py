@@ -1,0 +1,100 @@
+"""Hypothesis strategies for malformed input: values a file, a message or a caller might really send."""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+from hypothesis import strategies as st
+
+HUGE = st.sampled_from([10**400, -(10**400), 2**63, 2**64 + 1, 10**20, -(10**20)])
+weird_text = st.one_of(
+    st.sampled_from(
+        [
+            "AU１２",  # full-width digits
+            " AU12",
+            "AU12\n",
+            "AU12 ",
+            "\x1b[31mAU12",
+            "\ud800",
+            "AU\u200b12",
+            "AU12\u0301",
+            "au12l",
+            "AU0012",
+            "AU١٢",  # Arabic-Indic digits
+            "",
+            "AU",
+            "AU99999999999999999999",
+            "𝐀𝐔12",
+        ]
+    ),
+    st.text(max_size=12),
+)
+scalars = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-5, 5),
+    HUGE,
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.floats(-2, 2),
+    weird_text,
+)
+values = st.recursive(
+    scalars,
+    lambda inner: st.one_of(
+        st.lists(inner, max_size=4),
+        st.dictionaries(weird_text, inner, max_size=4),
+        st.frozensets(st.integers(0, 3), max_size=3),
+    ),
+    max_leaves=8,
+)
+
+
+def deep(depth: int, leaf: Any = 0) -> Any:
+    out = leaf
+    for _ in range(depth):
+        out = [out]
+    return out
+
+
+def paths(data: Any, prefix: tuple[Any, ...] = ()) -> list[tuple[Any, ...]]:
+    """Every key path into nested dicts/lists."""
+    out = [prefix]
+    if isinstance(data, dict):
+        for k, v in data.items():
+            out += paths(v, (*prefix, k))
+    elif isinstance(data, list):
+        for i, v in enumerate(data):
+            out += paths(v, (*prefix, i))
+    return out
+
+
+def mutate(data: Any, path: tuple[Any, ...], value: Any, how: str) -> Any:
+    """A deep copy of ``data`` with the node at ``path`` replaced (``set``), deleted (``drop``) or given a
+    stray key (``extra``)."""
+    out = copy.deepcopy(data)
+    if not path:
+        return value
+    node = out
+    for key in path[:-1]:
+        node = node[key]
+    last = path[-1]
+    if how == "drop" and isinstance(node, dict):
+        del node[last]
+    elif how == "extra" and isinstance(node, dict):
+        node[f"zz_{last}"] = value
+    else:
+        node[last] = value
+    return out
+
+
+@st.composite
+def mutated(draw: st.DrawFn, base: Any, max_depth: int = 50_000, root: bool = True) -> Any:
+    """``base`` with one node replaced by a random value, deleted, or given a stray key (``root``: the
+    whole document may be replaced too — a parsed TOML file is always a table)."""
+    all_paths = paths(base) if root else paths(base)[1:]
+    path = draw(st.sampled_from(all_paths))
+    how = draw(st.sampled_from(["set", "set", "set", "drop", "extra"]))
+    depths = [d for d in (50, 300, 2000, 50_000) if d <= max_depth]
+    value = draw(st.one_of(values, st.builds(deep, st.sampled_from(depths))))
+    return mutate(base, path, value, how)
