@@ -340,21 +340,34 @@ except OSError:
 
 def test_a_tcp_flood_at_full_speed_leaves_another_connection_flowing() -> None:
     src = StreamSource(smoothing=None)
+    keep_sending = threading.Event()
     with TcpReceiver(src, "127.0.0.1", 0) as rx, socket.create_connection(rx.address, timeout=3.0) as legit:
         legit.sendall(_msg(aus={"AU12": 0.1}) + b"\n")
         assert _wait_for(lambda: src.stats.good == 1)  # the legitimate client has control
         flooder = subprocess.Popen([sys.executable, "-c", FLOOD_TCP, str(rx.address[1])])
+
+        def keepalive() -> None:  # the controller keeps streaming (as a tracker does) until the flood is over:
+            while keep_sending.is_set():  # silent for takeover_s, it would rightly lose control to the flooder
+                legit.sendall(_msg(aus={"AU12": 0.49}) + b"\n")
+                time.sleep(1 / 30)
+
+        sender = threading.Thread(target=keepalive, daemon=True)
         try:
             assert _wait_for(lambda: src.guard is not None and src.guard.stats.rate_limited > 1000, 10.0)
             for k in range(30):
                 legit.sendall(_msg(aus={"AU12": 0.2 + 0.01 * k}) + b"\n")
                 time.sleep(1 / 30)
+            keep_sending.set()
+            sender.start()
             assert _wait_for(lambda: src.sample(0.0).get("AU12") == pytest.approx(0.49))
         finally:
             flooder.kill()
             flooder.wait(5.0)
+            keep_sending.clear()
+            if sender.is_alive():
+                sender.join(2.0)
+        assert src.sample(0.0).get("AU27", 0.0) == 0.0  # not one flood frame mixed into the controller's stream
     assert src.stats.good >= 15 and src.guard is not None and src.guard.stats.not_controlling > 0
-    assert src.sample(0.0).get("AU27", 0.0) == 0.0
 
 
 def test_stream_rest_pose_from_the_first_seconds() -> None:
