@@ -204,7 +204,12 @@ class CalibrationSession:
             except CalibrationError:
                 guide = None
             keep = guide if self.request.roles is not None else None
-        options = ProcedureOptions(intermediate=self.request.points, curve_kind=self.request.curve, guide=guide)
+        options = ProcedureOptions(
+            intermediate=self.request.points,
+            free_points=self.request.free_points,
+            curve_kind=self.request.curve,
+            guide=guide,
+        )
         driver.disarm_watchdog()
         access = _RecordingAccess(BusServoAccess(driver.bus), self.operator)
         self.operator.access = access

@@ -50,12 +50,12 @@ class Express(Body):
 
 
 class Gaze(Body):
-    point_mm: tuple[float, float, float] | None = None
-    pad: tuple[Unit, Unit] | None = None
+    point_mm: Annotated[list[float], Field(min_length=3, max_length=3)] | None = None
+    pad: Annotated[list[Unit], Field(min_length=2, max_length=2)] | None = None
 
     @field_validator("point_mm")
     @classmethod
-    def _near(cls, value: tuple[float, float, float] | None) -> tuple[float, float, float] | None:
+    def _near(cls, value: list[float] | None) -> list[float] | None:
         if value is not None and any(abs(v) > 10_000.0 for v in value):
             raise ValueError("expected a point within 10 m of the head (mm)")
         return value
@@ -100,6 +100,7 @@ class Jog(Body):
 class CalibrateStart(Body):
     roles: list[Annotated[str, Field(max_length=64)]] | None = Field(default=None, max_length=256)
     points: Annotated[int, Field(ge=0, le=20)] = 3
+    free_points: bool = False
     curve: Literal["linear", "piecewise_linear", "pchip"] | None = None
     out: str = Field(default="", max_length=128)
 

@@ -163,7 +163,7 @@ class Studio:
     def gaze(self, body: m.Gaze) -> dict[str, Any]:
         if body.point_mm is not None and body.pad is not None:
             raise InvalidValueError("give one of point_mm or pad", field="pad")
-        point = body.point_mm
+        point = None if body.point_mm is None else (body.point_mm[0], body.point_mm[1], body.point_mm[2])
         if body.pad is not None:
             point = (body.pad[0] * PAD_ACROSS_MM, body.pad[1] * PAD_UP_MM, PAD_AHEAD_MM)
         return self._motion(lambda: self.service.look_at(point), "point_mm")
