@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
 from servoface.controller.service import HeadService, open_head
 from servoface.controller.studio import StudioOptions, StudioServer
 from servoface.controller.studio.security import RateLimiter

@@ -9,9 +9,8 @@ from typing import Any
 
 import httpx
 import pytest
-from websockets.exceptions import InvalidStatus
-
 from servoface.controller.studio import StudioError, StudioServer
+from websockets.exceptions import InvalidStatus
 
 from tests.studio.conftest import StudioRig
 
@@ -162,8 +161,8 @@ def test_a_dropped_browser_eases_the_head_to_neutral_within_a_second(studio: Stu
     traces = studio.service.subscribe("trace", maxlen=4096)
     with studio.connect() as ws:
         ws.send(json.dumps({"type": "set_aus", "aus": {"AU26": 0.8, "AU12": 0.6}, "transition_s": 0.1}))
-        studio.wait_for(lambda: studio.goals() != neutral and studio.service.status().tracks["studio"].state == "holding",
-                        what="the pose")  # fmt: skip
+        held = lambda: studio.service.status().tracks["studio"].state == "holding"  # noqa: E731
+        studio.wait_for(lambda: studio.goals() != neutral and held(), what="the pose")
         ws.close()  # the tab closes
     studio.wait_for(lambda: studio.goals() == neutral, what="the emulated servos' goals back at neutral")
     drop_s = studio.client.get("/api/state").json()["last_drop_s"]
