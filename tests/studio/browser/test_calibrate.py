@@ -57,7 +57,7 @@ def _calibrate_in_page(page: Any, rig: StudioRig) -> tuple[Path, list[list[str]]
                 state = rig.client.get("/api/calibrate").json()
             page.click("#cal-suggested")
             actions.append("g")
-            rig.wait_for(lambda: rig.chain.servo(sid).read_register("Goal Position") == suggested, what="the go-to")
+            rig.wait_for(lambda s=suggested: rig.chain.servo(sid).read_register("Goal Position") == s, what="the go-to")
         rig.wait_for(lambda: _settled(rig, sid), timeout_s=60, what="the servo to settle")
         actions.append(f"@{rig.chain.servo(sid).position_tick}")  # capture here
         page.click("#cal-capture")

@@ -65,9 +65,7 @@ def test_the_servos_page_shows_telemetry_and_jogs_within_limits(studio_page: tup
     jaw = _servo_id(rig, "jaw")
     page.click('a[data-page="servos"]')
     row = page.locator(f'tr[data-servo="{jaw}"]')
-    page.wait_for_function(
-        f"document.querySelector('tr[data-servo=\"{jaw}\"] td:nth-child(5)').textContent !== '–'"
-    )
+    page.wait_for_function(f"document.querySelector('tr[data-servo=\"{jaw}\"] td:nth-child(5)').textContent !== '–'")
     assert row.locator("td").nth(4).inner_text().strip() == str(_present(rig, jaw))
     page.check("#manual")
     page.wait_for_selector("#page-servos.manual")
