@@ -27,7 +27,7 @@ def create_app(studio: Studio, token: str, origins: OriginPolicy, limiter: RateL
     """The ASGI app (FastAPI inside the gatekeeper)."""
     from servoface.controller.studio.ws import serve_socket
 
-    api = FastAPI(title="servoface studio", docs_url=None, redoc_url=None, openapi_url=None)
+    api = FastAPI(title="servoface studio", docs_url=None, redoc_url=None, openapi_url=None, redirect_slashes=False)
 
     @api.exception_handler(StudioError)
     async def _studio_error(request: Request, err: StudioError) -> JSONResponse:

@@ -24,7 +24,19 @@ class StudioError(ControllerError):
             self.code = code
 
     def body(self) -> dict[str, Any]:
-        return {"error": {"status": self.status, "code": self.code, "field": self.field, "message": self.message}}
+        """The JSON error body; lone surrogates and other unencodable text escaped (always valid UTF-8)."""
+        return {
+            "error": {
+                "status": self.status,
+                "code": self.code,
+                "field": _safe(self.field),
+                "message": _safe(self.message),
+            }
+        }
+
+
+def _safe(text: str) -> str:
+    return text.encode("utf-8", "backslashreplace").decode("utf-8")
 
 
 class InvalidValueError(StudioError):
