@@ -20,5 +20,6 @@ SUITES: dict[str, str] = {
     "speech": "servoface.controller.benchmarks.speech",
     "network": "servoface.controller.benchmarks.network",
     "soak": "servoface.controller.benchmarks.soak",
+    "studio": "servoface.controller.benchmarks.studio",
 }
 LONG_SUITES = frozenset({"soak"})  # run only when named (minutes of wall time)

@@ -11,7 +11,7 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Mapping
-from concurrent.futures import Future
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -69,6 +69,9 @@ class TwinRenderer:
         self._stop = threading.Event()
         self._ready = threading.Event()
         self._seq = 0
+        self._encoder = ThreadPoolExecutor(1, thread_name_prefix="studio-png")
+        self._encode_lock = threading.Lock()
+        self._encode_next: dict[str, tuple[FrameTrace, Any]] = {}
         self._thread = threading.Thread(target=self._run, name="studio-twin", daemon=True)
         self._thread.start()
 
@@ -150,16 +153,17 @@ class TwinRenderer:
                     if shown.get(which) == key:
                         continue
                     shown[which] = key
-                    self._render(trace, which)
+                    self._render_live(trace, which)
                     did = True
                 if did:
                     last_s = time.monotonic()
                 else:
                     self._serve_requests(block_s=0.01)
         finally:
+            self._encoder.shutdown(wait=True)
             self._renderer.close()
 
-    def _render(self, trace: FrameTrace, which: str) -> TwinImage:
+    def _pixels(self, trace: FrameTrace, which: str) -> Any:
         from servoface.sim.rig import HeadPose
 
         if which == "target":
@@ -167,10 +171,35 @@ class TwinRenderer:
         else:
             joint_deg, offsets, targets = self._twin.gate.twin_pose(trace.goals_sent)
             pose = HeadPose(joint_deg=joint_deg, skin_offset_mm=offsets, actuator_targets=targets)
-        png = encode_png(self._renderer.render(self.head, pose))
-        self._seq += 1
-        self.renders += 1
-        image = TwinImage(which, self._seq, trace.index, trace.verdict, png, trace.t_s)
+        return self._renderer.render(self.head, pose)
+
+    def _render(self, trace: FrameTrace, which: str) -> TwinImage:
+        """Render and encode now (on the render thread): for one-off requests."""
+        return self._publish(trace, which, self._pixels(trace, which))
+
+    def _render_live(self, trace: FrameTrace, which: str) -> None:
+        """Render here, encode on the encoder thread (zlib runs without the GIL): the next render overlaps
+        this one's encoding. At most one encode waits per kind; a newer render replaces it."""
+        rgb = self._pixels(trace, which)
+        with self._encode_lock:
+            waiting = which in self._encode_next
+            self._encode_next[which] = (trace, rgb)
+        if not waiting:
+            self._encoder.submit(self._encode_one, which)
+
+    def _encode_one(self, which: str) -> None:
+        with self._encode_lock:
+            item = self._encode_next.pop(which, None)
+        if item is not None:
+            self._publish(item[0], which, item[1])
+
+    def _publish(self, trace: FrameTrace, which: str, rgb: Any) -> TwinImage:
+        png = encode_png(rgb)
+        with self._encode_lock:
+            self._seq += 1
+            seq = self._seq
+            self.renders += 1
+        image = TwinImage(which, seq, trace.index, trace.verdict, png, trace.t_s)
         self.latest[which] = image
         if self.on_image is not None:
             try:

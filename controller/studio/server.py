@@ -19,7 +19,8 @@ from servoface.controller.studio.security import (
 )
 from servoface.controller.studio.studio import Studio, StudioOptions
 
-WS_PING_S = 1.0  # a browser that stops answering pings is gone after about two of them
+WS_PING_INTERVAL_S = 1.0  # the server pings every second ...
+WS_PING_TIMEOUT_S = 3.0  # ... and a browser silent for 3 s more is gone (tolerant of a loaded machine)
 
 
 class StudioServer:
@@ -82,8 +83,8 @@ class StudioServer:
             log_level="warning",
             lifespan="off",
             ws_max_size=MAX_WS_MESSAGE_BYTES,
-            ws_ping_interval=WS_PING_S,
-            ws_ping_timeout=WS_PING_S,
+            ws_ping_interval=WS_PING_INTERVAL_S,
+            ws_ping_timeout=WS_PING_TIMEOUT_S,
             access_log=False,
             server_header=False,
         )
