@@ -113,7 +113,8 @@ async function boot() {
     toast(`Cannot reach the studio server: ${err.message}. Open the URL servoface studio printed (with its token).`, "error", 60000);
     return;
   }
-  document.getElementById("head-name").textContent = `${ctx.head.name} · ${ctx.head.face_type} · ${ctx.head.servos.length} servos`;
+  const kind = ctx.head.face_type === "dog" ? "dog · DFACS" : "human · FACS";
+  document.getElementById("head-name").textContent = `${ctx.head.name === ctx.head.face_type ? "built-in" : ctx.head.name} ${kind} head · ${ctx.head.servos.length} servos · ${ctx.head.rate_hz} Hz`;
   for (const [key, mod] of Object.entries(PAGES)) mod.mount(document.getElementById(`page-${key}`), ctx);
   window.addEventListener("hashchange", route);
   route();

@@ -222,6 +222,7 @@ function poseChanged(aus) {
   if (!item || item.kind !== "key") return;
   Object.assign(item.key.pose, aus);
   delete item.key.poseName;
+  if (inspector.summary) inspector.summary.textContent = poseText(item.key.pose);
   view.render(rows(), model.end_s || duration(model));
   schedulePreview();
 }
@@ -257,8 +258,42 @@ function renderInspector() {
         schedulePreview();
       },
     }, "Take Live pose");
+    // The pose editor: this key's AUs (or every AU); a sided AU in a key splits its region.
+    for (const name of Object.keys(item.key.pose)) {
+      const region = (ctx.head.aus.find((a) => a.name === name.replace(/[LR]$/, "")) || {}).region;
+      if (/[LR]$/.test(name) && region && !board.split.has(region)) {
+        board.split.add(region);
+        board.render();
+      }
+    }
     board.setValues(item.key.pose);
-    clear(inspector, h("div.card", {}, h("div.card-head", {}, h("h3", {}, `Key on ${item.track.track}`), h("span.grow"), del), h("div.form-row", {}, h("label", {}, "time ", time, " s"), h("label", {}, "easing in ", easing), takeLive)), board.el);
+    const only = h("input#key-only", { type: "checkbox", checked: Object.keys(item.key.pose).length > 0 });
+    const filter = () => board.showOnly(only.checked ? Object.keys(item.key.pose) : null);
+    only.addEventListener("change", filter);
+    const names = ctx.head.aus.flatMap((a) => (a.sided ? [a.name, `${a.name}L`, `${a.name}R`] : [a.name]));
+    const add = h("select#key-add-au", {}, h("option", { value: "" }, "add an AU…"), names.map((n) => h("option", { value: n }, `${n} ${(ctx.head.aus.find((a) => a.name === n.replace(/[LR]$/, "")) || {}).label || ""}`)));
+    add.addEventListener("change", () => {
+      const name = add.value;
+      if (!name) return;
+      if (!(name in item.key.pose)) item.key.pose[name] = 0;
+      add.value = "";
+      renderInspector();
+    });
+    const summary = h("p.pose-summary", {}, poseText(item.key.pose));
+    clear(
+      inspector,
+      h(
+        "div.card",
+        {},
+        h("div.card-head", {}, h("h3", {}, `Key on ${item.track.track}`), h("span.muted", {}, `${item.key.t_s.toFixed(2)} s`), h("span.grow"), del),
+        h("div.form-row", {}, h("label", {}, "time ", time, " s"), h("label", {}, "easing in ", easing), takeLive),
+        summary,
+        h("div.form-row", {}, h("label.toggle", {}, only, h("span", {}, "only this key's AUs")), add),
+      ),
+      board.el,
+    );
+    filter();
+    inspector.summary = summary;
   } else if (item.kind === "gaze") {
     const pad = new GazePad((p) => {
       if (p) {

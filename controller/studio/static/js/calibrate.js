@@ -4,7 +4,7 @@
 import { h, clear, fmt } from "./dom.js";
 import { drawCurve } from "./curveplot.js";
 
-let ctx, root, cal = null, visible = false, twinSeq = 0;
+let ctx, root, cal = null, visible = false, twinSeq = 0, pointsAsked = 3;
 const STEPS = ["neutral", "lower", "upper", "point", "extra"];
 
 export function mount(el, c) {
@@ -36,6 +36,7 @@ function setupForm() {
   const out = h("input#cal-out", { type: "text", value: `calibration-${ctx.head.name.replace(/[^A-Za-z0-9_.-]/g, "_")}.json`, size: "32" });
   const start = () => {
     const picked = roles.map((l) => l.querySelector("input")).filter((i) => i.checked).map((i) => i.value);
+    pointsAsked = Number(points.value) || 0;
     ctx.api
       .post("/api/calibrate/start", {
         roles: picked.length ? picked : null,
@@ -61,10 +62,15 @@ function promptCard(state) {
   const p = state.prompt;
   const step = h("input.num#cal-step", { type: "number", min: "1", max: "300", value: "10" });
   const gotoTick = h("input.num#cal-goto", { type: "number", min: "0", max: "4095", value: String(p.suggested_tick ?? p.present_tick) });
-  const target = h("input.num#cal-target", { type: "number", step: "0.1", value: p.target ?? "" });
+  const target = h("input.num#cal-target", { type: "number", step: "any", placeholder: p.target == null ? "enter" : fmt(p.target, 3), title: "leave empty to capture at the asked target" });
   const jog = (sign) => reply({ action: "jog", delta_tick: sign * (Number(step.value) || 1) });
-  const steps = STEPS.slice(0, 4).map((s) => h(`span.step${s === p.step ? ".current" : ""}`, {}, s));
-  const captureBody = () => (p.target == null || Number(target.value) !== p.target ? { action: "capture", target: Number(target.value) } : { action: "capture", target: null });
+  const spec = ctx.head.servos.find((x) => x.role === p.role);
+  const skipped = new Set(spec ? [...(spec.lower === spec.neutral ? ["lower"] : []), ...(spec.upper === spec.neutral ? ["upper"] : [])] : []);
+  if (!(pointsAsked > 0) && p.step !== "point") skipped.add("point");
+  const done = new Set((state.captured || []).filter((c) => c.role === p.role).map((c) => c.step));
+  const steps = STEPS.slice(0, 4).filter((s) => !skipped.has(s)).map((s) => h(`span.step${s === p.step ? ".current" : done.has(s) ? ".done" : ""}`, {}, done.has(s) && s !== p.step ? `✓ ${s}` : s));
+  // Only what the user typed overrides the asked target (a rounded copy of it must not).
+  const captureBody = () => (target.value.trim() !== "" ? { action: "capture", target: Number(target.value) } : { action: "capture", target: null });
   return h(
     "div.card.prompt",
     {},
@@ -122,6 +128,23 @@ function resultCard(state) {
   );
 }
 
+function helpCard() {
+  return h(
+    "div.card",
+    {},
+    h("h3", {}, "How it goes"),
+    h(
+      "ol.help",
+      {},
+      h("li", {}, "Torque goes off on the servo: move it by hand, or jog it (torque comes on, the goal pinned first)."),
+      h("li", {}, "Bring it to the asked target (", h("b", {}, "Move to"), " goes where the current calibration puts it) and press ", h("b", {}, "Capture"), "."),
+      h("li", {}, "After neutral, lower and upper the servo's own position limits are set to the captured range; the points between follow."),
+      h("li", {}, "The points are fitted and checked (monotone, coverage, residuals); a bad fit asks again. The file is written atomically at the end."),
+    ),
+    h("p.muted", {}, "Jogs and go-tos outside the safe window, or more than 300 ticks at once, are refused and say why. The E-stop aborts the session; nothing is saved."),
+  );
+}
+
 function render(state) {
   cal = state;
   const active = state.active && state.prompt;
@@ -130,19 +153,17 @@ function render(state) {
   if (active) left.append(promptCard(state));
   else if (state.done && state.result) left.append(resultCard(state));
   else left.append(setupForm());
-  const messages = (state.messages || []).slice(-8);
-  if (messages.length) left.append(h("div.card", {}, h("h3", {}, "Messages"), h("ul.log", {}, messages.map((m) => h("li", {}, m)))));
-
   const right = h("div.col");
+  const messages = (state.messages || []).slice(-8);
+  if (messages.length) right.append(h("div.card", {}, h("h3", {}, "Messages"), h("ul.log", {}, messages.map((m) => h("li", {}, m)))));
+  if (!active) right.append(helpCard());
   if (active) {
     const p = state.prompt;
     const canvas = h("canvas.curve#cal-curve-canvas");
     const img = h("img.twin-img#cal-twin", { alt: "the twin posed at the prompted target", src: `/api/calibrate/twin.png?v=${++twinSeq}` });
     const servo = ctx.head.servos.find((s) => s.role === p.role);
-    right.append(
-      h("div.card", {}, h("div.card-head", {}, h("h3", {}, "Twin at the target"), h("span.muted", {}, p.target == null ? "" : `${p.role} at ${fmt(p.target)} ${p.unit}`)), h("figure.twin-fig", {}, img)),
-      h("div.card", {}, h("div.card-head", {}, h("h3", {}, "Curve"), h("span.muted", {}, "captured points, target → tick")), canvas),
-    );
+    right.prepend(h("div.card", {}, h("div.card-head", {}, h("h3", {}, "Twin at the target"), h("span.muted", {}, p.target == null ? "" : `${p.role} at ${fmt(p.target)} ${p.unit}`)), h("figure.twin-fig", {}, img)));
+    left.insertBefore(h("div.card", {}, h("div.card-head", {}, h("h3", {}, "Curve"), h("span.muted", {}, `${p.role}: captured points, target → tick; dashed: where it is now`)), canvas), left.children[state.error ? 2 : 1] || null);
     const captured = (state.captured || []).filter((c) => c.role === p.role);
     requestAnimationFrame(() =>
       drawCurve(canvas, {

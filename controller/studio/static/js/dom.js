@@ -38,12 +38,25 @@ export function fmt(value, digits = 2) {
 }
 
 let toastHost = null;
+const MAX_TOASTS = 4;
+/** A note in the corner; the same note again counts up instead of stacking (a fault that repeats). */
 export function toast(message, kind = "info", ms = 4000) {
   toastHost ||= document.getElementById("toasts");
-  const el = h(`div.toast.${kind}`, {}, message);
-  toastHost.append(el);
-  setTimeout(() => el.classList.add("gone"), ms);
-  setTimeout(() => el.remove(), ms + 400);
+  let el = [...toastHost.children].find((t) => t.dataset.message === message);
+  if (el) {
+    el.dataset.count = String(Number(el.dataset.count || 1) + 1);
+    el.querySelector(".count").textContent = `×${el.dataset.count}`;
+    clearTimeout(el.timer);
+    el.classList.remove("gone");
+  } else {
+    el = h(`div.toast.${kind}`, { dataset: { message } }, message, h("span.count"));
+    toastHost.append(el);
+    while (toastHost.children.length > MAX_TOASTS) toastHost.firstChild.remove();
+  }
+  el.timer = setTimeout(() => {
+    el.classList.add("gone");
+    setTimeout(() => el.classList.contains("gone") && el.remove(), 400);
+  }, ms);
 }
 
 export function throttle(fn, ms) {

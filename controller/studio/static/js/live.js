@@ -36,6 +36,7 @@ export function mount(el, c) {
   });
   ctx.sliders = board;
 
+  const stats = h("div.stats.muted#live-stats");
   const targetToggle = h("input", { type: "checkbox", id: "show-target" });
   targetToggle.addEventListener("change", () => {
     twin.showTarget = targetToggle.checked;
@@ -96,6 +97,7 @@ export function mount(el, c) {
           ),
           twin.el,
           verdict.el,
+          stats,
         ),
         h(
           "div.card.row-card",
@@ -137,6 +139,8 @@ export function mount(el, c) {
 
   ctx.live.on("frame", (msg) => visible && verdict.update(msg));
   ctx.onState((state) => {
+    const playing = Object.entries(state.tracks || {}).filter(([, t]) => t.state === "running").map(([name, t]) => `${name}: ${t.source}`);
+    stats.textContent = `frame ${state.frames} · ${state.late} late · ${state.clients} browser${state.clients === 1 ? "" : "s"} · ${playing.length ? "playing " + playing.join(", ") : "idle"}`;
     const studio = state.tracks && state.tracks.studio;
     board.sync(studio && studio.state !== "empty" ? studio.aus : {});
   });

@@ -86,7 +86,7 @@ function row(servo) {
     h("td.num", {}, servo.id),
     h("td.role", {}, servo.role),
     h("td.muted", {}, servo.model),
-    h("td.bar-cell", { title: `limits ${servo.min_tick}..${servo.max_tick}, neutral ${servo.neutral_tick}` }, h("span.lim", {}, servo.min_tick), bar, h("span.lim", {}, servo.max_tick)),
+    h("td", { title: `limits ${servo.min_tick}..${servo.max_tick}, neutral ${servo.neutral_tick}` }, h("div.bar-cell", {}, h("span.lim", {}, servo.min_tick), bar, h("span.lim", {}, servo.max_tick))),
     cell("pos", ".num"),
     cell("goal", ".num"),
     cell("load", ".num"),

@@ -137,6 +137,15 @@ export class SliderBoard {
     }
   }
 
+  /** Show only these AU sliders (null: all); a region with none of them is hidden. */
+  showOnly(names) {
+    const keep = names ? new Set(names) : null;
+    for (const [name, input] of this.inputs) input.row.hidden = !!keep && !keep.has(name);
+    for (const card of this.el.querySelectorAll(".region")) {
+      card.hidden = !!keep && ![...card.querySelectorAll(".slider")].some((row) => !row.hidden);
+    }
+  }
+
   /** Show exactly these values (a keyframe's pose), whatever the user touched. */
   setValues(aus) {
     this.values = { ...(aus || {}) };

@@ -4,6 +4,8 @@
 
 import { h } from "./dom.js";
 
+const X0 = 12; // px before 0 s, so a key at 0 s shows whole
+
 export class TimelineView {
   constructor({ onSelect, onMove, onAdd, onScrub }) {
     this.cb = { onSelect, onMove, onAdd, onScrub };
@@ -29,7 +31,7 @@ export class TimelineView {
 
   timeAt(ev) {
     const r = this.canvas.getBoundingClientRect();
-    return Math.max(0, (ev.clientX - r.left) / this.pxPerS);
+    return Math.max(0, (ev.clientX - r.left - X0) / this.pxPerS);
   }
 
   scrubTo(ev) {
@@ -39,15 +41,15 @@ export class TimelineView {
   /** rows: [{id, label, kind: "keys"|"clips"|"toggle", items: [{id, t_s, end_s?, text?}], hint}] */
   render(rows, duration) {
     this.duration = duration;
-    const width = Math.max(600, (duration + 1) * this.pxPerS);
+    const width = Math.max(600, X0 + (duration + 1) * this.pxPerS);
     this.canvas.style.width = `${width}px`;
     this.ruler.replaceChildren();
     const step = this.pxPerS >= 120 ? 0.25 : 0.5;
     for (let t = 0; t <= duration + 1 + 1e-9; t += step) {
       const major = Math.abs(t - Math.round(t)) < 1e-9;
-      this.ruler.append(h(`div.tick${major ? ".major" : ""}`, { style: `left:${t * this.pxPerS}px` }, major ? h("span", {}, `${Math.round(t)} s`) : null));
+      this.ruler.append(h(`div.tick${major ? ".major" : ""}`, { style: `left:${X0 + t * this.pxPerS}px` }, major ? h("span", {}, `${Math.round(t)} s`) : null));
     }
-    this.ruler.append(h("div.tl-end", { style: `left:${duration * this.pxPerS}px`, title: "end of the script" }));
+    this.ruler.append(h("div.tl-end", { style: `left:${X0 + duration * this.pxPerS}px`, title: "end of the script" }));
     this.labels.replaceChildren(h("div.tl-label.ruler-label", {}, "time (s)"));
     this.rows.replaceChildren();
     for (const row of rows) {
@@ -69,9 +71,9 @@ export class TimelineView {
     const sel = this.selected && this.selected.row === row.id && this.selected.id === item.id;
     let el;
     if (item.end_s != null) {
-      el = h("div.tl-clip", { style: `left:${item.t_s * this.pxPerS}px;width:${Math.max(18, (item.end_s - item.t_s) * this.pxPerS)}px`, title: item.text }, item.text);
+      el = h("div.tl-clip", { style: `left:${X0 + item.t_s * this.pxPerS}px;width:${Math.max(18, (item.end_s - item.t_s) * this.pxPerS)}px`, title: item.text }, item.text);
     } else {
-      el = h("div.tl-key", { style: `left:${item.t_s * this.pxPerS}px`, title: `${item.t_s.toFixed(2)} s${item.text ? " · " + item.text : ""}` });
+      el = h("div.tl-key", { style: `left:${X0 + item.t_s * this.pxPerS}px`, title: `${item.t_s.toFixed(2)} s${item.text ? " · " + item.text : ""}` });
     }
     el.classList.toggle("selected", !!sel);
     el.dataset.key = String(item.id);
@@ -86,7 +88,7 @@ export class TimelineView {
         const t = Math.max(0, Math.round((t0 + (e.clientX - x0) / this.pxPerS) * 100) / 100);
         if (Math.abs(e.clientX - x0) > 3) moved = true;
         if (moved) {
-          el.style.left = `${t * this.pxPerS}px`;
+          el.style.left = `${X0 + t * this.pxPerS}px`;
           el.dataset.t = String(t);
         }
       };
@@ -103,6 +105,6 @@ export class TimelineView {
 
   setTime(t) {
     this.time = t;
-    this.playhead.style.left = `${t * this.pxPerS}px`;
+    this.playhead.style.left = `${X0 + t * this.pxPerS}px`;
   }
 }
