@@ -80,3 +80,29 @@ def test_a_two_keyframe_timeline_saved_in_the_page_plays_the_same_goals_with_ser
     moved = {sid for sid, tick in studio_hold.items() if abs(tick - rest[sid]) > 20}
     assert moved, "the last key moves some servos"
     assert {sid: cli_hold[sid] for sid in studio_hold} == studio_hold
+
+
+def test_a_script_loaded_and_saved_in_the_page_is_the_same_document(studio_page: tuple[Any, StudioRig]) -> None:
+    from tests.studio.browser.screenshots import DOCUMENT
+
+    page, rig = studio_page
+    rig.client.put("/api/scripts/greeting.toml", json={"document": DOCUMENT}).raise_for_status()
+    page.click('a[data-page="author"]')
+    for name in ("human_performance", "greeting.toml"):
+        page.wait_for_selector(f'#author-list option[value="{name}"]', state="attached")
+        page.select_option("#author-list", name)
+        page.wait_for_function(f"document.querySelector('#author-status').textContent.startsWith('Loaded {name}')")
+        copy_name = f"copy_of_{name.removesuffix('.toml')}.toml"
+        page.fill("#author-name", copy_name)
+        page.click("#author-save")
+        page.wait_for_function(
+            f"(document.querySelector('#author-status').dataset.saved || '').endsWith('{copy_name}')"
+        )
+        original = rig.client.get(f"/api/scripts/{name.removesuffix('.toml')}.toml").json()["document"]
+        copy = rig.client.get(f"/api/scripts/{copy_name}").json()["document"]
+        assert copy == original, name
+    # the loaded timeline shows its keys, gaze, clip and blinks
+    assert page.locator('.tl-row[data-row="keys:face"] .tl-key').count() == 5
+    assert page.locator('.tl-row[data-row="gaze"] .tl-key').count() == 3
+    assert page.locator('.tl-row[data-row="clips:gesture"] .tl-clip').inner_text() == "brow_flash"
+    assert page.is_checked("#author-blink")

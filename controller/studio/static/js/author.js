@@ -11,7 +11,7 @@ import { EASINGS, duration, emptyDocument, fromDocument, gazePad, keyTrack, padT
 let ctx, model, view, board, inspector, preview, statusLine, fields = {};
 let selected = null; // {row, id}
 let time = 0, playing = null, recording = null;
-let previewBusy = false, previewWanted = null, previewUrl = null;
+let previewBusy = false, previewWanted = null, previewUrl = null, previewNote = null;
 
 export function mount(el, c) {
   ctx = c;
@@ -29,7 +29,8 @@ export function mount(el, c) {
   preview = h("img.twin-img#author-twin", { alt: "the script on the twin at the playhead" });
   statusLine = h("div.status-line#author-status", {}, "New timeline: double-click a track to add a key, or use the buttons.");
   fields.time = h("span.time#author-time", {}, "0.00 s");
-  const twinCard = h("div.card.author-twin", {}, h("div.card-head", {}, h("h3", {}, "Twin at the playhead"), h("span.grow"), fields.time), h("figure.twin-fig", {}, preview));
+  previewNote = h("div.muted.preview-note#author-preview-note");
+  const twinCard = h("div.card.author-twin", {}, h("div.card-head", {}, h("h3", {}, "Twin at the playhead"), h("span.grow"), fields.time), h("figure.twin-fig", {}, preview), previewNote);
   const timelineCard = h("div.card.timeline-card", {}, addBar(), view.el, statusLine);
   el.append(h("div.author", {}, toolbar(), h("div.author-grid", {}, twinCard, h("div.inspector-col", {}, inspector), timelineCard)));
   ctx.sliderListeners?.add((values) => recording && recordPose(values));
@@ -386,7 +387,7 @@ function tick() {
       playing.t0 = performance.now();
       t = 0;
     } else {
-      stop();
+      stop({ release: false }); // the head holds the last pose, as `servoface play` leaves it
       seek(end);
       return;
     }
@@ -416,8 +417,9 @@ async function play() {
   tick();
 }
 
-function stop() {
-  if (playing && playing.on === "head") {
+/** Stop the playhead; `release` (the Stop button) also stops what plays on the head's tracks. */
+function stop({ release = true } = {}) {
+  if (release && playing && playing.on === "head") {
     const tracks = new Set(["face", ...model.tracks.map((t) => t.track), ...model.clips.map((c) => c.track)]);
     for (const track of tracks) ctx.api.post("/api/stop", { track, hold: false, release_s: 0.3 }).catch(() => {});
   }
@@ -442,9 +444,11 @@ async function pumpPreview() {
     preview.dataset.t = String(t);
     if (previewUrl) URL.revokeObjectURL(previewUrl);
     previewUrl = url;
-    status(statusLine.dataset.error ? "" : statusLine.textContent);
+    previewNote.textContent = "";
   } catch (err) {
-    status(err.describe ? err.describe() : String(err), true);
+    // the script as it stands does not build (say where), or the studio runs without renders
+    previewNote.textContent = err.describe ? err.describe() : String(err);
+    previewNote.classList.toggle("error", !!err.field);
   } finally {
     previewBusy = false;
     if (previewWanted != null) pumpPreview();
@@ -474,11 +478,12 @@ async function loadList() {
 
 async function load(name) {
   try {
-    const res = await ctx.api.get(`/api/scripts/${encodeURIComponent(name)}`);
+    const file = name.endsWith(".toml") ? name : `${name}.toml`; // a shipped script by its file name
+    const res = await ctx.api.get(`/api/scripts/${encodeURIComponent(file)}`);
     model = fromDocument(res.document);
     if (!model.tracks.length) keyTrack(model, "face");
     selected = null;
-    fields.name.value = name.endsWith(".toml") ? name : `${name}.toml`;
+    fields.name.value = file;
     refresh();
     seek(0);
     status(`Loaded ${name}: ${res.summary.end_s} s, tracks ${res.summary.tracks.join(", ")}.`);

@@ -31,9 +31,10 @@ export function fromDocument(doc) {
     if (spec && Array.isArray(spec.keyframes) && !model.tracks.some((t) => t.expression === entry.expression)) {
       model.tracks.push({
         track,
+        index: i,
+        entry: copy(entry),
         expression: entry.expression,
         at_s: entry.at_s ?? 0,
-        from: entry.from,
         keys: spec.keyframes.map((k) => ({
           t_s: (entry.at_s ?? 0) + (k.t_s ?? 0),
           pose: typeof k.pose === "string" ? { ...(poses[k.pose] || {}) } : { ...(k.pose || {}) },
@@ -54,7 +55,7 @@ export function keyTrack(model, track = "face") {
   if (!t) {
     let name = `${track}_keys`;
     for (let n = 2; model.doc.expressions && model.doc.expressions[name]; n++) name = `${track}_keys_${n}`;
-    t = { track, expression: name, at_s: 0, keys: [] };
+    t = { track, index: 1e6 + model.tracks.length, entry: null, expression: name, at_s: 0, keys: [] };
     model.tracks.push(t);
   }
   return t;
@@ -72,19 +73,20 @@ export function duration(model) {
   return Math.max(end, 1);
 }
 
-/** model -> document (the script `servoface play` reads). */
+/** model -> document (the script `servoface play` reads). Only what the page edits changes: a loaded
+script saved without edits is the same document. */
 export function toDocument(model) {
   const doc = copy(model.doc) || {};
   doc.script = { ...(doc.script || {}), face: model.face };
   if (model.title) doc.script.title = model.title;
   if (model.end_s != null) doc.script.end_s = round(model.end_s);
-  doc.expressions = doc.expressions || {};
-  const plays = [];
-  const clips = [...model.clips].sort((a, b) => a.index - b.index);
+  const expressions = { ...(doc.expressions || {}) };
+  const plays = []; // [index, entry]: the order of the file, new tracks at the end
   for (const t of model.tracks) {
     sortKeys(t);
     if (!t.keys.length) {
-      delete doc.expressions[t.expression];
+      if (!t.entry) continue;
+      delete expressions[t.expression];
       continue;
     }
     const at = Math.min(t.at_s ?? 0, t.keys[0].t_s);
@@ -94,20 +96,21 @@ export function toDocument(model) {
       return key;
     });
     if (keys[keys.length - 1].t_s <= 0) keys[keys.length - 1].t_s = 0.001; // a clip needs a length > 0
-    doc.expressions[t.expression] = { keyframes: keys };
-    const entry = { at_s: round(at), expression: t.expression };
-    if (t.track !== "face") entry.track = t.track;
-    if (t.from !== undefined) entry.from = t.from;
-    plays.push(entry);
+    expressions[t.expression] = { ...(doc.expressions?.[t.expression] || {}), keyframes: keys };
+    const entry = t.entry ? { ...t.entry } : { expression: t.expression };
+    entry.at_s = round(at);
+    if (!t.entry && t.track !== "face") entry.track = t.track;
+    plays.push([t.index, entry]);
   }
-  for (const c of clips) plays.push(c.entry);
-  plays.sort((a, b) => (a.at_s || 0) - (b.at_s || 0));
-  doc.play = plays;
-  if (!Object.keys(doc.expressions).length) delete doc.expressions;
+  for (const c of model.clips) plays.push([c.index, c.entry]);
+  plays.sort((a, b) => a[0] - b[0]);
+  if (plays.length || doc.play) doc.play = plays.map(([, e]) => e);
+  if (Object.keys(expressions).length || doc.expressions) doc.expressions = expressions;
   if (model.gaze.length) doc.gaze = model.gaze.map((g) => ({ ...g, at_s: round(g.at_s) }));
   else delete doc.gaze;
-  if (model.blink) doc.blink = { ...(doc.blink || {}), enabled: true };
-  else if (doc.blink) doc.blink = { ...doc.blink, enabled: false };
+  const blinking = doc.blink ? doc.blink.enabled !== false : false;
+  if (model.blink && !blinking) doc.blink = { ...(doc.blink || {}), enabled: true };
+  if (!model.blink && blinking) doc.blink = { ...doc.blink, enabled: false };
   return doc;
 }
 
