@@ -341,6 +341,8 @@ function startRecording() {
 }
 
 function stopRecording() {
+  const last = keyTrack(model, "face").keys.at(-1);
+  if (last && model.end_s != null && last.t_s + 0.5 > model.end_s) model.end_s = Math.ceil((last.t_s + 0.5) * 10) / 10;
   recording = null;
   fields.rec.classList.remove("recording");
   fields.rec.textContent = "● Record";

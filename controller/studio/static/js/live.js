@@ -17,6 +17,13 @@ function sendAus() {
 }
 const flush = throttle(sendAus, 40);
 
+/** "affection_ii" -> "Affection II", "brow_flash" -> "Brow flash". */
+function title(name) {
+  const words = name.split("_").map((w) => (/^(i|ii|iii|iv|v)$/.test(w) ? w.toUpperCase() : w));
+  words[0] = words[0].charAt(0).toUpperCase() + words[0].slice(1);
+  return words.join(" ");
+}
+
 export function mount(el, c) {
   ctx = c;
   const head = ctx.head;
@@ -59,7 +66,7 @@ export function mount(el, c) {
       })
       .catch(ctx.report);
   const buttons = head.expressions.map((name) =>
-    h("button.expr", { onclick: () => express(name), dataset: { expression: name } }, name.replaceAll("_", " ")),
+    h("button.expr", { onclick: () => express(name), dataset: { expression: name } }, title(name)),
   );
 
   const blink = h("input", { type: "checkbox", id: "alive-blink" });

@@ -82,7 +82,11 @@ export class SliderBoard {
       const v = Number(input.value);
       value.textContent = v.toFixed(2);
       row.classList.toggle("active", Math.abs(v) > 0.005);
-      if (signed) input.style.setProperty("--fill", `${((v - au.min) / (au.max - au.min)) * 100}%`);
+      if (signed) {
+        const pct = ((v - au.min) / (au.max - au.min)) * 100; // filled from the centre (0) to the value
+        input.style.setProperty("--lo", `${Math.min(50, pct)}%`);
+        input.style.setProperty("--hi", `${Math.max(50, pct)}%`);
+      }
     };
     input.addEventListener("pointerdown", () => this.dragging.add(name));
     const end = () => this.dragging.delete(name);
