@@ -111,7 +111,7 @@ def run(quick: bool = False) -> Iterator[Figure]:
     server = StudioServer(svc, port=0, options=StudioOptions(render=True), limiter=RateLimiter(1e6, 1e6)).start()
     try:
         url = f"ws://127.0.0.1:{server.port}/api/ws?token={server.token}"
-        with connect(url, open_timeout=30, max_size=None) as ws:
+        with connect(url, open_timeout=30, max_size=None, max_queue=None) as ws:
             ws.recv(timeout=30)  # hello
             ws.send(json.dumps({"type": "subscribe", "twin": False, "frames": False, "telemetry": False}))
             ms = [x * 1e3 for x in _sliders(svc, chain, ws, 15 if quick else 60)]

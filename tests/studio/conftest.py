@@ -63,7 +63,8 @@ class StudioRig:
         """A WebSocket to the studio, past its hello (``with rig.connect() as ws``)."""
         from websockets.sync.client import connect
 
-        with connect(self.ws_url, open_timeout=20, **kw) as ws:
+        # max_queue=None: the client keeps reading (and answering pings) while a test is not looking
+        with connect(self.ws_url, open_timeout=20, max_queue=None, **kw) as ws:
             hello = json.loads(ws.recv(timeout=20))
             assert hello["type"] == "hello"
             yield ws

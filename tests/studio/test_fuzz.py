@@ -176,7 +176,7 @@ def _fuzz(rig: StudioRig) -> None:
 
     from websockets.sync.client import connect
 
-    with connect(rig.ws_url, open_timeout=30) as ws:
+    with connect(rig.ws_url, open_timeout=30, max_queue=None) as ws:
         counter = iter(range(1, 10**9))
         ws.send(json.dumps({"type": "subscribe", "twin": False, "frames": False, "telemetry": False}))
 
