@@ -3,6 +3,7 @@ emulated servos, the far end of the wire."""
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 from tests.studio.conftest import StudioRig
@@ -75,3 +76,27 @@ def test_the_servos_page_shows_telemetry_and_jogs_within_limits(studio_page: tup
     rig.wait_for(lambda: rig.goal_tick(jaw) == start + 50, timeout_s=30, what="the jog on the wire")
     page.uncheck("#manual")
     page.wait_for_selector("#page-servos:not(.manual)")
+
+
+def test_closing_the_tab_eases_the_head_to_neutral_unless_hold(browser: Any, studio: StudioRig) -> None:
+    from tests.studio.browser.conftest import open_page
+
+    rig = studio
+    jaw = _servo_id(rig, "jaw")
+    rest = _present(rig, jaw)
+    for hold in (True, False):
+        page = open_page(browser, rig)
+        if hold:
+            page.check("#hold")
+            rig.wait_for(lambda: rig.client.get("/api/state").json()["hold"], what="hold on")
+        page.locator('input[data-au="AU26"]').fill("0.8")
+        rig.wait_for(lambda: abs(_present(rig, jaw) - rest) > 60, timeout_s=60, what="the jaw to open")
+        page.context.close()  # the tab is gone: its WebSocket closes
+        rig.wait_for(lambda: rig.client.get("/api/state").json()["clients"] == 0, what="the socket to close")
+        if hold:
+            rig.wait_for(lambda: rig.service.status().tracks["studio"].state == "holding", what="the pose held")
+            time.sleep(2.0)  # more than the 1 s in which a drop without hold eases to neutral
+            assert abs(_present(rig, jaw) - rest) > 60  # held: still open
+            rig.client.post("/api/hold", json={"hold": False}).raise_for_status()
+            rig.client.post("/api/neutral", json={"transition_s": 0.2}).raise_for_status()
+        rig.wait_for(lambda: abs(_present(rig, jaw) - rest) <= 3, timeout_s=60, what="the jaw back at neutral")
