@@ -97,6 +97,14 @@ def studio(tmp_path: Path) -> Iterator[StudioRig]:
     _close(rig)
 
 
+@pytest.fixture(scope="module")
+def studio_shared(tmp_path_factory: pytest.TempPathFactory) -> Iterator[StudioRig]:
+    """One studio for a module's tests that leave no state behind (refusals, reads)."""
+    rig = _open(tmp_path_factory.mktemp("studio"), render=False)
+    yield rig
+    _close(rig)
+
+
 @pytest.fixture
 def studio_render(tmp_path: Path) -> Iterator[StudioRig]:
     """A studio with the twin rendering (EGL on the CPU)."""

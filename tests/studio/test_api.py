@@ -43,15 +43,15 @@ def test_requests_without_the_token_are_refused_and_move_nothing(studio: StudioR
     assert jar.get("/api/head").status_code == 200
 
 
-def test_foreign_origins_are_refused(studio: StudioRig) -> None:
-    r = studio.client.post("/api/aus", json={"aus": {"AU26": 1.0}}, headers={"Origin": "http://evil.example"})
+def test_foreign_origins_are_refused(studio_shared: StudioRig) -> None:
+    r = studio_shared.client.post("/api/aus", json={"aus": {"AU26": 1.0}}, headers={"Origin": "http://evil.example"})
     assert r.status_code == 403 and r.json()["error"]["code"] == "forbidden_origin"
-    own = f"http://localhost:{studio.server.port}"
-    assert studio.client.get("/api/state", headers={"Origin": own}).status_code == 200
+    own = f"http://localhost:{studio_shared.server.port}"
+    assert studio_shared.client.get("/api/state", headers={"Origin": own}).status_code == 200
     from websockets.sync.client import connect
 
     with pytest.raises(InvalidStatus):
-        connect(studio.ws_url, origin="http://evil.example", open_timeout=20)  # type: ignore[arg-type]
+        connect(studio_shared.ws_url, origin="http://evil.example", open_timeout=20)  # type: ignore[arg-type]
 
 
 def test_body_size_and_rate_limits(make_studio: Any) -> None:
@@ -65,16 +65,16 @@ def test_body_size_and_rate_limits(make_studio: Any) -> None:
     assert refused == 429
 
 
-def test_body_over_one_mib_is_413(studio: StudioRig) -> None:
-    r = studio.client.post(
+def test_body_over_one_mib_is_413(studio_shared: StudioRig) -> None:
+    r = studio_shared.client.post(
         "/api/aus", content=b"{" + b" " * (2 << 20) + b"}", headers={"Content-Type": "application/json"}
     )
     assert r.status_code == 413 and r.json()["error"]["code"] == "too_large"
 
 
-def test_non_loopback_bind_needs_allow_remote(studio: StudioRig) -> None:
+def test_non_loopback_bind_needs_allow_remote(studio_shared: StudioRig) -> None:
     with pytest.raises(StudioError, match="allow-remote"):
-        StudioServer(studio.service, host="0.0.0.0", port=0)
+        StudioServer(studio_shared.service, host="0.0.0.0", port=0)
 
 
 # -- errors -------------------------------------------------------------------------------------------
@@ -97,9 +97,9 @@ def test_non_loopback_bind_needs_allow_remote(studio: StudioRig) -> None:
     ],
 )
 def test_bad_values_are_clear_4xx_naming_the_field(
-    studio: StudioRig, path: str, body: Any, status: int, field: str
+    studio_shared: StudioRig, path: str, body: Any, status: int, field: str
 ) -> None:
-    r = studio.client.post(path, json=body)
+    r = studio_shared.client.post(path, json=body)
     assert r.status_code == status, r.text
     error = r.json()["error"]
     assert error["status"] == status and error["message"]
