@@ -34,6 +34,16 @@ export function mount(el, c) {
   const timelineCard = h("div.card.timeline-card", {}, addBar(), view.el, statusLine);
   el.append(h("div.author", {}, toolbar(), h("div.author-grid", {}, twinCard, h("div.inspector-col", {}, inspector), timelineCard)));
   ctx.sliderListeners?.add((values) => recording && recordPose(values));
+  window.addEventListener("keydown", (ev) => {
+    if (el.hidden || /^(INPUT|SELECT|TEXTAREA)$/.test(document.activeElement?.tagName || "")) return;
+    if (ev.key === " ") {
+      ev.preventDefault();
+      playing ? stop() : play();
+    } else if ((ev.key === "Delete" || ev.key === "Backspace") && selected) {
+      ev.preventDefault();
+      removeSelected();
+    }
+  });
   refresh();
   loadList();
 }
@@ -89,6 +99,7 @@ function addBar() {
     lib,
     h("button.chip#author-add-clip", { onclick: () => addClip(lib.value, time) }, "+ expression clip"),
     h("span.grow"),
+    h("span.muted", {}, "Space: play / stop · Delete: remove the selected key"),
     h("button.chip", { onclick: () => zoom(1.25), title: "zoom in" }, "zoom +"),
     h("button.chip", { onclick: () => zoom(0.8), title: "zoom out" }, "zoom −"),
   );
