@@ -18,6 +18,7 @@ class FaultPolicy:
     """Every threshold of the fault reactions. Times in seconds of the driver clock."""
 
     retries: int = 1  # extra attempts of a failed group read before per-servo fallback reads
+    configure_attempts: int = 3  # tries per servo of the configure sequence on a timeout / corrupt reply
     missing_after_failures: int = 2  # consecutive cycles a servo's own read fails before it is marked missing
     reprobe_interval_s: float = 0.25  # ping each missing servo this often (one ping per cycle at most)
     reconnect_interval_s: float = 0.5  # re-open a failed port this often
@@ -54,7 +55,14 @@ class FaultPolicy:
     telemetry_floor_share: float = 0.25
 
     def __post_init__(self) -> None:
-        for name in ("retries", "missing_after_failures", "max_reboots", "voltage_debounce", "torque_off_attempts"):
+        for name in (
+            "retries",
+            "configure_attempts",
+            "missing_after_failures",
+            "max_reboots",
+            "voltage_debounce",
+            "torque_off_attempts",
+        ):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < (1 if name != "retries" else 0):
                 raise ValueError(f"FaultPolicy.{name} = {value!r}: expected a positive int")

@@ -59,27 +59,18 @@ def _typed(fn: Any, *args: Any, **kw: Any) -> None:
 
 @FAST
 @given(aus_maps, seconds, seconds)
-@pytest.mark.skip(
-    reason="Face on the head service lacks the typed-error checks of issue #9 for these values (the one safe-stop path of issue #9 (controller/safe_stop.py, stop_signals.py) is not yet wired into the head service that Face and the play/stream CLI now run on; see the closing note of this session)"
-)
 def test_set_aus(face: Face, aus: Any, transition_s: Any, hold_s: Any) -> None:
     _typed(face.set_aus, aus, transition_s=transition_s, hold_s=hold_s)
 
 
 @FAST
 @given(st.one_of(values, st.sampled_from(["happiness", "surprise"])), values, seconds, seconds)
-@pytest.mark.skip(
-    reason="Face on the head service lacks the typed-error checks of issue #9 for these values (the one safe-stop path of issue #9 (controller/safe_stop.py, stop_signals.py) is not yet wired into the head service that Face and the play/stream CLI now run on; see the closing note of this session)"
-)
 def test_express(face: Face, name: Any, intensity: Any, transition_s: Any, hold_s: Any) -> None:
     _typed(face.express, name, intensity=intensity, transition_s=transition_s, hold_s=hold_s)
 
 
 @FAST
 @given(st.one_of(values, st.tuples(values, values, values)), seconds)
-@pytest.mark.skip(
-    reason="Face on the head service lacks the typed-error checks of issue #9 for these values (the one safe-stop path of issue #9 (controller/safe_stop.py, stop_signals.py) is not yet wired into the head service that Face and the play/stream CLI now run on; see the closing note of this session)"
-)
 def test_look_at(face: Face, point: Any, transition_s: Any) -> None:
     _typed(face.look_at, point, transition_s=transition_s)
 

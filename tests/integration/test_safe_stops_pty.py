@@ -15,12 +15,7 @@ import pytest
 
 from tests.integration.safe_stop_rig import LONG_SCRIPT, bench, goals_outside_limits, limits_tick, torque_on_ids
 
-pytestmark = [
-    pytest.mark.skip(
-        reason="the one safe-stop path of issue #9 (controller/safe_stop.py, stop_signals.py) is not yet wired into the head service that Face and the play/stream CLI now run on; see the closing note of this session"
-    ),
-    pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals need a POSIX system"),
-]
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals need a POSIX system")
 
 
 @pytest.mark.parametrize(
