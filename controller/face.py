@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import numbers
 import signal
 import threading
 from collections import deque
@@ -44,6 +43,8 @@ from servoface.controller.pipeline import FrameTrace, Pipeline
 from servoface.controller.safe_stop import EASE_S, MAX_EASE_S, StopReport, safe_stop
 from servoface.controller.script import Script, load_script
 from servoface.controller.service import CommandHandle, HeadService, Status, head_calibration, open_head
+from servoface.controller.service.commands import check_point_mm
+from servoface.controller.values import as_finite, check_seconds, printable_repr
 from servoface.hardware.bus import ServoBus
 from servoface.hardware.driver import Driver
 from servoface.hardware.errors import HardwareError
@@ -157,6 +158,8 @@ class Face:
         self._history = history
         self._service: HeadService | None = None
         self._closed = False
+        self._library: Any = None  # the head's expression library, read once (express)
+        self._gaze_config: Any = None  # the head's gaze geometry, read once (look_at)
         self.stop_report: StopReport | None = None
 
     @property
@@ -258,45 +261,47 @@ class Face:
 
     def set_aus(self, aus: Mapping[str, float], *, transition_s: float = 0.4, hold_s: float = 0.0) -> Performance:
         """Move to the AU pose ``aus`` (AUs not named go to 0) over ``transition_s``, then hold."""
+        if not isinstance(aus, Mapping):
+            raise ControllerError(f"set_aus: aus must be a mapping of AU name -> intensity, got {type(aus).__name__}")
         pose = self.validator.pose(dict(aus), where="set_aus")
-        for name, value in (("transition_s", transition_s), ("hold_s", hold_s)):
-            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-                raise ControllerError(f"set_aus: {name} must be a finite number of seconds >= 0, got {value!r}")
-        transition = max(float(transition_s), 1.0 / self.pipeline.rate_hz)
+        transition = max(check_seconds(transition_s, "set_aus: transition_s"), 1.0 / self.pipeline.rate_hz)
+        hold = check_seconds(hold_s, "set_aus: hold_s")
         return self._perform(
-            lambda svc: svc.set_aus(pose, track=TRACK, transition_s=transition, hold_s=float(hold_s)),
-            transition + float(hold_s),
+            lambda svc: svc.set_aus(pose, track=TRACK, transition_s=transition, hold_s=hold), transition + hold
         )
 
     def express(
         self, name: str, *, intensity: float = 1.0, transition_s: float = 0.5, hold_s: float = 1.0
     ) -> Performance:
         """Move to a named expression's apex (scaled by ``intensity``) and hold it."""
-        from servoface.sim.expressions import load_library
-
-        library = load_library(self.head.expressions_path or self.head.face_type)
-        if name not in library:
-            raise ControllerError(f"unknown expression {name!r}; known: {sorted(library)}")
-        if not (isinstance(intensity, int | float) and math.isfinite(intensity) and 0 <= intensity <= 1):
-            raise ControllerError(f"express: intensity must be within 0..1, got {intensity!r}")
-        apex = {au: v * float(intensity) for au, v in library[name].apex().items()}
+        library = self._expressions()
+        if not isinstance(name, str) or name not in library:
+            raise ControllerError(f"express: unknown expression {printable_repr(name)}; known: {sorted(library)}")
+        level = as_finite(intensity)
+        if level is None or not 0 <= level <= 1:
+            raise ControllerError(f"express: intensity must be a number within 0..1, got {printable_repr(intensity)}")
+        apex = {au: v * level for au, v in library[name].apex().items()}
         return self.set_aus(apex, transition_s=transition_s, hold_s=hold_s)
+
+    def _expressions(self) -> Any:
+        """The head's expression library (read from its files on first use, then kept)."""
+        if self._library is None:
+            from servoface.sim.expressions import load_library
+
+            self._library = load_library(self.head.expressions_path or self.head.face_type)
+        return self._library
 
     def neutral(self, transition_s: float = 0.6) -> Performance:
         return self.set_aus({}, transition_s=transition_s)
 
     def look_at(self, point_mm: tuple[float, float, float], *, transition_s: float = 0.5) -> Performance:
         """Turn eyes and head towards a point (head frame, mm); eyes lead, the neck takes the rest."""
-        try:
-            values = tuple(point_mm)
-        except TypeError:  # not a sequence at all (a bare number, None)
-            values = ()
-        if len(values) != 3 or not all(
-            isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v) for v in values
-        ):
-            raise ControllerError(f"look_at: point_mm must be three finite numbers (x, y, z) in mm, got {point_mm!r}")
-        cfg = gaze_config_for(self.head.face_type, self.head)
-        gaze = solve_look_at(tuple(float(v) for v in values), cfg)  # type: ignore[arg-type]
+        point = check_point_mm(point_mm, field="look_at: point_mm")  # a ServiceError (a ControllerError)
+        check_seconds(transition_s, "look_at: transition_s")
+        if self._gaze_config is None:
+            self._gaze_config = gaze_config_for(self.head.face_type, self.head)
+        cfg = self._gaze_config
+        gaze = solve_look_at(point, cfg)
         gaze_aus = angles_to_aus(
             self.head.face_type,
             cfg,

@@ -82,6 +82,7 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
     exit 0, 1 (bus failure, servos latched/missing), 2 (bad input), 3 (torque-off not confirmed), 128+signal."""
     from servoface.controller.errors import ControllerError
     from servoface.controller.script import load_script
+    from servoface.controller.service import ServiceClosedError
     from servoface.controller.shipped import is_shipped_script
     from servoface.controller.stop_signals import StopRequested, interruptible
     from servoface.hardware.errors import HardwareError
@@ -142,8 +143,9 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
         print(f"servoface play: bus failure: {printable(err)}", file=sys.stderr)
         failed, reason = True, "bus failure"
     except (ControllerError, SimError, ValueError) as err:
-        print(f"servoface play: {printable(err)}", file=sys.stderr)
-        code, reason = 2, f"error: {type(err).__name__}"
+        if not (isinstance(err, ServiceClosedError) and signals.requested):  # (else a signal closed the service
+            print(f"servoface play: {printable(err)}", file=sys.stderr)  # before the command got in: no error)
+            code, reason = 2, f"error: {type(err).__name__}"
     except Exception as err:  # noqa: BLE001 - an unexpected error still ends in the safe stop below
         print(f"servoface play: internal error {type(err).__name__}: {printable(err)}", file=sys.stderr)
         failed, reason = True, f"error: {type(err).__name__}"

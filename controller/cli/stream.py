@@ -139,6 +139,7 @@ def _stream(args: argparse.Namespace, signals: StopSignals) -> int:
     from servoface.controller.inputs.smoothing import AUSmoother
     from servoface.controller.inputs.stream import StreamRecorder
     from servoface.controller.inputs.transports import parse_address
+    from servoface.controller.service import ServiceClosedError
     from servoface.controller.stop_signals import StopRequested, interruptible
     from servoface.hardware.errors import HardwareError
     from servoface.sim.errors import SimError
@@ -231,8 +232,9 @@ def _stream(args: argparse.Namespace, signals: StopSignals) -> int:
         print(f"servoface stream: bus failure: {printable(err)}", file=sys.stderr)
         failed, reason = True, "bus failure"
     except (ControllerError, SimError, ValueError) as err:
-        print(f"servoface stream: {printable(err)}", file=sys.stderr)
-        code, reason = 2, f"error: {type(err).__name__}"
+        if not (isinstance(err, ServiceClosedError) and signals.requested):  # (else a signal closed the service
+            print(f"servoface stream: {printable(err)}", file=sys.stderr)  # before the command got in: no error)
+            code, reason = 2, f"error: {type(err).__name__}"
     except Exception as err:  # noqa: BLE001 - an unexpected error still ends in the safe stop below
         print(f"servoface stream: internal error {type(err).__name__}: {printable(err)}", file=sys.stderr)
         failed, reason = True, f"error: {type(err).__name__}"

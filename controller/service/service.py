@@ -28,7 +28,7 @@ from servoface.controller.errors import ControllerError
 from servoface.controller.frame import FrameValidator
 from servoface.controller.loop import FixedRateLoop, LoopStats, Tick
 from servoface.controller.pipeline import FrameTrace, Pipeline
-from servoface.controller.safe_stop import EASE_S, MAX_EASE_S, StopReport, safe_stop
+from servoface.controller.safe_stop import EASE_S, MAX_EASE_S, StopReport, bus_problem, safe_stop
 from servoface.controller.service.clock import ServiceClock, check_duration_s, check_time_s
 from servoface.controller.service.commands import (
     check_point_mm,
@@ -52,7 +52,7 @@ from servoface.controller.service.sources import (
 from servoface.controller.service.tracks import DEFAULT_TRACKS, Mixer, TrackSpec
 from servoface.controller.timeline.blend import BlendRule
 from servoface.hardware.driver import Driver
-from servoface.hardware.errors import HardwareError
+from servoface.hardware.errors import BusDisconnectedError, HardwareError
 from servoface.hardware.snapshot import ChainSnapshot
 from servoface.sim.errors import SimError
 from servoface.sim.head import Head
@@ -82,7 +82,12 @@ class ServiceStatus:
 class HeadService:
     """Owns ``pipeline`` (and its driver) and runs the loop thread. Build one with :meth:`open` or from
     parts; ``start=False`` leaves the thread to :meth:`start`. The driver is handed over to the loop thread,
-    so after ``start`` only the service touches the bus."""
+    so after ``start`` only the service touches the bus.
+
+    However the loop ends — :meth:`shutdown`, a stop signal under installed
+    :class:`~servoface.controller.stop_signals.StopSignals` (checked every frame), a bus failure or the port
+    failing (``stop_on_port_failure``), a crash — it ends in the one stop path on the loop thread, and
+    ``service.report`` says how it went."""
 
     def __init__(
         self,
@@ -98,9 +103,11 @@ class HeadService:
         torque_on: bool | None = None,
         start: bool = True,
         name: str = "servoface-head",
+        stop_on_port_failure: bool = True,
     ) -> None:
         self.head = head
         self.pipeline = pipeline
+        self.stop_on_port_failure = stop_on_port_failure  # the port failed: stop (safe stop), never drive blind
         self.driver: Driver | None = pipeline.driver
         self.rate_hz = float(pipeline.rate_hz)
         self.period_s = 1.0 / self.rate_hz
@@ -643,6 +650,12 @@ class HeadService:
         except (ControllerError, SimError) as err:
             self.observers.offer("fault", ServiceEvent(t, "frame_error", str(err)))
         self._publish(t, tick, trace)
+        snap = self.pipeline.last_snapshot
+        if self.stop_on_port_failure and snap is not None and not snap.bus_connected:
+            self._bus_failed(
+                t, BusDisconnectedError(f"the port failed ({bus_problem(snap)}); stopped, no blind driving")
+            )
+            return False
         return None
 
     def _drain(self, t_s: float) -> bool:
@@ -713,6 +726,7 @@ class HeadService:
                 self._notify(item[0])
         self._inbox.extendleft(reversed(kept))
         self.tracks.clear_all(t_s, "e-stop", self._notify)
+        self._view = self.tracks.view(t_s)  # before the presses complete: status() then shows empty tracks
         ok = self._torque_off_all()
         detail = "torque off" if ok else "torque off FAILED on some servos"
         self.observers.offer("fault", ServiceEvent(t_s, "estop", f"{detail}; {handle.detail if handle else ''}"))
@@ -758,6 +772,7 @@ class HeadService:
 
     def _apply_torque_off(self, handle: CommandHandle, t_s: float) -> None:
         self.tracks.clear_all(t_s, f"torque off #{handle.id}", self._notify)
+        self._view = self.tracks.view(t_s)  # before the handle completes: status() then shows empty tracks
         ok = self._torque_off_all()
         handle._set(Status.DONE if ok else Status.FAILED, t_s, "" if ok else "torque off failed on some servos")
         self._notify(handle)
