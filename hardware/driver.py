@@ -139,8 +139,9 @@ class Driver(ChainReads):
         a corrupt reply is tried again, up to `FaultPolicy.configure_attempts` times, after the line has been
         quiet for 50 / 150 / 300 ms (a late reply must pass first, never be taken for the next answer); each
         retry is counted in ``configure_retries``. A servo that still does not answer raises `BusTimeoutError`
-        — or, with ``allow_missing``, is marked missing (event ``MISSING``) and configured when it first
-        answers a re-probe ping. A wrong model or a value that does not read back is never retried.
+        / `BusCorruptError` — or, with ``allow_missing``, is marked missing (event ``MISSING``) and configured
+        when it first answers a re-probe ping. A wrong model or a value that does not read back is never
+        retried.
         """
         self._check_owner()
         reports = {}

@@ -18,7 +18,6 @@ class FaultPolicy:
     """Every threshold of the fault reactions. Times in seconds of the driver clock."""
 
     retries: int = 1  # extra attempts of a failed group read before per-servo fallback reads
-    configure_attempts: int = 3  # tries per servo of the configure sequence on a timeout / corrupt reply
     missing_after_failures: int = 2  # consecutive cycles a servo's own read fails before it is marked missing
     reprobe_interval_s: float = 0.25  # ping each missing servo this often (one ping per cycle at most)
     reconnect_interval_s: float = 0.5  # re-open a failed port this often
@@ -31,6 +30,7 @@ class FaultPolicy:
     reboot_window_s: float = 60.0
     reboot_backoff_s: float = 0.25  # a hardware-error reboot waits this, doubled per recent reboot of that servo
     # stopping and host death
+    configure_attempts: int = 3  # tries per servo at start-up when a reply is lost or garbled (writes are idempotent)
     torque_off_attempts: int = 3  # Torque Enable = 0 tries per servo when stopping (carrying on past failures)
     watchdog_s: float = 0.1  # Bus Watchdog armed while driving (20 ms units, 0.02..2.54 s); 0 = never armed
     # temperature
