@@ -58,6 +58,9 @@ NAP_MARGIN_S = 0.0002  # wake this much before it (wake-up latency)
 POLL_SLICE_S = 0.001  # a port with a file descriptor blocks in select() this long at most per empty read
 PARSE_S_START = 50e-6  # per status packet, until measured
 MAX_WINDOW_EXTENSION_MS = 100.0
+MAX_STRAY_PACKETS = 8  # late status packets of other ids skipped before a Fast Sync Read's combined reply
+_PKT_ID = sdk.protocol2_packet_handler.PKT_ID
+_PKT_PARAMETER0 = sdk.protocol2_packet_handler.PKT_PARAMETER0
 
 
 class ChainLike(Protocol):
@@ -518,10 +521,7 @@ class DynamixelBus:
             port.nap_until(
                 port.tx_done_s + (8 + len(ids) * (length + 4)) * port.tx_time_per_byte * 1e-3 - 2 * self._parse_s
             )
-        raw, comm, _ = self._call(self._packet.fastSyncReadRx, port, sdk.BROADCAST_ID, (length + 4) * len(ids))
-        if comm != sdk.COMM_SUCCESS:
-            self._check(comm, 0, what, ids)
-        raw = bytes(raw)
+        raw = self._combined_reply((length + 4) * len(ids), what, ids)
         blocks: dict[int, tuple[bytes, int]] = {}
         wanted = set(ids)
         for k in range(len(ids)):
@@ -531,6 +531,23 @@ class DynamixelBus:
                 raise BusCorruptError(f"{what}: combined reply block {k} is malformed", ids)
             blocks[raw[at + 1]] = (raw[at + 2 : at + 2 + length], raw[at])
         return blocks
+
+    def _combined_reply(self, n_bytes: int, what: str, ids: list[int]) -> bytes:
+        """The parameters of the combined (broadcast-id) status packet, read as the SDK's ``fastSyncReadRx``
+        does (its ``rxPacket``). A status packet of another id first (a servo's late reply to an earlier
+        instruction) is skipped, as the SDK's ``readRx`` skips one in a plain Sync Read, within the same
+        reply window; ``fastSyncReadRx`` would return no data for it, on which the SDK's own
+        ``GroupSyncRead.fastSyncRead`` raises IndexError. What cannot be read is a typed bus error."""
+        rx_packet, port = self._packet.rxPacket, self._port
+        for _ in range(MAX_STRAY_PACKETS + 1):
+            packet, comm = self._call(rx_packet, port, True)
+            if comm != sdk.COMM_SUCCESS:
+                self._check(comm, 0, what, ids)
+            if len(packet) > _PKT_PARAMETER0 and packet[_PKT_ID] == sdk.BROADCAST_ID:
+                return bytes(packet[_PKT_PARAMETER0 : _PKT_PARAMETER0 + n_bytes])
+            self.stats.stray += 1
+        self.stats.corrupt += 1
+        raise BusCorruptError(f"{what}: only status packets of other ids came back, no combined reply", ids)
 
     def bulk_read(
         self, requests: Mapping[int, Sequence[Register]], *, fast: bool = False
