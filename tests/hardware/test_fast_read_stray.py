@@ -95,3 +95,27 @@ def test_the_stock_sdk_loop_counts_it_as_a_failed_read(stray: Any) -> None:
     assert loop.cycle(2048) == {} and loop.failures == 1
     rig.serial.strays = 0
     assert set(loop.cycle(2048)) == set(IDS)
+
+
+def test_read_ahead_hands_over_the_same_bytes_and_clear_drops_them() -> None:
+    """The port reads what has arrived in one go and hands it to the SDK as it asks: the bytes the SDK
+    sees, their order and the bytes available are those of the port itself; clearing drops them."""
+    from servoface.hardware.emulator.packet import build_instruction
+
+    with (
+        ServoChain.create(ids=IDS, model="XL330-M288", baud=1_000_000, wire_time=False) as chain,
+        DynamixelBus(chain, 1_000_000) as bus,
+    ):
+        port, packet = bus.sdk_handlers()
+        raw = chain.open_serial()
+        port.clearPort()
+        port.writePort(build_instruction(0xFE, Instruction.PING))
+        first = port.readPort(3)
+        assert port.getBytesAvailable() == 3 * 14 - 3  # three ping replies, 14 bytes each
+        rest = b"".join(iter(lambda: port.readPort(5), b""))
+        assert len(first + rest) == 42 and (first + rest).count(b"\xff\xff\xfd\x00") == 3
+        port.writePort(build_instruction(0xFE, Instruction.PING))
+        port.readPort(1)
+        port.clearPort()
+        assert port.getBytesAvailable() == 0 and raw.in_waiting == 0 and port.readPort(8) == b""
+        assert sorted(packet.broadcastPing(port)[0]) == IDS  # the SDK's own multi-reply read still works
