@@ -37,6 +37,7 @@ from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind
 
 TORQUE_OFF_QUIET_S = (0.03, 0.12, 0.3)  # after a failed torque-off, wait this long for quiet (per pass)
+CONFIGURE_ATTEMPTS = 3  # per servo: a corrupt or missing reply during configure is tried again
 
 
 class Driver(ChainReads):
@@ -130,6 +131,10 @@ class Driver(ChainReads):
     def limits_tick(self, servo_id: int) -> tuple[int, int]:
         return self._records[servo_id].limits_tick
 
+    def temperature_limit_c(self, servo_id: int) -> int:
+        """The Temperature Limit the thermal policy works against (configured, else the model's default)."""
+        return self._records[servo_id].temperature_limit_c
+
     def configure(self, *, allow_missing: bool = False) -> dict[int, ConfigReport]:
         """Write every spec (EEPROM with torque off, verified by read-back). Torque is left off.
 
@@ -139,12 +144,16 @@ class Driver(ChainReads):
         self._check_owner()
         reports = {}
         for rec in self._records.values():
-            try:
-                reports[rec.servo_id] = self._configure_one(rec)
-            except (BusTimeoutError, BusCorruptError):
-                if not allow_missing:
-                    raise
-                self._mark_missing(rec, self._clock(), "did not answer during configure")
+            for attempt in range(CONFIGURE_ATTEMPTS):  # configuring is idempotent (written, then read back)
+                try:
+                    reports[rec.servo_id] = self._configure_one(rec)
+                    break
+                except (BusTimeoutError, BusCorruptError):
+                    if attempt + 1 < CONFIGURE_ATTEMPTS:
+                        continue  # one late or corrupt reply (a loaded host) is not a missing servo
+                    if not allow_missing:
+                        raise
+                    self._mark_missing(rec, self._clock(), "did not answer during configure")
         return reports
 
     def _configure_one(self, rec: ServoRecord) -> ConfigReport:

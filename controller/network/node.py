@@ -138,7 +138,7 @@ class HeadNode:
         source = self._stream(track)
         if source is None:
             return
-        if not source.feed(json.dumps(body), where=f"{key}", rate_checked=True):
+        if not source.feed_obj(body, where=key, rate_checked=True):  # parsed once, by open_envelope
             self.guard.refuse("bad AU frame")
 
     def _stream(self, track: str) -> Any:
