@@ -74,7 +74,9 @@ def say_on_face(face: Face, speech: Speech, *, audio_out: bool = True, budget: J
     account = budget if budget is not None else jaw_budget_for(svc)
     thermal = jaw_thermal(svc, jaw_id) if jaw_id is not None else None
     plan, report = account.apply(speech.plan, start, thermal)
-    clip = plan.clip(face_type, allowed)
+    under = svc.status().tracks.get("face")  # the face's own mouth (an expression held): crossfaded
+    base = {au: v for au, v in (under.aus if under is not None else {}).items() if au in allowed}
+    clip = plan.clip(face_type, allowed, base=base)
     audio_start = start + plan.audio_start_s + latency_s
     out = open_audio_out() if audio_out else None
     clock = out.play_at(speech.samples, speech.rate_hz, audio_start) if out is not None else None

@@ -20,6 +20,7 @@ from tests.controller.network.certs import TlsSet, make_tls
 
 HEAD = load_head("human")
 BROW = HEAD.servo_ids["brow_inner_l"]
+JAW = HEAD.servo_ids["jaw"]
 KEYS = head_keys("lobby", "t1")
 
 
@@ -81,6 +82,26 @@ def test_an_operator_over_tls_sees_and_moves_the_head(tls_node) -> None:  # type
         assert _moved_after(node, since, rest, wait_s=10.0), "the operator's command did not reach the head"
         client.send(KEYS, "neutral", transition_s=0.2)
         time.sleep(1.0)
+    finally:
+        session.close()  # type: ignore[attr-defined]
+
+
+@pytest.mark.slow
+def test_an_operator_makes_the_head_talk(tls_node) -> None:  # type: ignore[no-untyped-def]
+    """cmd/say: synthesised off Zenoh's callback thread, played on the speech track (jaw budgeted)."""
+    tmp, tls, node = tls_node
+    session, client = _client(node.endpoint, "operator", "op-secret", tls.ca)
+    try:
+        assert _wait_heads(client, 1)
+        goals = node.goals(JAW)
+        rest, since = goals[-1][1], time.monotonic()
+        client.send(KEYS, "say", text="Hello, how are you today?")
+        deadline = time.monotonic() + 15
+        swing = 0
+        while time.monotonic() < deadline and swing < 20:
+            swing = max([abs(g - rest) for _, g in node.goals(JAW, since)] or [0])
+            time.sleep(0.2)
+        assert swing >= 20, f"the jaw did not talk ({swing} ticks)"
     finally:
         session.close()  # type: ignore[attr-defined]
 
