@@ -37,7 +37,6 @@ from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind
 
 TORQUE_OFF_QUIET_S = (0.03, 0.12, 0.3)  # after a failed torque-off, wait this long for quiet (per pass)
-CONFIGURE_ATTEMPTS = 3  # per servo: a corrupt or missing reply during configure is tried again
 
 
 class Driver(ChainReads):
@@ -138,19 +137,24 @@ class Driver(ChainReads):
     def configure(self, *, allow_missing: bool = False) -> dict[int, ConfigReport]:
         """Write every spec (EEPROM with torque off, verified by read-back). Torque is left off.
 
-        A servo that does not answer raises `BusTimeoutError` — or, with ``allow_missing``, is marked
-        missing (event ``MISSING``) and configured when it first answers a re-probe ping.
+        A lost or garbled reply (a loaded host, noise on the cable) is retried: each servo's whole configuration
+        is tried up to ``FaultPolicy.configure_attempts`` times (its writes are idempotent, and every value is
+        read back). A servo that still does not answer raises `BusTimeoutError` / `BusCorruptError` — or, with
+        ``allow_missing``, is marked missing (event ``MISSING``) and configured when it first answers a
+        re-probe ping.
         """
         self._check_owner()
         reports = {}
+        attempts = max(1, int(self.policy.configure_attempts))
         for rec in self._records.values():
-            for attempt in range(CONFIGURE_ATTEMPTS):  # configuring is idempotent (written, then read back)
+            for attempt in range(attempts):
                 try:
                     reports[rec.servo_id] = self._configure_one(rec)
                     break
                 except (BusTimeoutError, BusCorruptError):
-                    if attempt + 1 < CONFIGURE_ATTEMPTS:
-                        continue  # one late or corrupt reply (a loaded host) is not a missing servo
+                    if attempt + 1 < attempts:
+                        time.sleep(0.05 * 4**attempt)  # a starved or noisy line: let a late reply drain
+                        continue
                     if not allow_missing:
                         raise
                     self._mark_missing(rec, self._clock(), "did not answer during configure")

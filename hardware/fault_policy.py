@@ -30,6 +30,7 @@ class FaultPolicy:
     reboot_window_s: float = 60.0
     reboot_backoff_s: float = 0.25  # a hardware-error reboot waits this, doubled per recent reboot of that servo
     # stopping and host death
+    configure_attempts: int = 3  # tries per servo at start-up when a reply is lost or garbled (writes are idempotent)
     torque_off_attempts: int = 3  # Torque Enable = 0 tries per servo when stopping (carrying on past failures)
     watchdog_s: float = 0.1  # Bus Watchdog armed while driving (20 ms units, 0.02..2.54 s); 0 = never armed
     # temperature
