@@ -218,8 +218,11 @@ class Face:
         return cls(the_head, Pipeline(the_head, head_calibration(the_head, calibration), rate_hz=rate_hz))
 
     # -- motion -------------------------------------------------------------------------------------
-    def _perform(self, submit: Callable[[HeadService], CommandHandle], duration_s: float) -> Performance:
-        """Submit one command, wait for it and for the servos to settle; the call's frames and stats."""
+    def _perform(
+        self, submit: Callable[[HeadService], CommandHandle], duration_s: float, *, track: str = TRACK
+    ) -> Performance:
+        """Submit one command (on ``track``), wait for it and for the servos to settle; the call's frames and
+        stats. Ctrl-C stops what plays on ``track`` where it is."""
         svc = self.service
         rate = svc.rate_hz
         expected = int((duration_s + SETTLE_MAX_S) * rate) + 200
@@ -235,7 +238,7 @@ class Face:
                 if interrupt.by_signals:  # the loop stops by itself (and goes down the stop path)
                     handle.wait(5.0)
                 elif interrupt.is_set() and not handle.done():
-                    svc.stop(TRACK, hold=True).wait(2.0)
+                    svc.stop(track, hold=True).wait(2.0)
                 elif handle.status is Status.DONE:
                     last = svc.last_trace
                     svc.wait_settled(-1 if last is None else last.index - 1, timeout_s=SETTLE_MAX_S)
@@ -358,11 +361,6 @@ class Face:
         timeline = _Fixed(source, length)
         return self._perform(lambda svc: svc.play(timeline, track=TRACK, duration_s=length or None), length)
 
-    def _run(self, timeline: Samples, duration_s: float) -> Performance:
-        """Play ``timeline`` for ``duration_s`` on the face track (what `perform` does; kept for callers of
-        the old runner, e.g. the speech front end)."""
-        return self.perform(timeline, duration_s)
-
     def follow(
         self, source: Samples, duration_s: float | None = None, *, until: Callable[[], bool] | None = None
     ) -> Performance:
@@ -380,8 +378,10 @@ class Face:
         return perf
 
     def say(self, text: str, *, voice: str = "en-us", out_dir: str | Path | None = None) -> Performance:
-        """Speak ``text`` (espeak-ng) with lip sync: the mouth on the speech track, the rest of the face as it
-        is; the sound on the default output when there is one. ``out_dir``: also write speech.wav/.toml."""
+        """Speak ``text`` (espeak-ng) with lip sync through the head service's speech track
+        (``HeadService.speak``): the mouth AUs are the speech track's, the rest of the face stays as it is;
+        the sound on the default output when there is one (the mouth follows its clock). ``out_dir``: also
+        write speech.wav/.toml."""
         from servoface.controller.speech.say import speak_text
 
         self._check_open()

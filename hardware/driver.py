@@ -132,6 +132,10 @@ class Driver(ChainReads):
     def limits_tick(self, servo_id: int) -> tuple[int, int]:
         return self._records[servo_id].limits_tick
 
+    def temperature_limit_c(self, servo_id: int) -> int:
+        """The Temperature Limit the thermal policy works against (configured, else the model's default)."""
+        return self._records[servo_id].temperature_limit_c
+
     def configure(self, *, allow_missing: bool = False) -> dict[int, ConfigReport]:
         """Write every spec (EEPROM with torque off, verified by read-back). Torque is left off.
 
