@@ -20,5 +20,6 @@ SUITES: dict[str, str] = {
     "speech": "servoface.controller.benchmarks.speech",
     "network": "servoface.controller.benchmarks.network",
     "soak": "servoface.controller.benchmarks.soak",
+    "faces": "servoface.controller.benchmarks.faces",
 }
-LONG_SUITES = frozenset({"soak"})  # run only when named (minutes of wall time)
+LONG_SUITES = frozenset({"soak", "faces"})  # run only when named (minutes of wall time; faces: optional weights)

@@ -22,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from servoface.controller.benchmarks import LONG_SUITES, SUITES
-    from servoface.controller.benchmarks.figure import machine_description
+    from servoface.controller.benchmarks.figure import SuiteUnavailable, machine_description
 
     names = args.suites or [n for n in SUITES if n not in LONG_SUITES]
     unknown = [n for n in names if n not in SUITES]
@@ -46,11 +46,15 @@ def run(args: argparse.Namespace) -> int:
             status = 1
             continue
         options = {"minutes": args.minutes} if args.minutes is not None and _takes_minutes(module) else {}
-        for figure in module.run(quick=args.quick, **options):
-            if args.json:
-                print(figure.to_json(), flush=True)
-            else:
-                print(_row(name, figure), flush=True)
+        try:
+            for figure in module.run(quick=args.quick, **options):
+                if args.json:
+                    print(figure.to_json(), flush=True)
+                else:
+                    print(_row(name, figure), flush=True)
+        except SuiteUnavailable as err:
+            print(f"servoface bench: suite '{name}' cannot run here: {err}", file=sys.stderr)
+            status = 1
     return status
 
 
