@@ -23,7 +23,8 @@ SUITES: dict[str, str] = {
     "speech": "servoface.controller.benchmarks.speech",
     "network": "servoface.controller.benchmarks.network",
     "soak": "servoface.controller.benchmarks.soak",
+    "faces": "servoface.controller.benchmarks.faces",
 }
-LONG_SUITES = frozenset({"soak"})  # run only when named (minutes of wall time)
+LONG_SUITES = frozenset({"soak", "faces"})  # run only when named (minutes of wall time; faces: optional weights)
 DEFAULT_SUITES = ("bus", "gate", "pipeline", "timeline")  # no suite named: the frame's path (pty: 2 min,
 # network: three nodes, scale: subdivided skins, speech, service, face: run when named or with `all`)
