@@ -130,7 +130,7 @@ class HeadService:
         self._stop_reason: str | None = None  # why the loop stopped ("end", "SIGINT", ...), set once
         self._stop_ease_s = EASE_S
         self._stop_max_ease_s = MAX_EASE_S
-        self._hurry = threading.Event()  # skip the easing of the stop (a second Ctrl-C): torque off now
+        self._hurry = threading.Event()  # a second Ctrl-C: straight to neutral at the caps, then torque off
         self._hurry_fn: Callable[[], bool] | None = None
         self.error: BaseException | None = None
         self.report: StopReport | None = None
