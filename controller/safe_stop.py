@@ -43,11 +43,17 @@ class StopReport:
     unreached: tuple[int, ...] = ()  # torque off not confirmed: may still be powered
     latched: tuple[int, ...] = ()  # latched off by the fault policy (needs Driver.clear_fault)
     missing: tuple[int, ...] = ()  # not answering at the end
+    error: str = ""  # what ended the run, when an error did (the head service's loop crash, a bus failure)
 
     @property
     def safe(self) -> bool:
         """Every servo confirmed torque off."""
         return not self.unreached
+
+    @property
+    def torque_off(self) -> bool:
+        """Same as ``safe``: torque-off confirmed on every servo."""
+        return self.safe
 
     @property
     def clean(self) -> bool:
@@ -149,11 +155,13 @@ def safe_stop(
     hurry: Callable[[], bool] = lambda: False,
     reason: str = "end",
     on_frame: Callable[[FrameTrace], None] | None = None,
+    error: str = "",
+    skip_note: str = "",
 ) -> StopReport:
     """Ease (bounded), torque off every servo (retried, carrying on), report. Never raises for bus trouble."""
     eased, spent, note = False, 0.0, "no pipeline"
     if driver is None:
-        return StopReport(reason, False, 0.0, "no bus")
+        return StopReport(reason, False, 0.0, "no bus", error=error)
     if pipeline is not None and ease:
         try:
             eased, spent, note = ease_to_neutral(
@@ -162,8 +170,8 @@ def safe_stop(
         except Exception as err:  # noqa: BLE001 - whatever broke, torque still goes off below
             eased, note = False, f"easing failed: {type(err).__name__}: {err}"
     elif not ease:
-        note = "not asked"
+        note = skip_note or "not asked"
     unreached = driver.close(torque_off=True)
     problems = driver.servo_problems()
     missing = tuple(i for i in problems["missing"] if i not in unreached)
-    return StopReport(reason, eased, spent, note, unreached, problems["latched"], missing)
+    return StopReport(reason, eased, spent, note, unreached, problems["latched"], missing, error)

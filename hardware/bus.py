@@ -45,6 +45,7 @@ class BusCounters:
     status_errors: int = 0
     alerts: int = 0
     bytes_written: int = 0
+    stray: int = 0  # status packets of another id skipped (late replies to an earlier instruction)
 
 
 @dataclass
@@ -57,6 +58,7 @@ class BusStats:
     status_errors: int = 0
     alerts: int = 0
     bytes_written: int = 0
+    stray: int = 0  # status packets of another id skipped (late replies to an earlier instruction)
 
     def copy(self) -> BusCounters:
         return BusCounters(**vars(self))

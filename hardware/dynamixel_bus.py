@@ -56,8 +56,12 @@ IN_PROCESS_LATENCY_MS = 2.0
 NAP_MIN_S = 0.0005  # a reply further away than this is slept for rather than polled
 NAP_MARGIN_S = 0.0002  # wake this much before it (wake-up latency)
 POLL_SLICE_S = 0.001  # a port with a file descriptor blocks in select() this long at most per empty read
+READ_AHEAD_BYTES = 4096  # one OS read takes up to this much of what has arrived (see readPort)
 PARSE_S_START = 50e-6  # per status packet, until measured
 MAX_WINDOW_EXTENSION_MS = 100.0
+MAX_STRAY_PACKETS = 8  # late status packets of other ids skipped before a Fast Sync Read's combined reply
+_PKT_ID = sdk.protocol2_packet_handler.PKT_ID
+_PKT_PARAMETER0 = sdk.protocol2_packet_handler.PKT_PARAMETER0
 
 
 class ChainLike(Protocol):
@@ -89,13 +93,25 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
         written: int = self.ser.write(packet)
         return written
 
+    _rx_ahead: bytes = b""  # bytes read from the port beyond what the SDK asked for, not yet handed over
+
     def readPort(self, length: int) -> bytes:  # noqa: N802 (SDK name)
-        """As the SDK's, but an empty read does not spin blindly: the SDK waits for replies in a busy loop.
-        Until the instruction has left and ``length`` bytes could have come back, sleep (frees the core);
-        after that, yield the GIL only when other threads run (an in-process pty server, the caller's own
-        threads: the busy loop would starve them for the 5 ms switch interval per turn). ``sleep(0)`` on
-        every empty read cost ~0.1 ms each on a loaded machine."""
-        data: bytes = self.ser.read(length)
+        """As the SDK's (up to ``length`` bytes of what has arrived), with two differences. Read ahead:
+        take everything that has arrived in one OS read and hand it over as the SDK asks (its ``rxPacket``
+        asks for a header, then the rest, per packet: two or more reads per status packet, ~10 us of
+        pyserial each); the bytes and their order are the same. And an empty read does not spin blindly
+        (the SDK waits for replies in a busy loop): until the instruction has left and ``length`` bytes
+        could have come back, sleep (frees the core); after that, yield the GIL only when other threads
+        run (an in-process pty server, the caller's own threads: the busy loop would starve them for the
+        5 ms switch interval per turn). ``sleep(0)`` on every empty read cost ~0.1 ms each under load."""
+        ahead = self._rx_ahead
+        if len(ahead) >= length:
+            self._rx_ahead = ahead[length:]
+            return ahead[:length]
+        got: bytes = self.ser.read(max(length - len(ahead), READ_AHEAD_BYTES))
+        data = ahead + got if ahead else got
+        self._rx_ahead = data[length:]
+        data = data[:length]
         if not data:
             wait_s = self.tx_done_s + length * self.tx_time_per_byte * 1e-3 - time.monotonic()
             if wait_s > NAP_MIN_S:
@@ -119,8 +135,22 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
 
     def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 (SDK name)
         self._fd = -2
+        self._rx_ahead = b""
         ok: bool = super().setupPort(cflag_baud)
         return ok
+
+    def clearPort(self) -> None:  # noqa: N802 (SDK name)
+        """As the SDK's (drop what has arrived), including what was read ahead."""
+        self._rx_ahead = b""
+        self.ser.reset_input_buffer()
+
+    def closePort(self) -> None:  # noqa: N802 (SDK name)
+        self._rx_ahead = b""
+        super().closePort()
+
+    def getBytesAvailable(self) -> int:  # noqa: N802 (SDK name)
+        """As the SDK's (bytes arrived and not yet read), including what was read ahead."""
+        return len(self._rx_ahead) + int(self.ser.in_waiting)
 
     def nap_until(self, t_s: float) -> None:
         """Sleep until ``t_s`` (time.monotonic) less a margin, if that is worth a sleep."""
@@ -157,6 +187,7 @@ class _ChainPort(_WindowedPort):
         if self.is_open:
             self.closePort()
         self._fd = None
+        self._rx_ahead = b""
         self.ser = self.chain.open_serial()
         if hasattr(self.ser, "baudrate"):
             self.ser.baudrate = self.baudrate
@@ -518,10 +549,7 @@ class DynamixelBus:
             port.nap_until(
                 port.tx_done_s + (8 + len(ids) * (length + 4)) * port.tx_time_per_byte * 1e-3 - 2 * self._parse_s
             )
-        raw, comm, _ = self._call(self._packet.fastSyncReadRx, port, sdk.BROADCAST_ID, (length + 4) * len(ids))
-        if comm != sdk.COMM_SUCCESS:
-            self._check(comm, 0, what, ids)
-        raw = bytes(raw)
+        raw = self._combined_reply((length + 4) * len(ids), what, ids)
         blocks: dict[int, tuple[bytes, int]] = {}
         wanted = set(ids)
         for k in range(len(ids)):
@@ -531,6 +559,23 @@ class DynamixelBus:
                 raise BusCorruptError(f"{what}: combined reply block {k} is malformed", ids)
             blocks[raw[at + 1]] = (raw[at + 2 : at + 2 + length], raw[at])
         return blocks
+
+    def _combined_reply(self, n_bytes: int, what: str, ids: list[int]) -> bytes:
+        """The parameters of the combined (broadcast-id) status packet, read as the SDK's ``fastSyncReadRx``
+        does (its ``rxPacket``). A status packet of another id first (a servo's late reply to an earlier
+        instruction) is skipped, as the SDK's ``readRx`` skips one in a plain Sync Read, within the same
+        reply window; ``fastSyncReadRx`` would return no data for it, on which the SDK's own
+        ``GroupSyncRead.fastSyncRead`` raises IndexError. What cannot be read is a typed bus error."""
+        rx_packet, port = self._packet.rxPacket, self._port
+        for _ in range(MAX_STRAY_PACKETS + 1):
+            packet, comm = self._call(rx_packet, port, True)
+            if comm != sdk.COMM_SUCCESS:
+                self._check(comm, 0, what, ids)
+            if len(packet) > _PKT_PARAMETER0 and packet[_PKT_ID] == sdk.BROADCAST_ID:
+                return bytes(packet[_PKT_PARAMETER0 : _PKT_PARAMETER0 + n_bytes])
+            self.stats.stray += 1
+        self.stats.corrupt += 1
+        raise BusCorruptError(f"{what}: only status packets of other ids came back, no combined reply", ids)
 
     def bulk_read(
         self, requests: Mapping[int, Sequence[Register]], *, fast: bool = False

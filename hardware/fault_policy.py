@@ -30,6 +30,7 @@ class FaultPolicy:
     reboot_window_s: float = 60.0
     reboot_backoff_s: float = 0.25  # a hardware-error reboot waits this, doubled per recent reboot of that servo
     # stopping and host death
+    configure_attempts: int = 3  # tries per servo at start-up when a reply is lost or garbled (writes are idempotent)
     torque_off_attempts: int = 3  # Torque Enable = 0 tries per servo when stopping (carrying on past failures)
     watchdog_s: float = 0.1  # Bus Watchdog armed while driving (20 ms units, 0.02..2.54 s); 0 = never armed
     # temperature
@@ -54,7 +55,14 @@ class FaultPolicy:
     telemetry_floor_share: float = 0.25
 
     def __post_init__(self) -> None:
-        for name in ("retries", "missing_after_failures", "max_reboots", "voltage_debounce", "torque_off_attempts"):
+        for name in (
+            "retries",
+            "configure_attempts",
+            "missing_after_failures",
+            "max_reboots",
+            "voltage_debounce",
+            "torque_off_attempts",
+        ):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < (1 if name != "retries" else 0):
                 raise ValueError(f"FaultPolicy.{name} = {value!r}: expected a positive int")

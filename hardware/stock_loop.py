@@ -58,7 +58,12 @@ class StockSdkLoop:
         self._write.clearParam()
         if comm != sdk.COMM_SUCCESS:
             raise BusError(f"stock SDK loop: sync write failed: {self.packet.getTxRxResult(comm)}")
-        if (self._read.fastSyncRead() if self.fast else self._read.txRxPacket()) != sdk.COMM_SUCCESS:
+        try:
+            comm = self._read.fastSyncRead() if self.fast else self._read.txRxPacket()
+        except IndexError:  # the SDK's fastSyncRead indexing the empty data of a late packet of another id
+            self.port.is_using = False
+            comm = sdk.COMM_RX_CORRUPT
+        if comm != sdk.COMM_SUCCESS:
             self.failures += 1
             return {}
         out = {}

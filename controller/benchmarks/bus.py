@@ -141,8 +141,9 @@ def run(quick: bool = False) -> Iterator[Figure]:
 def contenders(
     open_port: Callable[[], ServoBus], ids: list[int], fast: bool
 ) -> tuple[dict[str, Step], Driver, list[ServoBus]]:
-    """The three loops compared on one chain, each on its own port: the plain stock-SDK loop, servoface's
-    `ServoBus` sync write + sync read, and a full `Driver.cycle` (telemetry + fault policy)."""
+    """The three loops compared on one chain, each on the port ``open_port`` gives (its own in process; one
+    shared over a pty, whose lock admits one controller): the plain stock-SDK loop, servoface's `ServoBus`
+    sync write + sync read, and a full `Driver.cycle` (telemetry + fault policy). They take turns."""
     buses = [open_port() for _ in range(3)]
     stock = StockSdkLoop(buses[0], ids, fast=fast)
     specs = [ServoSpec(sid, "XL330-M288", return_delay_us=RETURN_DELAY_US) for sid in ids]
@@ -165,7 +166,7 @@ def contenders(
         "ServoBus sync write + sync read": bus_cycle,
         "Driver.cycle (telemetry + policy)": driver_cycle,
     }
-    return steps, driver, buses
+    return steps, driver, list({id(b): b for b in buses}.values())
 
 
 def _interleaved_figures(baud: int, fast: bool, rounds: int, window_s: float) -> Iterator[Figure]:
@@ -192,10 +193,9 @@ def _pty_figures(rounds: int, window_s: float) -> Iterator[Figure]:
         ids = list(range(1, N_SERVOS + 1))
         for sid in ids:
             setup.write(sid, Register.RETURN_DELAY_TIME, RETURN_DELAY_US // 2)
-        setup.close()
-        steps, driver, buses = contenders(
-            lambda: open_bus("dynamixel", port=emulator.path, baud=baud, warn_latency=False), ids, False
-        )
+        # one bus for the three: the port lock admits one controller per chain (a second open of the pty
+        # raises PortLockedError), and the contenders take turns anyway
+        steps, driver, buses = contenders(lambda: setup, ids, False)
         try:
             yield from _figures(steps, driver, buses, baud, False, rounds, window_s, ", over a pty")
         finally:

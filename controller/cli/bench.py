@@ -1,4 +1,5 @@
-"""`servoface bench [bus|face|gate|pipeline] [--json] [--quick]`: measured figures next to their limits."""
+"""`servoface bench [SUITE ...|all] [--json] [--quick]`: measured figures next to their limits (default: the
+quick set `DEFAULT_SUITES`; ``all``: every suite but the long ones)."""
 
 from __future__ import annotations
 
@@ -10,10 +11,14 @@ HELP = "run benchmarks and print figures (one JSON object per line with --json)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from servoface.controller.benchmarks import SUITES
+    from servoface.controller.benchmarks import DEFAULT_SUITES, LONG_SUITES, SUITES
 
     parser.add_argument(
-        "suites", nargs="*", metavar="SUITE", help=f"which suites to run ({', '.join(SUITES)}); default all"
+        "suites",
+        nargs="*",
+        metavar="SUITE",
+        help=f"which suites to run ({', '.join(SUITES)}, or all: every one but {', '.join(sorted(LONG_SUITES))}); "
+        f"default {' '.join(DEFAULT_SUITES)}",
     )
     parser.add_argument("--json", action="store_true", help="one JSON object per figure per line")
     parser.add_argument("--quick", action="store_true", help="fewer repetitions (smoke run)")
@@ -21,10 +26,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from servoface.controller.benchmarks import LONG_SUITES, SUITES
+    from servoface.controller.benchmarks import SUITES
     from servoface.controller.benchmarks.figure import SuiteUnavailable, machine_description
 
-    names = args.suites or [n for n in SUITES if n not in LONG_SUITES]
+    names = suite_names(args.suites)
     unknown = [n for n in names if n not in SUITES]
     if unknown:
         print(f"servoface bench: unknown suite(s) {unknown}; expected some of {list(SUITES)}", file=sys.stderr)
@@ -56,6 +61,18 @@ def run(args: argparse.Namespace) -> int:
             print(f"servoface bench: suite '{name}' cannot run here: {err}", file=sys.stderr)
             status = 1
     return status
+
+
+def suite_names(requested: list[str]) -> list[str]:
+    """The suites to run: ``DEFAULT_SUITES`` when none is named; ``all`` is every suite but the long ones
+    (a long one named beside it still runs)."""
+    from servoface.controller.benchmarks import DEFAULT_SUITES, LONG_SUITES, SUITES
+
+    names = list(requested or DEFAULT_SUITES)
+    if "all" in names:
+        everything = [n for n in SUITES if n not in LONG_SUITES]
+        names = everything + [n for n in names if n != "all" and n not in everything]
+    return names
 
 
 def _takes_minutes(module: object) -> bool:

@@ -42,6 +42,7 @@ class Fault:
     end_s: float = math.inf
     delay_s: float = 0.0  # late_reply: extra delay before the status packet
     drop_bytes: int = 3  # dropped_bytes: how many bytes vanish from the middle of each reply
+    replies: int | None = None  # a reply fault: spoil only this many status packets, then end
 
     def active(self, t_s: float) -> bool:
         return self.start_s <= t_s < self.end_s
@@ -89,8 +90,10 @@ class FaultSchedule:
         duration_s: float | None = None,
         delay_s: float = 0.010,
         drop_bytes: int = 3,
+        replies: int | None = None,
     ) -> Fault:
-        """Schedule ``kind`` on ``servo_id`` from ``start_s`` for ``duration_s`` (None = forever)."""
+        """Schedule ``kind`` on ``servo_id`` from ``start_s`` for ``duration_s`` (None = forever); a reply fault
+        with ``replies=N`` spoils only the next N status packets of that servo (one lost reply, exactly)."""
         if kind not in KINDS:
             raise EmulatorConfigError(f"fault kind {kind!r}: expected one of {sorted(KINDS)}")
         if servo_id not in self._known_ids():
@@ -101,9 +104,13 @@ class FaultSchedule:
             raise EmulatorConfigError(f"fault duration_s {duration_s}: expected >= 0")
         if delay_s < 0 or drop_bytes < 0:
             raise EmulatorConfigError(f"fault delay_s {delay_s} / drop_bytes {drop_bytes}: expected >= 0")
+        if replies is not None and (kind not in REPLY_KINDS or int(replies) < 1):
+            raise EmulatorConfigError(f"fault replies {replies}: expected >= 1, on a reply fault {sorted(REPLY_KINDS)}")
         start = self._clock() if start_s is None else float(start_s)
         end = math.inf if duration_s is None else start + float(duration_s)
-        fault = Fault(servo_id, kind, start, end, float(delay_s), int(drop_bytes))
+        fault = Fault(
+            servo_id, kind, start, end, float(delay_s), int(drop_bytes), None if replies is None else int(replies)
+        )
         self._faults.setdefault(servo_id, []).append(fault)
         self.any = True
         return fault
@@ -152,6 +159,10 @@ class FaultSchedule:
         for f in faults:
             if not f.active(t_s):
                 continue
+            if f.replies is not None:  # counted: this packet is one of them; the last one ends the fault
+                f.replies -= 1
+                if f.replies <= 0:
+                    f.end_s = t_s
             if f.kind in ("no_reply", "disconnect"):
                 silent = True
             elif f.kind == "late_reply":

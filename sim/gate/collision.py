@@ -14,6 +14,7 @@ from servoface.sim.gate.errors import GateConfigError
 from servoface.sim.gate.exact import ExactCollider, eroded
 from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.proofs import concentric_separation
+from servoface.sim.gate.spheres import SphereSet
 from servoface.sim.gate.tss_build import BuiltPair, TssParams, build_or_load, relative_joints
 from servoface.sim.gate.tss_runtime import TssBroadPhase
 
@@ -73,6 +74,7 @@ class PartCollisions:
         self.part_joint = {name: p.joint for name, p in parts.items()}
         meshes: dict[str, Any] = {}
         built: list[BuiltPair] = []
+        covers: dict[int, tuple[Any, SphereSet]] = {}
         self.specs: list[PairSpec] = []
         self.skipped: list[tuple[PairSpec, str]] = []
         rest = np.broadcast_to(np.eye(4), (len(tree.names), 4, 4))
@@ -102,6 +104,7 @@ class PartCollisions:
                     spec.tolerance_mm,
                     params,
                     cache_dir,
+                    covers,
                 )
             )
         self.exact = ExactCollider(meshes)

@@ -28,6 +28,7 @@ from servoface.sim.gate.spheres import SphereSet, cover_spheres
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 TSS_VERSION = "tss-1"
+_FILTER_SLACK_MM = 1e-6  # pre-filters keep a candidate this far beyond their bound (float rounding)
 
 
 @dataclass(frozen=True)
@@ -166,17 +167,11 @@ def build_pair(
     jb = -1 if part_b.joint is None else tree.index[part_b.joint]
     coarse = margin > params.max_margin_mm
     n_grid = int(np.prod(counts)) if rel else 1
-    if coarse:
-        hit = _sweep(
-            tree,
-            _grid_angles(tree, rel, lo, hi, counts),
-            ja,
-            jb,
-            spheres_a,
-            spheres_b,
-            margin + tolerance_mm,
-            params.chunk_elements,
-            balls_only=True,
+    ia = ib = np.zeros(0, dtype=np.int64)
+    exact_only = False
+    if coarse:  # no table either way: exact test every frame if the parts' bounding balls ever meet
+        exact_only = _balls_meet(
+            tree, _grid_angles(tree, rel, lo, hi, counts), ja, jb, spheres_a, spheres_b, margin + tolerance_mm
         )
     else:
         # coarse to fine: a sweep at a quarter of the resolution (its larger margin keeps it conservative)
@@ -198,7 +193,6 @@ def build_pair(
                 params.chunk_elements,
             )
             cand_a, cand_b = np.asarray(c_hit.any(axis=1)), np.asarray(c_hit.any(axis=0))
-        hit = np.zeros((spheres_a.n, spheres_b.n), dtype=bool)
         if cand_a.any() and cand_b.any():
             ia_c, ib_c = np.flatnonzero(cand_a), np.flatnonzero(cand_b)
             sub = _sweep(
@@ -211,12 +205,8 @@ def build_pair(
                 margin + tolerance_mm,
                 params.chunk_elements,
             )
-            si, sj = np.nonzero(sub)
-            hit[ia_c[si], ib_c[sj]] = True
-    ia, ib = np.nonzero(hit)
-    exact_only = bool(coarse and hit.any())
-    if exact_only:
-        ia, ib = ia[:0], ib[:0]
+            si, sj = np.nonzero(sub)  # row-major, as np.nonzero of the full (n_a, n_b) matrix would be
+            ia, ib = ia_c[si], ib_c[sj]
     return PairTable(
         part_a.name,
         part_b.name,
@@ -257,7 +247,6 @@ def _sweep(
     sb: SphereSet,
     pad_mm: float,
     chunk: int,
-    balls_only: bool = False,
 ) -> NDArray[np.bool_]:
     """(n_a, n_b) True where spheres i of a and j of b come within r_i + r_j + pad at some grid node.
 
@@ -267,39 +256,100 @@ def _sweep(
     from scipy.spatial import cKDTree
 
     hit = np.zeros((sa.n, sb.n), dtype=bool)
-    cb_ball = (sb.centres_mm.min(axis=0) + sb.centres_mm.max(axis=0)) / 2.0
-    rb_ball = float(np.max(np.linalg.norm(sb.centres_mm - cb_ball, axis=1) + sb.radii_mm))
-    ca_ball = (sa.centres_mm.min(axis=0) + sa.centres_mm.max(axis=0)) / 2.0
-    ra_ball = float(np.max(np.linalg.norm(sa.centres_mm - ca_ball, axis=1) + sa.radii_mm))
     kd = cKDTree(sb.centres_mm)
     ha = np.c_[sa.centres_mm, np.ones(sa.n)]
     rmax_b = float(sb.radii_mm.max())
+    cb_ball, rb_ball = _bounding_ball(sb)
     per_chunk = max(1, chunk // max(sa.n, 1))
     for start in range(0, angles.shape[0], per_chunk):
-        world = tree.world(angles[start : start + per_chunk])
-        g = world.shape[0]
-        ta = world[:, ja] if ja >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))
-        tb = world[:, jb] if jb >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))
-        rel = np.linalg.inv(tb) @ ta  # a's rest frame -> b's rest frame
-        ball = np.einsum("gij,j->gi", rel, np.r_[ca_ball, 1.0])[:, :3]
-        near = np.linalg.norm(ball - cb_ball, axis=1) <= ra_ball + rb_ball + pad_mm
+        rel, near = _near_nodes(tree, angles[start : start + per_chunk], ja, jb, sa, sb, pad_mm)
         if not near.any():
             continue
-        if balls_only:  # the parts' bounding balls meet somewhere: that is all the caller asks
-            hit[:] = True
-            return hit
         pts = np.einsum("gij,nj->gni", rel[near], ha)[..., :3].reshape(-1, 3)
         idx_a = np.tile(np.arange(sa.n), int(near.sum()))
-        cand = kd.query_ball_point(pts, r=sa.radii_mm[idx_a] + rmax_b + pad_mm, return_sorted=False)
-        lens = np.fromiter((len(c) for c in cand), dtype=np.int64, count=len(cand))
-        if lens.sum() == 0:
+        if sa.n > 2 * sb.n:  # fewer queries from b's side: candidates found in a's frame
+            rows, cols = _candidates_from_b(rel[near], sa, sb, pad_mm)
+        else:
+            rows, cols = _candidates_from_a(pts, idx_a, kd, sa, sb, cb_ball, rb_ball, rmax_b, pad_mm)
+        if rows.size == 0:
             continue
-        rows = np.repeat(np.arange(len(cand)), lens)
-        cols = np.fromiter((j for c in cand for j in c), dtype=np.int64, count=int(lens.sum()))
         d = np.linalg.norm(pts[rows] - sb.centres_mm[cols], axis=1)
         ok = d <= sa.radii_mm[idx_a[rows]] + sb.radii_mm[cols] + pad_mm
         hit[idx_a[rows[ok]], cols[ok]] = True
     return hit
+
+
+def _bounding_ball(spheres: SphereSet) -> tuple[FloatArray, float]:
+    centre = (spheres.centres_mm.min(axis=0) + spheres.centres_mm.max(axis=0)) / 2.0
+    return centre, float(np.max(np.linalg.norm(spheres.centres_mm - centre, axis=1) + spheres.radii_mm))
+
+
+def _near_nodes(
+    tree: JointTree, angles: FloatArray, ja: int, jb: int, sa: SphereSet, sb: SphereSet, pad_mm: float
+) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """(G, 4, 4) a's rest frame -> b's rest frame at each grid node, and (G,) where the two parts'
+    bounding balls come within ``pad_mm``."""
+    ca_ball, ra_ball = _bounding_ball(sa)
+    cb_ball, rb_ball = _bounding_ball(sb)
+    world = tree.world(angles)
+    g = world.shape[0]
+    ta = world[:, ja] if ja >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))
+    tb = world[:, jb] if jb >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))
+    rel = np.linalg.inv(tb) @ ta
+    ball = np.einsum("gij,j->gi", rel, np.r_[ca_ball, 1.0])[:, :3]
+    return rel, np.linalg.norm(ball - cb_ball, axis=1) <= ra_ball + rb_ball + pad_mm
+
+
+def _balls_meet(
+    tree: JointTree, angles: FloatArray, ja: int, jb: int, sa: SphereSet, sb: SphereSet, pad_mm: float
+) -> bool:
+    """Whether the two parts' bounding balls come within ``pad_mm`` at some grid node."""
+    per_chunk = 1024  # most pairs that meet do so early in the grid: stop at the first chunk that does
+    return any(
+        bool(_near_nodes(tree, angles[s : s + per_chunk], ja, jb, sa, sb, pad_mm)[1].any())
+        for s in range(0, angles.shape[0], per_chunk)
+    )
+
+
+def _flat(cand: Any) -> tuple[IntArray, IntArray]:
+    """(query index, found index) pairs of a ``query_ball_point`` answer (an object array of lists)."""
+    lens = np.fromiter(map(len, cand), dtype=np.int64, count=len(cand))
+    found = np.fromiter(itertools.chain.from_iterable(cand), dtype=np.int64, count=int(lens.sum()))
+    return np.repeat(np.arange(len(cand)), lens), found
+
+
+def _candidates_from_a(
+    pts: FloatArray,
+    idx_a: IntArray,
+    kd: Any,
+    sa: SphereSet,
+    sb: SphereSet,
+    cb_ball: FloatArray,
+    rb_ball: float,
+    rmax_b: float,
+    pad_mm: float,
+) -> tuple[IntArray, IntArray]:
+    """Candidate (row of ``pts``, sphere of b) pairs: a's moved centres queried in b's k-d tree, only those
+    that reach b's bounding ball (a sphere of a that cannot reach it cannot reach any sphere of b)."""
+    reach = np.linalg.norm(pts - cb_ball, axis=1) <= sa.radii_mm[idx_a] + rb_ball + pad_mm + _FILTER_SLACK_MM
+    kept = np.flatnonzero(reach)
+    cand = kd.query_ball_point(pts[kept], r=sa.radii_mm[idx_a[kept]] + rmax_b + pad_mm, return_sorted=False)
+    rows, cols = _flat(cand)
+    return kept[rows], cols
+
+
+def _candidates_from_b(rel: FloatArray, sa: SphereSet, sb: SphereSet, pad_mm: float) -> tuple[IntArray, IntArray]:
+    """The same candidates found from b's side (a part much larger than the other): b's centres moved into
+    a's rest frame at each node, queried in a's k-d tree; rows index the (node, sphere of a) points."""
+    from scipy.spatial import cKDTree
+
+    kd_a = cKDTree(sa.centres_mm)
+    q = np.einsum("gij,nj->gni", np.linalg.inv(rel), np.c_[sb.centres_mm, np.ones(sb.n)])[..., :3].reshape(-1, 3)
+    idx_b = np.tile(np.arange(sb.n), rel.shape[0])
+    r = sb.radii_mm[idx_b] + float(sa.radii_mm.max()) + pad_mm + _FILTER_SLACK_MM
+    found_q, found_a = _flat(kd_a.query_ball_point(q, r=r, return_sorted=False))
+    node = found_q // sb.n
+    return node * sa.n + found_a, idx_b[found_q]
 
 
 @dataclass(frozen=True)
@@ -320,8 +370,12 @@ def build_or_load(
     tolerance_mm: float,
     params: TssParams,
     cache_dir: Path | None,
+    covers: dict[int, tuple[Any, SphereSet]] | None = None,
 ) -> BuiltPair:
-    """The pair's table from the cache when its key matches, else built (and cached when a dir is given)."""
+    """The pair's table from the cache when its key matches, else built (and cached when a dir is given).
+
+    ``covers``: spheres already computed for a mesh object (by ``id``, the mesh held beside them), shared
+    by the pairs of one build: a part in many pairs is covered once (`cover_spheres` is deterministic)."""
     key = pair_key(tree, part_a, part_b, mesh_a, mesh_b, tolerance_mm, params)
     from servoface.sim.gate.tss_cache import load_table, save_table
 
@@ -330,12 +384,21 @@ def build_or_load(
         got = load_table(path, key)
         if got is not None:
             return BuiltPair(got[0], got[1], got[2], True)
-    sa = cover_spheres(mesh_a, params.spheres_per_part, max_cell_mm=params.max_cell_mm)
-    sb = cover_spheres(mesh_b, params.spheres_per_part, max_cell_mm=params.max_cell_mm)
+    sa = _covered(mesh_a, params, covers)
+    sb = _covered(mesh_b, params, covers)
     table = build_pair(tree, part_a, part_b, sa, sb, tolerance_mm, params, key)
     if path is not None:
         save_table(path, table, sa, sb)
     return BuiltPair(table, sa, sb, False)
+
+
+def _covered(mesh: Any, params: TssParams, covers: dict[int, tuple[Any, SphereSet]] | None) -> SphereSet:
+    if covers is not None and id(mesh) in covers and covers[id(mesh)][0] is mesh:
+        return covers[id(mesh)][1]
+    spheres = cover_spheres(mesh, params.spheres_per_part, max_cell_mm=params.max_cell_mm)
+    if covers is not None:
+        covers[id(mesh)] = (mesh, spheres)
+    return spheres
 
 
 def summed_reduction(tables: Sequence[PairTable]) -> float:

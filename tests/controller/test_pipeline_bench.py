@@ -22,3 +22,13 @@ def test_bench_pipeline_prints_figures_against_the_wire_limit(capsys: pytest.Cap
     assert set(stages) == {"muscle", "calibration", "gate", "bus", "total"}
     assert all(stages[s]["value"] < stages["total"]["value"] for s in ("muscle", "calibration", "gate", "bus"))
     assert stages["gate"]["limit"] == 1.0 and stages["bus"]["limit"] == pytest.approx(1e3 / fps["limit"])
+
+
+def test_bench_with_no_suite_runs_the_quick_default_set_and_all_runs_every_short_suite() -> None:
+    from servoface.controller.benchmarks import DEFAULT_SUITES, LONG_SUITES, SUITES
+    from servoface.controller.cli.bench import suite_names
+
+    assert suite_names([]) == list(DEFAULT_SUITES)
+    assert set(DEFAULT_SUITES) <= set(SUITES) and not {"pty", "network", "soak"} & set(DEFAULT_SUITES)
+    assert suite_names(["all"]) == [n for n in SUITES if n not in LONG_SUITES]
+    assert suite_names(["all", "soak"])[-1] == "soak" and suite_names(["gate"]) == ["gate"]

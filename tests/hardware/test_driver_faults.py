@@ -6,6 +6,7 @@ Every test also audits the wire: no Goal Position outside a servo's configured l
 from __future__ import annotations
 
 import pytest
+from servoface.hardware.fault_policy import FaultPolicy
 from servoface.hardware.registers import Register
 from servoface.hardware.snapshot import FaultKind
 
@@ -278,3 +279,33 @@ def test_alert_bit_on_a_single_transaction_triggers_an_immediate_status_read() -
     snap = driver.cycle(GOALS)
     assert FaultKind.OVERLOAD in snap[1].faults and any(e.kind is FaultKind.OVERLOAD for e in snap.events)
     assert not driver.bus.alerts
+
+
+@pytest.mark.parametrize("kind", ["no_reply", "corrupt_crc", "dropped_bytes"])
+def test_a_reply_lost_during_configure_is_retried_not_fatal(kind: str) -> None:
+    from servoface.hardware.bus import open_bus
+    from servoface.hardware.driver import Driver
+    from servoface.hardware.emulator import ServoChain
+    from servoface.hardware.errors import BusError
+    from servoface.hardware.servo_config import ServoSpec
+
+    def chain_and_specs() -> tuple[ServoChain, list[ServoSpec]]:
+        chain = ServoChain.create(ids=[1, 2, 3], model="XL330-M288", wire_time=False, clock="manual")
+        specs = [ServoSpec(i, "XL330-M288", min_position_tick=1000, max_position_tick=3000) for i in (1, 2, 3)]
+        return chain, specs
+
+    chain, specs = chain_and_specs()
+    chain.faults.inject(2, kind, replies=2)  # exactly two of servo 2's replies are lost or garbled
+    driver = Driver(open_bus("emulator", chain=chain), specs, clock=chain.clock)
+    reports = driver.configure()
+    assert sorted(reports) == [1, 2, 3] and reports[2].limits[Register.MAX_POSITION_LIMIT] == 3000
+    assert chain.servo(2).read_register("MAX_POSITION_LIMIT") == 3000
+    assert not events_of(driver, FaultKind.MISSING)
+
+    chain, specs = chain_and_specs()  # with one attempt only (the old behaviour), the same loss is fatal
+    chain.faults.inject(2, kind, replies=1)
+    strict = Driver(
+        open_bus("emulator", chain=chain), specs, policy=FaultPolicy(configure_attempts=1), clock=chain.clock
+    )
+    with pytest.raises(BusError):
+        strict.configure()

@@ -1,0 +1,95 @@
+"""The TSS build's sweep (pre-filtered k-d queries from either side, early-exit bounding-ball test, shared
+sphere covers) gives exactly the tables of the straightforward all-pairs sweep on the same grid."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from servoface.sim.gate.collision import PartCollisions, auto_pairs
+from servoface.sim.gate.demo_rig import demo_head
+from servoface.sim.gate.fk import JointTree
+from servoface.sim.gate.spheres import SphereSet, cover_spheres
+from servoface.sim.gate.tss_build import (
+    TssParams,
+    _balls_meet,
+    _bounding_ball,
+    _grid_angles,
+    _sweep,
+    build_or_load,
+    relative_joints,
+)
+
+
+def _all_pairs_sweep(
+    tree: JointTree, angles: np.ndarray, ja: int, jb: int, sa: SphereSet, sb: SphereSet, pad_mm: float
+) -> np.ndarray:
+    """Every sphere pair at every grid node (a's centres moved into b's rest frame, as the build does)."""
+    world = tree.world(angles)
+    g = world.shape[0]
+    ta = world[:, ja] if ja >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))
+    tb = world[:, jb] if jb >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))
+    rel = np.linalg.inv(tb) @ ta
+    pts = np.einsum("gij,nj->gni", rel, np.c_[sa.centres_mm, np.ones(sa.n)])[..., :3]
+    hit = np.zeros((sa.n, sb.n), dtype=bool)
+    for k in range(g):
+        d = np.linalg.norm(pts[k][:, None, :] - sb.centres_mm[None, :, :], axis=-1)
+        hit |= d <= sa.radii_mm[:, None] + sb.radii_mm[None, :] + pad_mm
+    return hit
+
+
+def _pairs() -> list[tuple[JointTree, int, int, SphereSet, SphereSet, np.ndarray]]:
+    head = demo_head()
+    tree = JointTree(head.joints)
+    parts = {p.name: p for p in head.parts}
+    covers = {n: cover_spheres(p.mesh, 90) for n, p in parts.items()}
+    out = []
+    for a, b in [(x, y) for x in parts for y in parts if x != y]:
+        rel = relative_joints(tree, parts[a].joint, parts[b].joint)
+        if not rel:
+            continue
+        lo, hi = tree.lower_deg[rel], tree.upper_deg[rel]
+        angles = _grid_angles(tree, rel, lo, hi, np.full(len(rel), 7, dtype=np.int64))
+        ja = -1 if parts[a].joint is None else tree.index[parts[a].joint]
+        jb = -1 if parts[b].joint is None else tree.index[parts[b].joint]
+        out.append((tree, ja, jb, covers[a], covers[b], angles))
+    return out
+
+
+@pytest.mark.parametrize("pad_mm", [0.0, 0.8, 4.0])
+def test_sweep_equals_the_all_pairs_sweep(pad_mm: float) -> None:
+    both_sides = set()
+    for tree, ja, jb, sa, sb, angles in _pairs():
+        for a_spheres, b_spheres in ((sa, sb), (_halved(sa), sb), (sa, _halved(sb))):
+            both_sides.add(a_spheres.n > 2 * b_spheres.n)
+            expected = _all_pairs_sweep(tree, angles, ja, jb, a_spheres, b_spheres, pad_mm)
+            got = _sweep(tree, angles, ja, jb, a_spheres, b_spheres, pad_mm, chunk=5000)
+            assert np.array_equal(got, expected)
+            ca, ra = _bounding_ball(a_spheres)
+            cb, rb = _bounding_ball(b_spheres)
+            world = tree.world(angles)
+            ta = world[:, ja] if ja >= 0 else np.broadcast_to(np.eye(4), world[:, 0].shape)
+            tb = world[:, jb] if jb >= 0 else np.broadcast_to(np.eye(4), world[:, 0].shape)
+            ball = np.einsum("gij,j->gi", np.linalg.inv(tb) @ ta, np.r_[ca, 1.0])[:, :3]
+            meet = bool(np.any(np.linalg.norm(ball - cb, axis=1) <= ra + rb + pad_mm))
+            assert _balls_meet(tree, angles, ja, jb, a_spheres, b_spheres, pad_mm) == meet
+    assert both_sides == {True, False}, "both query directions must be exercised"
+
+
+def _halved(spheres: SphereSet) -> SphereSet:
+    keep = np.arange(0, spheres.n, 5)
+    return SphereSet(spheres.centres_mm[keep], spheres.radii_mm[keep])
+
+
+def test_shared_covers_give_the_tables_of_separate_covers(tmp_path: object) -> None:
+    head = demo_head()
+    tree = JointTree(head.joints)
+    shared = PartCollisions(head, tree, auto_pairs(head, tree), TssParams(), None)
+    parts = {p.name: p for p in head.parts}
+    for spec, built in zip(shared.specs, shared.built, strict=True):
+        alone = build_or_load(
+            tree, head.name, parts[spec.a], parts[spec.b], parts[spec.a].mesh, parts[spec.b].mesh,
+            spec.tolerance_mm, TssParams(), None,
+        )  # fmt: skip
+        assert np.array_equal(alone.table.ia, built.table.ia) and np.array_equal(alone.table.ib, built.table.ib)
+        assert alone.table.exact_only == built.table.exact_only
+        assert np.array_equal(alone.spheres_a.centres_mm, built.spheres_a.centres_mm)
