@@ -24,6 +24,7 @@ SUITES: dict[str, str] = {
     "speech": "servoface.controller.benchmarks.speech",
     "network": "servoface.controller.benchmarks.network",
     "soak": "servoface.controller.benchmarks.soak",
+    "studio": "servoface.controller.benchmarks.studio",
     "faces": "servoface.controller.benchmarks.faces",
 }
 LONG_SUITES = frozenset({"soak", "faces"})  # run only when named (minutes of wall time; faces: optional weights)
