@@ -84,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
         previous = {s: signal.signal(s, interrupt) for s in (signal.SIGTERM, signal.SIGHUP)}
     server = None
     code = 0
+    reason = "end"
     try:
         server = StudioServer(
             service, host=args.host, port=args.port_http, allow_remote=args.allow_remote, options=options,
@@ -95,18 +96,19 @@ def run(args: argparse.Namespace) -> int:
         print(f"open {server.url}", flush=True)
         print("Ctrl-C to stop (the head eases to neutral, torque off)", flush=True)
         server.wait()
-    except KeyboardInterrupt:
-        pass
+    except KeyboardInterrupt as err:
+        reason = str(err) or "SIGINT"
     except (StudioError, OSError) as err:
         print(f"servoface studio: {err}", file=sys.stderr)
         code = 2
     finally:
         if server is not None:
             server.stop()
-        report = service.shutdown()
+        report = service.shutdown(reason=reason)
         if opened.chain is not None:
             opened.chain.close()
         for s, handler in previous.items():
             signal.signal(s, handler)
-    print(f"stopped: eased {report.eased}, torque off {report.torque_off}", flush=True)
+    for line in report.lines():
+        print(line, flush=True)
     return code if report.torque_off else 3

@@ -393,3 +393,10 @@ def test_twin_renders_at_640x480_over_http_and_the_websocket(studio_render: Stud
                 assert Image.open(io.BytesIO(message[5:])).size == (640, 480)
     preview = rig.client.post("/api/scripts/preview", json={"document": SMILE, "t_s": 0.6})
     assert preview.status_code == 200 and Image.open(io.BytesIO(preview.content)).size == (640, 480)
+
+
+def test_cli_refuses_a_non_loopback_host_without_allow_remote(capsys: pytest.CaptureFixture[str]) -> None:
+    from servoface.controller.cli import main
+
+    assert main(["studio", "--head", "human", "--emulate", "--host", "0.0.0.0"]) == 2
+    assert "--allow-remote" in capsys.readouterr().err

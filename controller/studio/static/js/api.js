@@ -44,7 +44,7 @@ export class Live {
     this.ws = null;
     this.nextId = 1;
     this.waiting = new Map();
-    this.subscription = { twin: true, target: false, telemetry: true, frames: true };
+    this.subscription = { twin: false, target: false, telemetry: true, frames: true }; // Live turns the twin on
     this.retryMs = 500;
   }
 

@@ -124,7 +124,7 @@ function resultCard(state) {
     ),
     r.warnings.length ? h("ul.reasons", {}, r.warnings.map((w) => h("li", {}, w))) : null,
     h("div.plots", {}, r.plots.map((role) => h("img.plot", { src: `/api/calibrate/plot/${encodeURIComponent(role)}.png`, alt: `${role} curve` }))),
-    h("div.form-row", {}, h("button.btn", { onclick: () => render({ active: false }) }, "Calibrate again")),
+    h("div.form-row", {}, h("button.btn", { onclick: () => ((shownKey = ""), render({ active: false })) }, "Calibrate again")),
   );
 }
 
@@ -145,7 +145,21 @@ function helpCard() {
   );
 }
 
+let shownKey = "", curveArgs = null;
+
 function render(state) {
+  // The server pushes the present tick every 0.25 s: then only it changes (inputs keep what is typed).
+  const p = state.prompt;
+  const key = JSON.stringify([state.active, state.done, state.error, p && [p.role, p.step, p.target, p.suggested_tick], (state.captured || []).length, (state.messages || []).length]);
+  if (key === shownKey && p && curveArgs) {
+    cal = state;
+    const present = root.querySelector("#cal-present");
+    if (present) present.textContent = fmt(p.present_tick);
+    const canvas = root.querySelector("#cal-curve-canvas");
+    if (canvas) drawCurve(canvas, { ...curveArgs, present: p.present_tick });
+    return;
+  }
+  shownKey = key;
   cal = state;
   const active = state.active && state.prompt;
   const left = h("div.col");
@@ -165,15 +179,8 @@ function render(state) {
     right.prepend(h("div.card", {}, h("div.card-head", {}, h("h3", {}, "Twin at the target"), h("span.muted", {}, p.target == null ? "" : `${p.role} at ${fmt(p.target)} ${p.unit}`)), h("figure.twin-fig", {}, img)));
     left.insertBefore(h("div.card", {}, h("div.card-head", {}, h("h3", {}, "Curve"), h("span.muted", {}, `${p.role}: captured points, target → tick; dashed: where it is now`)), canvas), left.children[state.error ? 2 : 1] || null);
     const captured = (state.captured || []).filter((c) => c.role === p.role);
-    requestAnimationFrame(() =>
-      drawCurve(canvas, {
-        unit: p.unit,
-        points: captured,
-        present: p.present_tick,
-        target: p.target,
-        range: servo ? [servo.lower, servo.upper] : null,
-      }),
-    );
+    curveArgs = { unit: p.unit, points: captured, target: p.target, range: servo ? [servo.lower, servo.upper] : null };
+    requestAnimationFrame(() => drawCurve(canvas, { ...curveArgs, present: p.present_tick }));
   }
   clear(root, h("div.cal-grid", {}, left, right));
   root.dataset.step = active ? state.prompt.step : state.done ? "done" : "idle";

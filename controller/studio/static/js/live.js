@@ -155,9 +155,10 @@ export function mount(el, c) {
 
 export function show() {
   visible = true;
-  ctx.live.subscribe({ twin: true, frames: true });
+  ctx.live.subscribe({ twin: true, target: document.getElementById("show-target").checked, frames: true });
 }
 
 export function hide() {
   visible = false;
+  ctx.live.subscribe({ twin: false, target: false }); // no renders for a page nobody looks at
 }
