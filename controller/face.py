@@ -404,9 +404,10 @@ class Face:
         reason: str = "end",
     ) -> StopReport | None:
         """The one stop path (`servoface.controller.safe_stop`): ease to neutral through the gate (at most
-        ``max_ease_s``; not at all when ``ease_s`` is 0, or once ``hurry()`` — or a second stop signal —
-        turns true), torque off on every servo (retried, carrying on), Bus Watchdog disarmed, port (and
-        emulator) closed. With a head service running, its shutdown does it on the loop thread.
+        ``max_ease_s``; not at all when ``ease_s`` is 0; once ``hurry()`` — or a second stop signal —
+        turns true, straight to neutral at the gate's caps), torque off on every servo (retried, carrying
+        on), Bus Watchdog disarmed, port (and emulator) closed. With a head service running, its shutdown
+        does it on the loop thread.
 
         Returns the `StopReport` (also kept as ``face.stop_report``; None offline): ``report.unreached``
         names servos whose torque-off was not confirmed. Safe to call twice (the second call returns the

@@ -36,7 +36,9 @@ from servoface.hardware.servo_config import ConfigReport, ServoSpec, check_specs
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind
 
-CONFIGURE_QUIET_S = (0.05, 0.15, 0.3)  # after a failed configure attempt, wait this long for quiet (per try)
+CONFIGURE_QUIET_S = (0.2, 0.8)  # after a failed configure try, wait this long for quiet (a starved far end, a
+# late reply): 3 tries span over a second, so a busy host or emulator does not fail an open; a servo really
+# missing costs that second once, at start-up
 TORQUE_OFF_QUIET_S = (0.03, 0.12, 0.3)  # after a failed torque-off, wait this long for quiet (per pass)
 
 
@@ -141,7 +143,7 @@ class Driver(ChainReads):
 
         A servo's sequence (ping, reads, writes, read-back; every step idempotent) that fails on a timeout or
         a corrupt reply is tried again, up to `FaultPolicy.configure_attempts` times, after the line has been
-        quiet for 50 / 150 / 300 ms (a late reply must pass first, never be taken for the next answer); each
+        quiet for 0.2 / 0.8 s (a late reply must pass first, never be taken for the next answer); each
         retry is counted in ``configure_retries``. A servo that still does not answer raises `BusTimeoutError`
         / `BusCorruptError` — or, with ``allow_missing``, is marked missing (event ``MISSING``) and configured
         when it first answers a re-probe ping. A wrong model or a value that does not read back is never

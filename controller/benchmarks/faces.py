@@ -20,7 +20,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-
 from servoface.controller.benchmarks.figure import Figure
 
 EMOTIONS = {
@@ -47,13 +46,15 @@ def project_px(setup: Any, points_mm: NDArray[np.float64], size_px: tuple[int, i
     return np.stack([(x + 1.0) / 2.0 * width, (1.0 - y) / 2.0 * height], axis=1)
 
 
-def face_boxes(setup: Any, eyes_mm: NDArray[np.float64], chin_mm: NDArray[np.float64]) -> dict[str, tuple[int, int, int, int]]:
+def face_boxes(
+    setup: Any, eyes_mm: NDArray[np.float64], chin_mm: NDArray[np.float64]
+) -> dict[str, tuple[int, int, int, int]]:
     """The square crops (left, top, right, bottom px) of ``CROPS`` from the posed eye centres (2, 3) and chin."""
     px = project_px(setup, np.vstack([eyes_mm, chin_mm[None, :]]), (SIZE_PX, SIZE_PX))
     eyes, chin = px[:2].mean(axis=0), px[2]
     centre = eyes + (chin - eyes) / 3.0
     span = float(np.linalg.norm(chin - eyes))
-    out = {}
+    out: dict[str, tuple[int, int, int, int]] = {}
     for name, k in CROPS.items():
         half = k * span / 2.0
         out[name] = (int(centre[0] - half), int(centre[1] - half), int(centre[0] + half), int(centre[1] + half))
@@ -87,7 +88,7 @@ def classify_library(head_name: str = "human") -> dict[tuple[str, str, str], dic
                 at = marks.positions(pose)
                 eyes = np.vstack([at[marks.index["eye_centre_l"]], at[marks.index["eye_centre_r"]]])
                 for crop, box in face_boxes(setup, eyes, at[marks.index["chin"]]).items():
-                    face = grey.crop(box).resize((INPUT_PX, INPUT_PX), PILImage.BILINEAR)
+                    face = grey.crop(box).resize((INPUT_PX, INPUT_PX), PILImage.Resampling.BILINEAR)
                     out[(view, emotion, crop)] = net.probabilities(np.asarray(face))
     return out
 

@@ -66,12 +66,13 @@ def _windows(x: FloatArray, k: int, s: int, padding: str, fill: float = 0.0) -> 
 
 def _conv(x: FloatArray, kernel: FloatArray, s: int, padding: str) -> FloatArray:
     k = kernel.shape[0]
-    return np.einsum("hwcij,ijcf->hwf", _windows(x, k, s, padding), kernel, optimize=True)
+    return np.asarray(np.einsum("hwcij,ijcf->hwf", _windows(x, k, s, padding), kernel, optimize=True), dtype=np.float32)
 
 
 def _depthwise(x: FloatArray, kernel: FloatArray, padding: str) -> FloatArray:
     k = kernel.shape[0]
-    return np.einsum("hwcij,ijc->hwc", _windows(x, k, 1, padding), kernel[:, :, :, 0], optimize=True)
+    win = _windows(x, k, 1, padding)
+    return np.asarray(np.einsum("hwcij,ijc->hwc", win, kernel[:, :, :, 0], optimize=True), dtype=np.float32)
 
 
 class MiniXception:

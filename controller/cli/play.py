@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    with StopSignals() as signals:  # SIGINT (once: ease then torque off; twice: torque off now), SIGTERM, SIGHUP
+    with StopSignals() as signals:  # SIGINT (twice: hurry to neutral), SIGTERM, SIGHUP: the stop path
         return _play(args, signals)
 
 
@@ -122,7 +122,7 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
         print(f"servoface play: {printable(err)}", file=sys.stderr)
         return 2
     print(
-        f"# playing at {args.rate:g} Hz; Ctrl-C eases to neutral and turns torque off (twice: torque off now)",
+        f"# playing at {args.rate:g} Hz; Ctrl-C eases to neutral and turns torque off (twice: faster)",
         file=sys.stderr,
         flush=True,
     )

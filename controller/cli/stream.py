@@ -120,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
         return _fail(f"--duration must be a positive number of seconds, got {args.duration}")
     if (problem := input_problem(args)) is not None:
         return _fail(problem)
-    with StopSignals() as signals:  # SIGINT (once: ease then torque off; twice: torque off now), SIGTERM, SIGHUP
+    with StopSignals() as signals:  # SIGINT (twice: hurry to neutral), SIGTERM, SIGHUP: the stop path
         return _stream(args, signals)
 
 

@@ -130,7 +130,7 @@ class HeadService:
         self._stop_reason: str | None = None  # why the loop stopped ("end", "SIGINT", ...), set once
         self._stop_ease_s = EASE_S
         self._stop_max_ease_s = MAX_EASE_S
-        self._hurry = threading.Event()  # skip the easing of the stop (a second Ctrl-C): torque off now
+        self._hurry = threading.Event()  # a second Ctrl-C: straight to neutral at the caps, then torque off
         self._hurry_fn: Callable[[], bool] | None = None
         self.error: BaseException | None = None
         self.report: StopReport | None = None
@@ -793,9 +793,10 @@ class HeadService:
     ) -> StopReport:
         """The safe stop, through the one stop path (:func:`servoface.controller.safe_stop.safe_stop`, run on
         the loop thread as it exits): ease from the mixed pose to neutral through the gate (``ease_s``, at most
-        ``max_ease_s``; skipped after an e-stop, with torque off or after a bus failure; cut short by
-        :meth:`hurry`, ``hurry()`` or a second stop signal), then torque off on every servo (retried, carrying
-        on past failures) and the Bus Watchdog disarmed, then the bus closed.
+        ``max_ease_s``; skipped after an e-stop, with torque off or after a bus failure; :meth:`hurry`,
+        ``hurry()`` or a second stop signal turn it into the fastest move to neutral the gate's caps allow),
+        then torque off on every servo (retried, carrying on past failures) and the Bus Watchdog disarmed,
+        then the bus closed.
 
         Returns the :class:`~servoface.controller.safe_stop.StopReport` (kept as ``service.report``): ``unreached``
         names servos whose torque-off was not confirmed. Safe to call twice and from any thread but the loop's
@@ -826,7 +827,8 @@ class HeadService:
         return StopReport(self._stop_reason or str(reason), False, 0.0, why, ids, error=why)
 
     def hurry(self) -> None:
-        """Cut the stop's easing short (a second Ctrl-C): torque goes off at once; from any thread."""
+        """Hurry the stop (a second Ctrl-C): straight to neutral at the gate's caps (at most
+        ``safe_stop.HURRY_S``), then torque off — never cut mid-pose; from any thread."""
         self._hurry.set()
 
     def shutdown_async(self, *, ease_s: float = EASE_S) -> CommandHandle:

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from servoface.sim.muscles.eyelid import EyelidField, EyelidMuscle
 from servoface.sim.muscles.linear import LinearMuscle
 from servoface.sim.muscles.sheet import SheetMuscle
-from servoface.sim.muscles.slit import SlitGate
+from servoface.sim.muscles.slit import SlitGate, slit_gate
 from servoface.sim.muscles.sphincter import SphincterField, SphincterMuscle
 
 FloatArray = NDArray[np.float64]
@@ -44,7 +44,7 @@ class MuscleField:
         faces: NDArray[np.integer] | None = None,
     ) -> None:
         rest = np.asarray(rest_mm, dtype=np.float64)
-        self.slit: SlitGate | None = SlitGate(rest, faces) if faces is not None else None
+        self.slit: SlitGate | None = slit_gate(rest, faces) if faces is not None else None
         self.n_vertices = int(rest.shape[0])
         vector = [m for m in muscles if not isinstance(m, EyelidMuscle)]
         self.names: tuple[str, ...] = tuple(m.name for m in vector)
@@ -108,5 +108,6 @@ class MuscleField:
 def _insertion_mm(muscle: LinearMuscle | SheetMuscle) -> FloatArray:
     """Where a vector muscle grips the skin: its insertion (a sheet: the middle of its insertion edge)."""
     if isinstance(muscle, SheetMuscle):
-        return (np.asarray(muscle.insertion_mm) + np.asarray(muscle.insertion_end_mm)) / 2.0
+        mid = (np.asarray(muscle.insertion_mm) + np.asarray(muscle.insertion_end_mm)) / 2.0
+        return np.asarray(mid, dtype=np.float64)
     return np.asarray(muscle.insertion_mm, dtype=np.float64)

@@ -25,6 +25,7 @@ without duplicated vertices has no slit, and every gate is 1.
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
 
 import numpy as np
@@ -52,8 +53,10 @@ class SlitGate:
         rest = np.asarray(rest_mm, dtype=np.float64)
         tri = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
         self.n_vertices = int(rest.shape[0])
+        self._rest = rest
         self.reach_mm = float(reach_mm)
         self.coupling = float(coupling)
+        self._memo: dict[tuple[bytes, bytes], FloatArray] = {}
         _, inverse, counts = np.unique(np.round(rest, 6), axis=0, return_inverse=True, return_counts=True)
         inverse = inverse.ravel()
         self.representative: IntArray = np.asarray(inverse, dtype=np.int64)  # vertex -> merged id
@@ -80,9 +83,18 @@ class SlitGate:
         if not self.has_slit:
             return np.ones(idx.size)
         src = np.atleast_1d(np.asarray(source, dtype=np.int64))
+        key = (src.tobytes(), idx.tobytes())
+        if key not in self._memo:
+            self._memo[key] = self._gate(src, idx)
+        return self._memo[key].copy()
+
+    def _gate(self, src: IntArray, idx: IntArray) -> FloatArray:
         src = np.nonzero(np.isin(self.representative, self.representative[src]))[0]  # with its twins
-        cut = np.asarray(dijkstra(self._cut, indices=src, min_only=True))[idx]
-        sewn = np.asarray(dijkstra(self._sewn, indices=np.unique(self.representative[src]), min_only=True))
+        # paths along the skin stay within a few times the straight distance: search no farther
+        reach = 3.0 * float(np.max(np.linalg.norm(self._rest[idx] - self._rest[src[0]], axis=1), initial=0.0))
+        limit = reach + 2.0 * self.reach_mm
+        cut = np.asarray(dijkstra(self._cut, indices=src, min_only=True, limit=limit))[idx]
+        sewn = np.asarray(dijkstra(self._sewn, indices=np.unique(self.representative[src]), min_only=True, limit=limit))
         sewn = sewn[self.representative[idx]]
         detour = np.where(np.isfinite(cut) & np.isfinite(sewn), cut - sewn, np.inf)
         detour = np.where(np.isfinite(sewn) & ~np.isfinite(cut), np.inf, detour)
@@ -90,3 +102,24 @@ class SlitGate:
         out = np.cos(np.clip(detour / self.reach_mm, 0.0, 1.0) * (np.pi / 2))
         out = np.where(detour >= self.reach_mm, 0.0, out)
         return np.asarray(self.coupling + (1.0 - self.coupling) * out, dtype=np.float64)
+
+
+_GATES: dict[tuple[str, float, float], SlitGate] = {}
+_GATES_MAX = 8
+
+
+def slit_gate(
+    rest_mm: FloatArray, faces: NDArray[np.integer], reach_mm: float = SLIT_REACH_MM, coupling: float = SLIT_COUPLING
+) -> SlitGate:
+    """A ``SlitGate`` for this skin, shared by every face model of the same mesh (its shortest paths are
+    the costly part of building a ``FaceModel``)."""
+    rest = np.ascontiguousarray(rest_mm, dtype=np.float64)
+    tri = np.ascontiguousarray(faces, dtype=np.int64)
+    digest = hashlib.sha1(rest.tobytes() + b"|" + tri.tobytes()).hexdigest()
+    key = (digest, float(reach_mm), float(coupling))
+    gate = _GATES.get(key)
+    if gate is None:
+        if len(_GATES) >= _GATES_MAX:
+            _GATES.pop(next(iter(_GATES)))
+        gate = _GATES[key] = SlitGate(rest, tri, reach_mm, coupling)
+    return gate

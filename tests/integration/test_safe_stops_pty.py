@@ -40,7 +40,9 @@ def test_one_signal_eases_to_neutral_then_every_torque_off(tmp_path: Path, sig: 
     assert all(abs(last_goal[sid] - neutral[sid]) <= 2 for sid in neutral), (last_goal, neutral)
 
 
-def test_second_sigint_skips_the_easing_but_torque_still_goes_off(tmp_path: Path) -> None:
+def test_second_sigint_hurries_to_neutral_then_every_torque_off(tmp_path: Path) -> None:
+    """Ctrl-C twice: no slow easing, but torque is not cut mid-pose either — the head goes to neutral as fast
+    as the gate's caps allow, then every servo goes limp."""
     with bench(tmp_path) as b:
         b.play(LONG_SCRIPT)
         b.wait_for("# playing")
@@ -55,6 +57,9 @@ def test_second_sigint_skips_the_easing_but_torque_still_goes_off(tmp_path: Path
     assert "Traceback" not in err
     assert torque_on_ids(state) == []
     assert goals_outside_limits(state) == []
+    neutral = _neutral_ticks()
+    last_goal = {int(sid): s["goal_position"] for sid, s in state["servos"].items()}
+    assert all(abs(last_goal[sid] - neutral[sid]) <= 2 for sid in neutral), (out, last_goal, neutral)
 
 
 def test_sigint_during_start_up_leaves_every_servo_off(tmp_path: Path) -> None:

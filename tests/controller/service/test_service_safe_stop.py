@@ -55,7 +55,7 @@ def test_a_stop_signal_stops_the_loop_which_eases_and_turns_every_torque_off(sig
         running.close()
 
 
-def test_a_second_signal_skips_the_easing_but_torque_still_goes_off(signals: StopSignals) -> None:
+def test_a_second_signal_hurries_to_neutral_then_torque_off_never_mid_pose(signals: StopSignals) -> None:
     running = start_service()
     svc, chain = running.service, running.chain
     try:
@@ -67,21 +67,29 @@ def test_a_second_signal_skips_the_easing_but_torque_still_goes_off(signals: Sto
         svc._thread.join(30.0)  # noqa: SLF001
         report = svc.report
         assert report is not None and report.reason == "SIGINT"
-        assert not report.eased and "second stop signal" in report.ease_note
+        assert report.eased and "second stop signal" in report.ease_note, report
+        assert "(hurried by a second stop signal)" in report.lines()[0]
         assert report.safe and _all_torque_off(chain)
-        assert not _near_neutral(running.pipeline, 20)  # torque went off where the face was
+        assert _near_neutral(running.pipeline)  # at neutral when torque went off: nothing dropped mid-pose
     finally:
         running.close()
 
 
-def test_hurry_cuts_the_easing_of_a_shutdown() -> None:
+def test_hurry_goes_straight_to_neutral_within_the_gate_caps() -> None:
+    """The hurried stop is the fastest the gate allows — and no faster: every goal decoded on the wire
+    during it is within the limits and the per-frame speed cap."""
+    from tests.integration.wire_checks import check_wire
+
     running = start_service()
     svc, chain = running.service, running.chain
     try:
         assert svc.express("surprise", transition_s=0.2, hold_s=0.0, track="face").wait(5.0) is Status.DONE
+        start = len(chain.goal_writes())
         svc.hurry()  # a second Ctrl-C before the first one's easing
         report = svc.shutdown(ease_s=0.8)
-        assert not report.eased and report.safe and _all_torque_off(chain)
+        assert report.eased and report.ease_note == "hurried by a second stop signal", report
+        assert report.safe and _all_torque_off(chain) and _near_neutral(running.pipeline)
+        assert check_wire(running.pipeline, chain, start) > 0
     finally:
         running.close()
 

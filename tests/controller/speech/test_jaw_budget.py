@@ -78,44 +78,63 @@ def test_bad_settings_are_refused() -> None:
         JawBudget(window_s=float("nan"))
 
 
-def _jaw_swing(face: Face, text: str) -> tuple[int, int, object]:
+def _talk(face: Face, text: str) -> tuple[int, object, object]:
+    """Speak ``text``; (the jaw's largest goal swing from rest on the wire, the run, the unbudgeted clip)."""
+    from servoface.controller.au_names import head_au_names
+    from servoface.controller.speech.visemes import mouth_aus
+
     jaw = face.head.servo_ids["jaw"]
-    lip = face.head.servo_ids["lower_lip"]
-    rest_jaw, rest_lip = face.pipeline.last_goals_tick[jaw], face.pipeline.last_goals_tick[lip]
-    run = say_on_face(face, speech_from_text(text), audio_out=False)
-    swing = max(abs(t.goals_sent[jaw] - rest_jaw) for t in run.performance.traces)
-    lips = max(abs(t.goals_sent[lip] - rest_lip) for t in run.performance.traces)
-    return swing, lips, run
+    rest = face.pipeline.last_goals_tick[jaw]
+    speech = speech_from_text(text)
+    plain = speech.plan.clip("human", head_au_names(face.head) & mouth_aus("human"))
+    run = say_on_face(face, speech, audio_out=False)
+    swing = max(abs(t.goals_sent[jaw] - rest) for t in run.performance.traces)
+    return swing, run, plain
 
 
 @pytest.mark.slow
 def test_a_warm_jaw_talks_with_less_jaw_on_the_emulated_head() -> None:
+    """Compared with the plan at the frames that ran (a loaded machine skips frames, so no peak-to-peak
+    comparisons between runs): on a cool head the budget leaves the plan alone; on a jaw the driver
+    derates, the jaw sent is at most half the plan's while the lips keep theirs, and the goals reach the
+    wire."""
     text = "Hello, how are you today?"
     with Face.open("human", emulate=True) as face:
         face.hold(0.1)
-        cool_swing, cool_lips, _ = _jaw_swing(face, text)
+        cool_swing, cool, plain = _talk(face, text)
+    assert cool.budget is not None and cool.budget.level == 0 and cool.budget.min_scale == 1.0
+    assert cool_swing > 20, f"the cool jaw hardly moved ({cool_swing} ticks)"
     with Face.open("human", emulate=True) as face:
         jaw = face.head.servo_ids["jaw"]
         limit = face.driver.temperature_limit_c(jaw)
-        face.chain.servo(jaw).temperature_c = limit - 3.0  # past the driver's derate threshold (limit - 5)
-        deadline = 0
-        while deadline < 40:  # the driver reads temperatures at 2 Hz: wait for its reading (and reaction)
+        servo = face.chain.servo(jaw)
+        faults = face.service.subscribe("fault", maxlen=1000)  # the driver's events, read off the loop thread
+        kinds: set[object] = set()
+        for _ in range(80):  # the driver reads temperatures at 2 Hz: wait (as long as a loaded machine needs)
+            servo.temperature_c = limit - 3.0  # past the driver's derate threshold (limit - 5); held there
             face.hold(0.25)
             snap = face.service.telemetry()
-            if (
-                snap is not None
-                and snap.servos[jaw].temperature_c is not None
-                and snap.servos[jaw].temperature_c >= limit - 4
-            ):
+            reading = None if snap is None else snap.servos[jaw].temperature_c
+            kinds |= {e.kind for e in faults.drain() if getattr(e, "servo_id", None) == jaw}
+            if reading is not None and reading >= limit - 4 and FaultKind.THERMAL_DERATE in kinds:
                 break
-            deadline += 1
-        warm_swing, warm_lips, run = _jaw_swing(face, text)
-        kinds = {e.kind for e in face.driver.events if e.servo_id == jaw}
+        servo.temperature_c = limit - 3.0
+        warm_swing, warm, _ = _talk(face, text)
+        faults.close()
     assert FaultKind.THERMAL_DERATE in kinds, "the driver did not derate the warm jaw"
-    assert run.budget is not None and run.budget.level == 1 and run.budget.jaw_gain == 0.5
-    assert cool_swing > 20, f"the cool jaw hardly moved ({cool_swing} ticks)"
-    assert warm_swing <= 0.6 * cool_swing, f"warm jaw swing {warm_swing} ticks vs cool {cool_swing}"
-    assert warm_lips >= 0.9 * cool_lips, "the lips should still talk in full"
+    assert warm.budget is not None and warm.budget.level == 1 and warm.budget.jaw_gain == 0.5
+    talking = [t for t in warm.performance.traces if plain.sample(t.t_s, {}).get("AU26", 0.0) > 0.2]
+    assert talking, "no frame fell on an open vowel"
+    # compared at the same frames (the twin gate may trim a frame's pose a little: sums, not equalities)
+    frames = list(warm.performance.traces)
+    planned = [plain.sample(t.t_s, {}) for t in frames]
+    jaw_sent = sum(t.aus.get("AU26", 0.0) for t in frames)
+    jaw_plan = sum(p.get("AU26", 0.0) for p in planned)
+    lips_sent = sum(t.aus.get("AU25", 0.0) for t in frames)
+    lips_plan = sum(p.get("AU25", 0.0) for p in planned)
+    assert jaw_sent <= 0.5 * jaw_plan + 0.015 * len(frames), f"jaw {jaw_sent:.2f} vs plan {jaw_plan:.2f}"
+    assert lips_sent >= 0.75 * lips_plan, f"the lips are not budgeted: {lips_sent:.2f} vs plan {lips_plan:.2f}"
+    assert warm_swing > 0, "the warm jaw's goals did not reach the wire"
 
 
 def test_the_account_is_kept_per_head() -> None:

@@ -31,7 +31,7 @@ def test_face_say_plays_on_the_service_speech_track() -> None:
     assert Status.RUNNING in speech and Status.DONE in speech, seen
     assert not [x for x in seen if x[1] == "face"], f"say must not use the face track: {seen}"
     jaw = [t.aus.get("AU26", 0.0) for t in perf.traces]
-    assert max(jaw) > 0.2, "the jaw did not open while speaking"
+    assert max(jaw) > 0.1, "the jaw did not open while speaking"
 
 
 def test_the_monotonic_clock_is_the_clips_own_time() -> None:
