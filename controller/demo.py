@@ -270,6 +270,7 @@ def run_demo(
             "clipped_frame": clipped_png.name if clipped_png else None,
         },
         "open_s": round(t_open, 3),
+        "stop": face.stop_report.lines() if face.stop_report is not None else None,  # the safe stop's summary
     }
     report["wall_s"] = round(time.perf_counter() - t0, 3)
     report_path = out_dir / "report.json"

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import numbers
 import signal
 import threading
 from collections import deque
@@ -33,6 +32,7 @@ from types import TracebackType
 from typing import Any
 
 from servoface.calibration import HeadCalibration
+from servoface.controller import stop_signals
 from servoface.controller.alive.gaze import gaze_config_for, solve_look_at
 from servoface.controller.alive.gaze_layer import angles_to_aus
 from servoface.controller.errors import ControllerError
@@ -40,10 +40,15 @@ from servoface.controller.frame import FrameValidator
 from servoface.controller.loop import LoopStats
 from servoface.controller.performance import Performance, Samples
 from servoface.controller.pipeline import FrameTrace, Pipeline
+from servoface.controller.safe_stop import EASE_S, MAX_EASE_S, StopReport, safe_stop
 from servoface.controller.script import Script, load_script
 from servoface.controller.service import CommandHandle, HeadService, Status, head_calibration, open_head
+from servoface.controller.service.commands import check_point_mm
+from servoface.controller.values import as_finite, check_seconds, printable_repr
 from servoface.hardware.bus import ServoBus
 from servoface.hardware.driver import Driver
+from servoface.hardware.errors import HardwareError
+from servoface.hardware.fault_policy import FaultPolicy
 from servoface.sim.head import Head
 from servoface.sim.heads import load_head
 
@@ -58,22 +63,39 @@ SETTLE_MAX_S = 2.0  # longest a call keeps walking the servos to its final frame
 
 class _Interrupt:
     """Ctrl-C during a blocking call: the first stops the call (the face holds where it is), a second
-    raises KeyboardInterrupt as usual. Only in the main thread; the previous handler comes back after."""
+    raises KeyboardInterrupt as usual. Only in the main thread; the previous handler comes back after.
+
+    Under installed `StopSignals` (the CLI: SIGINT, SIGTERM, SIGHUP) it installs nothing and defers to them:
+    the signal stops the head service's loop, which goes down the one stop path by itself; the call only
+    notices (``by_signals``) and returns."""
 
     def __init__(self) -> None:
-        self.pressed = threading.Event()
+        self._pressed = threading.Event()
+        self.signals: stop_signals.StopSignals | None = None
+
+    def is_set(self) -> bool:
+        return self._pressed.is_set() or (self.signals is not None and self.signals.requested)
+
+    @property
+    def by_signals(self) -> bool:
+        return self.signals is not None and self.signals.requested
 
     @contextmanager
     def armed(self) -> Iterator[_Interrupt]:
+        installed = stop_signals.active()
+        if installed is not None:
+            self.signals = installed
+            yield self
+            return
         if threading.current_thread() is not threading.main_thread():
             yield self
             return
         previous = signal.getsignal(signal.SIGINT)
 
         def handler(signum: int, frame: Any) -> None:
-            if self.pressed.is_set():
+            if self._pressed.is_set():
                 raise KeyboardInterrupt
-            self.pressed.set()
+            self._pressed.set()
 
         signal.signal(signal.SIGINT, handler)
         try:
@@ -136,6 +158,9 @@ class Face:
         self._history = history
         self._service: HeadService | None = None
         self._closed = False
+        self._library: Any = None  # the head's expression library, read once (express)
+        self._gaze_config: Any = None  # the head's gaze geometry, read once (look_at)
+        self.stop_report: StopReport | None = None
 
     @property
     def service(self) -> HeadService:
@@ -158,12 +183,14 @@ class Face:
         rate_hz: float = 50.0,
         calibration: HeadCalibration | str | Path | None = None,
         fast_sync_read: bool = False,
+        policy: FaultPolicy | None = None,
     ) -> Face:
         """Open ``head`` (built-in name, profile folder, or a loaded Head) on ``port`` or on the emulator.
 
         The servos are configured from the profile and calibration (EEPROM only with torque off, limits
-        written as a hardware backstop), torque goes on with goals pinned to present positions, and the
-        pipeline starts from where the servos are.
+        written as a hardware backstop), the gate's tables are built (a stop signal there ends the start-up
+        with torque never on), torque goes on with goals pinned to present positions and the Bus Watchdog
+        armed, and the pipeline starts from where the servos are. Any failure leaves every servo torque off.
         """
         opened = open_head(
             head,
@@ -174,6 +201,7 @@ class Face:
             rate_hz=rate_hz,
             calibration=calibration,
             fast_sync_read=fast_sync_read,
+            policy=policy,
         )
         return cls(opened.head, opened.pipeline, driver=opened.driver, bus=opened.bus, chain=opened.chain)
 
@@ -190,8 +218,11 @@ class Face:
         return cls(the_head, Pipeline(the_head, head_calibration(the_head, calibration), rate_hz=rate_hz))
 
     # -- motion -------------------------------------------------------------------------------------
-    def _perform(self, submit: Callable[[HeadService], CommandHandle], duration_s: float) -> Performance:
-        """Submit one command, wait for it and for the servos to settle; the call's frames and stats."""
+    def _perform(
+        self, submit: Callable[[HeadService], CommandHandle], duration_s: float, *, track: str = TRACK
+    ) -> Performance:
+        """Submit one command (on ``track``), wait for it and for the servos to settle; the call's frames and
+        stats. Ctrl-C stops what plays on ``track`` where it is."""
         svc = self.service
         rate = svc.rate_hz
         expected = int((duration_s + SETTLE_MAX_S) * rate) + 200
@@ -202,10 +233,12 @@ class Face:
         try:
             with interrupt.armed():
                 handle = submit(svc)  # a bad command raises here; nothing was queued
-                while not handle.wait(0.1).final and not interrupt.pressed.is_set():
+                while not handle.wait(0.1).final and not interrupt.is_set():
                     pass
-                if interrupt.pressed.is_set() and not handle.done():
-                    svc.stop(TRACK, hold=True).wait(2.0)
+                if interrupt.by_signals:  # the loop stops by itself (and goes down the stop path)
+                    handle.wait(5.0)
+                elif interrupt.is_set() and not handle.done():
+                    svc.stop(track, hold=True).wait(2.0)
                 elif handle.status is Status.DONE:
                     last = svc.last_trace
                     svc.wait_settled(-1 if last is None else last.index - 1, timeout_s=SETTLE_MAX_S)
@@ -221,7 +254,7 @@ class Face:
         stats1 = svc.loop_stats
         missed = stats1.missed - missed0 if stats1 is stats0 else stats1.missed
         overruns = stats1.overruns - overruns0 if stats1 is stats0 else stats1.overruns
-        perf = Performance(traces, _stats_of(traces, rate, missed, overruns), rate, interrupt.pressed.is_set())
+        perf = Performance(traces, _stats_of(traces, rate, missed, overruns), rate, interrupt.is_set())
         self.traces.extend(traces)
         self.t_s += duration_s
         if traces:  # the face track's pose (other front ends' tracks, e.g. a gaze, are theirs)
@@ -231,45 +264,47 @@ class Face:
 
     def set_aus(self, aus: Mapping[str, float], *, transition_s: float = 0.4, hold_s: float = 0.0) -> Performance:
         """Move to the AU pose ``aus`` (AUs not named go to 0) over ``transition_s``, then hold."""
+        if not isinstance(aus, Mapping):
+            raise ControllerError(f"set_aus: aus must be a mapping of AU name -> intensity, got {type(aus).__name__}")
         pose = self.validator.pose(dict(aus), where="set_aus")
-        for name, value in (("transition_s", transition_s), ("hold_s", hold_s)):
-            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-                raise ControllerError(f"set_aus: {name} must be a finite number of seconds >= 0, got {value!r}")
-        transition = max(float(transition_s), 1.0 / self.pipeline.rate_hz)
+        transition = max(check_seconds(transition_s, "set_aus: transition_s"), 1.0 / self.pipeline.rate_hz)
+        hold = check_seconds(hold_s, "set_aus: hold_s")
         return self._perform(
-            lambda svc: svc.set_aus(pose, track=TRACK, transition_s=transition, hold_s=float(hold_s)),
-            transition + float(hold_s),
+            lambda svc: svc.set_aus(pose, track=TRACK, transition_s=transition, hold_s=hold), transition + hold
         )
 
     def express(
         self, name: str, *, intensity: float = 1.0, transition_s: float = 0.5, hold_s: float = 1.0
     ) -> Performance:
         """Move to a named expression's apex (scaled by ``intensity``) and hold it."""
-        from servoface.sim.expressions import load_library
-
-        library = load_library(self.head.expressions_path or self.head.face_type)
-        if name not in library:
-            raise ControllerError(f"unknown expression {name!r}; known: {sorted(library)}")
-        if not (isinstance(intensity, int | float) and math.isfinite(intensity) and 0 <= intensity <= 1):
-            raise ControllerError(f"express: intensity must be within 0..1, got {intensity!r}")
-        apex = {au: v * float(intensity) for au, v in library[name].apex().items()}
+        library = self._expressions()
+        if not isinstance(name, str) or name not in library:
+            raise ControllerError(f"express: unknown expression {printable_repr(name)}; known: {sorted(library)}")
+        level = as_finite(intensity)
+        if level is None or not 0 <= level <= 1:
+            raise ControllerError(f"express: intensity must be a number within 0..1, got {printable_repr(intensity)}")
+        apex = {au: v * level for au, v in library[name].apex().items()}
         return self.set_aus(apex, transition_s=transition_s, hold_s=hold_s)
+
+    def _expressions(self) -> Any:
+        """The head's expression library (read from its files on first use, then kept)."""
+        if self._library is None:
+            from servoface.sim.expressions import load_library
+
+            self._library = load_library(self.head.expressions_path or self.head.face_type)
+        return self._library
 
     def neutral(self, transition_s: float = 0.6) -> Performance:
         return self.set_aus({}, transition_s=transition_s)
 
     def look_at(self, point_mm: tuple[float, float, float], *, transition_s: float = 0.5) -> Performance:
         """Turn eyes and head towards a point (head frame, mm); eyes lead, the neck takes the rest."""
-        try:
-            values = tuple(point_mm)
-        except TypeError:  # not a sequence at all (a bare number, None)
-            values = ()
-        if len(values) != 3 or not all(
-            isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v) for v in values
-        ):
-            raise ControllerError(f"look_at: point_mm must be three finite numbers (x, y, z) in mm, got {point_mm!r}")
-        cfg = gaze_config_for(self.head.face_type, self.head)
-        gaze = solve_look_at(tuple(float(v) for v in values), cfg)  # type: ignore[arg-type]
+        point = check_point_mm(point_mm, field="look_at: point_mm")  # a ServiceError (a ControllerError)
+        check_seconds(transition_s, "look_at: transition_s")
+        if self._gaze_config is None:
+            self._gaze_config = gaze_config_for(self.head.face_type, self.head)
+        cfg = self._gaze_config
+        gaze = solve_look_at(point, cfg)
         gaze_aus = angles_to_aus(
             self.head.face_type,
             cfg,
@@ -326,11 +361,6 @@ class Face:
         timeline = _Fixed(source, length)
         return self._perform(lambda svc: svc.play(timeline, track=TRACK, duration_s=length or None), length)
 
-    def _run(self, timeline: Samples, duration_s: float) -> Performance:
-        """Play ``timeline`` for ``duration_s`` on the face track (what `perform` does; kept for callers of
-        the old runner, e.g. the speech front end)."""
-        return self.perform(timeline, duration_s)
-
     def follow(
         self, source: Samples, duration_s: float | None = None, *, until: Callable[[], bool] | None = None
     ) -> Performance:
@@ -348,8 +378,10 @@ class Face:
         return perf
 
     def say(self, text: str, *, voice: str = "en-us", out_dir: str | Path | None = None) -> Performance:
-        """Speak ``text`` (espeak-ng) with lip sync: the mouth on the speech track, the rest of the face as it
-        is; the sound on the default output when there is one. ``out_dir``: also write speech.wav/.toml."""
+        """Speak ``text`` (espeak-ng) with lip sync through the head service's speech track
+        (``HeadService.speak``): the mouth AUs are the speech track's, the rest of the face stays as it is;
+        the sound on the default output when there is one (the mouth follows its clock). ``out_dir``: also
+        write speech.wav/.toml."""
         from servoface.controller.speech.say import speak_text
 
         self._check_open()
@@ -363,30 +395,53 @@ class Face:
         if self._closed:
             raise ControllerError("this Face is closed")
 
-    def close(self, *, ease_s: float = 0.8) -> None:
-        """The safe stop: ease to neutral, turn torque off, close the port (and the emulator). Safe to call
-        twice. Goes through the head service's shutdown (started here if no call started it)."""
-        # TODO(safe-stops): the service's shutdown will delegate to controller/safe_stop.py (one path).
+    def close(
+        self,
+        *,
+        ease_s: float = EASE_S,
+        max_ease_s: float = MAX_EASE_S,
+        hurry: Callable[[], bool] | None = None,
+        reason: str = "end",
+    ) -> StopReport | None:
+        """The one stop path (`servoface.controller.safe_stop`): ease to neutral through the gate (at most
+        ``max_ease_s``; not at all when ``ease_s`` is 0; once ``hurry()`` — or a second stop signal —
+        turns true, straight to neutral at the gate's caps), torque off on every servo (retried, carrying
+        on), Bus Watchdog disarmed, port (and emulator) closed. With a head service running, its shutdown
+        does it on the loop thread.
+
+        Returns the `StopReport` (also kept as ``face.stop_report``; None offline): ``report.unreached``
+        names servos whose torque-off was not confirmed. Safe to call twice (the second call returns the
+        first report)."""
         if self._closed:
-            return
+            return self.stop_report
+        if isinstance(ease_s, bool) or not isinstance(ease_s, int | float) or not math.isfinite(ease_s):
+            ease_s = EASE_S  # a stop never refuses to stop
+        ease = max(0.0, float(ease_s))
         try:
-            if self.driver is not None or self._service is not None:
-                try:
-                    service = self.service
-                except ControllerError:
-                    service = None
-                if service is not None:
-                    service.shutdown(ease_s=max(0.0, float(ease_s)))
+            if self._service is not None:
+                self.stop_report = self._service.shutdown(
+                    ease_s=ease, max_ease_s=max_ease_s, reason=reason, hurry=hurry
+                )
+            elif self.driver is not None:  # no motion ever started the service: the caller owns the bus
+                signals = stop_signals.active()
+                self.stop_report = safe_stop(
+                    self.pipeline,
+                    self.driver,
+                    from_aus=self.pose,
+                    ease=ease > 0,
+                    ease_s=ease,
+                    max_ease_s=max_ease_s,
+                    hurry=hurry or (lambda: signals is not None and signals.hurry),
+                    reason=reason,
+                )
+            elif self.bus is not None:
+                self.bus.close()
         finally:
             self._closed = True
-            try:
-                if self._service is None and self.driver is not None:  # never reached the service
-                    self.driver.close(torque_off=True)
-                elif self._service is None and self.bus is not None:
-                    self.bus.close()
-            finally:
-                if self.chain is not None:
-                    self.chain.close()
+            self.pose = {}
+            if self.chain is not None:
+                self.chain.close()
+        return self.stop_report
 
     def __enter__(self) -> Face:
         return self
@@ -394,4 +449,15 @@ class Face:
     def __exit__(
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
     ) -> None:
-        self.close()
+        signals = stop_signals.active()
+        if signals is not None and signals.requested:
+            reason = signals.name or "signal"
+        elif exc is None:
+            reason = "end"
+        elif isinstance(exc, KeyboardInterrupt):
+            reason = "interrupted"
+        elif isinstance(exc, HardwareError):
+            reason = "bus failure"
+        else:
+            reason = f"error: {type(exc).__name__}"
+        self.close(reason=reason)

@@ -4,8 +4,9 @@ closed), installed by the CLI around a whole run (`StopSignals`, a context manag
 - The first signal is a **stop request**: every loop running under ``stop_on_sigint`` stops at its next
   frame and the run goes down the one stop path (`servoface.controller.safe_stop`): ease to neutral, then
   torque off.
-- A second signal (Ctrl-C twice, or any two) is a **hurry**: the easing is skipped — torque still goes off
-  on every servo; nothing is cut half way.
+- A second signal (Ctrl-C twice, or any two) is a **hurry**: the slow easing is dropped and the head goes
+  straight to neutral as fast as the gate's caps allow (at most ``safe_stop.HURRY_S``), then torque goes off
+  on every servo — torque is never cut mid-pose, and nothing is cut half way.
 - Handlers never raise while the bus may be in use. Only inside an `interruptible()` block (work with
   torque off and no bus traffic: loading files, building the gate's tables at start-up) does a signal raise
   `StopRequested` (a KeyboardInterrupt) at once, so a long start-up ends promptly.
@@ -61,7 +62,7 @@ class StopSignals:
 
     @property
     def hurry(self) -> bool:
-        """A second signal: skip easing (torque still goes off)."""
+        """A second signal: straight to neutral at the gate's caps, then torque off (see the module docstring)."""
         return len(self.received) >= 2
 
     @property

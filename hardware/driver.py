@@ -36,6 +36,9 @@ from servoface.hardware.servo_config import ConfigReport, ServoSpec, check_specs
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind
 
+CONFIGURE_QUIET_S = (0.2, 0.8)  # after a failed configure try, wait this long for quiet (a starved far end, a
+# late reply): 3 tries span over a second, so a busy host or emulator does not fail an open; a servo really
+# missing costs that second once, at start-up
 TORQUE_OFF_QUIET_S = (0.03, 0.12, 0.3)  # after a failed torque-off, wait this long for quiet (per pass)
 
 
@@ -91,6 +94,7 @@ class Driver(ChainReads):
         self._last: ChainSnapshot | None = None
         self._last_tx_s: float | None = None  # driver clock of the last cycle (feeds the Bus Watchdog)
         self.watchdog_rearms = 0  # times a pause made the driver clear and re-arm the watchdog
+        self.configure_retries = 0  # configure attempts repeated after a timeout / corrupt reply
         self._stop_reopened = False  # a stop re-opens a failed port at most once
         self._cycle_now: float | None = None  # set between cycle_start and cycle_finish
         self._position_ids: list[int] | None = None
@@ -130,31 +134,43 @@ class Driver(ChainReads):
     def limits_tick(self, servo_id: int) -> tuple[int, int]:
         return self._records[servo_id].limits_tick
 
+    def temperature_limit_c(self, servo_id: int) -> int:
+        """The Temperature Limit the thermal policy works against (configured, else the model's default)."""
+        return self._records[servo_id].temperature_limit_c
+
     def configure(self, *, allow_missing: bool = False) -> dict[int, ConfigReport]:
         """Write every spec (EEPROM with torque off, verified by read-back). Torque is left off.
 
-        A lost or garbled reply (a loaded host, noise on the cable) is retried: each servo's whole configuration
-        is tried up to ``FaultPolicy.configure_attempts`` times (its writes are idempotent, and every value is
-        read back). A servo that still does not answer raises `BusTimeoutError` / `BusCorruptError` — or, with
-        ``allow_missing``, is marked missing (event ``MISSING``) and configured when it first answers a
-        re-probe ping.
+        A servo's sequence (ping, reads, writes, read-back; every step idempotent) that fails on a timeout or
+        a corrupt reply is tried again, up to `FaultPolicy.configure_attempts` times, after the line has been
+        quiet for 0.2 / 0.8 s (a late reply must pass first, never be taken for the next answer); each
+        retry is counted in ``configure_retries``. A servo that still does not answer raises `BusTimeoutError`
+        / `BusCorruptError` — or, with ``allow_missing``, is marked missing (event ``MISSING``) and configured
+        when it first answers a re-probe ping. A wrong model or a value that does not read back is never
+        retried.
         """
         self._check_owner()
         reports = {}
-        attempts = max(1, int(self.policy.configure_attempts))
         for rec in self._records.values():
-            for attempt in range(attempts):
-                try:
-                    reports[rec.servo_id] = self._configure_one(rec)
-                    break
-                except (BusTimeoutError, BusCorruptError):
-                    if attempt + 1 < attempts:
-                        time.sleep(0.05 * 4**attempt)  # a starved or noisy line: let a late reply drain
-                        continue
-                    if not allow_missing:
-                        raise
-                    self._mark_missing(rec, self._clock(), "did not answer during configure")
+            try:
+                reports[rec.servo_id] = self._configure_retried(rec)
+            except (BusTimeoutError, BusCorruptError):
+                if not allow_missing:
+                    raise
+                self._mark_missing(rec, self._clock(), "did not answer during configure")
         return reports
+
+    def _configure_retried(self, rec: ServoRecord) -> ConfigReport:
+        for attempt in range(self.policy.configure_attempts - 1):
+            try:
+                return self._configure_one(rec)
+            except (BusTimeoutError, BusCorruptError):
+                self.configure_retries += 1
+                quiet_s = CONFIGURE_QUIET_S[min(attempt, len(CONFIGURE_QUIET_S) - 1)]
+                drain = getattr(self.bus, "drain", None)
+                if drain is not None:
+                    drain(quiet_s=quiet_s, max_s=max(0.3, 2 * quiet_s))
+        return self._configure_one(rec)  # the last try: its error is the caller's
 
     def _configure_one(self, rec: ServoRecord) -> ConfigReport:
         report = configure_servo(self.bus, rec.spec)

@@ -55,7 +55,14 @@ class FaultPolicy:
     telemetry_floor_share: float = 0.25
 
     def __post_init__(self) -> None:
-        for name in ("retries", "missing_after_failures", "max_reboots", "voltage_debounce", "torque_off_attempts"):
+        for name in (
+            "retries",
+            "configure_attempts",
+            "missing_after_failures",
+            "max_reboots",
+            "voltage_debounce",
+            "torque_off_attempts",
+        ):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < (1 if name != "retries" else 0):
                 raise ValueError(f"FaultPolicy.{name} = {value!r}: expected a positive int")

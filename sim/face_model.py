@@ -89,7 +89,8 @@ class FaceModel:
         rest = np.asarray(head.skin.vertices_mm, dtype=np.float64)
         self.n_vertices = int(rest.shape[0])
         muscles = [as_model_muscle(m) for m in _values(head.muscles)]
-        self.field = MuscleField(muscles, rest)
+        faces = getattr(head.skin, "faces", None)
+        self.field = MuscleField(muscles, rest, None if faces is None else np.asarray(faces))
         if isinstance(au_table, AUTable):
             table = au_table
         else:
@@ -152,6 +153,7 @@ class FaceModel:
             self._anchor_vertex,
             self._anchor_line,
             [a.radius_mm for a in self.anchor_actuators],
+            slit=self.field.slit,
         )
         self.roles: tuple[str, ...] = tuple(a.role for a in actuators)
         self._direct_setup()

@@ -420,7 +420,7 @@ def _muscles(r: _Reader, data: dict[str, Any]) -> tuple[Muscle, ...]:
                 raise r.fail(f"{key}.insertion_mm", "a point distinct from attachment_mm", list(ins))
             muscle = LinearMuscle(name, a, ins, zone, rs, rf, mc)
         elif mtype == "sphincter":
-            r.keys(m, key, common | {"centre_mm", "semi_axes_mm", "normal", "major_axis"})
+            r.keys(m, key, common | {"centre_mm", "semi_axes_mm", "normal", "major_axis", "falloff"})
             axes = m.get("semi_axes_mm")
             if not isinstance(axes, list) or len(axes) not in (2, 3):
                 raise r.fail(f"{key}.semi_axes_mm", "[lx, ly] or [lx, ly, lz] in mm", axes)
@@ -429,7 +429,10 @@ def _muscles(r: _Reader, data: dict[str, Any]) -> tuple[Muscle, ...]:
                 raise r.fail(f"{key}.semi_axes_mm", "positive semi-axes", axes)
             nrm = r.vec3(m, "normal", key, unit=True) if "normal" in m else (0.0, 0.0, 1.0)
             maj = r.vec3(m, "major_axis", key, unit=True) if "major_axis" in m else (1.0, 0.0, 0.0)
-            muscle = SphincterMuscle(name, r.vec3(m, "centre_mm", key), ax, mc, nrm, maj)
+            form = r.string(m, "falloff", key) if "falloff" in m else "corrected"
+            if form not in ("corrected", "printed", "ring"):
+                raise r.fail(f"{key}.falloff", "one of 'corrected', 'printed', 'ring'", form)
+            muscle = SphincterMuscle(name, r.vec3(m, "centre_mm", key), ax, mc, nrm, maj, form)
         elif mtype == "sheet":
             r.keys(
                 m,

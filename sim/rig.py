@@ -153,6 +153,7 @@ class SphincterMuscle:
 
     ``semi_axes_mm`` = (lx, ly) or (lx, ly, lz): the ellipse (ellipsoid) of influence, lx along
     ``major_axis``, ly along ``normal`` x ``major_axis``, lz along ``normal`` (depth band).
+    ``falloff``: "corrected" (default), "printed" or "ring" (``servoface.sim.muscles.sphincter``).
     """
 
     name: str
@@ -161,6 +162,7 @@ class SphincterMuscle:
     max_contraction: float = 0.25
     normal: Vec3 = (0.0, 0.0, 1.0)
     major_axis: Vec3 = (1.0, 0.0, 0.0)
+    falloff: str = "corrected"
     type: Literal["sphincter"] = "sphincter"
 
 

@@ -87,6 +87,10 @@ def test_wheel_has_one_import_root_and_every_shipped_file(
     for script in (ROOT / "controller" / "scripts").glob("*.toml"):
         assert f"servoface/controller/scripts/{script.name}" in names
     assert any(n.startswith("servoface/sim/heads/human/") for n in names)
+    for shipped in (ROOT / "controller" / "studio" / "static").rglob("*"):  # the studio's front end, no CDN
+        if shipped.is_file():
+            assert f"servoface/{shipped.relative_to(ROOT)}" in names, shipped
+    assert "servoface/controller/studio/API.md" in names
     for top in OURS:
         proc = subprocess.run([str(python), "-c", f"import {top}"], cwd=work, env=env, capture_output=True, text=True)
         assert proc.returncode != 0 and "No module named" in proc.stderr, f"`import {top}` worked in the fresh venv"

@@ -9,6 +9,10 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 
+class SuiteUnavailable(RuntimeError):
+    """A suite cannot run on this machine (an optional dependency is missing); the message says why."""
+
+
 @dataclass(frozen=True)
 class Figure:
     """A benchmark result.

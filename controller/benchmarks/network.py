@@ -40,7 +40,7 @@ if mode == "stream":
     for i in range(int(sys.argv[4])):
         due = t0 + i / 50
         time.sleep(max(0.0, due - time.monotonic()))
-        new = 0.5 if (i // 20) % 2 else 0.0
+        new = 0.5 if (i // 10) % 2 else 0.0  # a step every 0.2 s: 50 steps in 10 s
         t = time.monotonic()
         c.send_aus(k, {"AU26": new}, t_s=t)
         if new != value:

@@ -31,6 +31,7 @@ COMMANDS: dict[str, str] = {
     "cue": "servoface.controller.cli.cue",
     "say": "servoface.controller.cli.say",
     "lipsync": "servoface.controller.cli.lipsync",
+    "studio": "servoface.controller.cli.studio",
 }
 
 

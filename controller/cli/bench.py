@@ -27,7 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from servoface.controller.benchmarks import SUITES
-    from servoface.controller.benchmarks.figure import machine_description
+    from servoface.controller.benchmarks.figure import SuiteUnavailable, machine_description
 
     names = suite_names(args.suites)
     unknown = [n for n in names if n not in SUITES]
@@ -51,11 +51,15 @@ def run(args: argparse.Namespace) -> int:
             status = 1
             continue
         options = {"minutes": args.minutes} if args.minutes is not None and _takes_minutes(module) else {}
-        for figure in module.run(quick=args.quick, **options):
-            if args.json:
-                print(figure.to_json(), flush=True)
-            else:
-                print(_row(name, figure), flush=True)
+        try:
+            for figure in module.run(quick=args.quick, **options):
+                if args.json:
+                    print(figure.to_json(), flush=True)
+                else:
+                    print(_row(name, figure), flush=True)
+        except SuiteUnavailable as err:
+            print(f"servoface bench: suite '{name}' cannot run here: {err}", file=sys.stderr)
+            status = 1
     return status
 
 

@@ -218,6 +218,8 @@ def run(args: argparse.Namespace) -> int:
     def on_fault_signal(signum: int, frame: FrameType | None) -> None:
         for sid, kind, delay in on_signal_faults:
             chain.faults.inject_now(sid, kind, delay_s=delay)
+        started = ", ".join(f"{kind} on servo {sid}" for sid, kind, _ in on_signal_faults) or "nothing"
+        print(f"# fault-on-signal: {started} from now", file=sys.stderr, flush=True)  # a test waits for it
 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     previous[signal.SIGUSR1] = signal.signal(signal.SIGUSR1, on_fault_signal)

@@ -105,6 +105,14 @@ class TraceFile:
         if self.writer is not None:
             self.writer(trace)
 
+    def discard(self) -> None:
+        """Close and remove the temp file (the run never started): FILE is left as it was."""
+        fh, self._fh = self._fh, None
+        if fh is not None:
+            fh.close()
+        if self._tmp is not None and self._tmp.exists():
+            self._tmp.unlink()
+
     def finish(self) -> str | None:
         """Close and rename into place; the line to print (None without --trace)."""
         if self._fh is None or self._tmp is None or self.path is None:

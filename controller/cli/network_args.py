@@ -22,6 +22,12 @@ def add_network_arguments(parser: argparse.ArgumentParser, *, node: bool) -> Non
     parser.add_argument("--password", help="its password")
     if node:
         parser.add_argument("--users-file", type=Path, help="accept only peers in this file (lines user:password)")
+        parser.add_argument(
+            "--operators",
+            default=None,
+            help="USER[,USER...]: only these users (of --users-file) may move the head; every other "
+            "authenticated peer may watch it and press the e-stop (Zenoh access control)",
+        )
     parser.add_argument("--tls-ca", type=Path, help="TLS root CA certificate (PEM)")
     parser.add_argument("--tls-cert", type=Path, help="TLS certificate (PEM) for listening")
     parser.add_argument("--tls-key", type=Path, help="TLS private key (PEM) for listening")
@@ -32,10 +38,14 @@ def add_network_arguments(parser: argparse.ArgumentParser, *, node: bool) -> Non
     )
 
 
-def open_from_args(args: argparse.Namespace, *, node: bool) -> Any:
+def open_from_args(args: argparse.Namespace, *, node: bool, keys: Any = None) -> Any:
+    """The session of a node (``keys``: its head, for the access-control rules) or of a client."""
+    from servoface.controller.network.acl import node_acl, parse_operators
     from servoface.controller.network.zconfig import DEFAULT_LISTEN, Credentials, TlsFiles, open_session
 
     listen = (args.listen or [DEFAULT_LISTEN]) if node else []
     creds = Credentials(args.user, args.password, getattr(args, "users_file", None))
     tls = TlsFiles(args.tls_ca, args.tls_cert, args.tls_key)
-    return open_session(listen=listen, connect=args.connect, creds=creds, tls=tls, insecure=args.insecure)
+    operators = parse_operators(getattr(args, "operators", None))
+    acl = node_acl(keys, operators) if operators and keys is not None else None
+    return open_session(listen=listen, connect=args.connect, creds=creds, tls=tls, insecure=args.insecure, acl=acl)

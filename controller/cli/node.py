@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     try:
         keys = head_keys(args.site, args.name)
-        session = open_from_args(args, node=True)
+        session = open_from_args(args, node=True, keys=keys)
     except NetworkError as err:
         print(f"servoface node: {err}", file=sys.stderr)
         return 2
@@ -129,10 +129,21 @@ class _WireLog:
         self.thread.start()
 
     def _flush(self) -> None:
-        writes = self.chain.goal_writes()  # type: ignore[attr-defined]
-        for t_s, sid, tick in writes[self.done :]:
-            self.fh.write(json.dumps([round(t_s + self.offset, 6), sid, tick]) + "\n")
-        self.done = len(writes)
+        """Decode only the packets logged since the last flush (decoding the whole log every 50 ms grew
+        with the run and cost the node as much CPU as its head loop: late frames in the benches)."""
+        from servoface.hardware.emulator.chain import GOAL_ADDRESS
+        from servoface.hardware.emulator.packet_log import register_writes
+
+        log = self.chain.log  # type: ignore[attr-defined]  # an append-only list
+        end = len(log)
+        new = log[self.done : end]
+        self.done = end
+        lines = [
+            json.dumps([round(t_s + self.offset, 6), sid, tick])
+            for t_s, sid, tick in register_writes(new, GOAL_ADDRESS, 4)
+        ]
+        if lines:
+            self.fh.write("\n".join(lines) + "\n")
         self.fh.flush()
 
     def _run(self) -> None:

@@ -3,12 +3,22 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
+from typing import Any
 
-from servoface.controller.cli.head_args import add_head_arguments, open_errors, open_face, rate_problem
+from servoface.controller.cli.head_args import (
+    TraceFile,
+    add_head_arguments,
+    exit_status,
+    open_errors,
+    open_face,
+    print_stop,
+    rate_problem,
+)
 from servoface.controller.cli.input_args import add_input_arguments, input_problem, read_options
+from servoface.controller.cli.terminal import printable
+from servoface.controller.stop_signals import StopSignals
 
 HELP = "play an expression or a timeline script on a head, on a real port or on the emulator"
 
@@ -45,13 +55,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from servoface.controller.errors import ControllerError
-    from servoface.controller.script import load_script
-    from servoface.hardware.errors import HardwareError
-    from servoface.sim.errors import SimError
-    from servoface.sim.expressions import load_library
-    from servoface.sim.heads import load_head
-
     if (problem := rate_problem(args)) is not None:
         print(f"servoface play: {problem}", file=sys.stderr)
         return 2
@@ -70,45 +73,103 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    recording = None
-    from servoface.controller.shipped import is_shipped_script
+    with StopSignals() as signals:  # SIGINT (twice: hurry to neutral), SIGTERM, SIGHUP: the stop path
+        return _play(args, signals)
 
+
+def _play(args: argparse.Namespace, signals: StopSignals) -> int:
+    """Load and check, open (interruptible until torque-on), play on the head service, then the one stop path;
+    exit 0, 1 (bus failure, servos latched/missing), 2 (bad input), 3 (torque-off not confirmed), 128+signal."""
+    from servoface.controller.errors import ControllerError
+    from servoface.controller.script import load_script
+    from servoface.controller.service import ServiceClosedError
+    from servoface.controller.shipped import is_shipped_script
+    from servoface.controller.stop_signals import StopRequested, interruptible
+    from servoface.hardware.errors import HardwareError
+    from servoface.sim.errors import SimError
+    from servoface.sim.expressions import load_library
+    from servoface.sim.heads import load_head
+
+    recording = None
     is_script = args.what is not None and (
         args.what.endswith(".toml") or Path(args.what).is_file() or is_shipped_script(args.what)
     )
+    trace_file = TraceFile(args.trace)
     try:  # check what to play before opening the port: a typo must not switch torque on
-        head = load_head(args.head)
-        if args.input is not None:
-            from servoface.controller.inputs import load_recording
+        with interruptible():
+            head = load_head(args.head)
+            if args.input is not None:
+                from servoface.controller.inputs import load_recording
 
-            recording = load_recording(args.input, head.face_type, options=read_options(args))
-            print("\n".join(recording.report.lines()))
-        elif is_script:
-            what = load_script(args.what)
-        else:
-            known = load_library(head.expressions_path or head.face_type)
-            if args.what not in known:
-                raise ControllerError(f"unknown expression {args.what!r}; known: {sorted(known)}")
-        face = open_face(args, head)
-    except open_errors() as err:
-        print(f"servoface play: {err}", file=sys.stderr)
-        return 2
-    try:
-        with face:
-            if recording is not None:
-                hold_s = args.hold if args.hold is not None else (1.5 if len(recording) == 1 else 0.0)
-                length_s = recording.duration_s + hold_s
-                perf = face.perform(recording, length_s if args.duration is None else min(length_s, args.duration))
+                recording = load_recording(args.input, head.face_type, options=read_options(args))
+                print("\n".join(recording.report.lines()))
             elif is_script:
-                perf = face.play(what, duration_s=args.duration)
+                what = load_script(args.what)
             else:
-                perf = face.express(args.what, hold_s=1.5 if args.hold is None else args.hold)
-    except (ControllerError, SimError, ValueError) as err:
-        print(f"servoface play: {err}", file=sys.stderr)
+                known = load_library(head.expressions_path or head.face_type)
+                if args.what not in known:
+                    raise ControllerError(f"unknown expression {args.what!r}; known: {sorted(known)}")
+            trace_file.open()
+        where = "the emulator" if args.emulate else args.port
+        print(f"# opening head {head.name!r} on {where}", file=sys.stderr, flush=True)
+        face = open_face(args, head)
+    except StopRequested as err:
+        trace_file.discard()
+        print(f"servoface play: {err} during start-up; every servo left with torque off", file=sys.stderr)
+        return signals.exit_code() or 130
+    except open_errors() as err:
+        trace_file.discard()
+        print(f"servoface play: {printable(err)}", file=sys.stderr)
         return 2
+    print(
+        f"# playing at {args.rate:g} Hz; Ctrl-C eases to neutral and turns torque off (twice: faster)",
+        file=sys.stderr,
+        flush=True,
+    )
+    perf = None
+    failed = False
+    code: int | None = None
+    reason = "end"
+    try:
+        if recording is not None:
+            hold_s = args.hold if args.hold is not None else (1.5 if len(recording) == 1 else 0.0)
+            length_s = recording.duration_s + hold_s
+            perf = face.perform(recording, length_s if args.duration is None else min(length_s, args.duration))
+        elif is_script:
+            perf = face.play(what, duration_s=args.duration)
+        else:
+            perf = face.express(args.what, hold_s=1.5 if args.hold is None else args.hold)
     except HardwareError as err:
-        print(f"servoface play: bus failure, torque turned off: {err}", file=sys.stderr)
-        return 1
+        print(f"servoface play: bus failure: {printable(err)}", file=sys.stderr)
+        failed, reason = True, "bus failure"
+    except (ControllerError, SimError, ValueError) as err:
+        if not (isinstance(err, ServiceClosedError) and signals.requested):  # (else a signal closed the service
+            print(f"servoface play: {printable(err)}", file=sys.stderr)  # before the command got in: no error)
+            code, reason = 2, f"error: {type(err).__name__}"
+    except Exception as err:  # noqa: BLE001 - an unexpected error still ends in the safe stop below
+        print(f"servoface play: internal error {type(err).__name__}: {printable(err)}", file=sys.stderr)
+        failed, reason = True, f"error: {type(err).__name__}"
+    finally:
+        if signals.requested:
+            reason = signals.name or "signal"
+        report = face.close(reason=reason)
+    if report is not None and report.reason == "bus failure":
+        failed = True
+    written = None
+    if perf is not None:
+        _summary(args, perf)
+        _say_unshown(face, perf, args.head)
+        for trace in perf.traces:
+            trace_file.sink(trace)
+    written = trace_file.finish()
+    print_stop("play", report)
+    if written:
+        print(written)
+    status = exit_status(report, failed=failed, signal_code=signals.exit_code())
+    return code if code is not None and status in (0, 130, 143, 129) else status
+
+
+def _summary(args: argparse.Namespace, perf: Any) -> None:
     summary = perf.summary()
     loop = summary.get("loop", {})
     print(
@@ -121,15 +182,7 @@ def run(args: argparse.Namespace) -> int:
             key = reason.split(":")[0]
             reasons[key] = reasons.get(key, 0) + 1
     for reason, count in sorted(reasons.items(), key=lambda kv: -kv[1])[:12]:
-        print(f"  {count:5d} x {reason}")
-    _say_unshown(face, perf, args.head)
-    if args.trace is not None:
-        args.trace.parent.mkdir(parents=True, exist_ok=True)
-        with args.trace.open("w") as fh:
-            for trace in perf.traces:
-                fh.write(json.dumps(trace.as_dict()) + "\n")
-        print(f"trace written to {args.trace}")
-    return 130 if perf.interrupted else 0
+        print(f"  {count:5d} x {printable(reason)}")
 
 
 def _say_unshown(face: object, perf: object, head_arg: str) -> None:

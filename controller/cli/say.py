@@ -62,4 +62,11 @@ def run(args: argparse.Namespace) -> int:
             print(f"wrote {video}: {count} frames with sound ({speech.duration_s:.2f} s of speech)")
     s = perf.summary()
     print(f"{s['frames']} frames; verdicts {s['verdicts']}; {len(speech.plan.segments)} visemes")
+    print(f"sound: {spoken.sound}; the mouth followed the {spoken.clock} clock")
+    if spoken.budget is not None:
+        b = spoken.budget
+        print(
+            f"jaw budget: account {b.account_before:.3f} -> {b.account_after:.3f} of {b.budget:.3f}; "
+            f"thermal level {b.level}; jaw scaled down on {b.scaled_share:.0%} of the speech (min x{b.min_scale:.2f})"
+        )
     return 130 if perf.interrupted else 0

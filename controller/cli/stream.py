@@ -8,12 +8,21 @@ and prints what happened: frames, messages, bad messages, dropouts, verdicts.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
-from servoface.controller.cli.head_args import add_head_arguments, open_errors, open_face, rate_problem
+from servoface.controller.cli.head_args import (
+    TraceFile,
+    add_head_arguments,
+    exit_status,
+    open_errors,
+    open_face,
+    print_stop,
+    rate_problem,
+)
 from servoface.controller.cli.input_args import add_input_arguments, input_problem, load_shape_ranges
+from servoface.controller.cli.terminal import printable
+from servoface.controller.stop_signals import StopSignals
 
 HELP = "follow a live face-data stream (UDP, TCP or stdin JSON) on a head, on a real port or the emulator"
 
@@ -105,6 +114,19 @@ def _fail(message: str) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    if (problem := rate_problem(args)) is not None:
+        return _fail(problem)
+    if args.duration is not None and not (0 < args.duration < 1e7):
+        return _fail(f"--duration must be a positive number of seconds, got {args.duration}")
+    if (problem := input_problem(args)) is not None:
+        return _fail(problem)
+    with StopSignals() as signals:  # SIGINT (twice: hurry to neutral), SIGTERM, SIGHUP: the stop path
+        return _stream(args, signals)
+
+
+def _stream(args: argparse.Namespace, signals: StopSignals) -> int:
+    """Set up (interruptible until torque-on), follow on the head service, then the one stop path; exit
+    status as `servoface play`'s."""
     from servoface.controller.errors import ControllerError
     from servoface.controller.frame import FrameValidator
     from servoface.controller.inputs import (
@@ -117,74 +139,77 @@ def run(args: argparse.Namespace) -> int:
     from servoface.controller.inputs.smoothing import AUSmoother
     from servoface.controller.inputs.stream import StreamRecorder
     from servoface.controller.inputs.transports import parse_address
+    from servoface.controller.service import ServiceClosedError
+    from servoface.controller.stop_signals import StopRequested, interruptible
     from servoface.hardware.errors import HardwareError
     from servoface.sim.errors import SimError
     from servoface.sim.heads import load_head
 
-    if (problem := rate_problem(args)) is not None:
-        return _fail(problem)
-    if args.duration is not None and not (0 < args.duration < 1e7):
-        return _fail(f"--duration must be a positive number of seconds, got {args.duration}")
-    if (problem := input_problem(args)) is not None:
-        return _fail(problem)
+    trace_file = TraceFile(args.trace)
     receiver: UdpReceiver | TcpReceiver | LineReceiver | None = None
     recorder: StreamRecorder | None = None
     try:  # everything that can fail on bad arguments happens before the port opens (torque stays off)
-        head = load_head(args.head)
-        validator = FrameValidator.for_head(head)
-        decoder = MessageDecoder(
-            head.face_type,
-            allowed=validator.allowed,
-            mirror=args.mirror,
-            vergence=args.vergence,
-            shape_ranges=load_shape_ranges(args),
-            face_id=args.face_id or 0,
-            gaze=not args.no_gaze,
-            head_pose=not args.no_head_pose,
-        )
-        from servoface.controller.inputs.admission import StreamGuard
-
-        guard = StreamGuard(_token(args), rate_hz=args.max_rate, burst=args.burst, takeover_s=args.takeover_s)
-        smoothing = None if args.no_smoothing else AUSmoother(args.min_cutoff, args.beta)
-        if args.record is not None:
-            recorder = StreamRecorder(args.record)
-        source = StreamSource(
-            decoder,
-            dropout_ms=args.dropout_ms,
-            dropout=args.dropout,
-            ease_s=args.ease,
-            min_confidence=args.min_confidence or 0.0,
-            smoothing=smoothing,
-            guard=guard,
-            rest_s=args.rest_s,
-            on_message=recorder,
-            playout_ms=args.playout_ms,
-        )
-        if args.udp is not None:
-            host, port = parse_address(args.udp)
-            receiver = UdpReceiver(source, host, port, allow_remote=args.allow_remote)
-            where = f"udp {host}:{receiver.address[1]}"
-        elif args.tcp is not None:
-            host, port = parse_address(args.tcp)
-            receiver = TcpReceiver(
-                source,
-                host,
-                port,
-                allow_remote=args.allow_remote,
-                max_clients=args.max_clients,
-                idle_timeout_s=args.idle_timeout,
+        with interruptible():
+            head = load_head(args.head)
+            validator = FrameValidator.for_head(head)
+            decoder = MessageDecoder(
+                head.face_type,
+                allowed=validator.allowed,
+                mirror=args.mirror,
+                vergence=args.vergence,
+                shape_ranges=load_shape_ranges(args),
+                face_id=args.face_id or 0,
+                gaze=not args.no_gaze,
+                head_pose=not args.no_head_pose,
             )
-            where = f"tcp {host}:{receiver.address[1]}"
-        else:
-            receiver = LineReceiver(source, sys.stdin, pace=not args.arrival)
-            where = "stdin"
+            from servoface.controller.inputs.admission import StreamGuard
+
+            guard = StreamGuard(_token(args), rate_hz=args.max_rate, burst=args.burst, takeover_s=args.takeover_s)
+            smoothing = None if args.no_smoothing else AUSmoother(args.min_cutoff, args.beta)
+            if args.record is not None:
+                recorder = StreamRecorder(args.record)
+            source = StreamSource(
+                decoder,
+                dropout_ms=args.dropout_ms,
+                dropout=args.dropout,
+                ease_s=args.ease,
+                min_confidence=args.min_confidence or 0.0,
+                smoothing=smoothing,
+                guard=guard,
+                rest_s=args.rest_s,
+                on_message=recorder,
+                playout_ms=args.playout_ms,
+            )
+            if args.udp is not None:
+                host, port = parse_address(args.udp)
+                receiver = UdpReceiver(source, host, port, allow_remote=args.allow_remote)
+                where = f"udp {host}:{receiver.address[1]}"
+            elif args.tcp is not None:
+                host, port = parse_address(args.tcp)
+                receiver = TcpReceiver(
+                    source,
+                    host,
+                    port,
+                    allow_remote=args.allow_remote,
+                    max_clients=args.max_clients,
+                    idle_timeout_s=args.idle_timeout,
+                )
+                where = f"tcp {host}:{receiver.address[1]}"
+            else:
+                receiver = LineReceiver(source, sys.stdin, pace=not args.arrival)
+                where = "stdin"
+            trace_file.open()
         face = open_face(args, head)
-    except open_errors() as err:
+    except (StopRequested, *open_errors()) as err:
         if receiver is not None:
             receiver.close()
         if recorder is not None:
             recorder.close()
-        return _fail(str(err))
+        trace_file.discard()
+        if isinstance(err, StopRequested):
+            print(f"servoface stream: {err} during start-up; every servo left with torque off", file=sys.stderr)
+            return signals.exit_code() or 130
+        return _fail(printable(err))
     print(
         f"following {where} on head {head.name!r} ({head.face_type}) at {args.rate:g} Hz; Ctrl-C stops",
         file=sys.stderr,
@@ -196,17 +221,36 @@ def run(args: argparse.Namespace) -> int:
         aus, in_dropout = source.target()
         return in_dropout and (args.dropout == "hold" or all(v == 0.0 for v in aus.values()))
 
+    perf = None
+    failed = False
+    code: int | None = None
+    reason = "end"
     try:
-        with face, receiver:
+        with receiver:
             perf = face.follow(source, args.duration, until=stdin_done)
-    except (ControllerError, SimError, ValueError) as err:
-        return _fail(str(err))
     except HardwareError as err:
-        print(f"servoface stream: bus failure, torque turned off: {err}", file=sys.stderr)
-        return 1
+        print(f"servoface stream: bus failure: {printable(err)}", file=sys.stderr)
+        failed, reason = True, "bus failure"
+    except (ControllerError, SimError, ValueError) as err:
+        if not (isinstance(err, ServiceClosedError) and signals.requested):  # (else a signal closed the service
+            print(f"servoface stream: {printable(err)}", file=sys.stderr)  # before the command got in: no error)
+            code, reason = 2, f"error: {type(err).__name__}"
+    except Exception as err:  # noqa: BLE001 - an unexpected error still ends in the safe stop below
+        print(f"servoface stream: internal error {type(err).__name__}: {printable(err)}", file=sys.stderr)
+        failed, reason = True, f"error: {type(err).__name__}"
     finally:
+        if signals.requested:
+            reason = signals.name or "signal"
+        report = face.close(reason=reason)
         if recorder is not None:
             recorder.close()
+    if report is not None and report.reason == "bus failure":
+        failed = True
+    if perf is None:
+        trace_file.discard()
+        print_stop("stream", report)
+        status = exit_status(report, failed=True, signal_code=signals.exit_code())
+        return code if code is not None and status in (0, 130, 143, 129) else status
     summary = perf.summary()
     loop = summary.get("loop", {})
     stats = source.stats
@@ -241,12 +285,14 @@ def run(args: argparse.Namespace) -> int:
             )
         )
     for error in list(stats.errors)[-5:]:
-        print(f"  bad: {error}")
+        print(f"  bad: {printable(error)}")
     if recorder is not None:
         print(f"{recorder.count} messages recorded to {recorder.path} (replay: servoface play --input FILE)")
-    if args.trace is not None:
-        with args.trace.open("w") as fh:
-            for trace in perf.traces:
-                fh.write(json.dumps(trace.as_dict()) + "\n")
-        print(f"trace written to {args.trace}")
-    return 130 if perf.interrupted else 0
+    for trace in perf.traces:
+        trace_file.sink(trace)
+    written = trace_file.finish()
+    print_stop("stream", report)
+    if written:
+        print(written)
+    status = exit_status(report, failed=failed, signal_code=signals.exit_code())
+    return code if code is not None and status in (0, 130, 143, 129) else status

@@ -62,11 +62,18 @@ class ShapeRanges:
         return cls(ranges)
 
     def save(self, path: str | Path) -> None:
+        """Write the JSON atomically (a temp file beside ``path``, fsynced, renamed over it): a reader, or a
+        run killed mid-write, sees the old file or the new one, never an empty or half-written one."""
+        from servoface.calibration.fileformat import write_atomic
+
         data = {
             "schema_version": 1,
             "ranges": {k: [round(a, 6), round(b, 6)] for k, (a, b) in self.ranges.items()},
         }
-        Path(path).write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+        try:
+            write_atomic(Path(path), json.dumps(data, indent=1, sort_keys=True) + "\n")
+        except OSError as err:
+            raise InputError(f"shape ranges {path}: cannot write: {err}") from err
 
     @classmethod
     def load(cls, path: str | Path, known: frozenset[str] | None = None) -> ShapeRanges:

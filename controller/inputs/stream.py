@@ -165,6 +165,36 @@ class StreamSource:
             return False
         try:
             obj = parse_json(raw, where=f"{where} #{index}")
+        except FrameError as err:
+            self._bad(str(err))
+            return False
+        return self._take(obj, arrival, index, where, client, authenticated)
+
+    def feed_obj(
+        self,
+        obj: Any,
+        *,
+        where: str = "message",
+        client: Hashable = None,
+        authenticated: bool = False,
+        rate_checked: bool = False,
+    ) -> bool:
+        """:meth:`feed` for a message already parsed by ``parse_json`` (bounded size and depth), e.g. the
+        body of a network envelope: no second serialise + parse per frame. Never raises."""
+        arrival = self.clock()
+        with self._lock:
+            self.stats.messages += 1
+            index = self.stats.messages
+        guard = self.guard
+        if guard is not None and not rate_checked and not guard.rate_ok(client):
+            return False
+        return self._take(obj, arrival, index, where, client, authenticated)
+
+    def _take(
+        self, obj: Any, arrival: float, index: int, where: str, client: Hashable, authenticated: bool
+    ) -> bool:
+        guard = self.guard
+        try:
             if guard is not None and not authenticated and not guard.token_ok(obj):
                 return False
             msg = self.decoder.decode(obj, where=f"{where} #{index}")

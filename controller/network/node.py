@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import math
+import queue
 import threading
 import time
 from collections.abc import Callable
@@ -28,6 +29,7 @@ from servoface.controller.network.messages import SCHEMA_VERSION, SequenceGuard,
 
 LINK_POLL_S = 0.05
 LINK_LOSS_EASE_S = 0.3  # lease 0.4 s + 2 polls + this: at neutral within 1 s of the cut
+SLOW_QUEUE = 4  # say commands waiting for synthesis (more are refused: "say refused (busy)")
 CUE_WINDOW_S = (-0.5, 120.0)  # a cue may start at most this far in the past / future of the node's clock
 
 
@@ -64,6 +66,7 @@ class HeadNode:
         self._on_event = on_event or (lambda _msg: None)
         self._declared: list[Any] = []
         self._threads: list[threading.Thread] = []
+        self._slow: queue.Queue[tuple[str, dict[str, Any]]] = queue.Queue(maxsize=SLOW_QUEUE)
 
     # -- life ---------------------------------------------------------------------------------------
     def start(self) -> HeadNode:
@@ -75,7 +78,7 @@ class HeadNode:
             s.declare_queryable(k.clock, self._on_clock),
             s.liveliness().declare_token(k.presence),
         ]
-        for target, name in ((self._publish_state, "state"), (self._watch_links, "links")):
+        for target, name in ((self._publish_state, "state"), (self._watch_links, "links"), (self._run_slow, "say")):
             t = threading.Thread(target=target, name=f"servoface-node-{name}", daemon=True)
             t.start()
             self._threads.append(t)
@@ -138,7 +141,7 @@ class HeadNode:
         source = self._stream(track)
         if source is None:
             return
-        if not source.feed(json.dumps(body), where=f"{key}", rate_checked=True):
+        if not source.feed_obj(body, where=key, rate_checked=True):  # parsed once, by open_envelope
             self.guard.refuse("bad AU frame")
 
     def _stream(self, track: str) -> Any:
@@ -170,11 +173,28 @@ class HeadNode:
         if verb not in VERBS:
             self.guard.refuse("unknown command")
             return
+        if verb == "say":  # synthesis takes ~0.1 s: not on Zenoh's callback thread (AU frames wait behind it)
+            try:
+                self._slow.put_nowait((verb, body))
+            except queue.Full:
+                self.guard.refuse("say refused (busy)")
+            return
+        self._command(verb, body)
+
+    def _command(self, verb: str, body: dict[str, Any]) -> None:
         try:
             self.run_command(verb, body)
         except Exception as err:  # noqa: BLE001 - a refused command is counted and reported, never fatal
             self.guard.refuse(f"{verb} refused")
             self._put(self.keys.state("refused"), {"verb": verb, "error": str(err)[:300]})
+
+    def _run_slow(self) -> None:
+        while not self._stop.is_set():
+            try:
+                verb, body = self._slow.get(timeout=0.1)
+            except queue.Empty:
+                continue
+            self._command(verb, body)
 
     def run_command(self, verb: str, body: dict[str, Any], *, at_s: float | None = None) -> Any:
         """Apply one command (already opened); raises the service's typed error for a bad value."""
@@ -224,10 +244,17 @@ class HeadNode:
         text = body.get("text")
         if not isinstance(text, str) or not text.strip() or len(text) > 2000:
             raise MessageError("say: text must be a non-empty string of at most 2000 characters")
+        from servoface.controller.speech.jaw_budget import jaw_thermal
+        from servoface.controller.speech.say import jaw_budget_for
+
         speech = speech_from_text(text)
-        face_type = self.service.head.face_type
-        clip = speech.plan.clip(face_type, head_au_names(self.service.head) & mouth_aus(face_type))
-        return self.service.speak(clip, at_s=at_s)
+        svc = self.service
+        face_type = svc.head.face_type
+        start = svc.clock.to_monotonic_s(svc.now_s() if at_s is None else at_s)
+        jaw = svc.head.servo_ids.get("jaw")
+        plan, _ = jaw_budget_for(svc).apply(speech.plan, start, jaw_thermal(svc, jaw) if jaw is not None else None)
+        clip = plan.clip(face_type, head_au_names(svc.head) & mouth_aus(face_type))
+        return svc.speak(clip, at_s=at_s)
 
     def _cue(self, body: dict[str, Any]) -> Any:
         what = body.get("what")

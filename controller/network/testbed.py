@@ -51,11 +51,21 @@ class NodeProc:
                 self.proc.kill()
 
 
-def start_nodes(tmp: Path, names: list[str], *, users_file: Path | None = None, head: str = "human") -> list[NodeProc]:
+def start_nodes(
+    tmp: Path,
+    names: list[str],
+    *,
+    users_file: Path | None = None,
+    head: str = "human",
+    proto: str = "tcp",
+    extra: list[str] | None = None,
+) -> list[NodeProc]:
+    """``servoface node`` processes on loopback (``proto`` tcp or tls; ``extra``: more node arguments,
+    e.g. the TLS files and ``--operators``), started when each says it is listening."""
     nodes = []
     for name in names:
         port = free_port()
-        endpoint = f"tcp/127.0.0.1:{port}"
+        endpoint = f"{proto}/127.0.0.1:{port}"
         wire, log = tmp / f"{name}.wire", tmp / f"{name}.log"
         cmd = [
             sys.executable,
@@ -78,6 +88,7 @@ def start_nodes(tmp: Path, names: list[str], *, users_file: Path | None = None, 
         ]
         if users_file is not None:
             cmd += ["--users-file", str(users_file), "--user", "node", "--password", "node-secret"]
+        cmd += list(extra or [])
         fh = log.open("w")
         proc = subprocess.Popen(cmd, stdout=fh, stderr=subprocess.STDOUT, text=True, env=ENV)
         nodes.append(NodeProc(name, endpoint, wire, log, proc))

@@ -98,9 +98,14 @@ def session_config(
     tls: TlsFiles = TlsFiles(),
     insecure: bool = False,
     lease_ms: int = LEASE_MS,
+    acl: dict[str, Any] | None = None,
 ) -> Any:
-    """A ``zenoh.Config`` for a peer with these endpoints (validated first)."""
+    """A ``zenoh.Config`` for a peer with these endpoints (validated first); ``acl``: an
+    ``access_control`` section (:func:`.acl.node_acl`), which needs the users file (its subjects are user
+    names)."""
     check_endpoints(listen, connect, creds, tls, insecure=insecure)
+    if acl is not None and creds.users_file is None:
+        raise NetworkError("access control (--operators) needs --users-file: its rules name authenticated users")
     import zenoh
 
     conf = zenoh.Config()
@@ -127,6 +132,8 @@ def session_config(
     if tls.cert is not None and tls.key is not None:
         put("transport/link/tls/listen_certificate", str(tls.cert))
         put("transport/link/tls/listen_private_key", str(tls.key))
+    if acl is not None:
+        put("access_control", acl)
     return conf
 
 

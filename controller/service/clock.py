@@ -8,11 +8,13 @@ so two heads whose clocks are aligned (see ``offset_s``) play a cue on the same 
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
 
 from servoface.controller.service.errors import ServiceError
+from servoface.controller.values import MAX_SECONDS, as_finite, printable_repr
+
+MAX_TIME_S = 10 * 365 * 24 * 3600.0  # a service time (``at_s``) beyond ten years is a mistake
 
 
 class ServiceClock:
@@ -37,16 +39,20 @@ class ServiceClock:
 
 
 def check_time_s(value: object, *, field: str) -> float:
-    """A finite time in seconds (not a bool), else ServiceError naming ``field``."""
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise ServiceError(f"{field}: expected a finite time in seconds, got {value!r}")
-    return float(value)
+    """A finite time in seconds (a real number, not a bool, within +-10 years), else ServiceError naming
+    ``field`` (never OverflowError / TypeError, whatever ``value`` is)."""
+    number = as_finite(value)
+    if number is None or abs(number) > MAX_TIME_S:
+        raise ServiceError(f"{field}: expected a finite time in seconds, got {printable_repr(value)}")
+    return number
 
 
 def check_duration_s(value: object, *, field: str, allow_zero: bool = True) -> float:
-    """A finite duration >= 0 (or > 0) in seconds, else ServiceError naming ``field``."""
-    number = check_time_s(value, field=field)
-    if number < 0 or (not allow_zero and number == 0):
+    """A finite duration >= 0 (or > 0), at most a day, in seconds, else ServiceError naming ``field``."""
+    number = as_finite(value)
+    if number is None or number < 0 or (not allow_zero and number == 0) or number > MAX_SECONDS:
         bound = ">= 0" if allow_zero else "> 0"
-        raise ServiceError(f"{field}: expected a duration {bound} s, got {value!r}")
+        raise ServiceError(
+            f"{field}: expected a duration {bound} s (at most {MAX_SECONDS:g} s), got {printable_repr(value)}"
+        )
     return number

@@ -3,8 +3,6 @@ loop or the bus: a bad command raises here and changes nothing)."""
 
 from __future__ import annotations
 
-import math
-import numbers
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -13,33 +11,43 @@ from servoface.controller.frame import FrameValidator
 from servoface.controller.service.clock import check_duration_s
 from servoface.controller.service.errors import ServiceError
 from servoface.controller.service.sources import ClipSource, SamplesSource, Source, Then, transition_clip
+from servoface.controller.values import as_finite, printable_repr
 from servoface.sim.head import Head
+
+MAX_POINT_MM = 1e6  # a gaze point a kilometre away is a mistake (and far beyond where the gaze changes)
 
 
 def check_then(then: object) -> Then | None:
-    if then is None or then == "hold" or then == "release":
-        return then
-    raise ServiceError(f"then: expected 'hold' (keep the last pose) or 'release' (empty the track), got {then!r}")
+    if then is None or (isinstance(then, str) and then in ("hold", "release")):
+        return then  # type: ignore[return-value]
+    raise ServiceError(
+        f"then: expected 'hold' (keep the last pose) or 'release' (empty the track), got {printable_repr(then)}"
+    )
 
 
 def check_point_mm(point_mm: object, *, field: str = "point_mm") -> tuple[float, float, float]:
-    """Three finite real numbers (x, y, z) in mm, else ServiceError naming ``field``."""
-    values: tuple[Any, ...]
-    try:
-        values = tuple(point_mm)  # type: ignore[arg-type]
-    except TypeError:
-        values = ()
-    if len(values) != 3 or not all(
-        isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v) for v in values
-    ):
-        raise ServiceError(f"{field}: expected three finite numbers (x, y, z) in mm, got {point_mm!r}")
-    return (float(values[0]), float(values[1]), float(values[2]))
+    """Three finite real numbers (x, y, z) in mm (each within +-1e6), else ServiceError naming ``field``:
+    a tuple, a list or a 3-element array; never a string, a mapping or a set."""
+    values: tuple[Any, ...] = ()
+    if isinstance(point_mm, tuple | list):
+        values = tuple(point_mm)
+    elif not isinstance(point_mm, str | bytes | Mapping | set | frozenset):
+        try:
+            values = tuple(point_mm) if len(point_mm) == 3 else ()  # type: ignore[arg-type]  # numpy arrays
+        except (TypeError, ValueError):  # not a sized sequence (a bare number, None, a generator)
+            values = ()
+    numbers_mm = [as_finite(v) for v in values] if len(values) == 3 else []
+    if len(numbers_mm) != 3 or any(v is None or abs(v) > MAX_POINT_MM for v in numbers_mm):
+        raise ServiceError(f"{field}: expected three finite numbers (x, y, z) in mm, got {printable_repr(point_mm)}")
+    x, y, z = (float(v) for v in numbers_mm)  # type: ignore[arg-type]
+    return (x, y, z)
 
 
 def check_intensity(value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not (0 <= value <= 1):
-        raise ServiceError(f"intensity: expected a number within 0..1, got {value!r}")
-    return float(value)
+    number = as_finite(value)
+    if number is None or not 0 <= number <= 1:
+        raise ServiceError(f"intensity: expected a number within 0..1, got {printable_repr(value)}")
+    return number
 
 
 def pose_source(
@@ -53,7 +61,9 @@ def pose_source(
     name: str = "set_aus",
 ) -> ClipSource:
     """A validated transition to ``aus`` (see :func:`transition_clip`)."""
-    pose = validator.pose(dict(aus) if isinstance(aus, Mapping) else aus, where=name)
+    if not isinstance(aus, Mapping):
+        raise ServiceError(f"{name}: aus must be a mapping of AU name -> intensity, got {type(aus).__name__}")
+    pose = validator.pose(dict(aus), where=name)
     transition = max(check_duration_s(transition_s, field="transition_s"), min_transition_s)
     hold = check_duration_s(hold_s, field="hold_s")
     return ClipSource(transition_clip(pose, transition, hold, merge=merge, name=name), name)
@@ -65,7 +75,7 @@ def expression_apex(head: Head, name: object, intensity: object) -> dict[str, fl
 
     library = load_library(head.expressions_path or head.face_type)
     if not isinstance(name, str) or name not in library:
-        raise ServiceError(f"unknown expression {name!r}; known: {sorted(library)}")
+        raise ServiceError(f"unknown expression {printable_repr(name)}; known: {sorted(library)}")
     scale = check_intensity(intensity)
     return {au: v * scale for au, v in library[name].apex().items()}
 

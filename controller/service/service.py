@@ -20,13 +20,15 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from typing import Any
 
+from servoface.controller import stop_signals
 from servoface.controller.errors import ControllerError
 from servoface.controller.frame import FrameValidator
 from servoface.controller.loop import FixedRateLoop, LoopStats, Tick
 from servoface.controller.pipeline import FrameTrace, Pipeline
+from servoface.controller.safe_stop import EASE_S, MAX_EASE_S, StopReport, bus_problem, safe_stop
 from servoface.controller.service.clock import ServiceClock, check_duration_s, check_time_s
 from servoface.controller.service.commands import (
     check_point_mm,
@@ -50,24 +52,16 @@ from servoface.controller.service.sources import (
 from servoface.controller.service.tracks import DEFAULT_TRACKS, Mixer, TrackSpec
 from servoface.controller.timeline.blend import BlendRule
 from servoface.hardware.driver import Driver
-from servoface.hardware.errors import HardwareError
+from servoface.hardware.errors import BusDisconnectedError, HardwareError
 from servoface.hardware.snapshot import ChainSnapshot
 from servoface.sim.errors import SimError
 from servoface.sim.head import Head
 
 ALIVE_TRACKS = frozenset({"blink", "idle"})
-TORQUE_RETRIES = 3
-UNREACHED_TICK = 25  # a servo further than this from its last goal after the stop is reported
+TORQUE_RETRIES = 3  # torque-off commands (and e-stops) retry a failed pass this many times
+STOP_TIMEOUT_S = 30.0  # shutdown waits this long for the loop's stop (easing <= MAX_EASE_S, then torque off)
 
-
-@dataclass(frozen=True)
-class StopReport:
-    """How the service stopped: eased to neutral, torque off on every servo, who did not get there."""
-
-    eased: bool
-    torque_off: bool
-    unreached_tick: dict[int, int] = field(default_factory=dict)  # servo id -> |present - goal| ticks
-    error: str = ""
+__all__ = ["HeadService", "ServiceStatus", "StopReport"]  # StopReport: servoface.controller.safe_stop's
 
 
 @dataclass(frozen=True)
@@ -88,7 +82,12 @@ class ServiceStatus:
 class HeadService:
     """Owns ``pipeline`` (and its driver) and runs the loop thread. Build one with :meth:`open` or from
     parts; ``start=False`` leaves the thread to :meth:`start`. The driver is handed over to the loop thread,
-    so after ``start`` only the service touches the bus."""
+    so after ``start`` only the service touches the bus.
+
+    However the loop ends — :meth:`shutdown`, a stop signal under installed
+    :class:`~servoface.controller.stop_signals.StopSignals` (checked every frame), a bus failure or the port
+    failing (``stop_on_port_failure``), a crash — it ends in the one stop path on the loop thread, and
+    ``service.report`` says how it went."""
 
     def __init__(
         self,
@@ -104,9 +103,11 @@ class HeadService:
         torque_on: bool | None = None,
         start: bool = True,
         name: str = "servoface-head",
+        stop_on_port_failure: bool = True,
     ) -> None:
         self.head = head
         self.pipeline = pipeline
+        self.stop_on_port_failure = stop_on_port_failure  # the port failed: stop (safe stop), never drive blind
         self.driver: Driver | None = pipeline.driver
         self.rate_hz = float(pipeline.rate_hz)
         self.period_s = 1.0 / self.rate_hz
@@ -126,6 +127,11 @@ class HeadService:
         self._torque_wanted = self._torque_on
         self._closing = False
         self._stop_requested = False
+        self._stop_reason: str | None = None  # why the loop stopped ("end", "SIGINT", ...), set once
+        self._stop_ease_s = EASE_S
+        self._stop_max_ease_s = MAX_EASE_S
+        self._hurry = threading.Event()  # a second Ctrl-C: straight to neutral at the caps, then torque off
+        self._hurry_fn: Callable[[], bool] | None = None
         self.error: BaseException | None = None
         self.report: StopReport | None = None
         self._frame_cond = threading.Condition()
@@ -614,6 +620,11 @@ class HeadService:
         t = tick.due_s
         if self._estop_requested.is_set():
             self._apply_estop(t)
+        signals = stop_signals.active()
+        if signals is not None and signals.requested:  # SIGINT / SIGTERM / SIGHUP under the CLI: the stop path
+            if self._stop_reason is None:
+                self._stop_reason = signals.name or "signal"
+            return False
         if self._pausing:  # (loop.stop() alone could be undone by a run() that is only starting)
             return False
         if not self._drain(t) or self._stop_requested:
@@ -639,6 +650,12 @@ class HeadService:
         except (ControllerError, SimError) as err:
             self.observers.offer("fault", ServiceEvent(t, "frame_error", str(err)))
         self._publish(t, tick, trace)
+        snap = self.pipeline.last_snapshot
+        if self.stop_on_port_failure and snap is not None and not snap.bus_connected:
+            self._bus_failed(
+                t, BusDisconnectedError(f"the port failed ({bus_problem(snap)}); stopped, no blind driving")
+            )
+            return False
         return None
 
     def _drain(self, t_s: float) -> bool:
@@ -685,18 +702,17 @@ class HeadService:
             self._frame_cond.notify_all()
 
     def _torque_off_all(self) -> bool:
-        """Torque off on every servo, retrying; True when every write went through."""
+        """Torque off on every servo (each retried, carrying on past failures; the driver's stop policy), the
+        whole pass repeated for the servos not reached; True when every servo confirmed it."""
         if self.driver is None:
             return True
+        unreached: tuple[int, ...] = ()
         for _ in range(TORQUE_RETRIES):
-            try:
-                self.driver.torque_off()
-                self._torque_on = False
-                return True
-            except HardwareError:
-                continue
+            unreached = self.driver.torque_off(unreached or None)
+            if not unreached:
+                break
         self._torque_on = False
-        return False
+        return not unreached
 
     def _apply_estop(self, t_s: float) -> None:
         self._estop_requested.clear()
@@ -710,6 +726,7 @@ class HeadService:
                 self._notify(item[0])
         self._inbox.extendleft(reversed(kept))
         self.tracks.clear_all(t_s, "e-stop", self._notify)
+        self._view = self.tracks.view(t_s)  # before the presses complete: status() then shows empty tracks
         ok = self._torque_off_all()
         detail = "torque off" if ok else "torque off FAILED on some servos"
         self.observers.offer("fault", ServiceEvent(t_s, "estop", f"{detail}; {handle.detail if handle else ''}"))
@@ -755,6 +772,7 @@ class HeadService:
 
     def _apply_torque_off(self, handle: CommandHandle, t_s: float) -> None:
         self.tracks.clear_all(t_s, f"torque off #{handle.id}", self._notify)
+        self._view = self.tracks.view(t_s)  # before the handle completes: status() then shows empty tracks
         ok = self._torque_off_all()
         handle._set(Status.DONE if ok else Status.FAILED, t_s, "" if ok else "torque off failed on some servos")
         self._notify(handle)
@@ -764,90 +782,147 @@ class HeadService:
         self.observers.offer("fault", ServiceEvent(t_s, "bus_failure", str(err)))
 
     # -- stopping ----------------------------------------------------------------------------------
-    def shutdown(self, *, ease_s: float = 0.8, timeout_s: float = 10.0) -> StopReport:
-        """The safe stop: ease every track to neutral (``ease_s``; skipped after an e-stop or a bus
-        failure), torque off on every servo (with retries), close the bus. Returns what happened; safe to
-        call twice and from any thread but the loop's."""
-        # TODO(safe-stops): delegate to controller/safe_stop.py once it is on main (one stop path).
+    def shutdown(
+        self,
+        *,
+        ease_s: float = EASE_S,
+        max_ease_s: float = MAX_EASE_S,
+        reason: str = "end",
+        hurry: Callable[[], bool] | None = None,
+        timeout_s: float = STOP_TIMEOUT_S,
+    ) -> StopReport:
+        """The safe stop, through the one stop path (:func:`servoface.controller.safe_stop.safe_stop`, run on
+        the loop thread as it exits): ease from the mixed pose to neutral through the gate (``ease_s``, at most
+        ``max_ease_s``; skipped after an e-stop, with torque off or after a bus failure; :meth:`hurry`,
+        ``hurry()`` or a second stop signal turn it into the fastest move to neutral the gate's caps allow),
+        then torque off on every servo (retried, carrying on past failures) and the Bus Watchdog disarmed,
+        then the bus closed.
+
+        Returns the :class:`~servoface.controller.safe_stop.StopReport` (kept as ``service.report``): ``unreached``
+        names servos whose torque-off was not confirmed. Safe to call twice and from any thread but the loop's
+        (the second call returns the first report)."""
+        if threading.current_thread() is self._thread:
+            raise ServiceError("shutdown: not from the loop thread")
         with self._lock:
             already = self._closing
             self._closing = True
+            if not already:
+                self._stop_ease_s = _seconds(ease_s, EASE_S)
+                self._stop_max_ease_s = _seconds(max_ease_s, MAX_EASE_S)
+                self._hurry_fn = hurry
+                if self._stop_reason is None:
+                    self._stop_reason = str(reason)
+            self._stop_requested = True
         if self._paused:
             self.resume()
-        if already:
-            self._thread.join(timeout_s) if self._started else None
-            return self.report or StopReport(False, False, error="shutdown still in progress")
-        eased = False
-        if self.running and self._motion_allowed() and self.driver is not None and ease_s > 0:
-            try:
-                ease = max(float(ease_s), self.period_s)
-                handle = self._submit("neutral", lambda h, t: self._apply_neutral(h, t, ease), internal=True)
-                after = self._last_trace.index if self._last_trace is not None else -1
-                eased = handle.wait(ease + 2.0) is Status.DONE
-                eased = self.wait_settled(after, timeout_s=2.0) and eased
-            except ServiceError:
-                eased = False
-        with self._lock:
-            self._stop_requested = True
         self._wake.set()
         if self._started:
             self._thread.join(timeout_s)
-        else:
+        elif not already:
             self._finish()
-        report = self.report or StopReport(eased, False, error="the loop thread did not stop in time")
-        self.report = StopReport(eased, report.torque_off, report.unreached_tick, report.error)
-        return self.report
+        if self.report is not None:
+            return self.report
+        ids = () if self.driver is None else tuple(self.driver.servo_ids)
+        why = f"the loop thread did not finish the stop within {timeout_s:g} s"
+        return StopReport(self._stop_reason or str(reason), False, 0.0, why, ids, error=why)
 
-    def shutdown_async(self, *, ease_s: float = 0.8) -> CommandHandle:
+    def hurry(self) -> None:
+        """Hurry the stop (a second Ctrl-C): straight to neutral at the gate's caps (at most
+        ``safe_stop.HURRY_S``), then torque off — never cut mid-pose; from any thread."""
+        self._hurry.set()
+
+    def shutdown_async(self, *, ease_s: float = EASE_S) -> CommandHandle:
         """:meth:`shutdown` on a helper thread; the handle is done when the head is stopped (failed if
         torque-off was not confirmed). For front ends that must not block (a network request)."""
         handle = CommandHandle("shutdown")
 
         def run() -> None:
             report = self.shutdown(ease_s=ease_s)
-            ok = report.torque_off and not report.error
-            handle._set(Status.DONE if ok else Status.FAILED, self.now_s(), report.error or "")
+            ok = report.safe and not report.error
+            detail = report.error or ("" if report.safe else f"torque off not confirmed on {list(report.unreached)}")
+            handle._set(Status.DONE if ok else Status.FAILED, self.now_s(), detail)
 
         handle._set(Status.RUNNING, self.now_s())
         threading.Thread(target=run, name=f"{self._name}-shutdown", daemon=True).start()
         return handle
 
+    def _hurried(self) -> bool:
+        if self._hurry.is_set():
+            return True
+        signals = stop_signals.active()
+        if signals is not None and signals.hurry:
+            return True
+        return self._hurry_fn is not None and bool(self._hurry_fn())
+
     def _finish(self) -> None:
-        """On the loop thread as it exits: torque off, close the bus, end every command and observer."""
+        """On the loop thread as it exits (however it exits): end every command, then the one stop path
+        (ease to neutral, torque off, watchdog disarmed, bus closed), then end every observer."""
         t = self.clock.now_s()
         self._closing = True
         with self._lock:
             self._stop_requested = True
             inbox = list(self._inbox)
             self._inbox.clear()
+        error = self.error
+        if self._stop_reason is None:
+            self._stop_reason = (
+                "end" if error is None else "bus failure" if isinstance(error, HardwareError) else "error"
+            )
+        reason = self._stop_reason
+        signals = stop_signals.active()
+        if signals is not None and signals.requested and reason in ("end", "error"):
+            reason = signals.name or reason  # a signal came while the caller was stopping: say so
+        why = "service stopped" if error is None else f"service stopped: {error}"
         for handle, _ in inbox:
-            if handle._set(Status.CANCELLED, t, "service stopped"):
+            if handle._set(Status.CANCELLED, t, why):
                 self._notify(handle)
-        why = "service stopped" if self.error is None else f"service stopped: {self.error}"
         for slot in self.tracks.slots.values():
             for p in slot.pending:
-                p.handle._set(Status.FAILED if self.error else Status.CANCELLED, t, why, self.error)
+                p.handle._set(Status.FAILED if error else Status.CANCELLED, t, why, error)
             slot.pending.clear()
             if slot.handle is not None:
-                slot.handle._set(Status.FAILED if self.error else Status.CANCELLED, t, why, self.error)
-        unreached: dict[int, int] = {}
-        torque_ok = True
-        if self.driver is not None:
-            snap = self.pipeline.last_snapshot
-            if snap is not None:
-                goals = self.pipeline.last_goals_tick
-                for sid, pos in snap.positions_tick().items():
-                    if sid in goals and abs(int(pos) - int(goals[sid])) > UNREACHED_TICK:
-                        unreached[sid] = abs(int(pos) - int(goals[sid]))
-            torque_ok = self._torque_off_all()
-            try:
-                self.driver.close(torque_off=False)
-            except HardwareError:
-                pass
-        self.report = StopReport(False, torque_ok, unreached, "" if self.error is None else str(self.error))
+                slot.handle._set(Status.FAILED if error else Status.CANCELLED, t, why, error)
+        error_text = "" if error is None else f"{type(error).__name__}: {error}"
+        skip = ""
+        if isinstance(error, HardwareError):
+            skip = "the bus failed"
+        elif self._latched:
+            skip = "e-stop"
+        elif not self._torque_on:
+            skip = "torque was off"
+        elif self._stop_ease_s <= 0:
+            skip = "not asked"
+        last = self._last_trace
+        try:
+            report = safe_stop(
+                self.pipeline,
+                self.driver,
+                from_aus=None if last is None else last.aus,
+                ease=not skip,
+                ease_s=self._stop_ease_s,
+                max_ease_s=self._stop_max_ease_s,
+                hurry=self._hurried,
+                reason=reason,
+                on_frame=lambda trace: self.observers.offer("trace", trace, self.clock.now_s()),
+                error=error_text,
+                skip_note=skip,
+            )
+        except BaseException as err:  # noqa: BLE001 - the report must say the stop itself failed
+            ids = () if self.driver is None else tuple(self.driver.servo_ids)
+            text = f"the stop failed: {type(err).__name__}: {err}"
+            report = StopReport(reason, False, 0.0, text, ids, error=error_text or text)
+        self._torque_on = False
+        self.report = replace(report, error=report.error or error_text)
         with self._frame_cond:
             self._frame_cond.notify_all()
         self.observers.close_all()
+
+
+def _seconds(value: object, default: float) -> float:
+    """A finite duration >= 0 (bad values fall back to ``default``: a stop never refuses to stop)."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not value == value or value < 0:
+        return default
+    return min(float(value), 3600.0)
 
 
 def _release(transition_s: float) -> ClipSource:

@@ -2,7 +2,9 @@
 
 pocketsphinx's wheel ships its US-English acoustic model and the CMU dictionary (``pocketsphinx/model``),
 so nothing is downloaded. Alignment runs two passes: word alignment of the transcript, then phone
-alignment (``set_alignment`` / ``get_alignment``), at 100 frames/s (10 ms). Words not in the dictionary
+alignment (``set_alignment`` / ``get_alignment``), at 100 frames/s (10 ms); a boundary the decoder
+reports at frame ``k`` is placed between the acoustic centres of frames ``k-1`` and ``k`` (``k * 10 ms``
+plus half the 25.6 ms window less half a frame: +7.8 ms), where the change it detected lies. Words not in the dictionary
 are spelled out from espeak-ng's phonemes of that word (ARPAbet-mapped) when espeak-ng is present, else
 refused with a message naming them.
 """
@@ -20,6 +22,7 @@ from servoface.controller.speech.errors import AlignmentError, SpeechError
 
 ALIGN_RATE_HZ = 16000
 FRAME_S = 0.01
+WINDOW_S = 0.025625  # pocketsphinx's analysis window (its default -wlen; the bundled model's feat.params keep it)
 _LOCK = threading.Lock()
 
 #: espeak-ng English mnemonics -> ARPAbet, for words missing from the CMU dictionary
@@ -167,11 +170,16 @@ def align(samples: NDArray[np.float64], rate_hz: int, transcript: str) -> list[A
             raise AlignmentError(f"cannot align the audio with its transcript ({err})") from err
     if alignment is None:
         raise AlignmentError("cannot align the audio with its transcript (no alignment found)")
+    # a boundary at frame k lies between the acoustic centres of frames k-1 and k (each frame's window
+    # starts at k * FRAME_S and is WINDOW_S long): k * FRAME_S + (WINDOW_S - FRAME_S) / 2, not k * FRAME_S
+    centre = (WINDOW_S - FRAME_S) / 2
+    end_s = len(x) / ALIGN_RATE_HZ
     out = []
     for word in alignment:
         for phone in word:
-            start = phone.start * FRAME_S
-            out.append(AlignedPhone(phone.name, start, start + phone.duration * FRAME_S, word.name))
+            start = min(phone.start * FRAME_S + (centre if phone.start > 0 else 0.0), end_s)
+            stop = min((phone.start + phone.duration) * FRAME_S + centre, end_s)
+            out.append(AlignedPhone(phone.name, start, max(stop, start), word.name))
     if not out:
         raise AlignmentError("alignment is empty: is the transcript the text of this audio?")
     return out

@@ -41,6 +41,10 @@ class LipSyncPlan:
     audio_start_s: float  # the sound starts this long after the mouth clock's 0 (= the lead)
     audio_duration_s: float
     segments: tuple[TimedViseme, ...] = ()
+    #: per sample, how present the speech is (0..1): ramps in before the first spoken segment and out over
+    #: ``close_s`` after the last (None: all 1, e.g. the envelope path). A clip over a face whose own mouth
+    #: is not at rest (an expression held while talking) crossfades from and back to that mouth with it.
+    presence: NDArray[np.float64] | None = None
 
     @property
     def duration_s(self) -> float:
@@ -65,19 +69,39 @@ class LipSyncPlan:
         return [dict(zip(names, row.tolist(), strict=True)) for row in values]
 
     def channels(
-        self, face_type: str, allowed: frozenset[str] | None = None, tolerance: float = 0.012
+        self,
+        face_type: str,
+        allowed: frozenset[str] | None = None,
+        tolerance: float = 0.012,
+        base: Mapping[str, float] | None = None,
     ) -> dict[str, list[tuple[float, float]]]:
-        """Per AU, keyframes (t_s, value) simplified to within ``tolerance`` of the sampled curve."""
+        """Per AU, keyframes (t_s, value) simplified to within ``tolerance`` of the sampled curve (with
+        ``base``: crossfaded from and back to the face's own mouth, see :meth:`clip`)."""
         names, values = self.au_matrix(face_type, allowed)
+        if base and any(abs(float(base.get(au, 0.0))) > 1e-9 for au in names):
+            w = np.ones(len(self.times_s)) if self.presence is None else np.clip(self.presence, 0.0, 1.0)
+            under = np.array([float(base.get(au, 0.0)) for au in names])
+            values = w[:, None] * values + (1.0 - w[:, None]) * under[None, :]
         out: dict[str, list[tuple[float, float]]] = {}
         for j, au in enumerate(names):
             keep = _simplify(self.times_s, values[:, j], tolerance)
             out[au] = [(round(float(self.times_s[i]), 4), round(float(values[i, j]), 4)) for i in keep]
         return out
 
-    def clip(self, face_type: str, allowed: frozenset[str] | None = None, name: str = "speech") -> ChannelClip:
-        """A clip for the ``speech`` track: it provides the mouth AUs while it runs, nothing after."""
-        channels = {au: tuple(Key(t, v) for t, v in keys) for au, keys in self.channels(face_type, allowed).items()}
+    def clip(
+        self,
+        face_type: str,
+        allowed: frozenset[str] | None = None,
+        name: str = "speech",
+        base: Mapping[str, float] | None = None,
+    ) -> ChannelClip:
+        """A clip for the ``speech`` track: it provides the mouth AUs while it runs, nothing after. ``base``:
+        the face's own mouth AUs under the speech (an expression's); the clip crossfades from them and
+        back to them with :attr:`presence`, so the mouth does not jump when the speech takes or gives back
+        the mouth (while it talks, the speech's shapes override them)."""
+        channels = {
+            au: tuple(Key(t, v) for t, v in keys) for au, keys in self.channels(face_type, allowed, base=base).items()
+        }
         return ChannelClip(channels, self.duration_s, unlisted="hold", name=name, holds=False)
 
 
@@ -165,9 +189,12 @@ def plan_from_visemes(
         # before the first and after the last spoken segment: neutral (ramped over close_s)
         ramp_in = np.clip((audio_t - (first - 0.12)) / 0.12, 0.0, 1.0)
         ramp_out = np.clip((last + close_s - audio_t) / close_s, 0.0, 1.0)
-        feats *= np.minimum(ramp_in, ramp_out)[:, None]
+        presence = np.minimum(ramp_in, ramp_out)
+        feats *= presence[:, None]
+    else:
+        presence = np.zeros(len(times))
     feats = np.clip(feats, 0.0, 1.0)
-    return LipSyncPlan(times, feats, float(lead_s), float(audio_duration_s), tuple(segments))
+    return LipSyncPlan(times, feats, float(lead_s), float(audio_duration_s), tuple(segments), presence)
 
 
 def _close_bilabials(feats: NDArray[np.float64], t: NDArray[np.float64], segments: Sequence[TimedViseme]) -> None:

@@ -9,65 +9,90 @@ When the speech clip ends it provides nothing and the face track has the mouth a
 
 from __future__ import annotations
 
-import time
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from servoface.controller.au_names import head_au_names
+from servoface.controller.speech.jaw_budget import BudgetReport, JawBudget, jaw_thermal
 from servoface.controller.speech.lipsync import Speech
 from servoface.controller.speech.visemes import mouth_aus
-from servoface.controller.timeline import BlendPolicy, BlendRule, Timeline
 
 if TYPE_CHECKING:
     from servoface.controller.face import Face
     from servoface.controller.performance import Performance
 
 
-def speech_timeline(face_type: str, speech: Speech, base_pose: dict[str, float], allowed: frozenset[str]) -> Timeline:
-    """A timeline: the face track holds ``base_pose``; the speech track plays the lip sync over it."""
-    clip = speech.plan.clip(face_type, allowed & mouth_aus(face_type))
-    rules = {au: BlendRule.OVERRIDE for au in mouth_aus(face_type) if au in allowed}
-    timeline = Timeline(face_type, allowed=allowed, blend=BlendPolicy(rules=rules), initial_pose=base_pose)  # type: ignore[arg-type]
-    timeline.track("face")
-    timeline.play(clip, 0.0, track="speech")
-    return timeline
+START_AHEAD_S = 0.1  # the speech is scheduled this far ahead, so its start (and the sound's) is known exactly
+END_MARGIN_S = 0.15  # the run covers the audio's end plus this (the mouth is at rest by then)
 
 
 @dataclass(frozen=True)
 class SpokenRun:
-    """What a spoken run did: its frames, and on the monotonic clock when the mouth clock's 0 was (the
-    first frame's due time) and when the sound started (or would have: no device). The sound starts
-    ``audio_start_s`` (the lead) plus ``latency_s`` (the pipeline's frame time) after the mouth clock."""
+    """What a spoken run did: its frames; on the monotonic clock when the mouth clock's 0 was (the speech
+    track's start) and when the sound started (or would have: no device); the clock the mouth followed
+    (``"device"`` or ``"monotonic"``) and how far it moved the mouth from its schedule; the jaw budget."""
 
     performance: Performance
     start_monotonic_s: float
     audio_start_monotonic_s: float
     latency_s: float
     sound: str  # where the sound went, or why it did not play
+    clock: str = "monotonic"
+    shifts_s: tuple[float, ...] = ()  # per frame: mouth time - service time (0 on the monotonic clock)
+    budget: BudgetReport | None = None
 
 
-def say_on_face(face: Face, speech: Speech, *, audio_out: bool = True) -> SpokenRun:
-    """Play ``speech`` on an open face (blocking), the mouth on the speech track over the face's pose; the
-    sound (when a device exists) starts ``plan.audio_start_s`` after the first frame."""
-    from servoface.controller.speech.playback import open_audio_out
+_BUDGETS: weakref.WeakKeyDictionary[Any, JawBudget] = weakref.WeakKeyDictionary()
 
-    allowed = head_au_names(face.head)
-    timeline = speech_timeline(face.head.face_type, speech, dict(face.pose), allowed)
-    out = open_audio_out() if audio_out else None
-    duration = max(speech.plan.duration_s, speech.plan.audio_end_s) + 0.15
-    pose_before = dict(face.pose)
+
+def jaw_budget_for(service: Any) -> JawBudget:
+    """The jaw account of a head service (one per head, kept across utterances)."""
+    budget = _BUDGETS.get(service)
+    if budget is None:
+        driver = getattr(service, "driver", None)
+        budget = JawBudget(policy=getattr(driver, "policy", None))
+        _BUDGETS[service] = budget
+    return budget
+
+
+def say_on_face(face: Face, speech: Speech, *, audio_out: bool = True, budget: JawBudget | None = None) -> SpokenRun:
+    """Play ``speech`` on an open face (blocking) through ``HeadService.speak``: the mouth clip on the speech
+    track (its AUs override the face track's while it plays), timed by the audio clock (the device's when
+    a sound device plays it, else the monotonic clock), with the jaw's opening within its thermal budget
+    (``budget``, default: the head's own account)."""
+    from servoface.controller.speech.playback import AudioClockedClip, open_audio_out
+
+    svc = face.service
+    face_type = face.head.face_type
+    allowed = head_au_names(face.head) & mouth_aus(face_type)
     latency_s = pipeline_latency_s(face)
-    start = time.monotonic()
-    audio_start = start + speech.plan.audio_start_s + latency_s
-    if out is not None and out.available:
-        out.play_at(speech.samples, speech.rate_hz, audio_start)
-    perf = face._run(timeline, duration)  # noqa: SLF001 - the Face's own runner (bounded, traced, interruptible)
-    face.pose = pose_before  # the expression is still held; the mouth is back at the face track's
+    at_s = svc.now_s() + START_AHEAD_S
+    start = svc.clock.to_monotonic_s(at_s)
+    jaw_id = face.head.servo_ids.get("jaw")
+    account = budget if budget is not None else jaw_budget_for(svc)
+    thermal = jaw_thermal(svc, jaw_id) if jaw_id is not None else None
+    plan, report = account.apply(speech.plan, start, thermal)
+    under = svc.status().tracks.get("face")  # the face's own mouth (an expression held): crossfaded
+    base = {au: v for au, v in (under.aus if under is not None else {}).items() if au in allowed}
+    clip = plan.clip(face_type, allowed, base=base)
+    audio_start = start + plan.audio_start_s + latency_s
+    out = open_audio_out() if audio_out else None
+    clock = out.play_at(speech.samples, speech.rate_hz, audio_start) if out is not None else None
+    if clock is None:
+        from servoface.controller.speech.playback import MonotonicAudioClock
+
+        clock = MonotonicAudioClock(audio_start)
+    duration = max(plan.duration_s, plan.audio_end_s) + END_MARGIN_S
+    timed = AudioClockedClip(clip, clock, start, latency_s, plan.audio_start_s, duration)
+    perf = face._perform(  # noqa: SLF001 - the Face's own runner (bounded, traced, interruptible)
+        lambda service: service.speak(timed, at_s=at_s), duration, track="speech"
+    )
     if out is not None:
         out.wait()
     sound = "not asked for" if out is None else out.reason
-    return SpokenRun(perf, start, audio_start, latency_s, sound)
+    return SpokenRun(perf, start, audio_start, latency_s, sound, clock.name, tuple(timed.shifts), report)
 
 
 def pipeline_latency_s(face: Face) -> float:

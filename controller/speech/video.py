@@ -29,7 +29,7 @@ def render_talking(
     traces = perf.traces
     if not traces:
         raise SpeechError("nothing was played: no frames to render")
-    times = np.array([t.t_s for t in traces]) - traces[0].t_s
+    times = np.array([t.t_s for t in traces])  # the mouth clock: 0 = the speech track's start
     wanted = np.arange(0.0, times[-1] + 1e-9, 1.0 / fps)
     picks = [max(int(np.searchsorted(times, w, side="right") - 1), 0) for w in wanted]
     renderer = HeadRenderer(*size)
@@ -89,7 +89,7 @@ def plot_timing(face: Face, perf: Performance, speech: Speech, path: Path, *, la
 
     jaw = face.head.servo_ids.get("jaw")
     traces = perf.traces
-    t0 = traces[0].t_s if traces else 0.0
+    t0 = 0.0  # the frames' times are on the mouth clock already (0 = the speech track's start)
     shift = speech.plan.audio_start_s + latency_s  # mouth clock -> audio clock
     fig, (ax_audio, ax_jaw) = plt.subplots(2, 1, figsize=(10, 4.2), sharex=True)
     t_audio = np.arange(len(speech.samples)) / speech.rate_hz

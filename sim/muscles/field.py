@@ -4,6 +4,12 @@ Linear and sheet muscles are linear in their contraction, so each becomes a fixe
 W_m and a frame is ``x_rest + Σ_m c_m W_m``: one sparse matrix-vector product, independent of muscle
 order. Sphincters add a per-vertex cap (never past the centre) and eyelids turn their few vertices by the
 lid joint angle; both are evaluated per frame on their small vertex sets only.
+
+Given the skin's ``faces``, a linear or sheet field that reaches a slit (the lips) is gated by
+``servoface.sim.muscles.slit`` from the skin vertex nearest its insertion (a sheet: the middle of its
+insertion edge): it moves the far side of the slit only as far as it reaches it round the slit's ends, so
+a lip muscle moves its own lip and the lips can part (AU10, AU16), while a muscle inserting at a mouth
+corner (AU12, AU14, AU15, AU20) moves both lips as before.
 """
 
 from __future__ import annotations
@@ -16,6 +22,7 @@ from numpy.typing import NDArray
 from servoface.sim.muscles.eyelid import EyelidField, EyelidMuscle
 from servoface.sim.muscles.linear import LinearMuscle
 from servoface.sim.muscles.sheet import SheetMuscle
+from servoface.sim.muscles.slit import SlitGate, slit_gate
 from servoface.sim.muscles.sphincter import SphincterField, SphincterMuscle
 
 FloatArray = NDArray[np.float64]
@@ -30,8 +37,14 @@ class MuscleField:
     in the given order. Eyelid muscles are kept apart (``eyelids``): they are driven by joint angles.
     """
 
-    def __init__(self, muscles: Sequence[VectorMuscle | EyelidMuscle], rest_mm: FloatArray) -> None:
+    def __init__(
+        self,
+        muscles: Sequence[VectorMuscle | EyelidMuscle],
+        rest_mm: FloatArray,
+        faces: NDArray[np.integer] | None = None,
+    ) -> None:
         rest = np.asarray(rest_mm, dtype=np.float64)
+        self.slit: SlitGate | None = slit_gate(rest, faces) if faces is not None else None
         self.n_vertices = int(rest.shape[0])
         vector = [m for m in muscles if not isinstance(m, EyelidMuscle)]
         self.names: tuple[str, ...] = tuple(m.name for m in vector)
@@ -45,6 +58,9 @@ class MuscleField:
                 self.sphincters.append((col, muscle.field(rest)))
                 continue
             idx, disp = muscle.unit_field(rest)
+            if self.slit is not None and self.slit.has_slit and idx.size and self.slit.on_slit[idx].any():
+                source = int(np.argmin(np.linalg.norm(rest - _insertion_mm(muscle), axis=1)))
+                disp = disp * self.slit.gate(source, idx)[:, None]
             rows.append((3 * idx[:, None] + np.arange(3)[None, :]).ravel())
             cols.append(np.full(3 * idx.size, col, dtype=np.int64))
             vals.append(disp.ravel())
@@ -87,3 +103,11 @@ class MuscleField:
                 if k is not None:
                     dense[i, :, col] += field.gain_mm[k] * field.direction[k]
         return np.asarray(dense, dtype=np.float64)
+
+
+def _insertion_mm(muscle: LinearMuscle | SheetMuscle) -> FloatArray:
+    """Where a vector muscle grips the skin: its insertion (a sheet: the middle of its insertion edge)."""
+    if isinstance(muscle, SheetMuscle):
+        mid = (np.asarray(muscle.insertion_mm) + np.asarray(muscle.insertion_end_mm)) / 2.0
+        return np.asarray(mid, dtype=np.float64)
+    return np.asarray(muscle.insertion_mm, dtype=np.float64)

@@ -15,7 +15,9 @@ pulled along its line, and the twin must show a whole face. Method:
    sphincter cap, a contraction bound) is added with a smooth bump per anchor, w(d) = cos(π/2 · d / R)
    within R = the actuator's ``radius_mm`` of the anchor, scaled along the line of action. The bump
    heights come from the small A x A system K s = residual (K_ab = w_b(anchor a) · line_a·line_b), so
-   every anchor's projected pull equals its target exactly (when K is regular).
+   every anchor's projected pull equals its target exactly (when K is regular). With a ``slit`` gate
+   (``servoface.sim.muscles.slit``) a bump reaches the far side of a slit only round its ends: the
+   upper-lip anchor does not drag the lower lip.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 from scipy.optimize import lsq_linear, nnls
+from servoface.sim.muscles.slit import SlitGate
 
 FloatArray = NDArray[np.float64]
 
@@ -45,6 +48,7 @@ class AnchorFit:
         lines: FloatArray,
         radii_mm: Sequence[float],
         regularisation_mm: float = REGULARISATION_MM,
+        slit: SlitGate | None = None,
     ) -> None:
         self.unit_pull = np.asarray(unit_pull_mm, dtype=np.float64)  # (A, M)
         n_anchor, n_muscle = self.unit_pull.shape
@@ -61,9 +65,12 @@ class AnchorFit:
         for a, (vertex, radius) in enumerate(zip(self.anchor_vertices, radii_mm, strict=True)):
             d = np.linalg.norm(rest - rest[vertex], axis=1)
             idx = np.nonzero(d < radius)[0]
+            weight = np.cos(d[idx] / radius * (math.pi / 2))
+            if slit is not None and slit.has_slit and slit.on_slit[idx].any():
+                weight = weight * slit.gate(int(vertex), idx)
             rows.append(idx)
             cols.append(np.full(idx.size, a))
-            vals.append(np.cos(d[idx] / radius * (math.pi / 2)))
+            vals.append(weight)
         if rows:
             bump = sp.csr_matrix(
                 (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),

@@ -7,6 +7,9 @@ back-of-head points are excluded"). With s = the components of v = x - centre al
     ρ = sqrt(s_maj²/a² + s_min²/b² + s_n²/c²)            (activation set: ρ <= 1)
     corrected falloff  g = 1 - ρ                          (1 at the centre, 0 on the ellipse)
     printed falloff    g = max(0, 1 - sqrt(a²s_maj² + b²s_min²)/(a·b))  (Barker's printed form, selectable)
+    ring falloff       g = sin(π · ρ)                  ([project] 0 at the centre, peak on the ring ρ = 1/2, 0 on
+                                                        the ellipse: a mouth whose corners come in without the
+                                                        centre collapsing onto the axis)
     x' = x + min(c · k · g, |v_plane|) · (-v̂_plane),  k = max_contraction · a
 
 The pull is towards the muscle's axis (through the centre, along the normal), never past it. It is linear
@@ -29,7 +32,8 @@ from servoface.sim.muscles.linear import DEFAULT_MAX_CONTRACTION
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
-Falloff = Literal["corrected", "printed"]
+Falloff = Literal["corrected", "printed", "ring"]
+FALLOFFS = ("corrected", "printed", "ring")
 
 
 def sphincter_falloff(
@@ -85,8 +89,8 @@ class SphincterMuscle:
             raise HeadProfileError(f"{where}.max_contraction: expected a number in (0, 1], got {self.max_contraction}")
         if abs(float(np.dot(self.major_axis, self.normal))) > 0.99:
             raise HeadProfileError(f"{where}.major_axis: expected a direction not parallel to normal {self.normal}")
-        if self.falloff not in ("corrected", "printed"):
-            raise HeadProfileError(f"{where}.falloff: expected 'corrected' or 'printed', got {self.falloff!r}")
+        if self.falloff not in FALLOFFS:
+            raise HeadProfileError(f"{where}.falloff: expected one of {list(FALLOFFS)}, got {self.falloff!r}")
 
     @property
     def gain_mm(self) -> float:
@@ -119,8 +123,8 @@ class SphincterMuscle:
         major = unit3(data, "major_axis", where, (1.0, 0.0, 0.0))
         normal = unit3(data, "normal", where, (0.0, 0.0, 1.0))
         form = data.get("falloff", "corrected")
-        if form not in ("corrected", "printed"):
-            raise HeadProfileError(f"{where}.falloff: expected 'corrected' or 'printed', got {form!r}")
+        if form not in FALLOFFS:
+            raise HeadProfileError(f"{where}.falloff: expected one of {list(FALLOFFS)}, got {form!r}")
         if abs(float(np.dot(major, normal))) > 0.99:
             raise HeadProfileError(f"{where}.major_axis: expected a direction not parallel to normal {normal}")
         return cls(name, centre, semi, lam, major, normal, form)
@@ -146,6 +150,8 @@ class SphincterMuscle:
             g = np.maximum(sphincter_falloff(s1[inside], s2[inside], ra, rb, "printed"), 0.0) * (
                 1.0 - np.abs(s3[inside]) / rc
             )
+        elif self.falloff == "ring":
+            g = np.sin(np.pi * rho[inside])
         else:
             g = 1.0 - rho[inside]
         planar = s1[inside, None] * e1 + s2[inside, None] * e2

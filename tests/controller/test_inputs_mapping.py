@@ -198,3 +198,27 @@ def test_other_spellings_of_shape_names_are_accepted() -> None:
     assert bmap.to_aus({"NEUTRAL": 0.9}) == {}
     with pytest.raises(InputError, match="given twice"):
         bmap.to_aus({"eyeBlinkLeft": 0.1, "EYE_BLINK_LEFT": 0.2})
+
+
+def test_shape_ranges_are_written_atomically(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A write that fails half way (disk full, the run killed before the rename) leaves the old file whole
+    and no temp file behind; the error names the file."""
+    import os
+
+    from servoface.controller.inputs import ShapeRanges
+
+    path = tmp_path / "ranges.json"
+    old = ShapeRanges({"eyeWideLeft": (0.0, 0.06)})
+    old.save(path)
+    before = path.read_text()
+
+    def full_disk(fd: int) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", full_disk)
+    with pytest.raises(InputError, match="ranges.json"):
+        ShapeRanges({"eyeWideLeft": (0.0, 0.5)}).save(path)
+    monkeypatch.undo()
+    assert path.read_text() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ranges.json"]
+    assert ShapeRanges.load(path).ranges == {"eyeWideLeft": (0.0, 0.06)}

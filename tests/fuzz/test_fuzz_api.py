@@ -1,12 +1,14 @@
 """The Python API and the file formats turn any malformed value into the package's typed error naming the
 field — never another exception. Many cheap examples per entry point (>= 10^4 each, bounded time): the
-motion itself is not run here (`Face._run` is replaced by a recorder on an offline face); what a valid
-input does on the wire is checked by the emulator properties (tests/integration/test_unsafe_script.py,
-tests/fuzz/test_fuzz_wire.py)."""
+motion itself is not run here (on an offline face, `Face._perform` submits each command to a head service
+that was never started: the Face's and the service's checks run, then the service refuses to queue it);
+what a valid input does on the wire is checked by the emulator properties
+(tests/integration/test_unsafe_script.py, tests/fuzz/test_fuzz_wire.py)."""
 
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +21,7 @@ from servoface.calibration.fileformat import calibration_from_dict, calibration_
 from servoface.controller.errors import ControllerError
 from servoface.controller.face import Face
 from servoface.controller.performance import Performance
+from servoface.controller.service import HeadService, ServiceClosedError
 from servoface.sim.errors import SimError
 
 from tests.calibration.helpers import small_specs
@@ -31,13 +34,16 @@ FAST = settings(max_examples=N, deadline=None, suppress_health_check=list(Health
 @pytest.fixture(scope="module")
 def face() -> Face:
     f = Face.offline("human")
-    calls: list[Any] = []
+    service = HeadService(f.head, f.pipeline, start=False)  # validates every command, queues none
 
-    def record(timeline: Any, duration_s: float) -> Performance:
-        calls.append(duration_s)
+    def record(submit: Callable[[HeadService], Any], duration_s: float) -> Performance:
+        try:
+            submit(service)
+        except ServiceClosedError:
+            pass  # every check passed; only the unstarted service refused it
         return Performance()
 
-    f._run = record  # type: ignore[method-assign]
+    f._perform = record  # type: ignore[method-assign]
     return f
 
 
@@ -59,27 +65,18 @@ def _typed(fn: Any, *args: Any, **kw: Any) -> None:
 
 @FAST
 @given(aus_maps, seconds, seconds)
-@pytest.mark.skip(
-    reason="Face on the head service lacks the typed-error checks of issue #9 for these values (the one safe-stop path of issue #9 (controller/safe_stop.py, stop_signals.py) is not yet wired into the head service that Face and the play/stream CLI now run on; see the closing note of this session)"
-)
 def test_set_aus(face: Face, aus: Any, transition_s: Any, hold_s: Any) -> None:
     _typed(face.set_aus, aus, transition_s=transition_s, hold_s=hold_s)
 
 
 @FAST
 @given(st.one_of(values, st.sampled_from(["happiness", "surprise"])), values, seconds, seconds)
-@pytest.mark.skip(
-    reason="Face on the head service lacks the typed-error checks of issue #9 for these values (the one safe-stop path of issue #9 (controller/safe_stop.py, stop_signals.py) is not yet wired into the head service that Face and the play/stream CLI now run on; see the closing note of this session)"
-)
 def test_express(face: Face, name: Any, intensity: Any, transition_s: Any, hold_s: Any) -> None:
     _typed(face.express, name, intensity=intensity, transition_s=transition_s, hold_s=hold_s)
 
 
 @FAST
 @given(st.one_of(values, st.tuples(values, values, values)), seconds)
-@pytest.mark.skip(
-    reason="Face on the head service lacks the typed-error checks of issue #9 for these values (the one safe-stop path of issue #9 (controller/safe_stop.py, stop_signals.py) is not yet wired into the head service that Face and the play/stream CLI now run on; see the closing note of this session)"
-)
 def test_look_at(face: Face, point: Any, transition_s: Any) -> None:
     _typed(face.look_at, point, transition_s=transition_s)
 

@@ -60,6 +60,20 @@ class Bench:
                 return
         raise AssertionError(f"no {text!r} within {timeout_s} s")
 
+    def emulator_says(self, text: str, timeout_s: float = 120.0) -> None:
+        """Read the emulator's stderr until a line contains ``text`` (e.g. its fault-on-signal notice)."""
+        assert self.emulator.stderr is not None
+        seen: list[str] = []
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            line = self.emulator.stderr.readline()
+            if not line:
+                raise AssertionError(f"the emulator ended before {text!r}: {''.join(seen)}")
+            seen.append(line)
+            if text in line:
+                return
+        raise AssertionError(f"no {text!r} from the emulator within {timeout_s} s")
+
     def finish(self, timeout_s: float = 120.0) -> tuple[int, str, str]:
         assert self.player is not None
         out, err = self.player.communicate(timeout=timeout_s)

@@ -21,6 +21,7 @@ from servoface.calibration import load_calibration
 from servoface.sim.expressions import load_library
 from servoface.sim.face_model import FaceModel
 from servoface.sim.heads import load_head
+from servoface.sim.kinematics import posed_skin_vertices
 from servoface.sim.landmarks import achievable_pose, landmark_set
 
 X, Y, Z = 0, 1, 2
@@ -45,6 +46,30 @@ class Face:
     def moved(self, aus: Mapping[str, float]) -> dict[str, NDArray[np.float64]]:
         """landmark -> displacement (mm) from neutral on the achievable face."""
         return {k: v - self.rest[k] for k, v in self.at(aus).items()}
+
+    def skin(self, aus: Mapping[str, float]) -> NDArray[np.float64]:
+        """(n, 3) posed skin vertices (mm) of the achievable face."""
+        pose = achievable_pose(self.model, self.calibration, self.model.solve(aus))
+        return posed_skin_vertices(self.head, pose)
+
+    def lip_pair(self, near_mm: tuple[float, float, float]) -> tuple[int, int]:
+        """The two copies (upper lip, lower lip) of the mouth-slit vertex nearest ``near_mm``: they share a
+        rest position; the upper copy belongs to faces above the slit."""
+        rest = np.asarray(self.head.skin.vertices_mm, dtype=np.float64)
+        faces = np.asarray(self.head.skin.faces)
+        _, inverse, counts = np.unique(np.round(rest, 6), axis=0, return_inverse=True, return_counts=True)
+        on = np.nonzero((counts[inverse.ravel()] == 2) & (rest[:, Z] > 40.0))[0]
+        v = int(on[np.argmin(np.linalg.norm(rest[on] - np.asarray(near_mm), axis=1))])
+        pair = np.nonzero(np.all(np.isclose(rest, rest[v], atol=1e-6), axis=1))[0]
+        above = [int(i) for i in pair if rest[faces[np.any(faces == i, axis=1)]][:, :, Y].mean() > rest[i, Y]]
+        below = [int(i) for i in pair if int(i) not in above]
+        return above[0], below[0]
+
+    def lip_gap_mm(self, aus: Mapping[str, float], near_mm: tuple[float, float, float]) -> float:
+        """How far the lips part (mm, upper minus lower lip edge, vertically) at the slit point near ``near_mm``."""
+        up, lo = self.lip_pair(near_mm)
+        v = self.skin(aus)
+        return float(v[up, Y] - v[lo, Y])
 
     def d(self, fraction: float) -> float:
         """``fraction`` of the head's size, in mm."""
@@ -107,6 +132,17 @@ def test_au4_lowers_the_brows_and_draws_them_together(human: Face) -> None:
     assert together >= human.d(0.05)
     knit = _gap(rest, "anchor_brow_knit_l", "anchor_brow_knit_r") - _gap(p, "anchor_brow_knit_l", "anchor_brow_knit_r")
     assert knit >= human.d(0.1)
+
+
+def test_au4_lowers_the_outer_brow_too_but_less_than_the_inner(human: Face) -> None:
+    """FACS AU4 lowers the brow along its length, the inner part most (corrugator, procerus); the lateral
+    part comes down with the superolateral orbicularis oculi (FACS Manual 2002, AU4). Before issue 11's
+    brow depressor no muscle lowered the outer brow: its anchor stayed at 0.0 mm."""
+    d = human.moved({"AU4": 1.0})
+    for side in "lr":
+        outer, inner = d[f"anchor_brow_outer_{side}"][Y], d[f"anchor_brow_inner_{side}"][Y]
+        assert outer <= -human.d(0.02)  # 1.3 mm; measured 1.8 mm
+        assert inner < outer  # the inner brow lower: the V stays
 
 
 def test_au1_with_au4_raises_the_inner_brows_while_drawing_them_together(human: Face) -> None:
@@ -174,6 +210,30 @@ def test_au10_raises_the_upper_lip_into_an_arch(human: Face) -> None:
     assert abs(d["anchor_lower_lip"][Y]) <= human.d(0.01)  # the lower lip stays
 
 
+@pytest.mark.parametrize("x_mm", [-12.0, 12.0])
+def test_au10_alone_parts_the_lips(human: Face, x_mm: float) -> None:
+    """FACS AU10 (levator labii superioris): 'with strong action the lips part' -- the upper lip rises away
+    from the lower one, which stays (FACS Manual 2002, AU10; facs-human.md §1). The muscle fields are gated
+    across the mouth slit (sim/muscles/slit.py): before, both lips moved together and the gap was 0."""
+    near = (x_mm, 72.0, 88.0)
+    assert abs(human.lip_gap_mm({}, near)) <= 1e-6  # closed at rest
+    gap = human.lip_gap_mm({"AU10": 1.0}, near)
+    assert gap >= human.d(0.05)  # 3.2 mm; measured 4.2 mm
+    up, lo = human.lip_pair(near)
+    moved = human.skin({"AU10": 1.0}) - human.skin({})
+    assert moved[up, Y] >= 2.5 * moved[lo, Y]  # the upper lip leads; the lower follows only a little
+
+
+def test_au16_parts_the_lips_downwards(human: Face) -> None:
+    """FACS AU16 Lower Lip Depressor (depressor labii inferioris): the lower lip is pulled down away from
+    the upper lip, which stays (facs-human.md §1)."""
+    gap = human.lip_gap_mm({"AU16": 1.0}, (12.0, 72.0, 88.0))
+    assert gap >= human.d(0.04)  # 2.6 mm; measured 3.5 mm
+    up, lo = human.lip_pair((12.0, 72.0, 88.0))
+    moved = human.skin({"AU16": 1.0}) - human.skin({})
+    assert -moved[lo, Y] >= 2.5 * abs(moved[up, Y])
+
+
 def test_au12_pulls_the_lip_corners_up_and_out(human: Face) -> None:
     """FACS AU12 Lip Corner Puller (zygomaticus major): the corners are pulled obliquely up and back
     (facs-human.md §1)."""
@@ -229,9 +289,21 @@ def test_au23_au24_narrow_and_press_the_lips(human: Face, au: str) -> None:
     press together (24) (facs-human.md §1)."""
     rest, p = human.rest, human.at({au: 1.0})
     narrower = _gap(rest, "mouth_corner_l", "mouth_corner_r") - _gap(p, "mouth_corner_l", "mouth_corner_r")
-    assert narrower >= human.d(0.015)
+    # issue 11: 0.015 D (1.0 mm) before the sphincter's ring falloff; now 4.2 mm (AU23) / 3.4 mm (AU24)
+    assert narrower >= human.d(0.045)
     closer = _gap(rest, "anchor_upper_lip", "anchor_lower_lip", Y) - _gap(p, "anchor_upper_lip", "anchor_lower_lip", Y)
     assert closer >= human.d(0.025)
+
+
+def test_au23_thins_the_red_of_the_lips(human: Face) -> None:
+    """FACS AU23 Lip Tightener: the red parts of the lips narrow (thinner lips) and the mouth narrows
+    (facs-human.md §1). Measured by the upper- and lower-lip points 12 mm either side of the midline."""
+    rest, p = human.rest, human.at({"AU23": 1.0})
+    for side in "lr":
+        thinner = _gap(rest, f"upper_lip_{side}", f"lower_lip_{side}", Y) - _gap(
+            p, f"upper_lip_{side}", f"lower_lip_{side}", Y
+        )
+        assert thinner >= human.d(0.015)  # 1.0 mm; measured 1.35 mm
 
 
 def test_au26_au27_drop_the_jaw_in_an_oval(human: Face) -> None:
@@ -354,6 +426,15 @@ def test_dog_au1_raises_the_flews_and_its_counter_relaxes_them(dog: Face) -> Non
     and back; counter: relaxed, down (dfacs-dog.md §2)."""
     assert dog.moved({"AU1": 1.0})["anchor_lip_raise_l"][Y] >= dog.d(0.08)
     assert dog.moved({"AU1": -1.0})["anchor_lip_raise_l"][Y] <= -dog.d(0.02)
+
+
+def test_dog_au1_lifts_the_flew_off_the_lower_lip(dog: Face) -> None:
+    """DFACS AU1 lip raise / snarl: the upper lip retracts and the teeth are bared (dfacs-dog.md §2;
+    Londra anger 'lips retracted, teeth bared'). The lips part at the flew: before the slit gate
+    (sim/muscles/slit.py) the lower lip rose with it and the gap was 0."""
+    near = (36.0, 8.0, 160.0)
+    assert abs(dog.lip_gap_mm({}, near)) <= 1e-6
+    assert dog.lip_gap_mm({"AU1": 1.0}, near) >= dog.d(0.05)  # 2.7 mm; measured 4.0 mm
 
 
 def test_dog_au2_pulls_the_mouth_corners_back(dog: Face) -> None:

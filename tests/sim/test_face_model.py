@@ -52,6 +52,7 @@ def synthetic_human(spacing_mm: float = 4.0) -> Any:
             _linear(f"frontalis_medial_{tag}", (12 * s, 190), (12 * s, 146), 25),
             _linear(f"frontalis_lateral_{tag}", (40 * s, 190), (40 * s, 146), 25),
             _linear(f"corrugator_{tag}", (4 * s, 134), (24 * s, 146), 30),
+            _linear(f"brow_depressor_{tag}", (46 * s, 124), (40 * s, 146), 25),
             _linear(f"levator_labii_alaeque_{tag}", (14 * s, 130), (12 * s, 94), 25),
             _linear(f"levator_labii_{tag}", (26 * s, 118), (14 * s, 80), 25),
             _linear(f"zygomatic_major_{tag}", (56 * s, 112), (24 * s, 72), 30),

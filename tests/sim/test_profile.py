@@ -159,7 +159,7 @@ BAD_CASES = [
         r"muscle\[\d+\]\.type: expected one of",
     ),
     (
-        "semi_axes_mm = [30.0, 17.0, 20.0]",
+        "semi_axes_mm = [40.0, 17.0, 20.0]",
         "semi_axes_mm = [30.0]",
         r"muscle\[\d+\]\.semi_axes_mm: expected \[lx, ly\]",
     ),

@@ -109,7 +109,7 @@ def test_shutdown_eases_to_neutral_turns_torque_off_and_refuses_more() -> None:
     try:
         assert svc.express("surprise", transition_s=0.2, hold_s=0.0).wait(5.0) is Status.DONE
         report = svc.shutdown(ease_s=0.4)
-        assert report.eased and report.torque_off and not report.unreached_tick
+        assert report.eased and report.torque_off and not report.unreached
         assert all(not chain.servo(s).torque_on for s in chain.ids)
         neutral = running.pipeline.calibration.neutral_goals()
         assert max(abs(running.pipeline.last_goals_tick[s] - neutral[s]) for s in neutral) <= 2

@@ -1,0 +1,114 @@
+"""`servoface studio --head NAME|PATH (--port P | --emulate) [--host 127.0.0.1] [--port-http N] [--allow-remote]`
+
+Starts the head service on the head and serves the studio (a browser app: live sliders and the twin,
+servos, calibration, authoring) on loopback. Prints the URL with this run's token and opens nothing.
+Ctrl-C / SIGTERM / SIGHUP end it through the service's safe stop (ease to neutral, torque off)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+HELP = "serve the studio (browser app) for a head: live AUs and twin, servos, calibration, authoring"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--head", required=True, help="built-in head (human, dog) or a profile folder")
+    where = parser.add_mutually_exclusive_group(required=True)
+    where.add_argument("--port", help="serial port of the chain, e.g. /dev/ttyUSB0 (or a pty from `servoface emulate`)")
+    where.add_argument("--emulate", action="store_true", help="run on an in-process emulated chain")
+    parser.add_argument("--baud", type=int, default=1_000_000, help="bus speed in bps (default 1000000)")
+    parser.add_argument("--rate", type=float, default=50.0, help="control rate in Hz (default 50)")
+    parser.add_argument("--calibration", type=Path, help="calibration JSON (default: the one the profile names)")
+    parser.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1, loopback)")
+    parser.add_argument("--port-http", type=int, default=8765, help="HTTP port (default 8765; 0 = any free one)")
+    parser.add_argument(
+        "--allow-remote",
+        action="store_true",
+        help="allow a non-loopback --host (the token is still required; anyone who has it can move the head)",
+    )
+    parser.add_argument(
+        "--allow-origin",
+        action="append",
+        default=[],
+        metavar="ORIGIN",
+        help="another browser origin allowed to use the API (e.g. http://robot.local:8765); repeatable",
+    )
+    parser.add_argument("--out-dir", type=Path, default=Path.cwd(), help="where calibrations are written (default .)")
+    parser.add_argument(
+        "--scripts-dir", type=Path, default=Path.cwd(), help="where scripts are read and saved (default .)"
+    )
+    parser.add_argument("--no-render", action="store_true", help="no twin renders (a machine without EGL)")
+
+
+def run(args: argparse.Namespace) -> int:
+    import signal
+    import threading
+
+    from servoface.controller.cli.head_args import open_errors
+    from servoface.controller.service import HeadService, open_head
+    from servoface.controller.studio import StudioError, StudioOptions, StudioServer
+    from servoface.controller.studio.security import is_loopback
+
+    if not is_loopback(args.host) and not args.allow_remote:
+        print(f"servoface studio: --host {args.host} is not loopback; add --allow-remote to serve it", file=sys.stderr)
+        return 2
+    if not 0 <= args.port_http <= 65535:
+        print(f"servoface studio: --port-http must be 0..65535, got {args.port_http}", file=sys.stderr)
+        return 2
+    if not 0 < args.rate <= 1000:
+        print(f"servoface studio: --rate must be within 0..1000 Hz, got {args.rate}", file=sys.stderr)
+        return 2
+    for name in ("out_dir", "scripts_dir"):
+        folder = getattr(args, name)
+        if not folder.is_dir():
+            print(f"servoface studio: --{name.replace('_', '-')} {folder}: not a folder", file=sys.stderr)
+            return 2
+    try:
+        opened = open_head(
+            args.head, port=args.port, emulate=args.emulate, baud=args.baud, rate_hz=args.rate,
+            calibration=args.calibration,
+        )  # fmt: skip
+    except open_errors() as err:
+        print(f"servoface studio: {err}", file=sys.stderr)
+        return 2
+    service = HeadService(opened.head, opened.pipeline)
+    options = StudioOptions(out_dir=args.out_dir, scripts_dir=args.scripts_dir, render=not args.no_render)
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        previous = {s: signal.signal(s, interrupt) for s in (signal.SIGTERM, signal.SIGHUP)}
+    server = None
+    code = 0
+    reason = "end"
+    try:
+        server = StudioServer(
+            service, host=args.host, port=args.port_http, allow_remote=args.allow_remote, options=options,
+            allow_origins=frozenset(args.allow_origin),
+        )  # fmt: skip
+        server.start()
+        where = "emulated chain" if args.emulate else args.port
+        print(f"servoface studio: head '{opened.head.name}' on {where}", flush=True)
+        print(f"open {server.url}", flush=True)
+        print("Ctrl-C to stop (the head eases to neutral, torque off)", flush=True)
+        server.wait()
+    except KeyboardInterrupt as err:
+        reason = str(err) or "SIGINT"
+    except (StudioError, OSError) as err:
+        print(f"servoface studio: {err}", file=sys.stderr)
+        code = 2
+    finally:
+        if server is not None:
+            server.stop()
+        report = service.shutdown(reason=reason)
+        if opened.chain is not None:
+            opened.chain.close()
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    for line in report.lines():
+        print(line, flush=True)
+    return code if report.torque_off else 3

@@ -1,0 +1,108 @@
+"""Author a two-keyframe timeline in the browser, save it, and `servoface play` the saved file on a separate
+emulator: the goals on that wire are the ones the studio's head takes for the same timeline."""
+
+from __future__ import annotations
+
+import tomllib
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+from servoface.controller.script import load_script
+
+from tests.integration.safe_stop_rig import bench
+from tests.studio.conftest import StudioRig
+
+
+def _set(page: Any, selector: str, value: str) -> None:
+    page.fill(selector, value)
+    page.dispatch_event(selector, "change")
+
+
+def _plateau(writes: list[list[float]]) -> dict[int, int]:
+    """Per servo, the goal written most often: the hold of the last keyframe (1 s of 50 Hz frames)."""
+    per: dict[int, Counter[int]] = {}
+    for _, sid, tick in writes:
+        per.setdefault(int(sid), Counter())[int(tick)] += 1
+    return {sid: c.most_common(1)[0][0] for sid, c in per.items()}
+
+
+def test_a_two_keyframe_timeline_saved_in_the_page_plays_the_same_goals_with_servoface_play(
+    studio_page: tuple[Any, StudioRig], tmp_path: Path
+) -> None:
+    page, rig = studio_page
+    page.click('a[data-page="author"]')
+    page.click("#author-add-key")  # key 1 at the playhead, 0 s: neutral
+    page.wait_for_selector(".tl-key.selected")
+    page.click("#author-add-key")  # the same time again selects it instead of doubling it
+    assert page.locator('.tl-row[data-row="keys:face"] .tl-key').count() == 1
+    # key 2: double-click the face row at ~1 s, then set its time, easing and pose in the inspector
+    row = page.locator('.tl-row[data-row="keys:face"]')
+    box = row.bounding_box()
+    page.mouse.dblclick(box["x"] + 160 * 1.0, box["y"] + box["height"] / 2)
+    page.wait_for_function("document.querySelectorAll('.tl-row[data-row=\"keys:face\"] .tl-key').length === 2")
+    _set(page, "#key-time", "1")
+    page.select_option("#key-easing", "min_jerk")
+    page.locator('.inspector input[data-au="AU12"]').fill("0.7")
+    page.locator('.inspector input[data-au="AU26"]').fill("0.5")
+    _set(page, "#author-end", "2")
+    page.fill("#author-name", "two_keys.toml")
+    page.click("#author-save")
+    page.wait_for_function("document.querySelector('#author-status').dataset.saved")
+    saved = Path(page.locator("#author-status").get_attribute("data-saved"))
+    assert saved.name == "two_keys.toml" and saved.is_file()
+
+    doc = tomllib.loads(saved.read_text())
+    (name,) = doc["expressions"]
+    keys = doc["expressions"][name]["keyframes"]
+    assert [k["t_s"] for k in keys] == [0.0, 1.0]
+    assert keys[0]["pose"] == {} and keys[1]["pose"] == {"AU12": 0.7, "AU26": 0.5}
+    assert keys[1]["easing"] == "min_jerk" and doc["script"]["end_s"] == 2.0
+    assert doc["play"] == [{"at_s": 0.0, "expression": name}]
+    assert load_script(saved).end_s == 2.0  # what servoface play reads
+
+    # the page plays it on the studio's head; it ends holding the last key
+    rest = rig.goals()
+    page.select_option("#author-on", "head")
+    page.click("#author-play")
+    rig.wait_for(lambda: rig.service.status().tracks["face"].state == "holding", timeout_s=60, what="the hold")
+    rig.wait_for(lambda: not any(rig.chain.servo(i).read_register("Moving") for i in rig.chain.ids), timeout_s=60,
+                 what="the servos to settle")  # fmt: skip
+    studio_hold = rig.goals()
+
+    # the saved file with `servoface play` on a separate emulator over a pty
+    with bench(tmp_path) as b:
+        b.play(str(saved), "--head", "human")
+        code, out, err = b.finish(timeout_s=240)
+        assert code == 0, err
+        state = b.final_state()
+    cli_hold = _plateau(state["goal_writes"])
+    moved = {sid for sid, tick in studio_hold.items() if abs(tick - rest[sid]) > 20}
+    assert moved, "the last key moves some servos"
+    assert {sid: cli_hold[sid] for sid in studio_hold} == studio_hold
+
+
+def test_a_script_loaded_and_saved_in_the_page_is_the_same_document(studio_page: tuple[Any, StudioRig]) -> None:
+    from tests.studio.browser.screenshots import DOCUMENT
+
+    page, rig = studio_page
+    rig.client.put("/api/scripts/greeting.toml", json={"document": DOCUMENT}).raise_for_status()
+    page.click('a[data-page="author"]')
+    for name in ("human_performance", "greeting.toml"):
+        page.wait_for_selector(f'#author-list option[value="{name}"]', state="attached")
+        page.select_option("#author-list", name)
+        page.wait_for_function(f"document.querySelector('#author-status').textContent.startsWith('Loaded {name}')")
+        copy_name = f"copy_of_{name.removesuffix('.toml')}.toml"
+        page.fill("#author-name", copy_name)
+        page.click("#author-save")
+        page.wait_for_function(
+            f"(document.querySelector('#author-status').dataset.saved || '').endsWith('{copy_name}')"
+        )
+        original = rig.client.get(f"/api/scripts/{name.removesuffix('.toml')}.toml").json()["document"]
+        copy = rig.client.get(f"/api/scripts/{copy_name}").json()["document"]
+        assert copy == original, name
+    # the loaded timeline shows its keys, gaze, clip and blinks
+    assert page.locator('.tl-row[data-row="keys:face"] .tl-key').count() == 5
+    assert page.locator('.tl-row[data-row="gaze"] .tl-key').count() == 3
+    assert page.locator('.tl-row[data-row="clips:gesture"] .tl-clip').inner_text() == "brow_flash"
+    assert page.is_checked("#author-blink")
