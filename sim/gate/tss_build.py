@@ -333,7 +333,7 @@ def _candidates_from_a(
     that reach b's bounding ball (a sphere of a that cannot reach it cannot reach any sphere of b)."""
     reach = np.linalg.norm(pts - cb_ball, axis=1) <= sa.radii_mm[idx_a] + rb_ball + pad_mm + _FILTER_SLACK_MM
     kept = np.flatnonzero(reach)
-    cand = kd.query_ball_point(pts[kept], r=sa.radii_mm[idx_a[kept]] + rmax_b + pad_mm, return_sorted=False, workers=-1)
+    cand = kd.query_ball_point(pts[kept], r=sa.radii_mm[idx_a[kept]] + rmax_b + pad_mm, return_sorted=False)
     rows, cols = _flat(cand)
     return kept[rows], cols
 
@@ -347,7 +347,7 @@ def _candidates_from_b(rel: FloatArray, sa: SphereSet, sb: SphereSet, pad_mm: fl
     q = np.einsum("gij,nj->gni", np.linalg.inv(rel), np.c_[sb.centres_mm, np.ones(sb.n)])[..., :3].reshape(-1, 3)
     idx_b = np.tile(np.arange(sb.n), rel.shape[0])
     r = sb.radii_mm[idx_b] + float(sa.radii_mm.max()) + pad_mm + _FILTER_SLACK_MM
-    found_q, found_a = _flat(kd_a.query_ball_point(q, r=r, return_sorted=False, workers=-1))
+    found_q, found_a = _flat(kd_a.query_ball_point(q, r=r, return_sorted=False))
     node = found_q // sb.n
     return node * sa.n + found_a, idx_b[found_q]
 

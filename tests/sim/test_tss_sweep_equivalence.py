@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from servoface.sim.gate.collision import PartCollisions, auto_pairs
 from servoface.sim.gate.demo_rig import demo_head
 from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.spheres import SphereSet, cover_spheres
@@ -13,9 +12,9 @@ from servoface.sim.gate.tss_build import (
     TssParams,
     _balls_meet,
     _bounding_ball,
+    _covered,
     _grid_angles,
     _sweep,
-    build_or_load,
     relative_joints,
 )
 
@@ -48,7 +47,7 @@ def _pairs() -> list[tuple[JointTree, int, int, SphereSet, SphereSet, np.ndarray
         if not rel:
             continue
         lo, hi = tree.lower_deg[rel], tree.upper_deg[rel]
-        angles = _grid_angles(tree, rel, lo, hi, np.full(len(rel), 7, dtype=np.int64))
+        angles = _grid_angles(tree, rel, lo, hi, np.full(len(rel), 5, dtype=np.int64))
         ja = -1 if parts[a].joint is None else tree.index[parts[a].joint]
         jb = -1 if parts[b].joint is None else tree.index[parts[b].joint]
         out.append((tree, ja, jb, covers[a], covers[b], angles))
@@ -80,16 +79,19 @@ def _halved(spheres: SphereSet) -> SphereSet:
     return SphereSet(spheres.centres_mm[keep], spheres.radii_mm[keep])
 
 
-def test_shared_covers_give_the_tables_of_separate_covers(tmp_path: object) -> None:
-    head = demo_head()
-    tree = JointTree(head.joints)
-    shared = PartCollisions(head, tree, auto_pairs(head, tree), TssParams(), None)
-    parts = {p.name: p for p in head.parts}
-    for spec, built in zip(shared.specs, shared.built, strict=True):
-        alone = build_or_load(
-            tree, head.name, parts[spec.a], parts[spec.b], parts[spec.a].mesh, parts[spec.b].mesh,
-            spec.tolerance_mm, TssParams(), None,
-        )  # fmt: skip
-        assert np.array_equal(alone.table.ia, built.table.ia) and np.array_equal(alone.table.ib, built.table.ib)
-        assert alone.table.exact_only == built.table.exact_only
-        assert np.array_equal(alone.spheres_a.centres_mm, built.spheres_a.centres_mm)
+def test_a_shared_cover_is_the_cover_of_that_mesh() -> None:
+    """A part in many pairs is covered once per build: what the shared dict hands back is what
+    `cover_spheres` gives for that very mesh (it is deterministic), never another mesh's."""
+    params = TssParams()
+    covers: dict[int, tuple[object, SphereSet]] = {}
+    parts = demo_head().parts
+    for part in parts:
+        fresh = cover_spheres(part.mesh, params.spheres_per_part, max_cell_mm=params.max_cell_mm)
+        first = _covered(part.mesh, params, covers)
+        assert _covered(part.mesh, params, covers) is first
+        assert np.array_equal(first.centres_mm, fresh.centres_mm) and np.array_equal(first.radii_mm, fresh.radii_mm)
+    other = parts[0].mesh.copy()
+    stale = covers[id(parts[1].mesh)][1]
+    covers[id(other)] = (parts[1].mesh, stale)  # an entry under this id for another mesh (a reused id)
+    got = _covered(other, params, covers)
+    assert got is not stale and np.array_equal(got.centres_mm, covers[id(parts[0].mesh)][1].centres_mm)
