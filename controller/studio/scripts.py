@@ -23,6 +23,7 @@ from servoface.controller.script import Script, parse_script
 from servoface.controller.studio.errors import InvalidValueError, NotFoundError
 
 NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]{0,95}\.toml$")
+STEM_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]{0,95}$")  # a name to read: the .toml may be left off
 MAX_SAMPLES = 5000
 MAX_DEPTH = 32
 
@@ -138,16 +139,33 @@ class ScriptFolder:
         return sorted(p.name for p in self.folder.glob("*.toml") if p.is_file() and NAME_RE.fullmatch(p.name))
 
     def path_of(self, name: str, *, must_exist: bool = True) -> Path:
-        p = self.folder / check_name(name)
-        if must_exist and not p.is_file():
-            from servoface.controller.shipped import shipped_scripts
+        """The file ``name`` means: ``smile.toml`` in the folder; for reading also a shipped script as
+        everywhere else (:mod:`servoface.controller.shipped`): ``human_performance``,
+        ``human_performance.toml`` or ``script:human_performance`` -- the folder's own copy first, except
+        with the ``script:`` prefix, which always means the shipped one."""
+        if not must_exist:
+            return self.folder / check_name(name)
+        from servoface.controller.shipped import SCRIPT_PREFIX, shipped_scripts
 
-            shipped = shipped_scripts()
-            stem = name[: -len(".toml")]
-            if stem in shipped:
-                return Path(shipped[stem])
-            raise NotFoundError(f"no script {name!r} in {self.folder} (nor a shipped one)", field="name")
-        return p
+        prefixed = isinstance(name, str) and name.startswith(SCRIPT_PREFIX)
+        spec = name[len(SCRIPT_PREFIX) :] if prefixed else name
+        if not isinstance(spec, str) or not STEM_RE.fullmatch(spec) or ".." in spec:
+            raise InvalidValueError(
+                f"name: expected a bare file name like 'smile.toml' or a shipped script name like "
+                f"'human_performance' ([A-Za-z0-9_.-]), got {name!r}",
+                field="name",
+            )
+        stem = spec[: -len(".toml")] if spec.endswith(".toml") else spec
+        if not prefixed:
+            own = self.folder / f"{stem}.toml"
+            if own.is_file():
+                return own
+        shipped = shipped_scripts()
+        if stem in shipped:
+            return Path(shipped[stem])
+        raise NotFoundError(
+            f"no script {name!r} in {self.folder} (nor a shipped one; shipped: {sorted(shipped)})", field="name"
+        )
 
     def load(self, name: str) -> dict[str, Any]:
         p = self.path_of(name)
