@@ -1,22 +1,25 @@
-"""The live twin for the studio: one render thread (it owns the EGL context) draws the achievable face
-(the goals the gate let through, posed by a twin of its own) and, on demand, the muscle model's target,
-at 640x480, encodes PNGs and hands them to the studio. It renders only when the frame changed and someone
-is watching, newest first: a slow browser skips frames, it never makes the loop wait. Previews (a script
-at a time, the calibration pose) go through the same thread."""
+"""The live twin for the studio: one render thread drives a render process of its own
+(:mod:`servoface.controller.studio.render_worker`: it owns the EGL context and a twin) that draws the
+achievable face (the goals the gate let through) and, on demand, the muscle model's target, at 640x480,
+encodes PNGs (:mod:`servoface.controller.studio.png`) and hands them to the studio; drawing never holds
+this process's interpreter lock, so it does not compete with the control loop. It renders only when the
+pose changed and someone is watching, newest first: a slow browser skips frames, it never makes the loop
+wait. Previews (a script at a time, the calibration pose) go through the same thread."""
 
 from __future__ import annotations
 
-import io
 import queue
 import threading
 import time
 from collections.abc import Callable, Mapping
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future
 from dataclasses import dataclass
 from typing import Any
 
 from servoface.controller.pipeline import FrameTrace
 from servoface.controller.service import HeadService
+from servoface.controller.studio.png import encode_png
+from servoface.controller.studio.render_worker import RenderWorker, RenderWorkerError
 
 WIDTH, HEIGHT = 640, 480
 MAX_FPS = 30.0
@@ -35,12 +38,7 @@ class TwinImage:
     t_s: float
 
 
-def encode_png(rgb: Any) -> bytes:
-    from PIL import Image
-
-    buf = io.BytesIO()
-    Image.fromarray(rgb).save(buf, format="PNG", compress_level=1)
-    return buf.getvalue()
+__all__ = ["HEIGHT", "WIDTH", "TwinImage", "TwinRenderer", "encode_png"]
 
 
 class TwinRenderer:
@@ -69,9 +67,9 @@ class TwinRenderer:
         self._stop = threading.Event()
         self._ready = threading.Event()
         self._seq = 0
-        self._encoder = ThreadPoolExecutor(1, thread_name_prefix="studio-png")
-        self._encode_lock = threading.Lock()
-        self._encode_next: dict[str, tuple[FrameTrace, Any]] = {}
+        self._lock = threading.Lock()
+        self._worker: RenderWorker | None = None
+        self._pending: tuple[FrameTrace, str] | None = None  # the live render asked for, not yet collected
         self._thread = threading.Thread(target=self._run, name="studio-twin", daemon=True)
         self._thread.start()
 
@@ -89,20 +87,13 @@ class TwinRenderer:
         """One PNG of ``aus`` as the servos would make it (``achievable``: the twin's still) or as the muscle
         model wishes (``target``); nothing moves."""
 
-        def draw(me: TwinRenderer) -> bytes:
-            if which == "target":
-                return encode_png(me._renderer.render(me.head, me._model.solve(dict(aus))))
-            return encode_png(me._renderer.render(me.head, me._twin.still(dict(aus)).pose))
-
-        return bytes(self.call(draw))
+        op = "target" if which == "target" else "still"
+        return bytes(self.call(lambda me: me._png(op, dict(aus))))
 
     def render_targets_png(self, targets: Mapping[str, float]) -> bytes:
         """One PNG of the head with actuators at ``targets`` (role -> deg / mm), the rest at neutral."""
 
-        def draw(me: TwinRenderer) -> bytes:
-            return encode_png(me._renderer.render(me.head, me._model.pose_from_targets(dict(targets))))
-
-        return bytes(self.call(draw))
+        return bytes(self.call(lambda me: me._png("targets", dict(targets))))
 
     def latest_png(self, which: str) -> TwinImage | None:
         """The newest image of ``which``; rendered now when there is none yet."""
@@ -122,14 +113,9 @@ class TwinRenderer:
     # -- the render thread -------------------------------------------------------------------------
     def _run(self) -> None:
         try:
-            from servoface.sim.achievable import AchievableFace
-            from servoface.sim.face_model import FaceModel
-            from servoface.sim.render import HeadRenderer
-
-            cal = self.service.pipeline.calibration
-            self._model = FaceModel(self.head)
-            self._twin = AchievableFace(self.head, cal, frame_period_s=self.service.period_s, model=self._model)
-            self._renderer = HeadRenderer(self.width, self.height)
+            self._worker = RenderWorker(
+                self.head, self.service.pipeline.calibration, self.service.period_s, self.width, self.height
+            )
         except Exception as err:  # noqa: BLE001 - no renders (no EGL); the rest of the studio works
             self.error = f"{type(err).__name__}: {err}"
             self._ready.set()
@@ -150,7 +136,7 @@ class TwinRenderer:
                 did = False
                 for which in wanted:
                     key = _key(trace, which)
-                    if shown.get(which) == key:
+                    if shown.get(which) == key:  # the pose did not change: nothing new to draw
                         continue
                     shown[which] = key
                     self._render_live(trace, which)
@@ -158,44 +144,56 @@ class TwinRenderer:
                 if did:
                     last_s = time.monotonic()
                 else:
+                    self._collect_live()  # the pose rests: show its image now
                     self._serve_requests(block_s=0.01)
+        except RenderWorkerError:
+            self._worker.close()
+            self._serve_failures()
         finally:
-            self._encoder.shutdown(wait=True)
-            self._renderer.close()
+            self._worker.close()
 
-    def _pixels(self, trace: FrameTrace, which: str) -> Any:
-        from servoface.sim.rig import HeadPose
-
-        if which == "target":
-            pose = self._model.solve(trace.aus)
-        else:
-            joint_deg, offsets, targets = self._twin.gate.twin_pose(trace.goals_sent)
-            pose = HeadPose(joint_deg=joint_deg, skin_offset_mm=offsets, actuator_targets=targets)
-        return self._renderer.render(self.head, pose)
-
-    def _render(self, trace: FrameTrace, which: str) -> TwinImage:
-        """Render and encode now (on the render thread): for one-off requests."""
-        return self._publish(trace, which, self._pixels(trace, which))
+    def _png(self, op: str, payload: Mapping[str, Any]) -> bytes:
+        if self._worker is None:
+            raise RenderWorkerError("the render process has not started")
+        self._collect_live()
+        return self._worker.png(op, payload)
 
     def _render_live(self, trace: FrameTrace, which: str) -> None:
-        """Render here, encode on the encoder thread (zlib runs without the GIL): the next render overlaps
-        this one's encoding. At most one encode waits per kind; a newer render replaces it."""
-        rgb = self._pixels(trace, which)
-        with self._encode_lock:
-            waiting = which in self._encode_next
-            self._encode_next[which] = (trace, rgb)
-        if not waiting:
-            self._encoder.submit(self._encode_one, which)
+        """Ask for ``trace``'s image, then collect the one asked for before it: the render process draws
+        this one while it encodes that one. At most one live request is outstanding."""
+        assert self._worker is not None
+        if which == "target":
+            self._worker.submit("target", trace.aus)
+        else:
+            self._worker.submit("goals", trace.goals_sent)
+        before, self._pending = self._pending, (trace, which)
+        if before is not None:
+            self._publish_result(*before)
 
-    def _encode_one(self, which: str) -> None:
-        with self._encode_lock:
-            item = self._encode_next.pop(which, None)
-        if item is not None:
-            self._publish(item[0], which, item[1])
+    def _collect_live(self) -> None:
+        before, self._pending = self._pending, None
+        if before is not None:
+            self._publish_result(*before)
 
-    def _publish(self, trace: FrameTrace, which: str, rgb: Any) -> TwinImage:
-        png = encode_png(rgb)
-        with self._encode_lock:
+    def _publish_result(self, trace: FrameTrace, which: str) -> None:
+        assert self._worker is not None
+        try:
+            self._publish(trace, which, self._worker.result())
+        except RenderWorkerError as err:
+            self.error = str(err)
+            if not self._worker.alive:
+                raise
+
+    def _render(self, trace: FrameTrace, which: str) -> TwinImage:
+        """Render and encode ``trace`` now (on the render thread, in the render process)."""
+        if which == "target":
+            png = self._png("target", trace.aus)
+        else:
+            png = self._png("goals", trace.goals_sent)
+        return self._publish(trace, which, png)
+
+    def _publish(self, trace: FrameTrace, which: str, png: bytes) -> TwinImage:
+        with self._lock:
             self._seq += 1
             seq = self._seq
             self.renders += 1
@@ -230,7 +228,7 @@ class TwinRenderer:
             item = self._requests.get()
             if item is None:
                 continue
-            item[1].set_exception(RuntimeError(f"the twin cannot render here: {self.error}"))
+            item[1].set_exception(RenderWorkerError(f"the twin cannot render here: {self.error}"))
 
 
 def _key(trace: FrameTrace, which: str) -> tuple[Any, ...]:
