@@ -188,7 +188,9 @@ def _fuzz(rig: StudioRig) -> None:
             if form == "bytes":
                 ws.send(json.dumps(body).encode())
             elif form == "text" or not isinstance(body, dict):
-                ws.send(json.dumps(body, allow_nan=True) if form == "json" else str(body)[:200])
+                text = json.dumps(body, allow_nan=True) if form == "json" else str(body)[:200]
+                # a text frame is UTF-8 on the wire: a lone surrogate cannot be sent (a browser replaces it too)
+                ws.send(text.encode("utf-8", "replace").decode("utf-8"))
             else:
                 ws.send(json.dumps({**body, "id": msg_id}, allow_nan=True))
             if form == "json" and isinstance(body, dict):
