@@ -20,6 +20,7 @@ from servoface.controller.studio import views
 from servoface.controller.studio.calibrate import CalibrationSession, idle_state
 from servoface.controller.studio.errors import ConflictError, InvalidValueError, NotFoundError, StudioError
 from servoface.controller.studio.lender import BusLender
+from servoface.controller.studio.liveness import Liveness
 from servoface.controller.studio.render import TwinImage, TwinRenderer
 from servoface.controller.studio.scripts import ScriptFolder, build, sample, summary, text_of, toml_to_document
 from servoface.hardware.driver import Driver
@@ -57,8 +58,9 @@ class Studio:
         self.service = service
         self.options = options or StudioOptions()
         self.hold = False
-        self.clients = 0
         self.last_drop_s: float | None = None
+        self.last_drop_reason = ""
+        self.liveness = Liveness(self._last_browser_gone)
         self.listeners: list[Callable[[dict[str, Any]], None]] = []
         self.image_listeners: list[Callable[[TwinImage], None]] = []
         self._lock = threading.Lock()
@@ -110,11 +112,13 @@ class Studio:
             "manual": self.lender.manual,
             "calibrating": self.calibration is not None and self.calibration.active,
             "clients": self.clients,
+            "silent_clients": self.liveness.silent,
             "frames": s.frames,
             "late": s.late,
             "tracks": views.tracks(s),
             "verdict": views.verdict(self.service.last_trace),
             "last_drop_s": None if self.last_drop_s is None else round(self.last_drop_s, 4),
+            "last_drop_reason": self.last_drop_reason,
             "render_error": self.renderer.error if self.renderer is not None else "rendering is off",
             "error": s.error,
         }
@@ -220,29 +224,39 @@ class Studio:
         return _command(handle)
 
     # -- browsers ----------------------------------------------------------------------------------
-    def client_joined(self) -> None:
-        with self._lock:
-            self.clients += 1
+    @property
+    def clients(self) -> int:
+        return self.liveness.connected
+
+    def client_joined(self) -> int:
+        """A WebSocket opened; its key for :meth:`client_heard` / :meth:`client_left`."""
+        key = self.liveness.joined()
+        self.push_state()
+        return key
+
+    def client_heard(self, key: int, *, heartbeat: bool = False, busy: int = 0) -> None:
+        self.liveness.heard(key, heartbeat=heartbeat, busy=busy)
+
+    def client_left(self, key: int) -> None:
+        self.liveness.left(key)
         self.push_state()
 
-    def client_left(self) -> None:
-        """The last browser gone: ease to neutral (unless hold), torque stays as it is."""
-        with self._lock:
-            self.clients = max(0, self.clients - 1)
-            last = self.clients == 0
-        if last:
-            self.last_drop_s = self.service.now_s()
-            if not self.hold:
-                self._loop_stop.set()
-                if self.lender.manual:
-                    try:
-                        self.lender.set_manual(False)
-                    except StudioError:
-                        pass
+    def _last_browser_gone(self, reason: str) -> None:
+        """The last live browser closed or went silent (:mod:`.liveness`): ease to neutral (unless hold),
+        manual mode ends; torque stays as it is."""
+        self.last_drop_s = self.service.now_s()
+        self.last_drop_reason = reason
+        if not self.hold:
+            self._loop_stop.set()
+            if self.lender.manual:
                 try:
-                    self.service.neutral(DROP_NEUTRAL_S)
-                except ControllerError:
-                    pass  # e-stop latched / torque off / stopped: nothing is moving anyway
+                    self.lender.set_manual(False)
+                except StudioError:
+                    pass
+            try:
+                self.service.neutral(DROP_NEUTRAL_S)
+            except ControllerError:
+                pass  # e-stop latched / torque off / stopped: nothing is moving anyway
         self.push_state()
 
     def twin_png(self, which: str) -> TwinImage:
@@ -473,6 +487,7 @@ class Studio:
     # -- life --------------------------------------------------------------------------------------
     def close(self) -> None:
         self._loop_stop.set()
+        self.liveness.close()
         if self.calibration is not None:
             self.calibration.abort()
         self.lender.close()
