@@ -86,6 +86,10 @@ def worker_main(conn: Connection, head: Any, calibration: Any, period_s: float, 
                 return
             op, payload = request
             try:
+                if op == "calibration":  # the head's calibration changed: a new twin for it
+                    twin = AchievableFace(head, payload["calibration"], frame_period_s=period_s, model=model)
+                    replies.put(("ok", b""))
+                    continue
                 replies.put(("pixels", renderer.render(head, _pose_for(op, payload, model, twin))))
             except Exception as err:  # noqa: BLE001 - one bad request must not end the twin
                 replies.put(("error", f"{type(err).__name__}: {err}"))

@@ -72,6 +72,7 @@ class Studio:
                 service, width=self.options.width, height=self.options.height, on_image=self._image
             )
         self.calibration: CalibrationSession | None = None
+        self.recording: Any = None  # a StreamRecording (record.py) while one runs
         self.scripts = ScriptFolder(self.options.scripts_dir, service.validator.names)
         self._loop_stop = threading.Event()
         self._head_info = views.head_info(service, (self.options.width, self.options.height))
@@ -359,6 +360,43 @@ class Studio:
         except HardwareError as err:
             raise ConflictError(f"bus: {err}") from err
 
+    # -- record a live stream ------------------------------------------------------------------------
+    def record_start(self, body: m.RecordStart) -> dict[str, Any]:
+        from servoface.controller.frame import FrameValidator
+        from servoface.controller.studio.record import open_recording
+
+        with self._lock:
+            if self.recording is not None:
+                raise ConflictError("a stream recording is running; stop it first")
+            allowed = FrameValidator.for_head(self.service.head).allowed
+            rec = open_recording(self.service.head.face_type, allowed, body.transport, body.port, body.tolerance)
+            self.recording = rec
+        if body.follow:
+            try:
+                rec.follow = self._motion(lambda: self.service.follow(rec.source, track="stream"), "follow")
+            except StudioError:
+                rec.follow = None  # e-stop latched / torque off / bus lent: record without moving the head
+        self.push_state()
+        return rec.state()
+
+    def record_state(self) -> dict[str, Any]:
+        rec = self.recording
+        return rec.state() if rec is not None else {"active": False}
+
+    def record_stop(self, body: m.Empty) -> dict[str, Any]:
+        with self._lock:
+            rec, self.recording = self.recording, None
+        if rec is None:
+            raise ConflictError("no stream recording is running")
+        rec.close()
+        if rec.follow is not None:
+            try:
+                self.service.stop("stream", release_s=0.3)
+            except ControllerError:
+                pass
+        self.push_state()
+        return {**rec.keys(), "messages": rec.source.stats.messages, "bad": rec.source.stats.bad, "over": rec.over}
+
     # -- calibrate ---------------------------------------------------------------------------------
     def calibrate_start(self, body: m.CalibrateStart) -> dict[str, Any]:
         if self.calibration is not None and self.calibration.active:
@@ -374,12 +412,56 @@ class Studio:
             self.options.out_dir,
             torque_wanted=lambda: self.service.status().torque_on,
             on_change=self._calibration_changed,
+            on_saved=self._put_in_service,
         )
         self.calibration = session
         session.start()
         session.operator.wait_next(0, lambda: session.done)
         self.push_state()
         return session.state()
+
+    def _put_in_service(self, calibration: Any, driver: Driver) -> None:
+        """A calibration saved by a session (lender thread, loop paused): in service from the next frame."""
+        from servoface.controller.studio import live_calibration
+
+        prepared = live_calibration.prepare(self.service, calibration)
+        live_calibration.install(self.service, prepared, driver, lambda: self.service.status().torque_on)
+        self._calibration_installed()
+
+    def _calibration_installed(self) -> None:
+        self._head_info = views.head_info(self.service, (self.options.width, self.options.height))
+        renderer = self.renderer
+        if renderer is not None:  # seconds (the twin's tables): never while the loop waits
+            cal = self.service.pipeline.calibration
+            threading.Thread(target=renderer.set_calibration, args=(cal,), name="studio-twin-cal", daemon=True).start()
+
+    def calibration_apply(self, body: m.CalibrationApply) -> dict[str, Any]:
+        """A calibration file of ``--out-dir`` into service now: the gate built while the loop runs, then
+        swapped in between two frames (:mod:`.live_calibration`)."""
+        from servoface.calibration import load_calibration
+        from servoface.calibration.errors import CalibrationError
+        from servoface.controller.studio import live_calibration
+        from servoface.controller.studio.calibrate import OUT_RE
+        from servoface.hardware.errors import HardwareConfigError
+        from servoface.sim.errors import SimError
+
+        if not OUT_RE.fullmatch(body.file) or ".." in body.file:
+            raise InvalidValueError(f"file: expected a bare file name ending in .json, got {body.file!r}", field="file")
+        self._no_calibration()
+        if self.lender.manual:
+            raise ConflictError("leave manual mode first")
+        path = Path(self.options.out_dir) / body.file
+        if not path.is_file():
+            raise NotFoundError(f"file: no calibration {body.file!r} in the studio's out dir", field="file")
+        try:
+            prepared = live_calibration.prepare(self.service, load_calibration(path))
+        except (CalibrationError, ControllerError, SimError, HardwareConfigError, ValueError) as err:
+            raise InvalidValueError(f"file: {err}", field="file") from err
+        torque = self.service.status().torque_on
+        self._bus(lambda driver: live_calibration.install(self.service, prepared, driver, lambda: torque))
+        self._calibration_installed()
+        self.push_state()
+        return {"applied": str(path.resolve()), "servos": self._head_info["servos"]}
 
     def _calibration_changed(self) -> None:
         if self.calibration is not None:
@@ -488,6 +570,8 @@ class Studio:
     def close(self) -> None:
         self._loop_stop.set()
         self.liveness.close()
+        if self.recording is not None:
+            self.recording.close()
         if self.calibration is not None:
             self.calibration.abort()
         self.lender.close()
