@@ -145,7 +145,9 @@ class Driver(ChainReads):
         self._check_owner()
         new = {s.servo_id: s for s in check_specs(specs)}
         if set(new) != set(self._records):
-            raise HardwareConfigError(f"respec: servo ids {sorted(new)} differ from the chain's {sorted(self._records)}")
+            raise HardwareConfigError(
+                f"respec: servo ids {sorted(new)} differ from the chain's {sorted(self._records)}"
+            )
         for sid, spec in new.items():
             if spec.model_info != self._records[sid].info:
                 raise HardwareConfigError(f"respec: servo {sid} is a {self._records[sid].info.name}, not {spec.model}")

@@ -129,9 +129,9 @@ class StreamRecording:
             times.append(rel)
             frames.append(s.aus)
         kept = reduce_keys(times, frames, self.tolerance)
+        if len(kept) == 1:  # a keyframe clip needs its last key after 0
+            kept.append((0.1, dict(kept[0][1])))
         keys = [{"t_s": round(t, 4), "pose": pose, "easing": "linear"} for t, pose in kept]
-        if len(keys) == 1:  # a keyframe clip needs its last key after 0
-            keys.append({"t_s": 0.1, "pose": dict(keys[0]["pose"]), "easing": "linear"})
         return {
             "keys": keys,
             "samples": len(samples),
@@ -145,7 +145,7 @@ class StreamRecording:
 
 
 def open_recording(
-    face_type: str, allowed: frozenset[str], transport: str, port: int, tolerance: float
+    face_type: str, allowed: frozenset[str] | None, transport: str, port: int, tolerance: float
 ) -> StreamRecording:
     """The stream source and its loopback receiver (started); refuses a port in use with a clear 409."""
     from servoface.controller.inputs.errors import InputError

@@ -163,7 +163,7 @@ class TwinRenderer:
         finally:
             self._worker.close()
 
-    def _png(self, op: str, payload: Mapping[str, Any]) -> bytes:
+    def _png(self, op: str, payload: Mapping[Any, Any]) -> bytes:
         if self._worker is None:
             raise RenderWorkerError("the render process has not started")
         self._collect_live()

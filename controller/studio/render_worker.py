@@ -29,7 +29,7 @@ class RenderWorkerError(StudioError):
     code = "render_unavailable"
 
 
-def _pose_for(op: str, payload: Mapping[str, Any], model: Any, twin: Any) -> Any:
+def _pose_for(op: str, payload: Mapping[Any, Any], model: Any, twin: Any) -> Any:
     from servoface.sim.rig import HeadPose
 
     if op == "goals":  # the achievable face: what the gate let through, posed by the twin
@@ -142,7 +142,7 @@ class RenderWorker:
             raise RenderWorkerError(f"the render process ended (exit code {self._process.exitcode})") from err
         return reply
 
-    def submit(self, op: str, payload: Mapping[str, Any]) -> None:
+    def submit(self, op: str, payload: Mapping[Any, Any]) -> None:
         """Send one request; its PNG comes back from ``result()`` (replies arrive in request order)."""
         try:
             self._conn.send((op, dict(payload)))
@@ -156,7 +156,7 @@ class RenderWorker:
             raise RenderWorkerError(f"render failed: {value}")
         return bytes(value)
 
-    def png(self, op: str, payload: Mapping[str, Any]) -> bytes:
+    def png(self, op: str, payload: Mapping[Any, Any]) -> bytes:
         """One PNG now (no other request may be outstanding)."""
         self.submit(op, payload)
         return self.result()

@@ -56,7 +56,8 @@ def test_an_applied_calibration_drives_the_wire_at_once(studio: StudioRig, tmp_p
     before = _settled_goals(rig)
     old = rig.service.pipeline.calibration
     target = rig.service.pipeline.targets_for(aus)["jaw"]
-    assert before[jaw_id] == old.targets_to_goals({**{r: old[r].neutral_target for r in old.roles}, "jaw": target})[jaw_id]
+    rest = {r: old[r].neutral_target for r in old.roles}
+    assert before[jaw_id] == old.targets_to_goals({**rest, "jaw": target})[jaw_id]
 
     jaw = _softer_jaw_file(rig, tmp_path / "softer.json")
     new = load_calibration(tmp_path / "softer.json")
