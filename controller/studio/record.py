@@ -107,6 +107,7 @@ class StreamRecording:
             "samples": n,
             "messages": stats.messages,
             "bad": stats.bad,
+            "rate_limited": self.receiver.guard.stats.rate_limited,
             "errors": list(stats.errors)[-3:],
             "over": self.over,
             "duration_s": round(span, 4),

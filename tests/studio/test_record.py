@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 import socket
+import time
 from typing import Any
 
 import pytest
@@ -60,7 +61,11 @@ def test_a_live_stream_records_into_keys_that_replay_the_same_aus(studio: Studio
             t = i / RATE_HZ
             sender.send({"t": round(t, 6), "aus": _aus(t)})
             # one at a time: the stream keeps the latest value, so a backlog would be skipped, not recorded
-            rig.wait_for(lambda i=i: len(recording.samples) > i, what=f"sample {i} recorded")
+            try:
+                rig.wait_for(lambda i=i: len(recording.samples) > i, what=f"sample {i} recorded")
+            except AssertionError as err:
+                raise AssertionError(f"{err}; stream {recording.source.stats.summary()}") from None
+            time.sleep(1.0 / RATE_HZ)  # a tracker's pace: faster would hit the input's rate limit (240/s)
             moved = moved or rig.goals() != neutral
         rig.wait_for(lambda: moved or rig.goals() != neutral, what="the head following the stream")
     finally:

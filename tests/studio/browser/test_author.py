@@ -112,6 +112,7 @@ def test_a_live_udp_stream_recorded_in_the_page_becomes_face_keys(studio_page: t
     """Record → a tracker's AU frames over real UDP → Stop: the keys land on the face track and save."""
     import json
     import socket
+    import time
 
     from tests.studio.test_record import RATE_HZ, _aus
 
@@ -130,6 +131,7 @@ def test_a_live_udp_stream_recorded_in_the_page_becomes_face_keys(studio_page: t
             t = i / RATE_HZ
             sender.sendto(json.dumps({"t": t, "aus": _aus(t)}).encode(), ("127.0.0.1", port))
             rig.wait_for(lambda i=i: len(recording.samples) > i, what=f"sample {i} recorded")
+            time.sleep(1.0 / RATE_HZ)  # a tracker's pace (the input limits a client to 240 messages/s)
     finally:
         sender.close()
     page.click("#author-record")  # stop
