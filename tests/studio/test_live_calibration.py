@@ -97,3 +97,38 @@ def test_a_bad_calibration_file_is_refused_and_changes_nothing(studio: StudioRig
         r = rig.client.post("/api/calibration/apply", json=body)
         assert 400 <= r.status_code < 500 and r.json()["error"]["field"] == field, r.text
     assert rig.service.pipeline.calibration is running
+
+
+def test_a_calibration_for_other_servos_is_refused_by_the_driver_and_the_pipeline(studio: StudioRig) -> None:
+    import dataclasses
+
+    import pytest
+    from servoface.calibration import HeadCalibration
+    from servoface.hardware.errors import HardwareConfigError
+    from servoface.sim.errors import SimError
+
+    rig = studio
+    running = rig.service.pipeline.calibration
+    specs = servo_specs(rig.service.head, running)
+
+    def job(driver: Any) -> list[str]:
+        refused = []
+        for bad in (
+            specs[1:],
+            [
+                dataclasses.replace(specs[0], model="XM430-W350" if specs[0].model != "XM430-W350" else "XL430-W250"),
+                *specs[1:],
+            ],
+        ):
+            try:
+                driver.respec(bad)
+            except HardwareConfigError as err:
+                refused.append(str(err))
+        return refused
+
+    refused = rig.server.studio.lender.run(job)
+    assert len(refused) == 2 and "ids" in refused[0] and "servo" in refused[1]
+    fewer = HeadCalibration(running.head, [running[r] for r in running.roles[1:]])
+    with pytest.raises(SimError, match="lacks servo role"):
+        rig.service.pipeline.use_calibration(fewer, rig.service.pipeline.gate)
+    assert rig.service.pipeline.calibration is running
