@@ -98,6 +98,9 @@ class Driver(ChainReads):
         self._stop_reopened = False  # a stop re-opens a failed port at most once
         self._cycle_now: float | None = None  # set between cycle_start and cycle_finish
         self._position_ids: list[int] | None = None
+        self.fold_telemetry = True  # a due motion / thermal group rides in the position read (driver_reads)
+        self._folded: TelemetryGroup | None = None
+        self._folded_this_cycle = False
         self._idle_s = float("inf")
         self._busy_s = 0.0  # how long the last cycle took (clock)
         self._patient = False

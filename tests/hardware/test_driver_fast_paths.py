@@ -212,3 +212,38 @@ def test_fast_and_straightforward_driver_put_the_same_bytes_on_the_wire(seed: in
     assert snaps[0] == snaps[1]
     assert list(drv_a.events) == list(drv_b.events)
     assert any(isinstance(s, ChainSnapshot) and any(st.faults for st in s) for s in snaps[0])  # faults were seen
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("fast", [False, True])
+def test_telemetry_folded_into_the_position_read_gives_the_same_states_and_reactions(seed: int, fast: bool) -> None:
+    """A due motion / thermal group read in the position read's transaction (`fold_telemetry`, fewer
+    transactions) and read as a group of its own: the same servo states, faults and reactions, cycle by
+    cycle, under random goals, an obstacle (load back-off) and a hot servo (derate). (An Alert bit is left
+    out: the folded driver then reads the status group as well, in the same cycle, where the other reads
+    it instead of the due group, so their schedules differ from there by design.)"""
+    rng = random.Random(seed)
+    runs = []
+    for fold in (True, False):
+        chain, driver = make_driver(ids=(1, 2, 3, 4, 5))
+        driver.fast_sync_read = fast
+        driver.fold_telemetry = fold
+        runs.append((chain, driver))
+    for step in range(300):
+        goals = {sid: rng.randint(*LIMITS.get(sid, (1024, 3072))) for sid in rng.sample(range(1, 6), 3)}
+        states = []
+        for chain, driver in runs:
+            if step == 40:
+                chain.set_obstacle(1, 2200)
+            if step == 120:
+                chain.set_obstacle(1, None)
+                chain.servo(3).temperature_c = 66.0  # near its 70 C limit: derated
+            snap = driver.cycle(goals)
+            states.append((dict(snap.servos), [(e.servo_id, e.kind, e.reaction) for e in snap.events]))
+            chain.advance(DT_S)
+        assert states[0] == states[1], step
+    (chain_f, drv_f), (chain_s, drv_s) = runs
+    assert drv_f.telemetry_reads == drv_s.telemetry_reads
+    assert drv_f.bus.stats.transactions < drv_s.bus.stats.transactions  # fewer transactions when folded
+    assert any(e.kind == FaultKind.LOAD_BACKOFF for e in drv_f.events)
+    assert any(e.kind == FaultKind.THERMAL_DERATE for e in drv_f.events)
