@@ -10,7 +10,7 @@ from servoface.hardware.bus import ServoBus
 from servoface.hardware.errors import BusCorruptError, BusTimeoutError, ServoStatusError
 from servoface.hardware.fault_policy import FaultPolicy
 from servoface.hardware.fault_reactions import FaultReactions
-from servoface.hardware.registers import Register
+from servoface.hardware.registers import Register, span
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import FaultKind
 
@@ -160,6 +160,9 @@ class ChainReads:
         if group is not None and ids:
             self._folded_this_cycle = True
             group.due_s = now + group.period_s
+            # what riding along costs: the extra bytes' wire time (the idle-time rule of `_due_group`)
+            extra_bytes = len(ids) * (span(registers)[1] - span(POSITION)[1])
+            group.cost_s = extra_bytes * 10.0 / max(1, int(getattr(self.bus, "baud", 1_000_000)))
             self.telemetry_reads[group.name] += 1
             self._apply_group(group, got, now)
         self._mark_results(ids, got, now)
