@@ -26,7 +26,6 @@ from servoface.sim.face_model import FaceModel
 from servoface.sim.gate import GateConfig, ServoHealth, TwinGate, Verdict
 from servoface.sim.head import Head
 
-
 PACE_MAX_SHARE = 0.25  # a frame at most this share of a period early waits for the period (see step)
 
 

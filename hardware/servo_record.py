@@ -10,6 +10,7 @@ Both give equal states (tests/hardware/test_record_freeze.py mutates every field
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from servoface.hardware.fault_policy import ThermalTrend
@@ -89,7 +90,7 @@ class ServoRecord:
         lo, hi = self.limits_tick
         return max(lo, min(hi, tick))
 
-    def apply_motion(self, values: dict[Register, int], t_s: float) -> None:
+    def apply_motion(self, values: Mapping[Register, int], t_s: float) -> None:
         self.moving = bool(values[Register.MOVING])
         self.current_raw = values[Register.PRESENT_CURRENT]
         self.velocity_raw = values[Register.PRESENT_VELOCITY]

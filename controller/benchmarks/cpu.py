@@ -92,7 +92,7 @@ def _cpu_figure(quick: bool, fast: bool) -> Figure:
         limit=BUDGET_PERCENT,
         better="lower",
         note=f"process CPU {cpu_s:.2f} s over {wall_s:.1f} s wall, {frames} frames "
-        f"({result.stats.achieved_hz:.1f} Hz achieved) of the shipped performance, "
+        f"({0.0 if result.stats is None else result.stats.achieved_hz:.1f} Hz achieved) of the shipped performance, "
         f"{cpu_s / max(1, frames) * 1e3:.2f} ms CPU per frame; the speculative gate verdict was used on {used} "
         f"frames; "
         f"{0 if stats is None else stats.timeouts} timeouts; {load_text()}",
