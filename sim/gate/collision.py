@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -10,7 +11,13 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from servoface.sim.gate.clearance import CLEARANCE_VERSION, ClearanceSet, build_clearance, cached_clearance
+from servoface.sim.gate.clearance import (
+    CLEARANCE_VERSION,
+    Clearance,
+    ClearanceSet,
+    build_clearance,
+    cached_clearance,
+)
 from servoface.sim.gate.errors import GateConfigError
 from servoface.sim.gate.exact import ExactCollider, eroded
 from servoface.sim.gate.fk import JointTree
@@ -144,22 +151,24 @@ class PartCollisions:
             if self._cache_dir is not None:
                 name = f"{self._head_name}-{spec.a}-{spec.b}-{b.table.key}-{CLEARANCE_VERSION}.npz"
                 path = self._cache_dir / name
-            got = cached_clearance(
-                path,
-                lambda spec=spec, b=b: build_clearance(
-                    self.tree,
-                    parts[spec.a],
-                    parts[spec.b],
-                    meshes[f"{spec.a}@{spec.tolerance_mm}"],
-                    meshes[f"{spec.b}@{spec.tolerance_mm}"],
-                    b.spheres_a,
-                    b.spheres_b,
-                ),
-            )
+            got = cached_clearance(path, functools.partial(self._build_clearance, parts, meshes, spec, b))
             if got is not None:
                 index.append(p)
                 tables.append(got)
         return ClearanceSet(index, tables)
+
+    def _build_clearance(
+        self, parts: dict[str, Any], meshes: dict[str, Any], spec: PairSpec, b: BuiltPair
+    ) -> Clearance | None:
+        return build_clearance(
+            self.tree,
+            parts[spec.a],
+            parts[spec.b],
+            meshes[f"{spec.a}@{spec.tolerance_mm}"],
+            meshes[f"{spec.b}@{spec.tolerance_mm}"],
+            b.spheres_a,
+            b.spheres_b,
+        )
 
     def _neutral_world(self, rest: FloatArray) -> FloatArray:
         return np.asarray(self.tree.world(self.tree.neutral_deg[None, :])[0], dtype=np.float64)
