@@ -293,7 +293,7 @@ def _near_nodes(
     bounding balls come within ``pad_mm``."""
     ca_ball, ra_ball = _bounding_ball(sa)
     cb_ball, rb_ball = _bounding_ball(sb)
-    world = tree.world(angles)
+    world = tree.world_of(angles, (ja, jb))
     g = world.shape[0]
     ta = world[:, ja] if ja >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))
     tb = world[:, jb] if jb >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))

@@ -144,3 +144,18 @@ def test_refined_sweep_equals_the_plain_sweep_on_the_dog_skull_and_ear() -> None
     from servoface.sim.heads import load_head
 
     assert _refined_equals_plain(load_head("dog"), "skull", "ear_l", 160, 41, 21, 0.6)
+
+
+@pytest.mark.parametrize("name", ["demo", "dog"])
+def test_world_of_two_chains_is_worlds_arithmetic(name: str) -> None:
+    """The TSS build's transforms along two parts' chains only are bit-identical to the full `world`."""
+    from servoface.sim.heads import load_head
+
+    tree = JointTree((demo_head() if name == "demo" else load_head(name)).joints)
+    q = np.random.default_rng(4).uniform(tree.lower_deg, tree.upper_deg, size=(300, len(tree.names)))
+    full = tree.world(q)
+    for ja in range(-1, len(tree.names)):
+        for jb in (-1, 0, len(tree.names) - 1):
+            part = tree.world_of(q, (ja, jb))
+            for j in {ja, jb} - {-1}:
+                assert np.array_equal(part[:, j], full[:, j]), (ja, jb, j)
