@@ -223,7 +223,7 @@ class ClearanceSet:
             self._joint[i, :n] = c.joints
             self._lo[i, :n] = c.lower_deg
             self._step[i, :n] = np.where(c.step_deg > 0, c.step_deg, 1.0)
-            self._top[i, :n] = c.counts - 1
+            self._top[i, :n] = np.where(c.step_deg > 0, c.counts - 1, 0)  # a joint without range: its node 0 only
             self._stride[i, :n] = np.cumprod(np.r_[1, c.counts[1:][::-1]])[::-1] if n else []
             self._arm[i, :n] = np.deg2rad(c.arm_mm)
             self._valid[i, :n] = True

@@ -106,3 +106,35 @@ def test_clearance_cache_round_trip(dog_pair: tuple[TwinGate, TwinGate], tmp_pat
     none_path = tmp_path / "none-clear.npz"
     assert cached_clearance(none_path, lambda: None) is None
     assert cached_clearance(none_path, lambda: pytest.fail("rebuilt although cached")) is None
+
+
+def test_clearance_lookup_bounds_the_offset_from_the_nearest_node() -> None:
+    """A hand-made table: 2 joints, one without range; clear only where the slack beats the offset bound."""
+    from servoface.sim.gate.clearance import Clearance, ClearanceSet
+
+    table = Clearance(
+        "x",
+        np.zeros(3),
+        1.0,
+        np.array([0, 2], dtype=np.int64),
+        np.array([0.0, 5.0]),
+        np.array([10.0, 0.0]),  # joint 0: nodes at 0, 10, 20 deg; joint 2: fixed at 5 deg
+        np.array([3, 2], dtype=np.int64),
+        np.array([10.0, 10.0]),  # mm per rad
+        np.array([1.0, 1.0, 0.5, 0.5, 0.0, 0.0]),  # row-major over (joint 0 node, joint 2 node)
+    )
+    cl = ClearanceSet([0], [table])
+    rad = np.pi / 180.0
+
+    def clear(q0: float, q2: float) -> bool:
+        q = np.array([q0, 0.0, q2])
+        one = cl.clear_one(0, q.tolist())
+        assert one == bool(cl.clear(q)[0])
+        return one
+
+    assert clear(0.0, 5.0)  # on node (0, 0): slack 1 > 0
+    assert clear(4.0, 5.0) == (1.0 > 10.0 * 4.0 * rad)  # nearest node 0: moved 0.70 mm < 1
+    assert not clear(6.0, 5.0)  # nearest node 10 deg: slack 0.5 < moved 0.70 mm
+    assert not clear(20.0, 5.0)  # slack 0 at the last node
+    assert not clear(0.0, 6.0)  # the fixed joint off its only value: outside the table
+    assert not clear(-1.0, 5.0) and not clear(21.0, 5.0)  # outside the box
