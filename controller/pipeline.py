@@ -135,6 +135,7 @@ class Pipeline:
         hi = np.array([s.max_target for s in servos])
         neutral = [float(s.neutral_target) for s in servos]
         self._ahead = None
+        self._solved = None  # the last solve was through the old calibration
         self.calibration, self.gate = calibration, gate
         self._servos, self._lo, self._hi, self._neutral = servos, lo, hi, neutral
         self.last_goals_tick = last
