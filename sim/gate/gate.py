@@ -58,7 +58,6 @@ class GateConfig:
     use_cache: bool = True
     clearance: bool = True  # clearance tables for pairs without a TSS table (False: exact test whenever)
     bisection_rounds: int = 2  # 8 fractions per round: resolution 1/8**rounds of the step
-    clip_reuse: bool = True  # the clip search reuses its answers for repeated candidates (False: re-check all)
 
 
 @dataclass(frozen=True)
@@ -210,68 +209,29 @@ class TwinGate:
         ]
         return out
 
-    def _last_ok(
-        self,
-        goals: IntArray,
-        suspects: tuple[int, ...] = (),
-        known: dict[bytes, bool] | None = None,
-        skin_first: bool = False,
-    ) -> int | None:
+    def _last_ok(self, goals: IntArray, suspects: tuple[int, ...] = ()) -> int | None:
         """Index of the last of (k, n) candidates passing every state check, or None. Coupling is checked
         for all at once (cheap); collisions, then strain, one candidate at a time from the end, stopping at
         the first that passes. ``suspects``: pair indices the request collided on, tested exactly first
-        (a contact found by the exact test fails the candidate whatever the broad phase says).
-        ``known``: answers for commands already checked in this search (read and extended; the checks
-        depend on the command only, so a repeated candidate gets the answer it got before). ``skin_first``:
-        strain before contact (where the request failed on the skin only, candidates mostly do too)."""
-        reuse = known is not None
-        known = {} if known is None else known
-        keys = [row.tobytes() for row in goals]
-        todo = [k for k in range(len(keys)) if not (reuse and keys[k] in known)]
-        if todo:  # the twin poses of the whole batch (as the straightforward search computes them)
-            targets, angles, world, pulls = self._pose_arrays(goals)
-            coupling_ok = self.coupling.ok(self._shares(targets))
+        (a contact found by the exact test fails the candidate whatever the broad phase says)."""
+        targets, angles, world, pulls = self._pose_arrays(goals)
+        coupling_ok = np.flatnonzero(self.coupling.ok(self._shares(targets)))
         s = self.config.strain
         col = self.collisions
-        for k in range(len(keys) - 1, -1, -1):
-            key = keys[k]
-            if not (reuse and key in known):
-                known[key] = bool(coupling_ok[k]) and self._passes(
-                    goals[k], world[k], angles[k], pulls[k], suspects, s, col, skin_first
-                )
-            if known[key]:
-                self._memo = (key, [])
+        for k in (int(i) for i in coupling_ok[::-1]):
+            # contact first (broad phase, exact test on flagged pairs): where candidates fail it is mostly
+            # by contact, and that is cheaper than the skin; a pass needs both, so the order changes nothing
+            if any(col._collide(col.specs[p], world[k]) for p in suspects):
+                continue
+            flags = col.broad.flag(world[k], angles[k])  # one pose: the flat broad phase (fastest for one)
+            if any(col._collide(col.specs[p], world[k]) for p in np.flatnonzero(flags) if p not in suspects):
+                continue
+            offsets = self.skin_source.offsets_rows(pulls[k], self.skin.fast_vertices)
+            stretch, comp, flips = self.skin.measure_one(world[k], offsets, self._static(goals[k]))
+            if stretch <= s.max_stretch and comp >= s.min_compression and flips <= s.max_flipped:
+                self._memo = (goals[k].tobytes(), [])
                 return k
         return None
-
-    def _passes(
-        self,
-        goal: IntArray,
-        world: FloatArray,
-        angles: FloatArray,
-        pulls: FloatArray,
-        suspects: tuple[int, ...],
-        s: StrainLimits,
-        col: PartCollisions,
-        skin_first: bool = False,
-    ) -> bool:
-        """Collisions, then strain (or the other way round), for one candidate whose coupling holds."""
-        # contact first (broad phase, exact test on flagged pairs): where candidates fail it is mostly by
-        # contact, and that is cheaper than the skin; a pass needs both, so the order changes nothing
-        # (``skin_first``: the request failed on the skin alone, and its candidates mostly do too)
-        if skin_first and not self._skin_ok(goal, world, pulls, s):
-            return False
-        if any(col._collide(col.specs[p], world) for p in suspects):
-            return False
-        flags = col.broad.flag(world, angles)  # one pose: the flat broad phase (fastest for one)
-        if any(col._collide(col.specs[p], world) for p in np.flatnonzero(flags) if p not in suspects):
-            return False
-        return skin_first or self._skin_ok(goal, world, pulls, s)
-
-    def _skin_ok(self, goal: IntArray, world: FloatArray, pulls: FloatArray, s: StrainLimits) -> bool:
-        offsets = self.skin_source.offsets_rows(pulls, self.skin.fast_vertices)
-        stretch, comp, flips = self.skin.measure_one(world, offsets, self._static(goal))
-        return bool(stretch <= s.max_stretch and comp >= s.min_compression and flips <= s.max_flipped)
 
     # ---- public ---------------------------------------------------------------------------------------
     def check(
@@ -317,8 +277,7 @@ class TwinGate:
             return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last)
         hit = {f.parts for f in hard if f.check == "collision"}
         suspects = tuple(p for p, spec in enumerate(self.collisions.specs) if (spec.a, spec.b) in hit)
-        skin_first = self.config.clip_reuse and not suspects and any(f.check in ("strain", "flip") for f in hard)
-        best, frac = self._scale_back(req, last, last_step, table, bool(hard), suspects, skin_first)
+        best, frac = self._scale_back(req, last, last_step, table, skip_full=bool(hard), suspects=suspects)
         if best is not None and np.array_equal(best, last) and np.array_equal(clamped, last):
             # the per-servo clamp itself is the last command and passed every check (e.g. a servo held at
             # its narrowed limit while the others have arrived): a clip at the limits, not a refusal
@@ -337,7 +296,6 @@ class TwinGate:
         table: lim.ServoTable,
         skip_full: bool = False,
         suspects: tuple[int, ...] = (),
-        skin_first: bool = False,
     ) -> tuple[IntArray | None, float]:
         """The largest step fraction whose clamped command passes every check (batched bisection).
         ``skip_full``: ``req`` itself failed a state check, so its clamp is not re-checked if equal."""
@@ -346,22 +304,13 @@ class TwinGate:
         best: IntArray | None = None
         best_frac = 0.0
         cand_1 = lim.clamp(req, last, last_step, table)
-        # answers per candidate command; None: every candidate re-checked (the straightforward search).
-        # A request that failed a state check (``skip_full``) fails `_last_ok` too: its exact hits are
-        # the suspects, its strain and coupling values are recomputed from the same inputs.
-        known: dict[bytes, bool] | None = None
-        if self.config.clip_reuse:
-            known = {req.tobytes(): False} if skip_full else {}
-        if (
-            not (skip_full and np.array_equal(cand_1, req))
-            and self._last_ok(cand_1[None, :], suspects, known, skin_first) == 0
-        ):
+        if not (skip_full and np.array_equal(cand_1, req)) and self._last_ok(cand_1[None, :], suspects) == 0:
             return cand_1, 1.0
         for _ in range(max(1, self.config.bisection_rounds)):
             fracs = lo + (hi - lo) * np.arange(1, 9) / 8.0
             raw = last + np.trunc(fracs[:, None] * step[None, :]).astype(np.int64)
             cands = lim.clamp(raw, last, last_step, table)
-            found = self._last_ok(cands, suspects, known, skin_first)
+            found = self._last_ok(cands, suspects)
             if found is None:
                 hi = fracs[0]
                 continue
