@@ -198,11 +198,11 @@ def run(quick: bool = False) -> Iterator[Figure]:
             )
             starts, ends = [r[0] for r in runs], [r[1] for r in runs]
             yield Figure(
-                "studio_silent_browser_ease_start_s", statistics.median(starts), "s", limit=1.1, better="lower",
+                "studio_silent_browser_ease_start_s", statistics.median(starts), "s", limit=1.0, better="lower",
                 note=f"max {max(starts):.3f} s; {note}: first goal of the ease",
             )  # fmt: skip
             yield Figure(
-                "studio_silent_browser_at_neutral_s", statistics.median(ends), "s", limit=1.8, better="lower",
+                "studio_silent_browser_at_neutral_s", statistics.median(ends), "s", limit=1.6, better="lower",
                 note=f"max {max(ends):.3f} s; {note}: every goal at neutral",
             )  # fmt: skip
     finally:
