@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 from typing import Any
 
+from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 
 HUGE = st.sampled_from([10**400, -(10**400), 2**63, 2**64 + 1, 10**20, -(10**20)])
@@ -98,3 +99,21 @@ def mutated(draw: st.DrawFn, base: Any, max_depth: int = 50_000, root: bool = Tr
     depths = [d for d in (50, 300, 2000, 50_000) if d <= max_depth]
     value = draw(st.one_of(values, st.builds(deep, st.sampled_from(depths))))
     return mutate(base, path, value, how)
+
+
+# One named settings profile for every fuzz property: no deadline (a loaded CI machine), no example
+# database (nothing carried between runs), derandomized (the same inputs on every CI run: a failure there
+# reproduces here). Each test sets its own ``max_examples``.
+settings.register_profile(
+    "servoface-fuzz",
+    deadline=None,
+    suppress_health_check=list(HealthCheck),
+    database=None,
+    derandomize=True,
+    print_blob=False,
+)
+
+
+def fuzz_settings(max_examples: int) -> settings:
+    """The ``servoface-fuzz`` profile with ``max_examples``."""
+    return settings(settings.get_profile("servoface-fuzz"), max_examples=max_examples)
