@@ -81,8 +81,11 @@ def open_head(
     chain = None
     if emulate:
         from servoface.hardware.emulator import ServoChain
+        from servoface.hardware.emulator.chain import RUN_LOG_LIMIT
 
-        chain = ServoChain.create([(s.servo_id, s.model) for s in specs], baud=baud, wire_time=wire_time)
+        chain = ServoChain.create(
+            [(s.servo_id, s.model) for s in specs], baud=baud, wire_time=wire_time, log_limit=RUN_LOG_LIMIT
+        )
         for s in specs:  # the head powers up at rest
             chain.servo(s.servo_id).move_by_hand(cal.by_id(s.servo_id).neutral_tick)
         bus = open_bus("dynamixel", port=chain, baud=baud)
