@@ -31,7 +31,10 @@ bench: $(STAMP)
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check controller sim hardware calibration tests
-	$(VENV)/bin/mypy
+	@# mypy reads the four folders as the package they install as (servoface.*) through a tree of links
+	@rm -rf build/typecheck && mkdir -p build/typecheck/servoface
+	@for d in controller sim hardware calibration; do ln -s "$(CURDIR)/$$d" build/typecheck/servoface/$$d; done
+	cd build/typecheck && $(CURDIR)/$(VENV)/bin/mypy --config-file $(CURDIR)/pyproject.toml -p servoface
 
 clean:
 	rm -rf $(VENV) out build *.egg-info

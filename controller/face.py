@@ -44,6 +44,7 @@ from servoface.controller.safe_stop import EASE_S, MAX_EASE_S, StopReport, safe_
 from servoface.controller.script import Script, load_script
 from servoface.controller.service import CommandHandle, HeadService, Status, head_calibration, open_head
 from servoface.controller.service.commands import check_point_mm
+from servoface.controller.trace_ring import TraceRing
 from servoface.controller.values import as_finite, check_seconds, printable_repr
 from servoface.hardware.bus import ServoBus
 from servoface.hardware.driver import Driver
@@ -254,7 +255,7 @@ class Face:
         stats1 = svc.loop_stats
         missed = stats1.missed - missed0 if stats1 is stats0 else stats1.missed
         overruns = stats1.overruns - overruns0 if stats1 is stats0 else stats1.overruns
-        perf = Performance(traces, _stats_of(traces, rate, missed, overruns), rate, interrupt.is_set())
+        perf = Performance(TraceRing(traces), _stats_of(traces, rate, missed, overruns), rate, interrupt.is_set())
         self.traces.extend(traces)
         self.t_s += duration_s
         if traces:  # the face track's pose (other front ends' tracks, e.g. a gaze, are theirs)

@@ -14,7 +14,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from servoface.hardware.bus import ServoBus
-from servoface.hardware.dynamixel_bus import DynamixelBus, sdk
+from servoface.hardware.dynamixel_bus import DynamixelBus, sdk  # the one module that imports dynamixel_sdk
 from servoface.hardware.errors import BusError, HardwareConfigError
 from servoface.hardware.registers import Register
 

@@ -246,10 +246,10 @@ class FaceModel:
         for row, i in self._direct_anchor:
             if deltas[row] == 0.0:
                 continue
-            act = self.anchor_actuators[i]
-            value = min(max(targets[act.role] + float(deltas[row]), act.lower_mm), act.upper_mm)
-            residual[i] = value - targets[act.role]
-            targets[act.role] = value
+            anchor = self.anchor_actuators[i]
+            value = min(max(targets[anchor.role] + float(deltas[row]), anchor.lower_mm), anchor.upper_mm)
+            residual[i] = value - targets[anchor.role]
+            targets[anchor.role] = value
         if residual.any():
             offsets = offsets + self.fit.bumps(residual)
         return joint_deg, offsets

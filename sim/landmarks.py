@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from servoface.sim.errors import HeadProfileError
 from servoface.sim.kinematics import part_transforms, posed_skin_vertices
 from servoface.sim.rig import HeadPose
 
@@ -129,7 +130,8 @@ def achievable_pose(model: Any, calibration: Any, target: HeadPose) -> HeadPose:
     -> the targets those ticks mean -> ``model.pose_from_targets`` (the twin)."""
     goals = calibration.targets_to_goals(target.actuator_targets)
     back = calibration.goals_to_targets(goals, clip=True)
-    return model.pose_from_targets({role: back[role] for role in target.actuator_targets if role in back})
+    pose: HeadPose = model.pose_from_targets({role: back[role] for role in target.actuator_targets if role in back})
+    return pose
 
 
 @dataclass(frozen=True)
@@ -172,6 +174,8 @@ def library_fidelity(head_name: str) -> list[FidelityCase]:
     from servoface.sim.heads import load_head
 
     head = load_head(head_name)
+    if head.calibration_path is None:
+        raise HeadProfileError(f"head {head.name!r} names no calibration file: fidelity needs one")
     model = FaceModel(head)
     calibration = load_calibration(head.calibration_path)
     landmarks = landmark_set(head)

@@ -66,6 +66,7 @@ def classify_library(head_name: str = "human") -> dict[tuple[str, str, str], dic
     from PIL import Image as PILImage
     from servoface.calibration import load_calibration
     from servoface.controller.benchmarks.fer_model import INPUT_PX, MiniXception
+    from servoface.sim.errors import HeadProfileError
     from servoface.sim.expressions import load_library
     from servoface.sim.face_model import FaceModel
     from servoface.sim.heads import load_head
@@ -74,6 +75,8 @@ def classify_library(head_name: str = "human") -> dict[tuple[str, str, str], dic
 
     net = MiniXception()
     head = load_head(head_name)
+    if head.calibration_path is None:
+        raise HeadProfileError(f"head {head.name!r} names no calibration file: the faces bench needs one")
     model = FaceModel(head)
     calibration = load_calibration(head.calibration_path)
     library = load_library(head.expressions_path or head.face_type)

@@ -123,7 +123,7 @@ def loop_under_load(minutes: float, load_processes: int = LOAD_PROCESSES) -> dic
         "load_start": load_start,
         "load_end": load_end,
         "late_bursts": float(late.group(1)) if late else -1.0,
-        "pty_stats": pty,  # type: ignore[dict-item]
+        "pty_stats": pty,
     }
 
 

@@ -49,7 +49,7 @@ def subdivided_profile(levels: int, folder: Path) -> Path:
         return folder
     v, f, c = skin_mesh("human_skin")
     for _ in range(levels):
-        v, f, attrs = subdivide(v, f, vertex_attributes={"color": c})
+        v, f, attrs = subdivide(v, f, vertex_attributes={"color": c})  # type: ignore[no-untyped-call]
         c = attrs["color"]
     rgba = np.clip(np.round(np.asarray(c) * 255.0), 0, 255).astype(np.uint8)
     trimesh.Trimesh(v, f, vertex_colors=rgba, process=False).export(folder / "skin.ply")

@@ -122,7 +122,7 @@ def _late_frames(svc: Any, stalled: bool, seconds: float) -> int:
     back = svc.neutral(0.3)
     back.wait(3.0)
     assert back.status is Status.DONE
-    return late
+    return int(late)
 
 
 def run(quick: bool = False) -> Iterator[Figure]:

@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
         writable_folder(args.out)
         speech = speech_from_recording(args.audio, transcript, lead_s=args.lead_ms / 1e3)
         wav, script = write_outputs(speech, head.face_type, args.out, allowed=head_au_names(head))
-    except (SpeechError, *open_errors()) as err:
+    except (SpeechError, *open_errors()) as err:  # type: ignore[misc]  # mypy cannot read a starred tuple
         print(f"servoface lipsync: {err}", file=sys.stderr)
         return 2
     print(f"{speech.method}: {len(speech.plan.segments) or 'envelope'} visemes over {speech.duration_s:.2f} s")

@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
             wav, script = write_outputs(speech, head.face_type, args.out, allowed=head_au_names(head))
             print(f"wrote {wav} and {script} (play it again: servoface play {script} --head {args.head} ...)")
         face = open_face(args, head)
-    except (SpeechError, *open_errors()) as err:
+    except (SpeechError, *open_errors()) as err:  # type: ignore[misc]  # mypy cannot read a starred tuple
         print(f"servoface say: {err}", file=sys.stderr)
         return 2
     with face:

@@ -127,7 +127,8 @@ class MessageDecoder:
             self.clamped += len(clamped)
         if "head" in obj:
             ypr = parse_head(obj["head"], field=f"{where}.head")
-            aus.update(head_pose_aus(*(a - r for a, r in zip(ypr, self.head_rest_deg, strict=True))))
+            yaw_deg, pitch_deg, roll_deg = (a - r for a, r in zip(ypr, self.head_rest_deg, strict=True))
+            aus.update(head_pose_aus(yaw_deg, pitch_deg, roll_deg))
         if "aus" in obj:
             try:
                 aus.update(self.validator.pose(obj["aus"], where=f"{where}.aus"))

@@ -156,13 +156,10 @@ class StreamSource:
         """Decode one raw message from ``client``; True if it became the latest value. Never raises, whatever
         ``raw`` holds. With a guard: rate limit, token (unless the connection already ``authenticated``) and
         the control rule apply, in that order."""
-        arrival = self.clock()
-        with self._lock:
-            self.stats.messages += 1
-            index = self.stats.messages
-        guard = self.guard
-        if guard is not None and not rate_checked and not guard.rate_ok(client):
+        admitted = self._admit(client, rate_checked)
+        if admitted is None:
             return False
+        arrival, index = admitted
         try:
             obj = parse_json(raw, where=f"{where} #{index}")
         except FrameError as err:
@@ -181,14 +178,22 @@ class StreamSource:
     ) -> bool:
         """:meth:`feed` for a message already parsed by ``parse_json`` (bounded size and depth), e.g. the
         body of a network envelope: no second serialise + parse per frame. Never raises."""
+        admitted = self._admit(client, rate_checked)
+        if admitted is None:
+            return False
+        arrival, index = admitted
+        return self._take(obj, arrival, index, where, client, authenticated)
+
+    def _admit(self, client: Hashable, rate_checked: bool) -> tuple[float, int] | None:
+        """Count one message and apply the rate limit: its arrival time and index, or None if refused."""
         arrival = self.clock()
         with self._lock:
             self.stats.messages += 1
             index = self.stats.messages
         guard = self.guard
         if guard is not None and not rate_checked and not guard.rate_ok(client):
-            return False
-        return self._take(obj, arrival, index, where, client, authenticated)
+            return None
+        return arrival, index
 
     def _take(
         self, obj: Any, arrival: float, index: int, where: str, client: Hashable, authenticated: bool

@@ -33,6 +33,15 @@ SLOW_QUEUE = 4  # say commands waiting for synthesis (more are refused: "say ref
 CUE_WINDOW_S = (-0.5, 120.0)  # a cue may start at most this far in the past / future of the node's clock
 
 
+def needs_synthesis(verb: str, body: dict[str, Any]) -> bool:
+    """Whether a command synthesises speech (``say``, or a ``cue`` whose ``what`` is a ``say``): those run on the
+    node's slow worker, never on Zenoh's callback thread."""
+    if verb == "say":
+        return True
+    what = body.get("what") if verb == "cue" else None
+    return isinstance(what, dict) and what.get("verb") == "say"
+
+
 class HeadNode:
     """Serve ``service`` (a running ``HeadService``) on ``session`` under ``keys``."""
 
@@ -173,7 +182,7 @@ class HeadNode:
         if verb not in VERBS:
             self.guard.refuse("unknown command")
             return
-        if verb == "say":  # synthesis takes ~0.1 s: not on Zenoh's callback thread (AU frames wait behind it)
+        if needs_synthesis(verb, body):  # ~0.1 s: not on Zenoh's callback thread (AU frames wait behind it)
             try:
                 self._slow.put_nowait((verb, body))
             except queue.Full:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from servoface.controller.frame import FrameValidator
 from servoface.controller.service.clock import check_duration_s
@@ -111,7 +111,9 @@ def play_source(
     if hasattr(what, "duration_s") and hasattr(what, "end_pose") and hasattr(what, "targets"):
         for au, value in what.targets():
             validator.pose({au: value}, where=str(getattr(what, "name", "clip")))
-        return ClipSource(what, then=then), None
+        from servoface.controller.timeline.clip import Clip
+
+        return ClipSource(cast(Clip, what), then=then), None
     if hasattr(what, "sample") and hasattr(what, "duration_s"):  # a Recording
         _check_face("recording", what, head.face_type, head)
         length = float(what.duration_s)

@@ -106,7 +106,7 @@ def normalise_transcript(text: str) -> list[str]:
 
 def _decoder() -> object:
     try:
-        import pocketsphinx  # type: ignore[import-untyped]
+        import pocketsphinx
     except ImportError as err:
         raise SpeechError("forced alignment needs pocketsphinx: pip install 'pocketsphinx>=5'") from err
     # wide beams: alignment has one path to follow; the default beams lose it on synthetic or noisy speech

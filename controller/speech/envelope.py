@@ -92,4 +92,5 @@ def envelope_plan(samples: NDArray[np.float64], rate_hz: int, *, lead_s: float =
     # close at the end
     times = np.concatenate([times, [times[-1] + 0.1 if n else 0.1]])
     feats = {k: np.array([*v, 0.0]) for k, v in tracks.items()}
-    return plan_from_features(times, feats, audio_duration_s=len(x) / rate_hz, lead_s=lead_s)
+    times_s = np.asarray(times, dtype=np.float64)
+    return plan_from_features(times_s, feats, audio_duration_s=len(x) / rate_hz, lead_s=lead_s)

@@ -106,7 +106,7 @@ class Synthesis:
 
 def _library_and_data() -> tuple[str, str | None]:
     try:
-        import espeakng_loader  # type: ignore[import-not-found]
+        import espeakng_loader
 
         return str(espeakng_loader.get_library_path()), str(espeakng_loader.get_data_path())
     except (ImportError, RuntimeError, OSError):

@@ -125,7 +125,7 @@ def _simplify(t: NDArray[np.float64], v: NDArray[np.float64], tol: float) -> lis
         first = order[np.r_[True, np.diff(gap[order]) != 0]]
         add = first[bad[first]]
         keep = np.unique(np.concatenate([keep, add]))
-    return keep.tolist()
+    return [int(i) for i in keep]
 
 
 def loudness_gain(
@@ -143,7 +143,8 @@ def loudness_gain(
     rms = np.sqrt((sq[hi] - sq[lo]) / np.maximum(hi - lo, 1))
     voiced = rms[rms > 0.02 * (rms.max() or 1.0)]
     ref = float(np.percentile(voiced, 80)) if len(voiced) else 1.0
-    return np.clip(0.45 + 0.6 * rms / max(ref, 1e-9), 0.45, 1.15)
+    gain: NDArray[np.float64] = np.clip(0.45 + 0.6 * rms / max(ref, 1e-9), 0.45, 1.15)
+    return gain
 
 
 def plan_from_visemes(

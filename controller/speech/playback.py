@@ -118,7 +118,8 @@ class AudioClockedClip:
         mouth = self.mouth_time_s(local_s)
         if mouth >= self.clip.duration_s:
             return {}
-        return self.clip.sample(max(0.0, mouth), from_pose)
+        pose: Mapping[str, float] = self.clip.sample(max(0.0, mouth), from_pose)
+        return pose
 
     def targets(self) -> Iterator[tuple[str, float]]:
         return iter(self.clip.targets())
@@ -146,7 +147,7 @@ class AudioOut:
         data = np.asarray(samples, dtype=np.float32).reshape(-1)
 
         def run() -> None:
-            import sounddevice  # type: ignore[import-not-found]
+            import sounddevice
 
             done = [0]
 

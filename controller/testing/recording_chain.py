@@ -17,7 +17,7 @@ BROADCAST_ID = 254
 _WRITES = frozenset({Instruction.WRITE, Instruction.REG_WRITE, Instruction.SYNC_WRITE, Instruction.BULK_WRITE})
 
 
-class RecordingChain(ServoChain):  # type: ignore[misc]  # mypy sees servoface.* imports as Any
+class RecordingChain(ServoChain):
     """A `ServoChain` (same constructor and ``create``) whose goal and torque writes are kept with the
     addressed servo's state before each packet. The packet log is kept whole (no ``log_limit``)."""
 

@@ -80,3 +80,16 @@ def test_the_node_cli_refuses_an_open_endpoint_without_insecure() -> None:
     from servoface.controller.cli import main
 
     assert main(["node", "--name", "ada", "--emulate", "--listen", "tcp/0.0.0.0:17999"]) == 2
+
+
+def test_speech_commands_go_to_the_slow_worker_and_nothing_else_does() -> None:
+    """Synthesis takes ~0.1 s: a ``say`` (or a ``cue`` of one) must not run on Zenoh's callback thread, where AU
+    frames would wait behind it; every other command, malformed ones included, stays on the fast path."""
+    from servoface.controller.network.node import needs_synthesis
+
+    assert needs_synthesis("say", {"text": "hello"})
+    assert needs_synthesis("cue", {"what": {"verb": "say", "text": "hello"}, "at_s": 1.0})
+    assert not needs_synthesis("cue", {"what": {"verb": "express", "name": "joy"}, "at_s": 1.0})
+    assert not needs_synthesis("cue", {"what": "say"})
+    assert not needs_synthesis("cue", {})
+    assert not needs_synthesis("express", {"name": "joy", "what": {"verb": "say"}})
