@@ -13,10 +13,13 @@ import argparse
 import math
 import sys
 from collections.abc import Sequence
-from typing import IO, Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from servoface.controller.cli.terminal import printable
 from servoface.controller.errors import ControllerError
+
+if TYPE_CHECKING:
+    from _typeshed import SupportsWrite
 
 MAX_INT = 2**53  # no option counts anything near this; beyond it an int is a typo or an attack
 MAX_FLOAT = 1e12  # seconds, Hz, mm, ms: nothing servoface takes is this large
@@ -46,7 +49,7 @@ class CheckedParser(argparse.ArgumentParser):
         self.print_usage(sys.stderr)
         self.exit(2, f"{self.prog}: error: {printable(message)}\n")
 
-    def _print_message(self, message: str, file: IO[str] | None = None) -> None:
+    def _print_message(self, message: str, file: SupportsWrite[str] | None = None) -> None:
         if message:
             super()._print_message(printable(message), file)
 

@@ -171,7 +171,7 @@ def check_au(table: AUTable, name: object, value: object) -> tuple[int, str, flo
     try:
         x = float(value)
     except OverflowError:  # an integer past float range (e.g. 10**400)
-        x = math.inf if value > 0 else -math.inf  # type: ignore[operator]
+        x = math.inf if value > 0 else -math.inf
     if not math.isfinite(x) or not entry.range[0] <= x <= entry.range[1]:
         hint = " (this AU has no counter AU)" if entry.range[0] >= 0.0 and x < 0.0 else ""
         raise ActionUnitValueError(

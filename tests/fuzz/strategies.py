@@ -71,14 +71,17 @@ def paths(data: Any, prefix: tuple[Any, ...] = ()) -> list[tuple[Any, ...]]:
 
 
 def mutate(data: Any, path: tuple[Any, ...], value: Any, how: str) -> Any:
-    """A deep copy of ``data`` with the node at ``path`` replaced (``set``), deleted (``drop``) or given a
-    stray key (``extra``)."""
-    out = copy.deepcopy(data)
+    """``data`` with the node at ``path`` replaced (``set``), deleted (``drop``) or given a stray key
+    (``extra``). Only the containers along the path are copied (shallow): the rest is shared with ``data``,
+    which is left as it was (a deep copy of a whole head profile per example cost more than checking it)."""
     if not path:
         return value
+    out = copy.copy(data)
     node = out
     for key in path[:-1]:
-        node = node[key]
+        child = copy.copy(node[key])
+        node[key] = child
+        node = child
     last = path[-1]
     if how == "drop" and isinstance(node, dict):
         del node[last]
@@ -89,11 +92,24 @@ def mutate(data: Any, path: tuple[Any, ...], value: Any, how: str) -> Any:
     return out
 
 
+_PATHS: dict[int, tuple[Any, list[tuple[Any, ...]]]] = {}
+
+
+def _paths_of(base: Any) -> list[tuple[Any, ...]]:
+    """`paths(base)`, computed once per base document."""
+    hit = _PATHS.get(id(base))
+    if hit is None or hit[0] is not base:
+        hit = (base, paths(base))
+        _PATHS[id(base)] = hit
+    return hit[1]
+
+
 @st.composite
 def mutated(draw: st.DrawFn, base: Any, max_depth: int = 50_000, root: bool = True) -> Any:
     """``base`` with one node replaced by a random value, deleted, or given a stray key (``root``: the
-    whole document may be replaced too — a parsed TOML file is always a table)."""
-    all_paths = paths(base) if root else paths(base)[1:]
+    whole document may be replaced too — a parsed TOML file is always a table). ``base`` is never changed."""
+    every = _paths_of(base)
+    all_paths = every if root else every[1:]
     path = draw(st.sampled_from(all_paths))
     how = draw(st.sampled_from(["set", "set", "set", "drop", "extra"]))
     depths = [d for d in (50, 300, 2000, 50_000) if d <= max_depth]

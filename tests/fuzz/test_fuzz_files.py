@@ -3,6 +3,7 @@ another exception, never a script that loads but cripples the loop)."""
 
 from __future__ import annotations
 
+import copy
 import os
 import tomllib
 from pathlib import Path
@@ -144,3 +145,11 @@ def test_validation_only_accepts_and_refuses_what_a_full_build_does() -> None:
         except HeadProfileError as err:
             messages.append(str(err))
     assert len(messages) == 2 and messages[0] == messages[1] and "actuator[0]" in messages[0]
+
+
+_PRISTINE = {"human": copy.deepcopy(HUMAN), "dog": copy.deepcopy(DOG), "profile": copy.deepcopy(PROFILE)}
+
+
+def test_the_base_documents_were_never_changed() -> None:
+    """`mutated` shares all but the path it changes with the base: nothing above may have written into it."""
+    assert (HUMAN, DOG, PROFILE) == (_PRISTINE["human"], _PRISTINE["dog"], _PRISTINE["profile"])
