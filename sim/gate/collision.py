@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -10,6 +11,13 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from servoface.sim.gate.clearance import (
+    CLEARANCE_VERSION,
+    Clearance,
+    ClearanceSet,
+    build_clearance,
+    cached_clearance,
+)
 from servoface.sim.gate.errors import GateConfigError
 from servoface.sim.gate.exact import ExactCollider, eroded
 from servoface.sim.gate.fk import JointTree
@@ -61,7 +69,10 @@ class PartCollisions:
         params: TssParams,
         cache_dir: Path | None,
         drop_touching_at_rest: bool = True,
+        clearance: bool = True,
     ) -> None:
+        """``clearance``: pairs without a table get clearance tables where they pay (`clearance`); False
+        sends them to the exact test whenever their bounding balls meet (the straightforward path)."""
         parts = {p.name: p for p in head.parts}
         for spec in pairs:
             for name in (spec.a, spec.b):
@@ -71,6 +82,7 @@ class PartCollisions:
                         f"'{name}'; parts {sorted(parts)}"
                     )
         self.tree = tree
+        self._cache_dir, self._head_name = cache_dir, head.name
         self.part_joint = {name: p.joint for name, p in parts.items()}
         meshes: dict[str, Any] = {}
         built: list[BuiltPair] = []
@@ -123,10 +135,40 @@ class PartCollisions:
         self.specs = [s for s, k in zip(self.specs, keep, strict=True) if k]
         self.built = [b for b, k in zip(built, keep, strict=True) if k]
         self.always = [b.table.exact_only or b.table.n_tests > params.max_table_tests for b in self.built]
-        self.broad = TssBroadPhase(tree, self.part_joint, self.built, self.always)
+        self.clearance = self._clearance_tables(parts, meshes) if clearance else ClearanceSet([], [])
+        self.broad = TssBroadPhase(tree, self.part_joint, self.built, self.always, self.clearance)
         self.pairs_active = [
             s for s, b in zip(self.specs, self.built, strict=True) if b.table.n_tests > 0 or b.table.exact_only
         ]
+
+    def _clearance_tables(self, parts: dict[str, Any], meshes: dict[str, Any]) -> ClearanceSet:
+        """Clearance tables for the pairs that skip the sphere tests (built from their covers, in ms)."""
+        index, tables = [], []
+        for p, (spec, b, always) in enumerate(zip(self.specs, self.built, self.always, strict=True)):
+            if not always:
+                continue
+            path = None
+            if self._cache_dir is not None:
+                name = f"{self._head_name}-{spec.a}-{spec.b}-{b.table.key}-{CLEARANCE_VERSION}.npz"
+                path = self._cache_dir / name
+            got = cached_clearance(path, functools.partial(self._build_clearance, parts, meshes, spec, b))
+            if got is not None:
+                index.append(p)
+                tables.append(got)
+        return ClearanceSet(index, tables)
+
+    def _build_clearance(
+        self, parts: dict[str, Any], meshes: dict[str, Any], spec: PairSpec, b: BuiltPair
+    ) -> Clearance | None:
+        return build_clearance(
+            self.tree,
+            parts[spec.a],
+            parts[spec.b],
+            meshes[f"{spec.a}@{spec.tolerance_mm}"],
+            meshes[f"{spec.b}@{spec.tolerance_mm}"],
+            b.spheres_a,
+            b.spheres_b,
+        )
 
     def _neutral_world(self, rest: FloatArray) -> FloatArray:
         return np.asarray(self.tree.world(self.tree.neutral_deg[None, :])[0], dtype=np.float64)

@@ -65,17 +65,19 @@ class JointTree:
             i = int(self.parent_index[i])
         return out
 
-    def local(self, angles_deg: FloatArray) -> FloatArray:
-        """Local transforms (..., J, 4, 4) for angles (..., J) in deg (Rodrigues)."""
+    def local(self, angles_deg: FloatArray, joints: Sequence[int] | None = None) -> FloatArray:
+        """Local transforms (..., J, 4, 4) for angles (..., J) in deg (Rodrigues); with ``joints``, those
+        joints' only (angles (..., len(joints)) of those joints; the same arithmetic per joint)."""
         th = np.deg2rad(angles_deg)[..., None, None]
-        a = self.axis
-        k = np.zeros((len(self.names), 3, 3))
+        a = self.axis if joints is None else self.axis[list(joints)]
+        pivot = self.pivot_mm if joints is None else self.pivot_mm[list(joints)]
+        k = np.zeros((a.shape[0], 3, 3))
         k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -a[:, 2], a[:, 1], -a[:, 0]
         k[:, 1, 0], k[:, 2, 0], k[:, 2, 1] = a[:, 2], -a[:, 1], a[:, 0]
         r = np.eye(3) + np.sin(th) * k + (1.0 - np.cos(th)) * (k @ k)
         out = np.zeros((*angles_deg.shape, 4, 4))
         out[..., :3, :3] = r
-        out[..., :3, 3] = self.pivot_mm - np.einsum("...ij,...j->...i", r, np.broadcast_to(self.pivot_mm, r.shape[:-1]))
+        out[..., :3, 3] = pivot - np.einsum("...ij,...j->...i", r, np.broadcast_to(pivot, r.shape[:-1]))
         out[..., 3, 3] = 1.0
         return out
 
@@ -85,4 +87,18 @@ class JointTree:
         out = np.empty_like(loc)
         for i, p in enumerate(self.parent_index):
             out[..., i, :, :] = loc[..., i, :, :] if p < 0 else out[..., p, :, :] @ loc[..., i, :, :]
+        return out
+
+    def world_of(self, angles_deg: FloatArray, joints: Sequence[int]) -> FloatArray:
+        """`world` for angles (..., J), computed only along the chains of ``joints`` (indices; -1 = the
+        head base): entries of other joints are left zero. The same products in the same order as `world`
+        for the joints it fills (the TSS build needs two parts' transforms on large grids)."""
+        need = sorted({i for j in joints if j >= 0 for i in self.chain(self.names[j])})
+        out = np.zeros((*angles_deg.shape, 4, 4))
+        if not need:
+            return out
+        loc = self.local(angles_deg[..., need], need)
+        for n, i in enumerate(need):
+            p = int(self.parent_index[i])
+            out[..., i, :, :] = loc[..., n, :, :] if p < 0 else out[..., p, :, :] @ loc[..., n, :, :]
         return out

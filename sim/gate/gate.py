@@ -56,6 +56,7 @@ class GateConfig:
     tss: TssParams = TssParams()
     cache_dir: Path | None = None  # None = ~/.cache/servoface/tss (SERVOFACE_TSS_CACHE overrides)
     use_cache: bool = True
+    clearance: bool = True  # clearance tables for pairs without a TSS table (False: exact test whenever)
     bisection_rounds: int = 2  # 8 fractions per round: resolution 1/8**rounds of the step
 
 
@@ -112,7 +113,7 @@ class TwinGate:
         self.static_skin = build_static(self.skin, self.poser, self.tree)
         cache = (cfg.cache_dir or default_cache_dir()) if cfg.use_cache else None
         pairs = list(cfg.collision_pairs) if cfg.collision_pairs is not None else auto_pairs(head, self.tree)
-        self.collisions = PartCollisions(head, self.tree, pairs, cfg.tss, cache)
+        self.collisions = PartCollisions(head, self.tree, pairs, cfg.tss, cache, clearance=cfg.clearance)
         self._last_sent: IntArray | None = None
         self._last_step: IntArray = np.zeros(self.table.n, dtype=np.int64)
         self._last_fraction = 1.0  # share of a frame period the previous check's step was allowed (per_time)

@@ -28,6 +28,7 @@ from servoface.sim.gate.spheres import SphereSet, cover_spheres
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 TSS_VERSION = "tss-1"
+REFINE_FACTOR = 2.0  # the fine sweep is seeded from a grid this much coarser per axis (`tss_refine`)
 _FILTER_SLACK_MM = 1e-6  # pre-filters keep a candidate this far beyond their bound (float rounding)
 
 
@@ -195,16 +196,17 @@ def build_pair(
             cand_a, cand_b = np.asarray(c_hit.any(axis=1)), np.asarray(c_hit.any(axis=0))
         if cand_a.any() and cand_b.any():
             ia_c, ib_c = np.flatnonzero(cand_a), np.flatnonzero(cand_b)
-            sub = _sweep(
-                tree,
-                _grid_angles(tree, rel, lo, hi, counts),
-                ja,
-                jb,
-                _subset(spheres_a, ia_c),
-                _subset(spheres_b, ib_c),
-                margin + tolerance_mm,
-                params.chunk_elements,
-            )
+            sa_c, sb_c = _subset(spheres_a, ia_c), _subset(spheres_b, ib_c)
+            pad, chunk = margin + tolerance_mm, params.chunk_elements
+            if n_grid > 1000:  # each fine node tests only the pairs found near its coarse node (same table)
+                from servoface.sim.gate.tss_refine import refined_sweep
+
+                r_counts = np.maximum(2, np.ceil(counts / REFINE_FACTOR)).astype(np.int64)
+                r_step = np.where(r_counts > 1, (hi - lo) / np.maximum(r_counts - 1, 1), 0.0)
+                r_margin = float(np.sum(arms * np.deg2rad(r_step) / 2.0))
+                sub = refined_sweep(tree, rel, lo, hi, counts, r_counts, r_margin, ja, jb, sa_c, sb_c, pad, chunk)
+            else:
+                sub = _sweep(tree, _grid_angles(tree, rel, lo, hi, counts), ja, jb, sa_c, sb_c, pad, chunk)
             si, sj = np.nonzero(sub)  # row-major, as np.nonzero of the full (n_a, n_b) matrix would be
             ia, ib = ia_c[si], ib_c[sj]
     return PairTable(
@@ -291,7 +293,7 @@ def _near_nodes(
     bounding balls come within ``pad_mm``."""
     ca_ball, ra_ball = _bounding_ball(sa)
     cb_ball, rb_ball = _bounding_ball(sb)
-    world = tree.world(angles)
+    world = tree.world_of(angles, (ja, jb))
     g = world.shape[0]
     ta = world[:, ja] if ja >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))
     tb = world[:, jb] if jb >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))

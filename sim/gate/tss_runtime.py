@@ -11,6 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
+from servoface.sim.gate.clearance import ClearanceSet
 from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.spheres import SphereSet
 from servoface.sim.gate.tss_build import BuiltPair
@@ -28,10 +29,14 @@ class TssBroadPhase:
         part_joint: dict[str, str | None],
         pairs: Sequence[BuiltPair],
         always: Sequence[bool] | None = None,
+        clearance: ClearanceSet | None = None,
     ) -> None:
         """``always[p]``: pair p skips the sphere tests and always goes to the exact test (tables too
-        large to pay off, e.g. a part on the head base against one behind three neck joints)."""
+        large to pay off, e.g. a part on the head base against one behind three neck joints) when the
+        parts' bounding balls meet — unless ``clearance`` (tables for some of those pairs) proves the pose
+        clear."""
         self.pairs = tuple(pairs)
+        self.clearance = clearance if clearance is not None and len(clearance) else None
         self.always = np.zeros(len(self.pairs), dtype=bool) if always is None else np.array(always, dtype=bool)
         n_joints = len(tree.names)
         centres: list[FloatArray] = []
@@ -88,9 +93,17 @@ class TssBroadPhase:
         self._nonempty = counts > 0
         self._starts = (np.cumsum(counts) - counts)[self._nonempty]
         # exact-only pairs still get a cheap gate: the parts' bounding balls (around all their spheres)
+        # pairs a clearance table proves apart inside their box need nothing but the box test; the others
+        # with a table are cleared per pose where their balls meet
+        proven = set()
+        table_of: dict[int, int] = {}
+        if self.clearance is not None:
+            proven = {int(p) for p, ok in zip(self.clearance.pair_index, self.clearance.proven, strict=True) if ok}
+            table_of = {int(p): t for t, p in enumerate(self.clearance.pair_index) if int(p) not in proven}
+        self.proven = np.array([p in proven for p in range(len(self.pairs))], dtype=bool)
         balls = []
         for p, built in enumerate(self.pairs):
-            if not self.always[p]:
+            if not self.always[p] or p in proven:
                 continue
             t = built.table
             ja, jb = part_joint[t.a], part_joint[t.b]
@@ -111,6 +124,10 @@ class TssBroadPhase:
         self._ball_a = np.array([np.r_[b[3], 1.0] for b in balls]).reshape(-1, 4)
         self._ball_b = np.array([np.r_[b[4], 1.0] for b in balls]).reshape(-1, 4)
         self._ball_reach = np.array([b[5] for b in balls], dtype=np.float64)
+        rows = [(r, table_of[b[0]]) for r, b in enumerate(balls) if b[0] in table_of]
+        self._cl_rows = np.array([r for r, _ in rows], dtype=np.int64)  # positions in the ball list
+        self._cl_tables = np.array([t for _, t in rows], dtype=np.int64)
+        self._cl_pairs = [(r, t) for r, t in rows]
         # per pair, for the relative-frame evaluation: a's used spheres (homogeneous, a's rest frame),
         # b's used spheres (b's rest frame), local index pairs and squared reach
         self._per_pair: list[
@@ -208,10 +225,11 @@ class TssBroadPhase:
     def flag(self, world: FloatArray, angles_deg: FloatArray) -> BoolArray:
         """Pairs that need the exact test: overlapping tabulated spheres, joints outside the swept box, or
         (untabulated pairs) meeting bounding balls — fcl's own BVH then settles those in microseconds."""
-        return self.overlaps(world) | self.out_of_box(angles_deg) | self.balls_meet(world)
+        return self.overlaps(world) | self.out_of_box(angles_deg) | self.balls_meet(world, angles_deg)
 
-    def balls_meet(self, world: FloatArray) -> BoolArray:
-        """(..., n_pairs) True for exact-only pairs whose bounding balls overlap (False elsewhere)."""
+    def balls_meet(self, world: FloatArray, angles_deg: FloatArray | None = None) -> BoolArray:
+        """(..., n_pairs) True for exact-only pairs whose bounding balls overlap (False elsewhere); with
+        ``angles_deg``, pairs whose clearance table proves the pose clear are False too."""
         lead = world.shape[:-3]
         out = np.zeros((*lead, self.n_pairs), dtype=bool)
         if not len(self._always_idx):
@@ -220,7 +238,17 @@ class TssBroadPhase:
         full = np.concatenate([world, eye], axis=-3)
         ca = np.einsum("...bij,bj->...bi", full[..., self._ball_slot_a, :3, :], self._ball_a)
         cb = np.einsum("...bij,bj->...bi", full[..., self._ball_slot_b, :3, :], self._ball_b)
-        out[..., self._always_idx] = np.linalg.norm(ca - cb, axis=-1) <= self._ball_reach
+        meet = np.linalg.norm(ca - cb, axis=-1) <= self._ball_reach
+        cl = self.clearance
+        if cl is not None and angles_deg is not None and self._cl_pairs:
+            if lead:
+                meet[..., self._cl_rows] &= ~cl.clear(angles_deg)[..., self._cl_tables]
+            elif meet[self._cl_rows].any():
+                q = angles_deg.tolist()
+                for r, t in self._cl_pairs:
+                    if meet[r] and cl.clear_one(t, q):
+                        meet[r] = False
+        out[..., self._always_idx] = meet
         return out
 
 

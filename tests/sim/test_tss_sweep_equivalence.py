@@ -3,6 +3,8 @@ sphere covers) gives exactly the tables of the straightforward all-pairs sweep o
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 from servoface.sim.gate.demo_rig import demo_head
@@ -95,3 +97,65 @@ def test_a_shared_cover_is_the_cover_of_that_mesh() -> None:
     covers[id(other)] = (parts[1].mesh, stale)  # an entry under this id for another mesh (a reused id)
     got = _covered(other, params, covers)
     assert got is not stale and np.array_equal(got.centres_mm, covers[id(parts[0].mesh)][1].centres_mm)
+
+
+def _arms(tree: JointTree, part_a: Any, part_b: Any, sa: SphereSet, sb: SphereSet, rel: list[int]) -> np.ndarray:
+    from servoface.sim.gate.tss_build import lever_arm_mm
+
+    chain_a = set(tree.chain(part_a.joint))
+    return np.array(
+        [
+            lever_arm_mm(tree, part_a.joint, sa, j) if j in chain_a else lever_arm_mm(tree, part_b.joint, sb, j)
+            for j in rel
+        ]
+    )
+
+
+def _refined_equals_plain(head: Any, a: str, b: str, spheres: int, fine: int, coarse: int, pad_mm: float) -> bool:
+    from servoface.sim.gate.tss_refine import refined_sweep
+
+    tree = JointTree(head.joints)
+    parts = {p.name: p for p in head.parts}
+    sa, sb = cover_spheres(parts[a].mesh, spheres), cover_spheres(parts[b].mesh, spheres)
+    rel = relative_joints(tree, parts[a].joint, parts[b].joint)
+    lo, hi = tree.lower_deg[rel], tree.upper_deg[rel]
+    counts = np.full(len(rel), fine, dtype=np.int64)
+    c_counts = np.full(len(rel), coarse, dtype=np.int64)
+    c_step = (hi - lo) / (c_counts - 1)
+    c_margin = float(np.sum(_arms(tree, parts[a], parts[b], sa, sb, rel) * np.deg2rad(c_step) / 2.0))
+    ja = -1 if parts[a].joint is None else tree.index[parts[a].joint]
+    jb = -1 if parts[b].joint is None else tree.index[parts[b].joint]
+    plain = _sweep(tree, _grid_angles(tree, rel, lo, hi, counts), ja, jb, sa, sb, pad_mm, 4_000_000)
+    refined = refined_sweep(tree, rel, lo, hi, counts, c_counts, c_margin, ja, jb, sa, sb, pad_mm, 4_000_000)
+    assert plain.any(), f"{a}/{b}: no pair comes close, the comparison means nothing"
+    return bool(np.array_equal(plain, refined))
+
+
+@pytest.mark.parametrize("pad_mm", [0.0, 0.8, 4.0])
+def test_refined_sweep_equals_the_plain_sweep_on_the_demo_rig(pad_mm: float) -> None:
+    """The fine sweep seeded from a coarser grid (`tss_refine`) gives the plain fine sweep's hit matrix."""
+    head = demo_head()
+    for a, b in (("skull", "jaw"), ("skull", "ear_l"), ("eyeball_l", "upper_lid_l")):
+        for fine, coarse in ((17, 9), (21, 6)):
+            assert _refined_equals_plain(head, a, b, 90, fine, coarse, pad_mm), (a, b, fine, coarse)
+
+
+def test_refined_sweep_equals_the_plain_sweep_on_the_dog_skull_and_ear() -> None:
+    from servoface.sim.heads import load_head
+
+    assert _refined_equals_plain(load_head("dog"), "skull", "ear_l", 160, 41, 21, 0.6)
+
+
+@pytest.mark.parametrize("name", ["demo", "dog"])
+def test_world_of_two_chains_is_worlds_arithmetic(name: str) -> None:
+    """The TSS build's transforms along two parts' chains only are bit-identical to the full `world`."""
+    from servoface.sim.heads import load_head
+
+    tree = JointTree((demo_head() if name == "demo" else load_head(name)).joints)
+    q = np.random.default_rng(4).uniform(tree.lower_deg, tree.upper_deg, size=(300, len(tree.names)))
+    full = tree.world(q)
+    for ja in range(-1, len(tree.names)):
+        for jb in (-1, 0, len(tree.names) - 1):
+            part = tree.world_of(q, (ja, jb))
+            for j in {ja, jb} - {-1}:
+                assert np.array_equal(part[:, j], full[:, j]), (ja, jb, j)
