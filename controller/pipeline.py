@@ -26,6 +26,8 @@ from servoface.sim.face_model import FaceModel
 from servoface.sim.gate import GateConfig, ServoHealth, TwinGate, Verdict
 from servoface.sim.head import Head
 
+PACE_MAX_SHARE = 0.25  # a frame at most this share of a period early waits for the period (see step)
+
 
 @dataclass(frozen=True)
 class FrameTrace:
@@ -106,6 +108,8 @@ class Pipeline:
         self.per_time_caps = True  # False: the gate's per-frame caps only (deterministic replays in tests)
         self._index = 0
         self._ahead: Ahead | None = None  # the next frame, computed during this one's wait (step(next_frame=))
+        self._solved: tuple[tuple[dict[str, float], int, int], tuple[Any, ...]] | None = None  # see _solve
+        self.pace_writes = True  # wait out a nearly elapsed frame period before the gate (`_wait_out_period`)
 
     # -- state ------------------------------------------------------------------------------------
     def pin_to(self, goals_tick: Mapping[int, int]) -> None:
@@ -146,6 +150,9 @@ class Pipeline:
         ``next_frame``: the AUs the next call will most likely bring; with a driver, its muscle model,
         calibration and a speculative gate check run while this frame's replies are on the wire, and the next
         step uses them only if they are exactly what it would compute (`servoface.controller.pipeline_ahead`).
+        A frame that comes a little less than a frame period after the last write waits out the period
+        first (`_wait_out_period`: a paced loop's jitter would otherwise shrink the caps and void that
+        speculation); the same AUs as the last frame are not solved again (`_solve`).
         """
         timings: dict[str, float] = {}
         t0 = time.perf_counter()
@@ -159,12 +166,9 @@ class Pipeline:
             requested = dict(ahead.requested)
             timings.update(ahead.timings_ms)
         else:
-            targets = self.targets_for(aus)
-            t1 = time.perf_counter()
-            timings["muscle_ms"] = (t1 - t0) * 1e3
-            clamped, clamp_reasons = self.clamp_targets(targets)
-            requested = self.calibration.targets_to_goals(clamped)
-            timings["calibration_ms"] = (time.perf_counter() - t1) * 1e3
+            targets, clamped, reasons, requested = self._solve(aus, timings)
+            clamp_reasons = list(reasons)
+        self._wait_out_period()
         t2 = time.perf_counter()
         health = self._health()
         elapsed_s = (
@@ -223,6 +227,47 @@ class Pipeline:
         self._index += 1
         return trace
 
+    def _solve(
+        self, aus: dict[str, float], timings: dict[str, float]
+    ) -> tuple[dict[str, float], dict[str, float], tuple[str, ...], dict[int, int]]:
+        """Muscle model + calibration for ``aus``: (targets, clamped targets, clamp reasons, goals), with
+        their times in ``timings``. The last result is kept: the same AUs again (a held expression, a
+        speculative next frame that equals this one) are not solved again (the muscle model and the
+        calibration are pure functions of the AUs). Invalid AUs raise, as the muscle model does."""
+        t0 = time.perf_counter()
+        key = (aus, id(self.face), id(self.calibration))
+        last = self._solved
+        if last is not None and last[0] == key:
+            timings["muscle_ms"] = (time.perf_counter() - t0) * 1e3
+            timings["calibration_ms"] = 0.0
+            targets, clamped, reasons, requested = last[1]
+            return dict(targets), dict(clamped), reasons, dict(requested)
+        targets = self.targets_for(aus)
+        t1 = time.perf_counter()
+        timings["muscle_ms"] = (t1 - t0) * 1e3
+        clamped, reasons = self.clamp_targets(targets)
+        requested = self.calibration.targets_to_goals(clamped)
+        timings["calibration_ms"] = (time.perf_counter() - t1) * 1e3
+        result = (targets, clamped, tuple(reasons), requested)
+        self._solved = ((dict(aus), id(self.face), id(self.calibration)), result)
+        return dict(targets), dict(clamped), result[2], dict(requested)
+
+    def _wait_out_period(self) -> None:
+        """A frame due a little less than one frame period after the last goals went on the wire (a paced
+        loop whose previous frame left late within its slot) waits out the rest of the period — at most
+        `PACE_MAX_SHARE` of it. The gate then checks it with its whole per-frame caps, as the speculative
+        check during the last wait did, so that verdict is used instead of a second check, and the goals
+        reach the wire a period apart. A caller stepping faster than the rate is not held (its caps
+        shrink with the time instead), nor one without a driver or with `pace_writes` off."""
+        if self.driver is None or self.last_write_s is None or not self.per_time_caps or not self.pace_writes:
+            return
+        period_s = self.gate.frame_period_s
+        for _ in range(4):  # a sleep never ends early on a monotonic clock; re-checked all the same
+            deficit_s = period_s - (time.monotonic() - self.last_write_s)
+            if deficit_s <= 0 or deficit_s > PACE_MAX_SHARE * period_s:
+                return
+            time.sleep(deficit_s)
+
     def _health(self) -> dict[int, ServoHealth] | None:
         if self.last_snapshot is None:
             return None
@@ -233,13 +278,10 @@ class Pipeline:
     ) -> Ahead | None:
         """Frame N+1 during frame N's wait (see `servoface.controller.pipeline_ahead`). Invalid AUs give
         None: the error is raised when that frame is stepped, before anything is sent."""
-        t0 = time.perf_counter()
         aus = dict(frame.aus) if isinstance(frame, AUFrame) else dict(frame)
+        solved: dict[str, float] = {}
         try:
-            targets = self.targets_for(aus)
-            t1 = time.perf_counter()
-            clamped, reasons = self.clamp_targets(targets)
-            requested = self.calibration.targets_to_goals(clamped)
+            targets, clamped, reasons, requested = self._solve(aus, solved)
         except Exception:  # noqa: BLE001 - re-raised by the step of that frame, where it belongs
             return None
         t2 = time.perf_counter()
@@ -251,11 +293,7 @@ class Pipeline:
             verdict = None
         after = self.gate.step_state()
         self.gate.restore_step_state(before)
-        timings = {
-            "muscle_ms": (t1 - t0) * 1e3,
-            "calibration_ms": (t2 - t1) * 1e3,
-            "gate_ms": (time.perf_counter() - t2) * 1e3,
-        }
+        timings = {**solved, "gate_ms": (time.perf_counter() - t2) * 1e3}
         return Ahead(aus, targets, clamped, tuple(reasons), requested, timings, verdict, dict(sent),
                      None if health is None else dict(health), before, after)  # fmt: skip
 

@@ -98,6 +98,9 @@ class Driver(ChainReads):
         self._stop_reopened = False  # a stop re-opens a failed port at most once
         self._cycle_now: float | None = None  # set between cycle_start and cycle_finish
         self._position_ids: list[int] | None = None
+        self.fold_telemetry = True  # a due motion / thermal group rides in the position read (driver_reads)
+        self._folded: TelemetryGroup | None = None
+        self._folded_this_cycle = False
         self._idle_s = float("inf")
         self._busy_s = 0.0  # how long the last cycle took (clock)
         self._patient = False
@@ -340,17 +343,22 @@ class Driver(ChainReads):
 
     def _write_goals(self, goals: Mapping[int, int]) -> None:
         frame: dict[int, int] = {}
+        records = self._records
+        backoff = FaultKind.LOAD_BACKOFF
         for sid, goal in goals.items():
-            rec = self._records[sid]
+            rec = records[sid]
             if not rec.in_service:
                 continue
-            if FaultKind.LOAD_BACKOFF in rec.faults and rec.position_tick is not None:
+            if rec.faults and backoff in rec.faults and rec.position_tick is not None:
                 goal = eased_goal(goal, rec.position_tick, rec.backoff_scale, *rec.limits_tick)
-            frame[sid] = self._guard(rec, goal)
+            spec = rec.spec  # the last line of defence before the wire (`_guard`), inlined: once per servo
+            if not spec.min_position_tick <= goal <= spec.max_position_tick:
+                self._guard(rec, goal)
+            frame[sid] = goal
         if frame:
             self.bus.sync_write(Register.GOAL_POSITION, frame)
             for sid, tick in frame.items():
-                self._records[sid].goal_tick = tick
+                records[sid].goal_tick = tick
 
     # -- reads with fallback ------------------------------------------------------------------------
     # -- missing servos, reconnects -----------------------------------------------------------------

@@ -10,7 +10,7 @@ from servoface.hardware.bus import ServoBus
 from servoface.hardware.errors import BusCorruptError, BusTimeoutError, ServoStatusError
 from servoface.hardware.fault_policy import FaultPolicy
 from servoface.hardware.fault_reactions import FaultReactions
-from servoface.hardware.registers import Register
+from servoface.hardware.registers import Register, span
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import FaultKind
 
@@ -19,6 +19,7 @@ MOTION = (Register.MOVING, Register.PRESENT_CURRENT, Register.PRESENT_VELOCITY) 
 THERMAL = (Register.PRESENT_INPUT_VOLTAGE, Register.PRESENT_TEMPERATURE)  # 144..146
 STATUS = (Register.TORQUE_ENABLE, Register.HARDWARE_ERROR_STATUS)  # 64..70
 READ_FAILURES = (BusTimeoutError, BusCorruptError, ServoStatusError)
+FOLDABLE = ("motion", "thermal")  # groups whose block adjoins Present Position: read with it (see _position_block)
 FAST_READ_GIVE_UP = 3  # cycles of "fast read fails, single reads work" before falling back to Sync Read
 
 
@@ -49,6 +50,9 @@ class ChainReads:
     _idle_s: float  # how long the caller left the bus idle before this cycle (inf on the first)
     _patient: bool  # that idle time exceeds the last cycle's own: replies are slept for, not polled
     _position_ids: list[int] | None  # ids whose position read `cycle_start` sent (None: nothing sent)
+    fold_telemetry: bool  # read a due motion / thermal group in the position read's transaction
+    _folded: TelemetryGroup | None  # the group the position read in flight carries
+    _folded_this_cycle: bool  # a group rode in this cycle's position read
 
     def _emit(self, servo_id: int | None, kind: FaultKind, reaction: str) -> None:
         raise NotImplementedError
@@ -109,27 +113,58 @@ class ChainReads:
             if not rec.missing and (rec.recover_at_s is None or rec.recover_at_s <= now or rec.reboot_at_s is not None)
         ]
 
+    def _position_block(self, now: float) -> tuple[Register, ...]:
+        """The registers of this cycle's position read: Present Position, and — when the motion or the
+        thermal group is due (`_due_group`) and `fold_telemetry` is on — that group's registers too, read
+        in the same transaction (their blocks adjoin Present Position: 122..135 / 132..146, one reply per
+        servo instead of a second group read with its own instruction, turnaround and parse)."""
+        self._folded = None
+        if not self.fold_telemetry:
+            return POSITION
+        group = self._due_group(now)
+        if group is None or group.name not in FOLDABLE:
+            return POSITION
+        self._folded = group
+        return POSITION + group.registers
+
     def _start_positions(self, now: float) -> None:
         """Send the position read's instruction; `_read_positions` collects the replies."""
         ids = self._readable(now)
         self._position_ids = None
+        registers = self._position_block(now)
         if ids:
             try:
-                self.bus.sync_read_start(ids, POSITION, fast=self.fast_sync_read)
+                self.bus.sync_read_start(ids, registers, fast=self.fast_sync_read)
             except (BusTimeoutError, BusCorruptError):
                 return  # nothing on the wire: `_read_positions` reads afresh
             self._position_ids = ids
 
     def _read_positions(self, now: float) -> None:
         started, self._position_ids = self._position_ids, None
-        ids = started if started is not None else self._readable(now)
-        got = self._read_group(ids, POSITION, fast=self.fast_sync_read, started=started is not None)
+        if started is None:
+            ids = self._readable(now)
+            registers = self._position_block(now)
+        else:
+            ids = started
+            registers = POSITION if self._folded is None else POSITION + self._folded.registers
+        got = self._read_group(ids, registers, fast=self.fast_sync_read, started=started is not None)
         if self.fast_sync_read and ids:
             self._check_fast_read_support(self._group_failed and len(got) == len(ids))
+        records = self._records
+        position = Register.PRESENT_POSITION
         for sid, values in got.items():
-            rec = self._records[sid]
-            rec.position_tick = values[Register.PRESENT_POSITION]
+            rec = records[sid]
+            rec.position_tick = values[position]
             rec.position_t_s = now
+        group, self._folded = self._folded, None
+        if group is not None and ids:
+            self._folded_this_cycle = True
+            group.due_s = now + group.period_s
+            # what riding along costs: the extra bytes' wire time (the idle-time rule of `_due_group`)
+            extra_bytes = len(ids) * (span(registers)[1] - span(POSITION)[1])
+            group.cost_s = extra_bytes * 10.0 / max(1, int(getattr(self.bus, "baud", 1_000_000)))
+            self.telemetry_reads[group.name] += 1
+            self._apply_group(group, got, now)
         self._mark_results(ids, got, now)
 
     def _check_fast_read_support(self, only_fast_failed: bool) -> None:
@@ -158,11 +193,19 @@ class ChainReads:
         return min(ready, key=lambda g: g.due_s) if ready else None
 
     def _read_slow_group(self, now: float) -> None:
+        """At most one slow group per cycle: none after a folded one (`_position_block`), except the status
+        group an Alert bit asks for (the why of an alarm is read the cycle it is seen)."""
+        folded = self._folded_this_cycle
+        self._folded_this_cycle = False
+        alarm = False
         if self.bus.alerts:  # an Alert bit (any reply, the position read's included): read the why now,
             # unless every alerting servo's error is already known (the bit stays set until its reboot)
             if any(sid not in self._records or not self._records[sid].hardware_error for sid in self.bus.alerts):
                 self._groups[0].due_s = float("-inf")
+                alarm = True
             self.bus.alerts.clear()
+        if folded and not alarm:
+            return
         group = self._due_group(now)
         if group is None:
             return
@@ -172,6 +215,13 @@ class ChainReads:
         t0 = self._clock()
         got = self._read_group(ids, group.registers, fast=self.fast_sync_read)  # one combined reply if it works
         group.cost_s = self._clock() - t0
+        self._apply_group(group, got, now)
+        if group.name == "status":  # its replies' Alert bits are what it just read the detail of
+            self.bus.alerts.difference_update(got)
+        self._mark_results(ids, got, now)
+
+    def _apply_group(self, group: TelemetryGroup, got: Mapping[int, Mapping[Register, int]], now: float) -> None:
+        """A slow group's fresh values into the records and the fault reactions."""
         for sid, values in got.items():
             rec = self._records[sid]
             if group.name == "status":
@@ -185,6 +235,3 @@ class ChainReads:
                 self._reactions.on_thermal(
                     rec, values[Register.PRESENT_INPUT_VOLTAGE], values[Register.PRESENT_TEMPERATURE], now
                 )
-        if group.name == "status":  # its replies' Alert bits are what it just read the detail of
-            self.bus.alerts.difference_update(got)
-        self._mark_results(ids, got, now)

@@ -227,8 +227,9 @@ class DynamixelBus:
         self.alerts: set[int] = set()
         self._packet = sdk.PacketHandler(2.0)
         self._sync_reads: dict[tuple[int, int, tuple[int, ...]], Any] = {}
+        self._read_plans: dict[tuple[Register, ...], tuple[int, int, tuple[Any, ...], str]] = {}
         self._lock: PortLock | None = None
-        self._pending: tuple[list[int], tuple[Register, ...], int, int, bool, str] | None = None
+        self._pending: tuple[list[int], tuple[Any, ...], int, int, bool, str] | None = None
         self._parse_s = PARSE_S_START  # measured CPU per status packet already waiting (see _nap_for_replies)
         if isinstance(port, str):
             self.port_name = port
@@ -460,9 +461,17 @@ class DynamixelBus:
         keeps the port marked busy). The reply window is the SDK's, started when the instruction left.
         """
         ids = check_ids(servo_ids)
-        start, length = span(tuple(registers))
-        what = f"{'fast ' if fast else ''}sync read {[r.name for r in registers]}"
-        self._pending = (ids, tuple(registers), start, length, fast, what)
+        regs = tuple(registers)
+        prepared = self._read_plans.get(regs)  # span, message and field offsets: once per register tuple
+        if prepared is None:
+            start, length = span(regs)
+            fields = tuple((r, r.address - start, r.address - start + r.size, r.signed) for r in regs)
+            prepared = (start, length, fields, f"sync read {[r.name for r in regs]}")
+            self._read_plans[regs] = prepared
+        start, length, fields, what = prepared
+        if fast:
+            what = "fast " + what
+        self._pending = (ids, fields, start, length, fast, what)
         if not ids:
             return
         key = (start, length, tuple(ids))
@@ -488,7 +497,7 @@ class DynamixelBus:
         pending, self._pending = self._pending, None
         if pending is None:
             raise BusError(f"sync_read_finish on {self.port_name} without a sync_read_start")
-        ids, registers, start, length, fast, what = pending
+        ids, fields, start, length, fast, what = pending
         if not ids:
             return {}
         if fast:
@@ -496,8 +505,9 @@ class DynamixelBus:
         else:
             blocks = self._status_blocks(ids, length, what, patient)
         self._check(sdk.COMM_SUCCESS, 0, what, ids)
-        fields = [(r, r.address - start, r.address - start + r.size, r.signed) for r in registers]
         out: dict[int, dict[Register, int]] = {}
+        from_bytes = int.from_bytes
+        one = fields[0] if len(fields) == 1 else None  # the per-cycle position read: one field
         for sid in ids:
             raw, err = blocks.get(sid, (b"", 0))
             if len(raw) < length:
@@ -506,7 +516,10 @@ class DynamixelBus:
             if err & STATUS_ALERT_BIT:
                 self.stats.alerts += 1
                 self.alerts.add(sid)
-            out[sid] = {r: int.from_bytes(raw[a:b], "little", signed=sg) for r, a, b, sg in fields}
+            if one is not None:
+                out[sid] = {one[0]: from_bytes(raw[one[1] : one[2]], "little", signed=one[3])}
+            else:
+                out[sid] = {r: from_bytes(raw[a:b], "little", signed=sg) for r, a, b, sg in fields}
         return out
 
     def _status_blocks(self, ids: list[int], length: int, what: str, patient: bool) -> dict[int, tuple[bytes, int]]:

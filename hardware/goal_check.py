@@ -17,6 +17,11 @@ def check_goals(goals_tick: Mapping[int, int], specs: Mapping[int, ServoSpec]) -
         raise GoalRejectedError(None, goals_tick, f"goals must be a mapping servo id -> tick, got {type(goals_tick)}")
     out: dict[int, int] = {}
     for sid, goal in goals_tick.items():
+        if type(sid) is int and type(goal) is int:  # the usual frame: plain ints, only the range to check
+            spec = specs.get(sid)
+            if spec is not None and spec.min_position_tick <= goal <= spec.max_position_tick:
+                out[sid] = goal
+                continue
         spec = specs.get(sid) if isinstance(sid, int) and not isinstance(sid, bool) else None
         if spec is None:
             raise GoalRejectedError(sid, goal, f"goal for unknown servo id {sid!r}; configured: {list(specs)}")

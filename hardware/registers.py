@@ -77,6 +77,10 @@ class Register(Enum):
         self.signed = signed
         self.area = area
 
+    # members are singletons compared by identity: hash them by identity too (C speed; Enum's own __hash__
+    # is a Python call on the name, and registers key the per-servo dicts of every read, every cycle)
+    __hash__ = object.__hash__
+
     def __repr__(self) -> str:
         return f"<Register.{self.name} @{self.address}/{self.size}{'s' if self.signed else ''}>"
 

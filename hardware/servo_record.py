@@ -1,14 +1,24 @@
-"""The driver's mutable record of one servo (private to the bus thread); frozen into `ServoState`."""
+"""The driver's mutable record of one servo (private to the bus thread); frozen into `ServoState`.
+
+`ServoRecord.freeze` runs for every servo every cycle. Between telemetry reads only the position, its time,
+the goal and the stale flag change, so the last `ServoState` is kept with a key of everything else it is
+made from: while that key is unchanged, the new state is the last one's fields with those four replaced
+(~0.5 us instead of ~3 us for the dataclass ``__init__``); otherwise it is built afresh (`freeze_full`).
+Both give equal states (tests/hardware/test_record_freeze.py mutates every field of the record).
+"""
 
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from servoface.hardware.fault_policy import ThermalTrend
 from servoface.hardware.registers import VELOCITY_RPM_PER_LSB, HardwareErrorBits, ModelInfo, Register
 from servoface.hardware.servo_config import ServoSpec
 from servoface.hardware.snapshot import FaultKind, ServoState
+
+_NO_FAULTS: frozenset[FaultKind] = frozenset()
 
 
 @dataclass
@@ -45,6 +55,8 @@ class ServoRecord:
     recover_at_s: float | None = None  # re-configure + re-pin after a reboot settles
     reboots: deque[float] = field(default_factory=lambda: deque(maxlen=16))
     latched: bool = False
+    _frozen: ServoState | None = field(default=None, repr=False, compare=False)  # the last freeze()
+    _frozen_key: tuple[object, ...] | None = field(default=None, repr=False, compare=False)
 
     @property
     def servo_id(self) -> int:
@@ -78,12 +90,59 @@ class ServoRecord:
         lo, hi = self.limits_tick
         return max(lo, min(hi, tick))
 
-    def apply_motion(self, values: dict[Register, int], t_s: float) -> None:
+    def apply_motion(self, values: Mapping[Register, int], t_s: float) -> None:
         self.moving = bool(values[Register.MOVING])
         self.current_raw = values[Register.PRESENT_CURRENT]
         self.velocity_raw = values[Register.PRESENT_VELOCITY]
 
+    def _slow_key(self) -> tuple[object, ...]:
+        """Everything a `ServoState` is made of except position, its time, goal and stale."""
+        return (
+            self.spec,
+            self.info,
+            self.current_limit,
+            self.velocity_raw,
+            self.current_raw,
+            self.moving,
+            self.temperature_c,
+            self.voltage_v,
+            self.telemetry_t_s,
+            self.hardware_error,
+            self.torque_on,
+            self.missing,
+            self.derated,
+            frozenset(self.faults) if self.faults else _NO_FAULTS,
+            self.seconds_to_limit,
+        )
+
     def freeze(self) -> ServoState:
+        """The record as a `ServoState` (equal to `freeze_full`; cheap while only the position moved)."""
+        key = self._slow_key()
+        last = self._frozen
+        if last is None or key != self._frozen_key:
+            last = self.freeze_full()
+            self._frozen, self._frozen_key = last, key
+            return last
+        was = last.__dict__
+        if (
+            was["position_tick"] == self.position_tick
+            and was["position_t_s"] == self.position_t_s
+            and was["goal_tick"] == self.goal_tick
+            and was["stale"] == self.stale
+        ):
+            return last  # frozen: safe to share between snapshots
+        fields = was.copy()
+        fields["position_tick"] = self.position_tick
+        fields["position_t_s"] = self.position_t_s
+        fields["goal_tick"] = self.goal_tick
+        fields["stale"] = self.stale
+        state: ServoState = object.__new__(ServoState)
+        object.__setattr__(state, "__dict__", fields)  # a frozen dataclass: its fields, bypassing __init__
+        self._frozen = state
+        return state
+
+    def freeze_full(self) -> ServoState:
+        """The record as a `ServoState`, built field by field (the reference for `freeze`)."""
         current_ma = (
             self.current_raw * self.info.current_ma_per_lsb
             if self.current_raw is not None and self.info.reports_current
@@ -104,7 +163,7 @@ class ServoRecord:
             missing=self.missing,
             stale=self.stale,
             derated=self.derated,
-            faults=frozenset(self.faults),
+            faults=frozenset(self.faults) if self.faults else _NO_FAULTS,
             position_t_s=self.position_t_s,
             telemetry_t_s=self.telemetry_t_s,
             seconds_to_temperature_limit=self.seconds_to_limit,

@@ -33,6 +33,8 @@ class FaultKind(Enum):
     RECOVERED = "recovered"  # a servo returned to service (torque back on, goal re-pinned)
     LATCHED = "latched"  # too many reboots, or a fault that needs a human: stays torque-off
 
+    __hash__ = object.__hash__  # singletons: identity hash at C speed (sets of them are checked every cycle)
+
 
 @dataclass(frozen=True)
 class FaultEvent:

@@ -37,3 +37,15 @@ def test_interleaved_windows_rotate_and_ratio_to_the_reference() -> None:
     with pytest.raises(ValueError, match="reference"):
         interleave.interleaved({"a": lambda n: None}, "b", 1, 0.001)
     assert "load" in interleave.load_text()
+
+
+def test_interleaved_windows_settle_before_timing_and_keep_counting() -> None:
+    """``settle`` steps run at the start of every window (untimed) for every contender; the counter each
+    contender gets keeps running through them (no step number is used twice)."""
+    seen: dict[str, list[int]] = {"ref": [], "other": []}
+    out = interleave.interleaved(
+        {name: (lambda n, name=name: seen[name].append(n)) for name in seen}, "ref", 3, 0.001, warm=0, settle=4
+    )
+    for name, ns in seen.items():
+        assert ns == list(range(len(ns))) and len(ns) >= 3 * 5, name  # 4 settling + at least 1 timed per window
+        assert out[name].count == len(ns)

@@ -1,0 +1,102 @@
+"""The pipeline's cheap paths give what the straightforward step gives.
+
+- `Pipeline._solve` keeps the last muscle model + calibration result: a pipeline with it and one that
+  solves every frame afresh, on random AU frames with many repeats, send the same goals with the same
+  verdicts (the same bytes reach the emulator);
+- `Pipeline._wait_out_period`: a frame that comes a little less than a frame period after the last write
+  waits out the period, so the speculative verdict computed during the last wait is used (without the
+  wait the step's shorter elapsed time would void it).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+from servoface.controller.face import Face
+from servoface.controller.pipeline import PACE_MAX_SHARE, FrameTrace
+
+
+def _frames(names: list[str], n: int, seed: int) -> list[dict[str, float]]:
+    """Random AU frames; about half repeat the previous one exactly (a held expression)."""
+    rng = np.random.default_rng(seed)
+    current = {a: 0.0 for a in names}
+    out = []
+    for _ in range(n):
+        kind = rng.random()
+        if kind < 0.1:
+            for a in rng.choice(names, size=4, replace=False):
+                current[str(a)] = float(rng.random())
+        elif kind < 0.5:
+            a = str(rng.choice(names))
+            current[a] = float(np.clip(current[a] + rng.normal(0.0, 0.2), 0.0, 1.0))
+        out.append({a: round(v, 4) for a, v in current.items() if v > 0})
+    return out
+
+
+@pytest.fixture
+def faces() -> Iterator[tuple[Face, Face]]:
+    a = Face.open("human", emulate=True, wire_time=False)
+    b = Face.open("human", emulate=True, wire_time=False)
+    for face in (a, b):  # stepped back to back: per-time caps would make the verdicts depend on timing
+        face.pipeline.per_time_caps = False
+        face.pipeline.temperature_limits_c = {}  # the two chains' telemetry is read at different instants
+    yield a, b
+    a.close(ease_s=0.0)
+    b.close(ease_s=0.0)
+
+
+def _key(t: FrameTrace) -> tuple[object, ...]:
+    return (t.verdict, t.goals_sent, t.checks, t.reasons, t.goals_requested, t.target_clamps, t.targets)
+
+
+@pytest.mark.parametrize("ahead", [False, True])
+def test_cached_solve_gives_the_same_goals_and_verdicts_as_solving_every_frame(
+    faces: tuple[Face, Face], ahead: bool
+) -> None:
+    cached, fresh = faces
+    names = sorted(a for a in cached.pipeline.face.au_names if a[-1] not in "LR")
+    frames = _frames(names, 140, seed=5)
+    hits = 0
+    for k, aus in enumerate(frames):
+        nxt = frames[k + 1] if ahead and k + 1 < len(frames) else None
+        fresh.pipeline._solved = None  # the reference solves every frame
+        y = fresh.pipeline.step(aus, next_frame=nxt)
+        x = cached.pipeline.step(aus, next_frame=nxt)
+        hits += x.timings_ms.get("calibration_ms", 1.0) == 0.0
+        assert _key(x) == _key(y), k
+    assert hits > 20  # repeats were served from the cache
+    assert [g[1:] for g in cached.chain.goal_writes()] == [g[1:] for g in fresh.chain.goal_writes()]
+
+
+def test_cached_solve_still_refuses_bad_aus_before_anything_is_sent(faces: tuple[Face, Face]) -> None:
+    face, _ = faces
+    p = face.pipeline
+    p.step({"AU12": 0.3})
+    p.step({"AU12": 0.3})  # a cache hit
+    writes = len(face.chain.goal_writes())
+    for bad in ({"AU12": float("nan")}, {"AU12": 7.0}, {"NOPE": 0.1}):
+        with pytest.raises(Exception):  # noqa: B017 - the muscle model's own typed error
+            p.step(bad)
+    assert len(face.chain.goal_writes()) == writes
+
+
+def test_a_frame_just_short_of_a_period_waits_it_out_and_uses_the_speculation(faces: tuple[Face, Face]) -> None:
+    face, _ = faces
+    p = face.pipeline
+    p.per_time_caps = True
+    period_s = p.gate.frame_period_s
+    names = sorted(a for a in p.face.au_names if a[-1] not in "LR")
+    frames = _frames(names, 30, seed=9)
+    used = 0
+    for k, aus in enumerate(frames):
+        if p.last_write_s is not None:  # as if this frame came 0.1 period early within a paced loop
+            p.last_write_s = time.monotonic() - (1.0 - 0.4 * PACE_MAX_SHARE) * period_s
+        t0 = time.monotonic()
+        trace = p.step(aus, next_frame=frames[k + 1] if k + 1 < len(frames) else None)
+        if k > 0:
+            assert time.monotonic() - t0 >= 0.4 * PACE_MAX_SHARE * period_s * 0.999  # it waited (never less)
+        used += "ahead_ms" in trace.timings_ms
+    assert used >= len(frames) - 3  # every frame but the first (and any the first speculation missed)
