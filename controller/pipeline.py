@@ -119,6 +119,30 @@ class Pipeline:
             raise SimError(f"pin_to: servo id(s) {unknown} are not in head {self.head.name!r}")
         self.last_goals_tick = {**self.last_goals_tick, **{int(k): int(v) for k, v in goals_tick.items()}}
 
+    def use_calibration(self, calibration: HeadCalibration, gate: TwinGate) -> None:
+        """Drive with ``calibration`` and its ``gate`` (built for it) from the next frame on. Call between
+        frames (on the loop thread, or with the loop paused): everything a frame reads of the calibration is
+        replaced at once, the speculative next frame is dropped, and the last command is clamped into the
+        new limits (the next frame is rate-checked from there)."""
+        missing = sorted(set(self.head.roles) - set(calibration.roles))
+        if missing:
+            raise SimError(f"calibration for head {self.head.name!r} lacks servo role(s) {missing}")
+        servos = [calibration[r] for r in self.head.roles]
+        ids = frozenset(s.servo_id for s in servos)
+        if ids != self._ids:
+            raise SimError(f"calibration servo ids {sorted(ids)} differ from the running {sorted(self._ids)}")
+        lo_hi = calibration.position_limits_tick()
+        last = {sid: min(max(int(t), lo_hi[sid][0]), lo_hi[sid][1]) for sid, t in self.last_goals_tick.items()}
+        lo = np.array([s.min_target for s in servos])
+        hi = np.array([s.max_target for s in servos])
+        neutral = [float(s.neutral_target) for s in servos]
+        self._ahead = None
+        self._solved = None  # the last solve was through the old calibration
+        self.calibration, self.gate = calibration, gate
+        self._servos, self._lo, self._hi, self._neutral = servos, lo, hi, neutral
+        self.last_goals_tick = last
+        self.gate.reset()
+
     # -- one frame --------------------------------------------------------------------------------
     def targets_for(self, aus: Mapping[str, float]) -> dict[str, float]:
         """Actuator targets (role -> deg/mm) the muscle model asks for (validates the AUs)."""

@@ -16,8 +16,9 @@ errors carry tomllib's line and column. The format (all times in seconds, intens
         events = ["AU14", "-AU9", 7, {au = "AU7", value = 0.5}] | recipe = "anger"  [+ timing, repeat] (dog)
         library = "happiness" [+ onset_s, apex_s, offset_s, easing | + timing (dog)]  (servoface.sim.expressions)
     [[play]]                 at_s, track = "face" (default) | any name; expression = "name" |
-                             sequence = ["a", "b"] | recipe = "anger" | library = "happiness";
-                             from = pose (optional start pose)
+                             sequence = ["a", "b"] | recipe = "anger" | library = "happiness" |
+                             say = "words" [+ voice = "en-us"] (lip sync, track "speech" by default;
+                             script_say.py); from = pose (optional start pose)
     [[gaze]]                 at_s, look_at_mm = [x, y, z] (head frame: +x head's left, +y up, +z forward)
                              | ahead = true
     [gaze_setup]             eye_center_mm, neck_pivot_mm, eye_range_yaw_deg, eye_range_pitch_deg,
@@ -41,6 +42,7 @@ from servoface.controller.alive.gaze import gaze_config_for
 from servoface.controller.errors import FrameError, ScriptError, TimelineError
 from servoface.controller.frame import AUFrame, FrameValidator
 from servoface.controller.script_fields import Reader, shown
+from servoface.controller.script_say import check_say, say_clip, with_say_rules
 from servoface.controller.timeline import (
     BlendPolicy,
     ChannelClip,
@@ -154,7 +156,8 @@ class _Builder:
             for name, value in r.table(r.get(data, "poses", "", {}), "poses").items()
         }
         initial = self.pose(head["initial"], "script.initial") if "initial" in head else {}
-        blend = self.blend(r.table(r.get(data, "blend", "", {}), "blend"))
+        blend_table = r.table(r.get(data, "blend", "", {}), "blend")
+        blend = self.blend(with_say_rules(blend_table, data.get("play"), self.face))
         self.timeline = Timeline(self.face, allowed=self.allowed, blend=blend, initial_pose=initial)
         self.timeline.track("face")
         self.clips: dict[str, Clip] = {}
@@ -364,23 +367,27 @@ class _Builder:
 
     def play(self, entry: Mapping[str, Any], path: str) -> None:
         r = self.r
-        r.keys(entry, path, ("at_s", "track", "expression", "sequence", "recipe", "library", "from"))
+        r.keys(entry, path, ("at_s", "track", "expression", "sequence", "recipe", "library", "say", "voice", "from"))
         at = r.number(entry, "at_s", path, lo=0, what="a start time in seconds >= 0")
-        track = r.string(entry, "track", path, "face")
+        track = r.string(entry, "track", path, "speech" if "say" in entry else "face")
         if not _TRACK_RE.match(track) or track in ALIVE_LAYERS:
             r.fail(
                 f"{path}.track",
                 f"expected a track name like 'face', 'gesture', 'speech' "
                 f"(not {', '.join(ALIVE_LAYERS)}), got {shown(track)}",
             )
-        kinds = [k for k in ("expression", "sequence", "recipe", "library") if k in entry]
+        kinds = [k for k in ("expression", "sequence", "recipe", "library", "say") if k in entry]
         if len(kinds) != 1:
             r.fail(
                 path,
                 "expected exactly one of expression = '<name>', sequence = [names], recipe = '<dog recipe>', "
-                "library = '<library expression>'",
+                "library = '<library expression>', say = '<words>'",
             )
-        if kinds[0] == "expression":
+        if "voice" in entry and kinds[0] != "say":
+            r.fail(f"{path}.voice", "voice goes with say = '<words>'")
+        if kinds[0] == "say":
+            clip = self.say(entry, path)
+        elif kinds[0] == "expression":
             clip = self.clip_ref(r.string(entry, "expression", path), f"{path}.expression")
         elif kinds[0] == "sequence":
             names = r.array(entry, "sequence", path)
@@ -400,6 +407,17 @@ class _Builder:
             self.timeline.play(clip, at, track=track, from_pose=start)
         except (TimelineError, FrameError) as err:
             r.fail(path, str(err), err)
+
+    def say(self, entry: Mapping[str, Any], path: str) -> Clip:
+        text, voice = entry["say"], entry.get("voice", "en-us")
+        problem = check_say(text, voice)
+        if problem is not None:
+            r_field, _, message = problem.partition(": ")
+            self.r.fail(f"{path}.{r_field}", message)
+        try:
+            return say_clip(text, voice, self.face, self.allowed, name=f"say: {text[:40]}")  # type: ignore[no-any-return]
+        except Exception as err:  # noqa: BLE001 - espeak-ng missing or refusing: a script error naming the cue
+            self.r.fail(f"{path}.say", f"cannot synthesise it ({type(err).__name__}: {err})", err)
 
     def clip_ref(self, name: Any, path: str) -> Clip:
         if not isinstance(name, str) or name not in self.clips:

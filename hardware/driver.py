@@ -141,6 +141,23 @@ class Driver(ChainReads):
         """The Temperature Limit the thermal policy works against (configured, else the model's default)."""
         return self._records[servo_id].temperature_limit_c
 
+    def respec(self, specs: Sequence[ServoSpec]) -> None:
+        """New specs for the same servos (ids and models), e.g. the position limits of a new calibration.
+        Nothing is written: :meth:`configure` (torque off) writes them; until then goals are guarded by the
+        new limits only. Owner thread only."""
+        self._check_owner()
+        new = {s.servo_id: s for s in check_specs(specs)}
+        if set(new) != set(self._records):
+            raise HardwareConfigError(
+                f"respec: servo ids {sorted(new)} differ from the chain's {sorted(self._records)}"
+            )
+        for sid, spec in new.items():
+            if spec.model_info != self._records[sid].info:
+                raise HardwareConfigError(f"respec: servo {sid} is a {self._records[sid].info.name}, not {spec.model}")
+        for sid, spec in new.items():
+            self._records[sid].spec = spec
+        self._specs = {sid: rec.spec for sid, rec in self._records.items()}
+
     def configure(self, *, allow_missing: bool = False) -> dict[int, ConfigReport]:
         """Write every spec (EEPROM with torque off, verified by read-back). Torque is left off.
 

@@ -6,6 +6,10 @@ through the real server (uvicorn on a loopback port) and a real WebSocket client
   arrived on the emulated wire (the emulator's packet log, its clock). Goal: p95 <= 40 ms.
 - ``studio_twin_updates_per_s``: twin images (640x480 PNG, the achievable face) the same client receives
   per second while the head moves (expressions back to back); goal >= 15.
+- ``studio_silent_browser_ease_start_s`` / ``_at_neutral_s``: a browser whose socket stays open but goes
+  silent (heartbeats every 0.25 s, then none): from its last message (emulator clock) until the first goal
+  of the ease to neutral is on the wire (goal <= 1.1 s: the 1 s heartbeat timeout, the watchdog's 50 ms, a
+  frame) and until every servo's goal is at neutral (goal <= 1.8 s: + the 0.6 s ease + margin).
 """
 
 from __future__ import annotations
@@ -99,6 +103,57 @@ def _twin_rate(svc: Any, ws: Any, seconds: float) -> tuple[float, int]:
     return images / (time.monotonic() - start), images
 
 
+def _wire_after(chain: Any, since_s: float) -> list[tuple[float, int, int]]:
+    return [w for w in chain.goal_writes()[-2000:] if w[0] > since_s]
+
+
+def _silence_once(svc: Any, chain: Any, url: str, connect: Any) -> tuple[float, float] | None:
+    """One silent browser: (last message -> ease starts, last message -> at neutral), emulator clock."""
+    import threading
+
+    neutral = svc.pipeline.calibration.neutral_goals()
+    last_sent = [0.0]
+    stop = threading.Event()
+    with connect(url, open_timeout=30, max_size=None, max_queue=None) as ws:
+        ws.recv(timeout=30)  # hello
+        ws.send(json.dumps({"type": "subscribe", "twin": False, "frames": False, "telemetry": False}))
+
+        def beat() -> None:
+            while not stop.is_set():
+                ws.send(json.dumps({"type": "heartbeat"}))
+                last_sent[0] = chain.time_s
+                stop.wait(0.25)
+
+        thread = threading.Thread(target=beat, daemon=True)
+        thread.start()
+        ws.send(json.dumps({"type": "set_aus", "aus": {"AU26": 0.8, "AU12": 0.6}, "transition_s": 0.1}))
+        deadline = time.monotonic() + 20.0
+        posed: dict[int, int] = {}
+        while time.monotonic() < deadline:  # the pose on the wire, unchanged over 10 frames
+            before = _wire_goals(chain)
+            svc.wait_frame(svc.last_trace.index + 10, timeout_s=2.0)
+            posed = _wire_goals(chain)
+            if posed == before and posed != neutral:
+                break
+        stop.set()
+        thread.join()
+        t_last = last_sent[0]
+        start_s = end_s = None
+        deadline = time.monotonic() + 10.0
+        while end_s is None and time.monotonic() < deadline:
+            svc.wait_frame(svc.last_trace.index, timeout_s=0.1)
+            now: dict[int, int] = dict(posed)
+            for t, sid, tick in _wire_after(chain, t_last):
+                if start_s is None and tick != posed.get(sid, tick):
+                    start_s = t
+                now[sid] = tick
+                if end_s is None and all(now.get(k) == v for k, v in neutral.items()):
+                    end_s = t
+        if start_s is None or end_s is None:
+            return None
+        return start_s - t_last, end_s - t_last
+
+
 def run(quick: bool = False) -> Iterator[Figure]:
     from servoface.controller.service import HeadService, open_head
     from servoface.controller.studio import StudioOptions, StudioServer
@@ -135,6 +190,21 @@ def run(quick: bool = False) -> Iterator[Figure]:
                     note=f"{count} achievable-face PNGs (640x480) received over the WebSocket in {seconds:g} s "
                     "while the head moved (expressions back to back); render thread capped at 30/s",
                 )  # fmt: skip
+        runs = [r for r in (_silence_once(svc, chain, url, connect) for _ in range(2 if quick else 5)) if r]
+        if runs:
+            note = (
+                f"{len(runs)} runs: a WebSocket client sends heartbeats every 0.25 s, then nothing (socket open); "
+                "from its last message (emulator clock) to the wire"
+            )
+            starts, ends = [r[0] for r in runs], [r[1] for r in runs]
+            yield Figure(
+                "studio_silent_browser_ease_start_s", statistics.median(starts), "s", limit=1.1, better="lower",
+                note=f"max {max(starts):.3f} s; {note}: first goal of the ease",
+            )  # fmt: skip
+            yield Figure(
+                "studio_silent_browser_at_neutral_s", statistics.median(ends), "s", limit=1.8, better="lower",
+                note=f"max {max(ends):.3f} s; {note}: every goal at neutral",
+            )  # fmt: skip
     finally:
         server.stop()
         svc.shutdown(ease_s=0.0)

@@ -109,9 +109,16 @@ def create_app(studio: Studio, token: str, origins: OriginPolicy, limiter: RateL
     motion_route("/api/servos/manual", m.OnOff, studio.set_manual, 200)
     motion_route("/api/calibrate/start", m.CalibrateStart, studio.calibrate_start, 200)
     motion_route("/api/calibrate/reply", m.CalibrateReply, studio.calibrate_reply, 200)
+    motion_route("/api/calibration/apply", m.CalibrationApply, studio.calibration_apply, 200)
+    motion_route("/api/record/start", m.RecordStart, studio.record_start, 200)
+    motion_route("/api/record/stop", m.Empty, studio.record_stop, 200)
     motion_route("/api/scripts/check", m.ScriptBody, studio.script_check, 200)
     motion_route("/api/scripts/sample", m.ScriptSample, studio.script_sample, 200)
     motion_route("/api/play", m.Play, studio.play)
+
+    @api.get("/api/record")
+    def record_state() -> Any:
+        return studio.record_state()
 
     @api.get("/api/twin/{which}.png")
     def twin(which: str) -> Response:

@@ -140,13 +140,18 @@ class CalibrationSession:
         *,
         torque_wanted: Callable[[], bool],
         on_change: Callable[[], None],
+        on_saved: Callable[[Any, Driver], None] | None = None,
     ) -> None:
+        """``on_saved(calibration, driver)``: on the lender thread (loop paused) once the file is written,
+        to put the new calibration into service (:mod:`.live_calibration`); it re-configures the driver
+        and brings torque back itself. Without it the running calibration's limits are restored."""
         from servoface.controller.cli.calibrate import specs_from_head
 
         self.head = head
         self.lender = lender
         self.on_change = on_change
         self.torque_wanted = torque_wanted
+        self.on_saved = on_saved
         all_specs = specs_from_head(head)
         known = [s.role for s in all_specs]
         if request.roles is not None:
@@ -211,6 +216,7 @@ class CalibrationSession:
             guide=guide,
         )
         driver.disarm_watchdog()
+        installed = False
         access = _RecordingAccess(BusServoAccess(driver.bus), self.operator)
         self.operator.access = access
         try:
@@ -234,11 +240,17 @@ class CalibrationSession:
                 ],
                 "warnings": list(result.warnings),
                 "plots": sorted(result.plots),
+                "applied": False,
             }
+            if self.request.apply and self.on_saved is not None:
+                self.on_saved(result.calibration, driver)  # the new limits written, torque back as it was
+                installed = True
+                self.result["applied"] = True
         finally:
-            driver.configure()  # the running calibration's servo-side limits back, torque off
-            if self.torque_wanted():
-                driver.torque_on()  # goals pinned to where the servos are
+            if not installed:
+                driver.configure()  # the running calibration's servo-side limits back, torque off
+                if self.torque_wanted():
+                    driver.torque_on()  # goals pinned to where the servos are
 
     # -- the browser's side ------------------------------------------------------------------------
     def reply(self, body: CalibrateReply) -> None:

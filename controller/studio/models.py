@@ -103,6 +103,18 @@ class CalibrateStart(Body):
     free_points: bool = False
     curve: Literal["linear", "piecewise_linear", "pchip"] | None = None
     out: str = Field(default="", max_length=128)
+    apply: bool = True  # the saved calibration drives the running head at once (no restart)
+
+
+class RecordStart(Body):
+    transport: Literal["udp", "tcp"] = "udp"
+    port: Annotated[int, Field(ge=0, le=65535)] = 0  # 0: a free one (the answer says which)
+    tolerance: Annotated[float, Field(gt=0.0, le=0.5)] = 0.01
+    follow: bool = True  # the head follows the stream live on the "stream" track while it records
+
+
+class CalibrationApply(Body):
+    file: str = Field(max_length=128)
 
 
 class CalibrateReply(Body):

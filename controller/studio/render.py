@@ -95,6 +95,17 @@ class TwinRenderer:
 
         return bytes(self.call(lambda me: me._png("targets", dict(targets))))
 
+    def set_calibration(self, calibration: Any) -> None:
+        """The running head's calibration changed: the render process rebuilds its twin with it (the
+        achievable face is posed from the goals through the calibration's inverse)."""
+        self.latest.clear()
+        if self._worker is None or self.error:
+            return
+        try:
+            self.call(lambda me: me._png("calibration", {"calibration": calibration}), timeout_s=120.0)
+        except Exception as err:  # noqa: BLE001 - the twin goes on with the old one; say so
+            self.error = f"the twin could not take the new calibration: {err}"
+
     def latest_png(self, which: str) -> TwinImage | None:
         """The newest image of ``which``; rendered now when there is none yet."""
         known = self.latest.get(which)
@@ -152,7 +163,7 @@ class TwinRenderer:
         finally:
             self._worker.close()
 
-    def _png(self, op: str, payload: Mapping[str, Any]) -> bytes:
+    def _png(self, op: str, payload: Mapping[Any, Any]) -> bytes:
         if self._worker is None:
             raise RenderWorkerError("the render process has not started")
         self._collect_live()

@@ -29,7 +29,7 @@ class RenderWorkerError(StudioError):
     code = "render_unavailable"
 
 
-def _pose_for(op: str, payload: Mapping[str, Any], model: Any, twin: Any) -> Any:
+def _pose_for(op: str, payload: Mapping[Any, Any], model: Any, twin: Any) -> Any:
     from servoface.sim.rig import HeadPose
 
     if op == "goals":  # the achievable face: what the gate let through, posed by the twin
@@ -86,6 +86,10 @@ def worker_main(conn: Connection, head: Any, calibration: Any, period_s: float, 
                 return
             op, payload = request
             try:
+                if op == "calibration":  # the head's calibration changed: a new twin for it
+                    twin = AchievableFace(head, payload["calibration"], frame_period_s=period_s, model=model)
+                    replies.put(("ok", b""))
+                    continue
                 replies.put(("pixels", renderer.render(head, _pose_for(op, payload, model, twin))))
             except Exception as err:  # noqa: BLE001 - one bad request must not end the twin
                 replies.put(("error", f"{type(err).__name__}: {err}"))
@@ -138,7 +142,7 @@ class RenderWorker:
             raise RenderWorkerError(f"the render process ended (exit code {self._process.exitcode})") from err
         return reply
 
-    def submit(self, op: str, payload: Mapping[str, Any]) -> None:
+    def submit(self, op: str, payload: Mapping[Any, Any]) -> None:
         """Send one request; its PNG comes back from ``result()`` (replies arrive in request order)."""
         try:
             self._conn.send((op, dict(payload)))
@@ -152,7 +156,7 @@ class RenderWorker:
             raise RenderWorkerError(f"render failed: {value}")
         return bytes(value)
 
-    def png(self, op: str, payload: Mapping[str, Any]) -> bytes:
+    def png(self, op: str, payload: Mapping[Any, Any]) -> bytes:
         """One PNG now (no other request may be outstanding)."""
         self.submit(op, payload)
         return self.result()

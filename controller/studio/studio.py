@@ -20,6 +20,7 @@ from servoface.controller.studio import views
 from servoface.controller.studio.calibrate import CalibrationSession, idle_state
 from servoface.controller.studio.errors import ConflictError, InvalidValueError, NotFoundError, StudioError
 from servoface.controller.studio.lender import BusLender
+from servoface.controller.studio.liveness import Liveness
 from servoface.controller.studio.render import TwinImage, TwinRenderer
 from servoface.controller.studio.scripts import ScriptFolder, build, sample, summary, text_of, toml_to_document
 from servoface.hardware.driver import Driver
@@ -57,8 +58,9 @@ class Studio:
         self.service = service
         self.options = options or StudioOptions()
         self.hold = False
-        self.clients = 0
         self.last_drop_s: float | None = None
+        self.last_drop_reason = ""
+        self.liveness = Liveness(self._last_browser_gone)
         self.listeners: list[Callable[[dict[str, Any]], None]] = []
         self.image_listeners: list[Callable[[TwinImage], None]] = []
         self._lock = threading.Lock()
@@ -70,6 +72,7 @@ class Studio:
                 service, width=self.options.width, height=self.options.height, on_image=self._image
             )
         self.calibration: CalibrationSession | None = None
+        self.recording: Any = None  # a StreamRecording (record.py) while one runs
         self.scripts = ScriptFolder(self.options.scripts_dir, service.validator.names)
         self._loop_stop = threading.Event()
         self._head_info = views.head_info(service, (self.options.width, self.options.height))
@@ -110,11 +113,13 @@ class Studio:
             "manual": self.lender.manual,
             "calibrating": self.calibration is not None and self.calibration.active,
             "clients": self.clients,
+            "silent_clients": self.liveness.silent,
             "frames": s.frames,
             "late": s.late,
             "tracks": views.tracks(s),
             "verdict": views.verdict(self.service.last_trace),
             "last_drop_s": None if self.last_drop_s is None else round(self.last_drop_s, 4),
+            "last_drop_reason": self.last_drop_reason,
             "render_error": self.renderer.error if self.renderer is not None else "rendering is off",
             "error": s.error,
         }
@@ -220,29 +225,39 @@ class Studio:
         return _command(handle)
 
     # -- browsers ----------------------------------------------------------------------------------
-    def client_joined(self) -> None:
-        with self._lock:
-            self.clients += 1
+    @property
+    def clients(self) -> int:
+        return self.liveness.connected
+
+    def client_joined(self) -> int:
+        """A WebSocket opened; its key for :meth:`client_heard` / :meth:`client_left`."""
+        key = self.liveness.joined()
+        self.push_state()
+        return key
+
+    def client_heard(self, key: int, *, heartbeat: bool = False, busy: int = 0) -> None:
+        self.liveness.heard(key, heartbeat=heartbeat, busy=busy)
+
+    def client_left(self, key: int) -> None:
+        self.liveness.left(key)
         self.push_state()
 
-    def client_left(self) -> None:
-        """The last browser gone: ease to neutral (unless hold), torque stays as it is."""
-        with self._lock:
-            self.clients = max(0, self.clients - 1)
-            last = self.clients == 0
-        if last:
-            self.last_drop_s = self.service.now_s()
-            if not self.hold:
-                self._loop_stop.set()
-                if self.lender.manual:
-                    try:
-                        self.lender.set_manual(False)
-                    except StudioError:
-                        pass
+    def _last_browser_gone(self, reason: str) -> None:
+        """The last live browser closed or went silent (:mod:`.liveness`): ease to neutral (unless hold),
+        manual mode ends; torque stays as it is."""
+        self.last_drop_s = self.service.now_s()
+        self.last_drop_reason = reason
+        if not self.hold:
+            self._loop_stop.set()
+            if self.lender.manual:
                 try:
-                    self.service.neutral(DROP_NEUTRAL_S)
-                except ControllerError:
-                    pass  # e-stop latched / torque off / stopped: nothing is moving anyway
+                    self.lender.set_manual(False)
+                except StudioError:
+                    pass
+            try:
+                self.service.neutral(DROP_NEUTRAL_S)
+            except ControllerError:
+                pass  # e-stop latched / torque off / stopped: nothing is moving anyway
         self.push_state()
 
     def twin_png(self, which: str) -> TwinImage:
@@ -345,6 +360,43 @@ class Studio:
         except HardwareError as err:
             raise ConflictError(f"bus: {err}") from err
 
+    # -- record a live stream ------------------------------------------------------------------------
+    def record_start(self, body: m.RecordStart) -> dict[str, Any]:
+        from servoface.controller.frame import FrameValidator
+        from servoface.controller.studio.record import open_recording
+
+        with self._lock:
+            if self.recording is not None:
+                raise ConflictError("a stream recording is running; stop it first")
+            allowed = FrameValidator.for_head(self.service.head).allowed
+            rec = open_recording(self.service.head.face_type, allowed, body.transport, body.port, body.tolerance)
+            self.recording = rec
+        if body.follow:
+            try:
+                rec.follow = self._motion(lambda: self.service.follow(rec.source, track="stream"), "follow")
+            except StudioError:
+                rec.follow = None  # e-stop latched / torque off / bus lent: record without moving the head
+        self.push_state()
+        return rec.state()
+
+    def record_state(self) -> dict[str, Any]:
+        rec = self.recording
+        return rec.state() if rec is not None else {"active": False}
+
+    def record_stop(self, body: m.Empty) -> dict[str, Any]:
+        with self._lock:
+            rec, self.recording = self.recording, None
+        if rec is None:
+            raise ConflictError("no stream recording is running")
+        rec.close()
+        if rec.follow is not None:
+            try:
+                self.service.stop("stream", release_s=0.3)
+            except ControllerError:
+                pass
+        self.push_state()
+        return {**rec.keys(), "messages": rec.source.stats.messages, "bad": rec.source.stats.bad, "over": rec.over}
+
     # -- calibrate ---------------------------------------------------------------------------------
     def calibrate_start(self, body: m.CalibrateStart) -> dict[str, Any]:
         if self.calibration is not None and self.calibration.active:
@@ -360,12 +412,56 @@ class Studio:
             self.options.out_dir,
             torque_wanted=lambda: self.service.status().torque_on,
             on_change=self._calibration_changed,
+            on_saved=self._put_in_service,
         )
         self.calibration = session
         session.start()
         session.operator.wait_next(0, lambda: session.done)
         self.push_state()
         return session.state()
+
+    def _put_in_service(self, calibration: Any, driver: Driver) -> None:
+        """A calibration saved by a session (lender thread, loop paused): in service from the next frame."""
+        from servoface.controller.studio import live_calibration
+
+        prepared = live_calibration.prepare(self.service, calibration)
+        live_calibration.install(self.service, prepared, driver, lambda: self.service.status().torque_on)
+        self._calibration_installed()
+
+    def _calibration_installed(self) -> None:
+        self._head_info = views.head_info(self.service, (self.options.width, self.options.height))
+        renderer = self.renderer
+        if renderer is not None:  # seconds (the twin's tables): never while the loop waits
+            cal = self.service.pipeline.calibration
+            threading.Thread(target=renderer.set_calibration, args=(cal,), name="studio-twin-cal", daemon=True).start()
+
+    def calibration_apply(self, body: m.CalibrationApply) -> dict[str, Any]:
+        """A calibration file of ``--out-dir`` into service now: the gate built while the loop runs, then
+        swapped in between two frames (:mod:`.live_calibration`)."""
+        from servoface.calibration import load_calibration
+        from servoface.calibration.errors import CalibrationError
+        from servoface.controller.studio import live_calibration
+        from servoface.controller.studio.calibrate import OUT_RE
+        from servoface.hardware.errors import HardwareConfigError
+        from servoface.sim.errors import SimError
+
+        if not OUT_RE.fullmatch(body.file) or ".." in body.file:
+            raise InvalidValueError(f"file: expected a bare file name ending in .json, got {body.file!r}", field="file")
+        self._no_calibration()
+        if self.lender.manual:
+            raise ConflictError("leave manual mode first")
+        path = Path(self.options.out_dir) / body.file
+        if not path.is_file():
+            raise NotFoundError(f"file: no calibration {body.file!r} in the studio's out dir", field="file")
+        try:
+            prepared = live_calibration.prepare(self.service, load_calibration(path))
+        except (CalibrationError, ControllerError, SimError, HardwareConfigError, ValueError) as err:
+            raise InvalidValueError(f"file: {err}", field="file") from err
+        torque = self.service.status().torque_on
+        self._bus(lambda driver: live_calibration.install(self.service, prepared, driver, lambda: torque))
+        self._calibration_installed()
+        self.push_state()
+        return {"applied": str(path.resolve()), "servos": self._head_info["servos"]}
 
     def _calibration_changed(self) -> None:
         if self.calibration is not None:
@@ -473,6 +569,9 @@ class Studio:
     # -- life --------------------------------------------------------------------------------------
     def close(self) -> None:
         self._loop_stop.set()
+        self.liveness.close()
+        if self.recording is not None:
+            self.recording.close()
         if self.calibration is not None:
             self.calibration.abort()
         self.lender.close()

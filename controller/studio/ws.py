@@ -32,6 +32,7 @@ class _Client:
         self.target = False
         self.telemetry = True
         self.frames = True
+        self.key = 0  # the studio's liveness key of this socket
 
     # called from other threads
     def offer(self, message: dict[str, Any]) -> None:
@@ -74,7 +75,7 @@ async def serve_socket(studio: Studio, websocket: Any, limiter: RateLimiter | No
     studio.listeners.append(client.offer)
     studio.image_listeners.append(client.offer_image)
     _watch(studio, client, +1)
-    studio.client_joined()
+    key = client.key = studio.client_joined()
     who = str((websocket.client or ("?", 0))[0])
     sender = asyncio.create_task(_send_loop(websocket, client))
     try:
@@ -85,6 +86,7 @@ async def serve_socket(studio: Studio, websocket: Any, limiter: RateLimiter | No
                 break
             text = message.get("text")
             msg_id: Any = None
+            studio.client_heard(key, busy=+1)  # anything that arrives counts as alive
             try:
                 if text is None:
                     raise BadJsonError("expected a JSON text message (binary is not accepted)")
@@ -107,6 +109,8 @@ async def serve_socket(studio: Studio, websocket: Any, limiter: RateLimiter | No
                     client._put({"type": "reply", "id": msg_id, "result": result})
             except StudioError as err:
                 client._put(_error_message(err, msg_id))
+            finally:
+                studio.client_heard(key, busy=-1)
     except WebSocketDisconnect:
         pass
     finally:
@@ -114,7 +118,7 @@ async def serve_socket(studio: Studio, websocket: Any, limiter: RateLimiter | No
         studio.listeners.remove(client.offer)
         studio.image_listeners.remove(client.offer_image)
         _watch(studio, client, -1)
-        await run_in_threadpool(studio.client_left)
+        await run_in_threadpool(studio.client_left, key)
 
 
 def _watch(studio: Studio, client: _Client, sign: int) -> None:
@@ -150,10 +154,14 @@ async def _dispatch(studio: Studio, client: _Client, data: dict[str, Any], run: 
                 setattr(client, name, value)
         _watch(studio, client, +1)
         return {n: getattr(client, n) for n in ("twin", "target", "telemetry", "frames")}
+    if kind == "heartbeat":  # arms this socket's liveness watch (liveness.py)
+        m.parse(m.Empty, data)
+        studio.client_heard(client.key, heartbeat=True)
+        return {"t_s": round(studio.service.now_s(), 4)}
     if kind == "ping":
         m.parse(m.Empty, data)
         return {"t_s": round(studio.service.now_s(), 4)}
-    known = "set_aus, clear_aus, express, gaze, estop, hold, subscribe, ping"
+    known = "set_aus, clear_aus, express, gaze, estop, hold, subscribe, heartbeat, ping"
     raise InvalidValueError(f"type: expected one of {known}, got {kind!r}", field="type")
 
 

@@ -242,3 +242,48 @@ def test_gaze_setup_and_end_time_include_gaze_shifts() -> None:
     assert s.sample(2.8).get("AU51") > 0
     e = err(text.replace("head_move_s = 0.8", "head_move_s = 0"))
     assert "gaze_setup.head_move_s: expected a positive number" in str(e) and e.line == 8  # type: ignore[attr-defined]
+
+
+# -- the speech cue (controller/script_say.py) ---------------------------------------------------------
+SAY = """
+[script]
+face = "human"
+
+[[play]]
+at_s = 0.0
+library = "happiness"
+
+[[play]]
+at_s = 0.5
+say = "Hello, nice to meet you."
+"""
+
+
+def test_a_say_cue_plays_the_lip_sync_visemes_on_the_speech_track() -> None:
+    from servoface.controller.script import parse_script
+
+    script = parse_script(SAY, source="say.toml")
+    assert script.timeline.layer("speech") is not None
+    before = script.timeline.sample_aus(0.3)
+    talking = [script.timeline.sample_aus(0.5 + i * 0.05) for i in range(1, 30)]
+    assert before.get("AU26", 0.0) == 0.0
+    assert max(a.get("AU26", 0.0) for a in talking) > 0.3  # the jaw opens on the vowels
+    assert min(a.get("AU25", 1.0) for a in talking) < 0.1  # ... and the lips close on the bilabial of "meet"
+    assert all(a.get("AU12", 0.0) > 0.5 for a in talking[5:])  # the smile stays while it talks
+
+
+def test_bad_say_cues_name_the_field() -> None:
+    from servoface.controller.errors import ScriptError
+    from servoface.controller.script import parse_script
+
+    head = '[script]\nface = "human"\n[[play]]\nat_s = 0.0\n'
+    for body, path in (
+        ('say = ""', "play[0].say"),
+        ("say = 3", "play[0].say"),
+        ('say = "hi"\nvoice = "../x"', "play[0].voice"),
+        ('library = "happiness"\nvoice = "en"', "play[0].voice"),
+        ('say = "hi"\nlibrary = "happiness"', "play[0]"),
+    ):
+        with pytest.raises(ScriptError) as err:
+            parse_script(head + body, source="bad.toml")
+        assert getattr(err.value, "key_path", None) == path, (body, str(err.value))

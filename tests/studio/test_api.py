@@ -366,7 +366,15 @@ def test_calibrate_through_http_writes_the_file_the_cli_writes(
     assert state["error"] == "" and state["result"]["saved_to"] == str((tmp_path / "jaw.json").resolve())
     assert [c["tick"] for c in state["captured"]] == [2048, 2048 + up, 2048 + up - 142]
     assert studio.client.get("/api/calibrate/plot/jaw.png").content[:8] == b"\x89PNG\r\n\x1a\n"
-    # the loop has the bus back
+    # the loop has the bus back, driving with the new calibration (no restart)
+    assert state["result"]["applied"] is True
+    from servoface.calibration import load_calibration
+
+    saved = load_calibration(tmp_path / "jaw.json")["jaw"]
+    running = studio.service.pipeline.calibration["jaw"]
+    assert (running.min_tick, running.max_tick) == (saved.min_tick, saved.max_tick)
+    assert running.neutral_tick == saved.neutral_tick
+    assert running.to_tick(free_deg) == saved.to_tick(free_deg)
     assert studio.client.post("/api/aus", json={"aus": {"AU26": 0.2}}).status_code == 202
 
     # the CLI, same head, same captures

@@ -55,6 +55,9 @@ LIVE: list[tuple[str, str, Any]] = [
     ("GET", "/api/state", None),
     ("POST", "/api/calibrate/reply", {"action": "jog", "delta_tick": 5}),
     ("GET", "/api/twin/achievable.png", None),
+    ("POST", "/api/calibration/apply", {"file": "nope.json"}),
+    ("GET", "/api/record", None),
+    ("POST", "/api/record/stop", {}),
 ]
 SERVOS: list[tuple[str, str, Any]] = [
     ("POST", "/api/servos/18/jog", {"delta_tick": 10}),
@@ -72,6 +75,7 @@ WS: list[dict[str, Any]] = [
     {"type": "hold", "hold": False},
     {"type": "subscribe", "twin": False, "telemetry": True},
     {"type": "ping"},
+    {"type": "heartbeat"},
 ]
 
 

@@ -29,6 +29,7 @@ DOCUMENT = {
     "play": [
         {"at_s": 0.0, "expression": "face_keys"},
         {"at_s": 1.2, "track": "gesture", "library": "brow_flash"},
+        {"at_s": 2.0, "track": "speech", "say": "Hello, nice to meet you."},
     ],
     "gaze": [
         {"at_s": 0.4, "look_at_mm": [150.0, 40.0, 600.0]},

@@ -106,3 +106,87 @@ def test_a_script_loaded_and_saved_in_the_page_is_the_same_document(studio_page:
     assert page.locator('.tl-row[data-row="gaze"] .tl-key').count() == 3
     assert page.locator('.tl-row[data-row="clips:gesture"] .tl-clip').inner_text() == "brow_flash"
     assert page.is_checked("#author-blink")
+
+
+def test_a_live_udp_stream_recorded_in_the_page_becomes_face_keys(studio_page: tuple[Any, StudioRig]) -> None:
+    """Record → a tracker's AU frames over real UDP → Stop: the keys land on the face track and save."""
+    import json
+    import socket
+    import time
+
+    from tests.studio.test_record import RATE_HZ, _aus
+
+    page, rig = studio_page
+    page.click('a[data-page="author"]')
+    page.select_option("#author-rec-source", "udp")
+    page.fill("#author-rec-port", "0")
+    page.click("#author-record")
+    page.wait_for_function("document.querySelector('#author-record').dataset.port")
+    port = int(page.locator("#author-record").get_attribute("data-port"))
+    recording = rig.server.studio.recording
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    n = 45
+    try:
+        for i in range(n):
+            t = i / RATE_HZ
+            sender.sendto(json.dumps({"t": t, "aus": _aus(t)}).encode(), ("127.0.0.1", port))
+            rig.wait_for(lambda i=i: len(recording.samples) > i, what=f"sample {i} recorded")
+            time.sleep(1.0 / RATE_HZ)  # a tracker's pace (the input limits a client to 240 messages/s)
+    finally:
+        sender.close()
+    page.click("#author-record")  # stop
+    page.wait_for_function("document.querySelector('#author-status').dataset.recorded")
+    count = int(page.locator("#author-status").get_attribute("data-recorded"))
+    assert 3 <= count < n
+    assert page.locator('.tl-row[data-row="keys:face"] .tl-key').count() == count
+    page.fill("#author-name", "recorded.toml")
+    page.click("#author-save")
+    page.wait_for_function("(document.querySelector('#author-status').dataset.saved || '').endsWith('recorded.toml')")
+    doc = tomllib.loads(Path(page.locator("#author-status").get_attribute("data-saved")).read_text())
+    (keys,) = [e["keyframes"] for e in doc["expressions"].values()]
+    assert len(keys) == count and keys[0]["t_s"] == 0.0
+    for key in keys:
+        for name, value in _aus(key["t_s"]).items():
+            assert abs(key["pose"].get(name, 0.0) - value) <= 0.011, (key, name)
+
+
+def test_a_speech_cue_made_in_the_page_saves_reloads_and_talks_on_the_head(studio_page: tuple[Any, StudioRig]) -> None:
+    """The speech lane: a key with words, saved as `[[play]] say = ...` (the script format), loaded back
+    the same, and played on the head: the emulated jaw servo talks (visemes), then rests."""
+    page, rig = studio_page
+    words = "Hello, nice to meet you."
+    page.click('a[data-page="author"]')
+    page.click("#author-add-say")
+    page.wait_for_selector("#say-text")
+    _set(page, "#say-text", words)
+    _set(page, "#key-time", "0.2")
+    assert page.locator('.tl-row[data-row="clips:speech"] .tl-clip').inner_text() == f"“{words}”"
+    page.fill("#author-name", "talk.toml")
+    page.click("#author-save")
+    page.wait_for_function("(document.querySelector('#author-status').dataset.saved || '').endsWith('talk.toml')")
+    doc = tomllib.loads(Path(page.locator("#author-status").get_attribute("data-saved")).read_text())
+    assert doc["play"] == [{"at_s": 0.2, "track": "speech", "say": words}]
+    # the visemes: the jaw opens and closes while it talks (the script format's own sampling)
+    frames = rig.client.post("/api/scripts/sample", json={"document": doc, "fps": 50}).json()["frames"]
+    jaw = [f["aus"].get("AU26", 0.0) for f in frames]
+    assert jaw[0] == 0.0 and max(jaw) > 0.3
+    # loaded back into the page and saved again: the same document
+    page.wait_for_selector('#author-list option[value="talk.toml"]', state="attached")
+    page.select_option("#author-list", "talk.toml")
+    page.wait_for_function("document.querySelector('#author-status').textContent.startsWith('Loaded talk.toml')")
+    assert page.locator('.tl-row[data-row="clips:speech"] .tl-clip').inner_text() == f"“{words}”"
+    page.fill("#author-name", "talk_again.toml")
+    page.click("#author-save")
+    page.wait_for_function("(document.querySelector('#author-status').dataset.saved || '').endsWith('talk_again.toml')")
+    again = rig.client.get("/api/scripts/talk_again.toml").json()["document"]
+    assert again == rig.client.get("/api/scripts/talk.toml").json()["document"]
+    # on the head: the jaw servo's goal on the emulator's wire opens, then it is back at rest
+    jaw_id = next(a.servo.id for a in rig.service.head.actuators if a.role == "jaw")
+    rest = rig.goal_tick(jaw_id)
+    writes_before = len(rig.chain.goal_writes())
+    page.select_option("#author-on", "head")
+    page.click("#author-play")
+    rig.wait_for(lambda: abs(rig.goal_tick(jaw_id) - rest) > 30, timeout_s=60, what="the jaw talking")
+    rig.wait_for(lambda: rig.goal_tick(jaw_id) == rest, timeout_s=60, what="the jaw at rest after the words")
+    moves = {t for _, sid, t in rig.chain.goal_writes()[writes_before:] if sid == jaw_id}
+    assert len(moves) > 5  # it opened and closed along the words, not one jump

@@ -66,6 +66,7 @@ def _calibrate_in_page(page: Any, rig: StudioRig) -> tuple[Path, list[list[str]]
     final = rig.client.get("/api/calibrate").json()
     assert final["error"] == "" and [a[-1] for a in pressed] == [f"@{c['tick']}" for c in final["captured"]]
     saved = Path(page.inner_text("#cal-saved").strip())
+    assert page.inner_text("#cal-applied").startswith("In use now")  # no restart needed
     return saved, pressed
 
 

@@ -101,3 +101,25 @@ def test_closing_the_tab_eases_the_head_to_neutral_unless_hold(browser: Any, stu
             rig.client.post("/api/hold", json={"hold": False}).raise_for_status()
             rig.client.post("/api/neutral", json={"transition_s": 0.2}).raise_for_status()
         rig.wait_for(lambda: abs(_present(rig, jaw) - rest) <= 3, timeout_s=60, what="the jaw back at neutral")
+
+
+def test_a_page_that_goes_silent_eases_the_head_to_neutral_with_its_socket_open(
+    studio_page: tuple[Any, StudioRig],
+) -> None:
+    """The page's heartbeat: its JavaScript frozen (the debugger pauses it; a dead network looks the same to
+    the server) while Chromium keeps the WebSocket open -> silence -> neutral; resumed, nothing moves."""
+    page, rig = studio_page
+    jaw = _servo_id(rig, "jaw")
+    rest = _present(rig, jaw)
+    page.locator('input[data-au="AU26"]').fill("0.8")
+    rig.wait_for(lambda: abs(_present(rig, jaw) - rest) > 60, timeout_s=60, what="the jaw to open")
+    cdp = page.context.new_cdp_session(page)
+    cdp.send("Debugger.enable")
+    cdp.send("Debugger.pause")
+    rig.wait_for(lambda: abs(_present(rig, jaw) - rest) <= 3, timeout_s=60, what="the jaw back at neutral")
+    state = rig.client.get("/api/state").json()
+    assert state["clients"] == 1 and state["last_drop_reason"] == "silent"  # the socket is still open
+    cdp.send("Debugger.resume")
+    rig.wait_for(lambda: rig.client.get("/api/state").json()["silent_clients"] == 0, what="the page live again")
+    assert abs(_present(rig, jaw) - rest) <= 3  # back, but nothing moves until the user acts
+    cdp.detach()

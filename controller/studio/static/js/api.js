@@ -46,6 +46,24 @@ export class Live {
     this.waiting = new Map();
     this.subscription = { twin: false, target: false, telemetry: true, frames: true }; // Live turns the twin on
     this.retryMs = 500;
+    this.beat = null;
+  }
+
+  /** The app-level heartbeat (API.md "Heartbeat"): every 0.25 s while the socket is open, so a silently
+   * dead network eases the head to neutral within a second. Timed by a Worker where there is one: its
+   * timers are not throttled when the tab is in the background (a page's are, to 1 Hz). */
+  startHeartbeat() {
+    if (this.beat) return;
+    const tick = () => this.send({ type: "heartbeat" });
+    try {
+      const worker = new Worker(new URL("./heartbeat_worker.js", import.meta.url));
+      worker.onmessage = tick;
+      worker.postMessage({ interval_ms: 250 });
+      this.beat = { stop: () => worker.terminate() };
+    } catch (err) {
+      const timer = setInterval(tick, 250);
+      this.beat = { stop: () => clearInterval(timer) };
+    }
   }
 
   on(type, fn) {
@@ -73,6 +91,8 @@ export class Live {
       this.retryMs = 500;
       this.emit("open", {});
       this.send({ type: "subscribe", ...this.subscription });
+      this.send({ type: "heartbeat" });
+      this.startHeartbeat();
     };
     ws.onclose = (ev) => {
       this.emit("close", { code: ev.code, reason: ev.reason });

@@ -33,7 +33,7 @@ export function mount(el, c) {
   const twinCard = h("div.card.author-twin", {}, h("div.card-head", {}, h("h3", {}, "Twin at the playhead"), h("span.grow"), fields.time), h("figure.twin-fig", {}, preview), previewNote);
   const timelineCard = h("div.card.timeline-card", {}, addBar(), view.el, statusLine);
   el.append(h("div.author", {}, toolbar(), h("div.author-grid", {}, twinCard, h("div.inspector-col", {}, inspector), timelineCard)));
-  ctx.sliderListeners?.add((values) => recording && recordPose(values));
+  ctx.sliderListeners?.add((values) => recording && !recording.stream && recordPose(values));
   window.addEventListener("keydown", (ev) => {
     if (el.hidden || /^(INPUT|SELECT|TEXTAREA)$/.test(document.activeElement?.tagName || "")) return;
     if (ev.key === " ") {
@@ -63,7 +63,17 @@ function toolbar() {
   fields.target = h("select#author-on", {}, h("option", { value: "twin" }, "on the twin"), h("option", { value: "head" }, "on the head"));
   fields.loop = h("input#author-loop", { type: "checkbox" });
   fields.play = h("button.btn.primary#author-play", { onclick: () => (playing ? stop() : play()) }, "▶ Play");
-  fields.rec = h("button.btn#author-record", { onclick: () => (recording ? stopRecording() : startRecording()), title: "record the Live page's (or the panel's) slider moves into keys on the face track" }, "● Record");
+  fields.rec = h("button.btn#author-record", { onclick: () => (recording ? stopRecording() : startRecording()), title: "record the Live page's (or the panel's) slider moves, or a live tracker stream, into keys on the face track" }, "● Record");
+  fields.recSource = h(
+    "select#author-rec-source",
+    { title: "what Record records: slider moves, or a tracker's AU frames (the messages `servoface stream` takes) on a loopback port" },
+    h("option", { value: "sliders" }, "sliders"),
+    h("option", { value: "udp" }, "UDP stream"),
+    h("option", { value: "tcp" }, "TCP stream"),
+  );
+  fields.recPort = h("input.num#author-rec-port", { type: "number", min: "0", max: "65535", value: "9100", title: "the stream's port on 127.0.0.1 (0: a free one)" });
+  fields.recSource.addEventListener("change", () => (fields.recPort.hidden = fields.recSource.value === "sliders"));
+  fields.recPort.hidden = true;
   fields.blink = h("input#author-blink", { type: "checkbox" });
   fields.blink.addEventListener("change", () => {
     model.blink = fields.blink.checked;
@@ -84,6 +94,8 @@ function toolbar() {
     fields.target,
     h("label.toggle", {}, fields.loop, h("span", {}, "loop")),
     fields.rec,
+    fields.recSource,
+    fields.recPort,
     h("span.sep"),
     h("label.toggle", {}, fields.blink, h("span", {}, "blinks")),
   );
@@ -98,6 +110,7 @@ function addBar() {
     h("button.chip#author-add-gaze", { onclick: () => addAt("gaze", time) }, "+ gaze key"),
     lib,
     h("button.chip#author-add-clip", { onclick: () => addClip(lib.value, time) }, "+ expression clip"),
+    h("button.chip#author-add-say", { onclick: () => addSay(time) }, "+ speech at playhead"),
     h("span.grow"),
     h("span.muted", {}, "Space: play / stop · Delete: remove the selected key"),
     h("button.chip", { onclick: () => zoom(1.25), title: "zoom in" }, "zoom +"),
@@ -117,9 +130,9 @@ function rows() {
     out.push({ id: `keys:${t.track}`, label: t.track, hint: "AU keys", kind: "keys", items: t.keys.map((k, i) => ({ id: i, t_s: k.t_s, text: poseText(k.pose) })) });
   }
   out.push({ id: "gaze", label: "gaze", hint: "look at", kind: "keys", items: model.gaze.map((g, i) => ({ id: i, t_s: g.at_s || 0, text: g.ahead ? "ahead" : (g.look_at_mm || []).join(", ") + " mm" })) });
-  const clipTracks = [...new Set(model.clips.map((c) => c.track)), "gesture"].filter((v, i, a) => a.indexOf(v) === i);
+  const clipTracks = [...new Set(model.clips.map((c) => c.track)), "gesture", "speech"].filter((v, i, a) => a.indexOf(v) === i);
   for (const track of clipTracks) {
-    const items = model.clips.map((c, i) => ({ c, i })).filter(({ c }) => c.track === track).map(({ c, i }) => ({ id: i, t_s: c.entry.at_s || 0, end_s: (c.entry.at_s || 0) + (c.length_s || 1.5), text: clipText(c.entry) }));
+    const items = model.clips.map((c, i) => ({ c, i })).filter(({ c }) => c.track === track).map(({ c, i }) => ({ id: i, t_s: c.entry.at_s || 0, end_s: (c.entry.at_s || 0) + clipLength(c), text: clipText(c.entry) }));
     if (track === "speech" || items.length || track === "gesture") out.push({ id: `clips:${track}`, label: track, hint: track === "speech" ? "speech" : "clips", kind: "clips", items });
   }
   out.push({ id: "blink", label: "blink", hint: "alive", kind: "toggle", items: [], text: model.blink ? "spontaneous blinks on" : "off" });
@@ -131,7 +144,14 @@ function poseText(pose) {
   return parts.length ? parts.join(", ") : "neutral";
 }
 
+/** Drawn length: a speech cue's from its words (espeak-ng speaks ~14 characters a second), else 1.5 s. */
+function clipLength(c) {
+  if (c.entry.say != null) return Math.max(0.4, String(c.entry.say).length / 14);
+  return c.length_s || 1.5;
+}
+
 function clipText(entry) {
+  if (entry.say != null) return `“${entry.say}”`;
   return entry.library || entry.expression || entry.recipe || (entry.sequence || []).join(" → ") || "clip";
 }
 
@@ -199,6 +219,9 @@ function addAt(row, t) {
     model.gaze.push({ at_s: t, look_at_mm: padToPoint([0, 0]) });
     model.gaze.sort((a, b) => a.at_s - b.at_s);
     selected = { row, id: model.gaze.findIndex((g) => g.at_s === t) };
+  } else if (row === "clips:speech") {
+    addSay(t);
+    return;
   } else if (row.startsWith("clips:")) {
     addClip(ctx.head.expressions[0], t, row.slice(6));
     return;
@@ -214,6 +237,15 @@ function addClip(name, t, track = "gesture") {
   schedulePreview();
 }
 
+/** A speech cue (`[[play]] say = "..."`): the server synthesises it (espeak-ng) into the mouth's visemes. */
+function addSay(t, text = "Hello.") {
+  model.clips.push({ index: 1e6 + model.clips.length, track: "speech", entry: { at_s: Math.round(t * 100) / 100, track: "speech", say: text } });
+  selected = { row: "clips:speech", id: model.clips.length - 1 };
+  refresh();
+  schedulePreview();
+  document.querySelector("#say-text")?.focus();
+}
+
 function removeSelected() {
   const item = itemOf(selected);
   if (!item) return;
@@ -227,7 +259,7 @@ function removeSelected() {
 
 function poseChanged(aus) {
   const item = itemOf(selected);
-  if (recording) {
+  if (recording && !recording.stream) {
     recordPose({ ...board.values });
     return;
   }
@@ -250,7 +282,7 @@ function poseReleased(names) {
 function renderInspector() {
   const item = itemOf(selected);
   if (!item) {
-    clear(inspector, h("div.card", {}, h("h3", {}, "Keyframe"), h("p.muted", {}, "Select a key on the timeline, or add one. Each face key is a complete AU pose, reached at its time with its easing."), recording ? recordCard() : null));
+    clear(inspector, h("div.card", {}, h("h3", {}, "Keyframe"), h("p.muted", {}, "Select a key on the timeline, or add one. Each face key is a complete AU pose, reached at its time with its easing."), recording && !recording.stream ? recordCard() : null));
     return;
   }
   const time = h("input.num#key-time", { type: "number", min: "0", step: "0.05", value: String(item.kind === "key" ? item.key.t_s : item.kind === "gaze" ? item.gaze.at_s : item.clip.entry.at_s) });
@@ -321,6 +353,14 @@ function renderInspector() {
     const [px, py] = gazePad(item.gaze);
     pad.place(px, py);
     clear(inspector, h("div.card", {}, h("div.card-head", {}, h("h3", {}, "Gaze key"), h("span.grow"), del), h("div.form-row", {}, h("label", {}, "time ", time, " s")), h("p.muted", {}, "Drag where the head should look (600 mm ahead); double-click: straight ahead."), pad.el));
+  } else if (item.clip.entry.say != null) {
+    const text = h("input#say-text", { type: "text", size: "40", maxlength: "2000", value: String(item.clip.entry.say), title: "the words; the mouth's visemes come from espeak-ng's phonemes" });
+    text.addEventListener("change", () => {
+      item.clip.entry.say = text.value.trim() || "Hello.";
+      refresh();
+      schedulePreview();
+    });
+    clear(inspector, h("div.card", {}, h("div.card-head", {}, h("h3", {}, "Speech"), h("span.grow"), del), h("div.form-row", {}, h("label", {}, "start ", time, " s"), h("label", {}, "says ", text)), h("p.muted", {}, "Lip sync from the words (espeak-ng, offline): the speech track owns the mouth while it talks; a held expression keeps the rest of the face. Play on the twin or the head to see the visemes.")));
   } else {
     const lib = h("select#clip-lib", {}, ctx.head.expressions.map((n) => h("option", { value: n, selected: n === item.clip.entry.library }, n)));
     lib.disabled = !item.clip.entry.library;
@@ -342,6 +382,7 @@ function recordCard() {
 let lastRecordT = -1;
 function startRecording() {
   if (playing) stop();
+  if (fields.recSource.value !== "sliders") return startStream();
   recording = { t0: performance.now() - time * 1000, from: time, keys: new Set() };
   lastRecordT = -1;
   fields.rec.classList.add("recording");
@@ -351,7 +392,55 @@ function startRecording() {
   tick();
 }
 
+// A live stream: the server listens, the head follows it, the keys come back reduced (API.md "Record").
+async function startStream() {
+  const transport = fields.recSource.value;
+  try {
+    const st = await ctx.api.post("/api/record/start", { transport, port: Math.max(0, Math.min(65535, Number(fields.recPort.value) || 0)), follow: true });
+    recording = { stream: st, from: time, poll: null };
+    fields.rec.classList.add("recording");
+    fields.rec.textContent = "■ Stop recording";
+    fields.rec.dataset.port = String(st.port);
+    status(`Recording the ${transport.toUpperCase()} stream on ${st.host}:${st.port}: send AU frames there (the head follows them).`);
+    recording.poll = setInterval(async () => {
+      try {
+        const now = await ctx.api.get("/api/record");
+        if (now.active) status(`Recording ${transport.toUpperCase()} ${now.host}:${now.port}: ${now.samples} frames, ${now.duration_s.toFixed(2)} s${now.bad ? `, ${now.bad} bad` : ""}.`);
+      } catch (err) {
+        /* the next poll shows it */
+      }
+    }, 500);
+  } catch (err) {
+    status(err.describe ? err.describe() : String(err), true);
+    ctx.report(err);
+  }
+}
+
+async function stopStream() {
+  const rec = recording;
+  recording = null;
+  clearInterval(rec.poll);
+  fields.rec.classList.remove("recording");
+  fields.rec.textContent = "● Record";
+  try {
+    const out = await ctx.api.post("/api/record/stop", {});
+    const track = keyTrack(model, "face");
+    const from = rec.from, to = rec.from + out.duration_s;
+    track.keys = track.keys.filter((k) => k.t_s < from - 1e-6 || k.t_s > to + 1e-6); // recorded over
+    for (const k of out.keys) track.keys.push({ t_s: Math.round((from + k.t_s) * 1000) / 1000, pose: { ...k.pose }, easing: k.easing });
+    sortKeys(track);
+    if (model.end_s != null && to + 0.5 > model.end_s) model.end_s = Math.ceil((to + 0.5) * 10) / 10;
+    refresh();
+    status(`Recorded ${out.samples} stream frames into ${out.keys.length} keys on the face track (${fmt(from, 2)}–${fmt(to, 2)} s, within ${out.tolerance} of every AU).`);
+    statusLine.dataset.recorded = String(out.keys.length);
+  } catch (err) {
+    status(err.describe ? err.describe() : String(err), true);
+    ctx.report(err);
+  }
+}
+
 function stopRecording() {
+  if (recording?.stream) return stopStream();
   const last = keyTrack(model, "face").keys.at(-1);
   if (last && model.end_s != null && last.t_s + 0.5 > model.end_s) model.end_s = Math.ceil((last.t_s + 0.5) * 10) / 10;
   recording = null;
@@ -391,7 +480,7 @@ function seek(t) {
 }
 
 function tick() {
-  if (!playing && !recording) return;
+  if (!playing && (!recording || recording.stream)) return;
   const ref = playing || recording;
   let t = (performance.now() - ref.t0) / 1000;
   const end = model.end_s || duration(model);

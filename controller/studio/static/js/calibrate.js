@@ -113,6 +113,13 @@ function resultCard(state) {
     {},
     h("div.card-head", {}, h("h3", {}, "Calibration saved"), h("span.muted#cal-saved", {}, r.saved_to)),
     h(
+      "p#cal-applied",
+      {},
+      r.applied
+        ? "In use now: the head drives with this calibration from the next frame on (its limits are written to the servos)."
+        : "Saved only: the head still drives with the calibration it started with.",
+    ),
+    h(
       "table.servos",
       {},
       h("thead", {}, h("tr", {}, ["role", "curve", "min", "neutral", "max", "max residual"].map((t) => h("th", {}, t)))),

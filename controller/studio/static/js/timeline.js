@@ -27,7 +27,7 @@ export function fromDocument(doc) {
   };
   (d.play || []).forEach((entry, i) => {
     const spec = entry.expression && expressions[entry.expression];
-    const track = entry.track || "face";
+    const track = entry.track || (entry.say != null ? "speech" : "face"); // a speech cue plays on "speech
     if (spec && Array.isArray(spec.keyframes) && !model.tracks.some((t) => t.expression === entry.expression)) {
       model.tracks.push({
         track,

@@ -1,0 +1,120 @@
+"""Which browsers are still there: the app-level heartbeat (API.md "Heartbeat").
+
+A closed tab closes its WebSocket at once; a network that dies silently does not (TCP notices after
+seconds, the WebSocket ping after ~4 s). So the page sends ``{"type": "heartbeat"}`` every 0.25 s, and a
+socket that has sent one is *armed*: when nothing at all has arrived on it for ``timeout_s`` (1 s) it is
+*silent*, exactly as if it had closed, though the socket stays open. When the last live socket goes
+(closed or silent) ``on_last_gone(reason)`` is called once; the studio then eases to neutral unless
+"hold" is on. A silent socket that speaks again is live again but moves nothing by itself: the head stays
+where the drop put it until the user acts (any motion message). A socket that never sent a heartbeat (a
+script, a test client) is judged by its close only, as before.
+
+Times are ``time.monotonic`` (the host's, not the service clock): the question is when bytes arrived."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+HEARTBEAT_INTERVAL_S = 0.25  # what the page sends (documented; the server does not depend on it)
+HEARTBEAT_TIMEOUT_S = 1.0  # nothing heard for this long on an armed socket: it is gone
+WATCH_PERIOD_S = 0.05
+
+
+@dataclass
+class _Socket:
+    last_heard_s: float
+    armed: bool = False
+    silent: bool = False
+    busy: int = 0  # messages being handled: a slow handler is not a silent browser
+
+
+class Liveness:
+    """See the module docstring. Thread-safe; the watchdog is a daemon thread of its own."""
+
+    def __init__(
+        self,
+        on_last_gone: Callable[[str], None],
+        *,
+        timeout_s: float = HEARTBEAT_TIMEOUT_S,
+        clock: Callable[[], float] = time.monotonic,
+        watch: bool = True,
+    ) -> None:
+        """``watch=False``: no watchdog thread (call :meth:`check` yourself, e.g. with a manual clock)."""
+        self.on_last_gone = on_last_gone
+        self.timeout_s = float(timeout_s)
+        self.clock = clock
+        self._sockets: dict[int, _Socket] = {}
+        self._next = 0
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._watch, name="studio-heartbeat", daemon=True)
+        if watch:
+            self._thread.start()
+
+    # -- counts ------------------------------------------------------------------------------------
+    @property
+    def connected(self) -> int:
+        with self._lock:
+            return len(self._sockets)
+
+    @property
+    def live(self) -> int:
+        with self._lock:
+            return sum(not s.silent for s in self._sockets.values())
+
+    @property
+    def silent(self) -> int:
+        with self._lock:
+            return sum(s.silent for s in self._sockets.values())
+
+    # -- events from the sockets -------------------------------------------------------------------
+    def joined(self) -> int:
+        with self._lock:
+            self._next += 1
+            self._sockets[self._next] = _Socket(self.clock())
+            return self._next
+
+    def heard(self, key: int, *, heartbeat: bool = False, busy: int = 0) -> None:
+        """Something arrived on socket ``key`` (``busy`` +1 / -1 around handling it)."""
+        with self._lock:
+            s = self._sockets.get(key)
+            if s is None:
+                return
+            s.last_heard_s = self.clock()
+            s.armed = s.armed or heartbeat
+            s.silent = False
+            s.busy = max(0, s.busy + busy)
+
+    def left(self, key: int) -> None:
+        with self._lock:
+            gone = self._sockets.pop(key, None)
+            last = gone is not None and not gone.silent and not any(not s.silent for s in self._sockets.values())
+        if last:
+            self.on_last_gone("closed")
+
+    # -- the watchdog ------------------------------------------------------------------------------
+    def check(self) -> bool:
+        """Mark armed sockets silent past the timeout; True when that made the last live one go."""
+        now = self.clock()
+        with self._lock:
+            was_live = any(not s.silent for s in self._sockets.values())
+            for s in self._sockets.values():
+                if s.armed and not s.silent and not s.busy and now - s.last_heard_s > self.timeout_s:
+                    s.silent = True
+            gone = was_live and not any(not s.silent for s in self._sockets.values())
+        if gone:
+            self.on_last_gone("silent")
+        return gone
+
+    def _watch(self) -> None:
+        while not self._stop.wait(WATCH_PERIOD_S):
+            try:
+                self.check()
+            except Exception:  # noqa: BLE001 - the watchdog must outlive a failing callback
+                pass
+
+    def close(self) -> None:
+        self._stop.set()
