@@ -9,7 +9,7 @@ frame whose input is invalid raises before anything is computed or sent.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -83,8 +83,10 @@ class Pipeline:
         face: FaceModel | None = None,
         gate: TwinGate | None = None,
         temperature_limits_c: Mapping[int, float] | None = None,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.head = head
+        self.clock = clock  # when goals went on the wire (per-time caps); tests may pass the emulator's clock
         self.calibration = calibration
         self.driver = driver
         self.rate_hz = float(rate_hz)
@@ -101,8 +103,8 @@ class Pipeline:
         self.temperature_limits_c = dict(temperature_limits_c or {})
         self._ids = frozenset(s.servo_id for s in self._servos)
         self.last_snapshot: ChainSnapshot | None = None
-        self.last_cycle_s: float | None = None  # time.monotonic() of the last driver cycle (pacing)
-        self.last_write_s: float | None = None  # time.monotonic() when the last goals went on the wire
+        self.last_cycle_s: float | None = None  # clock() of the last driver cycle (pacing)
+        self.last_write_s: float | None = None  # clock() when the last goals went on the wire
         self.per_time_caps = True  # False: the gate's per-frame caps only (deterministic replays in tests)
         self._index = 0
         self._ahead: Ahead | None = None  # the next frame, computed during this one's wait (step(next_frame=))
@@ -196,7 +198,7 @@ class Pipeline:
         elapsed_s = (
             None
             if self.driver is None or self.last_write_s is None or not self.per_time_caps
-            else time.monotonic() - self.last_write_s
+            else self.clock() - self.last_write_s
         )  # since the last goals went on the wire: the gate's caps hold per second, not per call
         per_frame = elapsed_s is None or (
             elapsed_s >= self.gate.frame_period_s and getattr(self.gate, "_last_fraction", 1.0) >= 1.0
@@ -215,11 +217,11 @@ class Pipeline:
         if self.driver is not None:
             before = self.driver.bus.stats.bytes_written
             self.driver.cycle_start(sent)
-            self.last_write_s = time.monotonic()  # after: the goals are on the wire by now (conservative)
+            self.last_write_s = self.clock()  # after: the goals are on the wire by now (conservative)
             if next_frame is not None:  # while the replies are on the wire
                 self._ahead = self._prepare(next_frame, sent, health)
             self.last_snapshot = self.driver.cycle_finish()
-            self.last_cycle_s = time.monotonic()
+            self.last_cycle_s = self.clock()
             written = self.driver.bus.stats.bytes_written - before
         t4 = time.perf_counter()
         timings["bus_ms"] = (t4 - t3) * 1e3
@@ -283,9 +285,11 @@ class Pipeline:
         shrink with the time instead), nor one without a driver or with `pace_writes` off."""
         if self.driver is None or self.last_write_s is None or not self.per_time_caps or not self.pace_writes:
             return
+        if self.clock is not time.monotonic:  # a test's manual clock does not move while we sleep: its
+            return  # caller owns time, and the per-time caps apply to whatever it passes
         period_s = self.gate.frame_period_s
         for _ in range(4):  # a sleep never ends early on a monotonic clock; re-checked all the same
-            deficit_s = period_s - (time.monotonic() - self.last_write_s)
+            deficit_s = period_s - (self.clock() - self.last_write_s)
             if deficit_s <= 0 or deficit_s > PACE_MAX_SHARE * period_s:
                 return
             time.sleep(deficit_s)
@@ -340,6 +344,6 @@ class Pipeline:
         if self.driver is None:
             return None
         self.last_snapshot = self.driver.cycle(self.last_goals_tick)
-        self.last_cycle_s = self.last_write_s = time.monotonic()
+        self.last_cycle_s = self.last_write_s = self.clock()
         self.gate.reset()  # the servos got a zero step: the next frame starts from rest (accel cap)
         return self.last_snapshot

@@ -153,18 +153,22 @@ def load_profile(path: Path) -> Head:
     return build_checked(_Reader(file), data, file.parent)
 
 
-def build_checked(r: _Reader, data: dict[str, Any], folder: Path) -> Head:
+def build_checked(r: _Reader, data: dict[str, Any], folder: Path, *, bind_skin: bool = True) -> Head:
     """`_build`, with any value of the wrong shape that slipped past a field check (a list where a name
-    was expected, a number too large for a float) reported as `HeadProfileError` naming the file."""
+    was expected, a number too large for a float) reported as `HeadProfileError` naming the file.
+
+    ``bind_skin=False``: every field is parsed and checked, meshes loaded, but the skin's bind weights (a
+    computation over every vertex that cannot fail, ~0.3 s) are left at "all on the skin's own joint": a
+    head only good for validating a profile (the fuzz tests), not for driving or rendering."""
     try:
-        return _build(r, data, folder)
+        return _build(r, data, folder, bind_skin)
     except HeadProfileError:
         raise
     except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError, RecursionError) as err:
         raise HeadProfileError(f"{r.file}: a value has the wrong type or size ({type(err).__name__}: {err})") from err
 
 
-def _build(r: _Reader, data: dict[str, Any], folder: Path) -> Head:
+def _build(r: _Reader, data: dict[str, Any], folder: Path, bind_skin: bool = True) -> Head:
     from servoface.sim.heads.meshes import load_part_mesh, load_skin_mesh
 
     r.keys(data, "", _TOP_KEYS)
@@ -198,7 +202,7 @@ def _build(r: _Reader, data: dict[str, Any], folder: Path) -> Head:
             raise r.fail(f"{key}.collides", "true or false", collides)
         parts.append(RigidPart(pname, pj, mesh, r.rgba(p, key, (0.8, 0.8, 0.8, 1.0)), collides))
 
-    skin, skin_joint = _skin(r, data, folder, jnames, load_skin_mesh)
+    skin, skin_joint = _skin(r, data, folder, jnames, load_skin_mesh, bind_skin)
     n_vert = len(skin.vertices_mm)
     muscles = _muscles(r, data)
     if n_vert == 0:
@@ -319,7 +323,9 @@ def _scale(r: _Reader, d: dict[str, Any], key: str) -> float:
     return scale
 
 
-def _skin(r: _Reader, data: dict[str, Any], folder: Path, jnames: set[str], loader: Any) -> tuple[Skin, str | None]:
+def _skin(
+    r: _Reader, data: dict[str, Any], folder: Path, jnames: set[str], loader: Any, bind: bool = True
+) -> tuple[Skin, str | None]:
     if "skin" not in data:
         return empty_skin(), None
     s = r.table(data["skin"], "skin")
@@ -367,7 +373,12 @@ def _skin(r: _Reader, data: dict[str, Any], folder: Path, jnames: set[str], load
     blend = r.number(s, "slit_corner_blend_mm", "skin", 0.0)
     if blend < 0:
         raise r.fail("skin.slit_corner_blend_mm", "a distance >= 0", blend)
-    names, w = bind_weights(verts, faces, tuple(rules), iters, blend)
+    if bind:
+        names, w = bind_weights(verts, faces, tuple(rules), iters, blend)
+    else:  # validation only (see build_checked): the weights' shape, every vertex on the skin's own joint
+        names = tuple(dict.fromkeys(rule.joint for rule in rules))
+        w = np.zeros((len(verts), len(names) + 1))
+        w[:, 0] = 1.0
     if joint is not None:
         names = (joint, *names)
         w = np.concatenate([np.zeros((len(w), 1)), w], axis=1)

@@ -45,7 +45,9 @@ def _load(module_name: str) -> ModuleType | None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    from servoface.controller.cli.options import CheckedParser
+
+    parser = CheckedParser(
         prog="servoface",
         description="Drive expressive Dynamixel faces: AUs -> muscles -> calibration -> twin gate -> bus.",
     )
@@ -61,8 +63,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    from servoface.controller.cli.options import CommandLineError, parse_command
+    from servoface.controller.cli.terminal import printable
+
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parse_command(argv, parser)  # argparse (usage errors exit 2), then every option's range
+    except CommandLineError as err:
+        command = next((a for a in (argv if argv is not None else sys.argv[1:]) if a in COMMANDS), "")
+        print(f"servoface {command}: {printable(err)}".replace(" :", ":"), file=sys.stderr)
+        return 2
     if getattr(args, "_run", None) is None:
         parser.print_help()
         return 2

@@ -197,8 +197,11 @@ def run(args: argparse.Namespace) -> int:
         pairs, neutral, what = _chain_description(args)
         for f in args.fault:
             parse_fault(f"{f.servo_id}:{f.kind}", FAULT_KINDS)  # the kind, checked against the emulator's list
+        from servoface.hardware.emulator.chain import RUN_LOG_LIMIT
+
         chain = ServoChain.create(
             ids=pairs,
+            log_limit=RUN_LOG_LIMIT,  # a long-running emulator: bounded memory
             baud=args.baud,
             wire_time=not args.no_wire_time,
             realism={"seed": args.seed} if args.realism else None,

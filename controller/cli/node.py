@@ -134,7 +134,7 @@ class _WireLog:
         from servoface.hardware.emulator.chain import GOAL_ADDRESS
         from servoface.hardware.emulator.packet_log import register_writes
 
-        log = self.chain.log  # type: ignore[attr-defined]  # an append-only list
+        log = self.chain.log  # type: ignore[attr-defined]  # a PacketLog: absolute indexes survive its trims
         end = len(log)
         new = log[self.done : end]
         self.done = end

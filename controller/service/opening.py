@@ -9,7 +9,6 @@ torque off on every servo it can reach, then the bus (and the emulator) closed."
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -82,8 +81,11 @@ def open_head(
     chain = None
     if emulate:
         from servoface.hardware.emulator import ServoChain
+        from servoface.hardware.emulator.chain import RUN_LOG_LIMIT
 
-        chain = ServoChain.create([(s.servo_id, s.model) for s in specs], baud=baud, wire_time=wire_time)
+        chain = ServoChain.create(
+            [(s.servo_id, s.model) for s in specs], baud=baud, wire_time=wire_time, log_limit=RUN_LOG_LIMIT
+        )
         for s in specs:  # the head powers up at rest
             chain.servo(s.servo_id).move_by_hand(cal.by_id(s.servo_id).neutral_tick)
         bus = open_bus("dynamixel", port=chain, baud=baud)
@@ -104,7 +106,7 @@ def open_head(
         present = {sid: min(max(tick, lo_hi[sid][0]), lo_hi[sid][1]) for sid, tick in snapshot.positions_tick().items()}
         pipeline.pin_to(present)
         pipeline.last_snapshot = snapshot
-        pipeline.last_write_s = time.monotonic()  # goals were just pinned: the first frame's caps run from now
+        pipeline.last_write_s = pipeline.clock()  # goals were just pinned: the first frame's caps run from now
     except BaseException:
         try:
             if driver is not None:  # whatever went wrong, every servo ends with torque off

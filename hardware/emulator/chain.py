@@ -20,7 +20,7 @@ from servoface.hardware.emulator.faults import FaultSchedule
 from servoface.hardware.emulator.instructions import dispatch
 from servoface.hardware.emulator.models import ModelSpec, baud_code_for, get_model
 from servoface.hardware.emulator.packet import MAX_ID, Packet, PacketReceiver
-from servoface.hardware.emulator.packet_log import LogEntry, register_writes
+from servoface.hardware.emulator.packet_log import LogEntry, PacketLog, register_writes
 from servoface.hardware.emulator.realism import Realism
 from servoface.hardware.emulator.servo import EmulatedServo
 
@@ -33,6 +33,10 @@ REBOOT_SILENCE_S = 0.1  # a rebooting servo hears nothing for this long
 # (4 KB) of kernel fifo on top, and a pty adds its own kernel buffer (about 18 KB measured here).
 TX_BUFFER_BYTES = 1024
 GOAL_ADDRESS = 116
+# The packet log of a chain made for a run (`Face.open(emulate=True)`, `servoface ... --emulate`,
+# `servoface emulate`): the newest 100 000 packets (~24 MB; ~13 minutes of a 30-servo head at 50 Hz), so a
+# run of hours stays bounded. A chain made directly keeps up to 1 000 000 (tests read whole logs).
+RUN_LOG_LIMIT = 100_000
 
 
 class ServoChain:
@@ -76,7 +80,7 @@ class ServoChain:
             raise EmulatorConfigError(f"goal_limit {goal_limit!r}: expected 'reject' or 'clamp'")
         self.baud = int(baud)
         self.reboot_silence_s = REBOOT_SILENCE_S
-        self.log: list[LogEntry] = []
+        self.log = PacketLog(log_limit)  # bounded ring, absolute indexes (see PacketLog)
         self._log_limit = log_limit
         self.faults = FaultSchedule(self._clock, lambda: {s.uid for s in self.servos})
         self.servos: list[EmulatedServo] = []
@@ -279,10 +283,7 @@ class ServoChain:
 
     def _handle(self, packet: Packet, t_rx: float, host_baud: int) -> None:
         if packet.crc_ok:
-            log = self.log
-            log.append(LogEntry(t_rx, packet.id, packet.instruction, packet.params))
-            if self._log_limit is not None and len(log) > self._log_limit:
-                del log[: len(log) - self._log_limit // 2]  # keep the newer half (amortised O(1))
+            self.log.append(LogEntry(t_rx, packet.id, packet.instruction, packet.params))
         listeners = self._listeners(t_rx, host_baud)
         if not listeners:
             return
@@ -443,12 +444,12 @@ class ServoChain:
     # ----------------------------------------------------------------- log helpers
     def instructions(self, instruction: int | None = None) -> list[LogEntry]:
         """Logged packets, optionally only those of one instruction code."""
-        return [e for e in list(self.log) if instruction is None or e.instruction == instruction]
+        return [e for e in self.log.kept() if instruction is None or e.instruction == instruction]
 
     def register_writes(self, address: int, size: int, *, signed: bool = True) -> list[tuple[float, int, int]]:
         """(t_s, servo_id, value) for every write of the whole register at ``address`` (Write, Reg Write,
         Sync Write, Bulk Write), decoded from the log. Broadcast Write is reported with id 254."""
-        return register_writes(list(self.log), address, size, signed=signed)
+        return register_writes(self.log.kept(), address, size, signed=signed)
 
     def goal_writes(self) -> list[tuple[float, int, int]]:
         """(t_s, servo_id, goal_tick) for every Goal Position (116, 4 bytes) sent on the wire."""

@@ -168,11 +168,23 @@ def check_au(table: AUTable, name: object, value: object) -> tuple[int, str, flo
         raise UnknownActionUnitError(f"{name}: AU{number} has no left/right variant; use 'AU{number}'")
     if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
         raise ActionUnitValueError(f"{name}: expected a number in {list(entry.range)}, got {value!r}")
-    x = float(value)
+    try:
+        x = float(value)
+    except OverflowError:  # an integer past float range (e.g. 10**400)
+        x = math.inf if value > 0 else -math.inf
     if not math.isfinite(x) or not entry.range[0] <= x <= entry.range[1]:
         hint = " (this AU has no counter AU)" if entry.range[0] >= 0.0 and x < 0.0 else ""
-        raise ActionUnitValueError(f"{name}: expected a finite intensity in {list(entry.range)}, got {value!r}{hint}")
+        raise ActionUnitValueError(
+            f"{name}: expected a finite intensity in {list(entry.range)}, got {_short(value)}{hint}"
+        )
     return number, side, x
+
+
+def _short(value: object) -> str:
+    """``repr`` of a number for a message, a huge integer by its size (its digits are no use to anyone)."""
+    if isinstance(value, int | np.integer) and abs(int(value)) >= 10**15:
+        return f"an integer of {len(str(abs(int(value))))} digits" if abs(int(value)) < 10**4000 else "a huge integer"
+    return repr(value)
 
 
 def _missing_note(kind: str, names: list[str], has_muscles: bool) -> str:

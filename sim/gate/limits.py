@@ -95,9 +95,11 @@ def per_time(
     table: ServoTable, last_step: IntArray, elapsed_s: float, frame_period_s: float, last_fraction: float
 ) -> tuple[ServoTable, IntArray, float]:
     """Rate caps for a frame that follows the last one on the wire after ``elapsed_s`` (caps are per
-    ``frame_period_s``): with ``f = min(1, elapsed / period)`` the step and speed-up caps shrink to ``f`` of
-    theirs, and the previous step is taken at the same speed over the shorter time (never scaled up), so
-    frames sent back to back cannot add up to more than the caps per second. Returns (table, last_step, f)."""
+    ``frame_period_s``): with ``f = min(1, elapsed / period)`` the step cap shrinks to ``f`` of its own (speed
+    per second), the speed-up cap to ``f²`` (the step's rate may grow by ``f`` of the per-frame speed-up:
+    acceleration per second), and the previous step is taken at the same speed over the shorter time (never
+    scaled up), so frames sent back to back cannot add up to more than either cap per second.
+    Returns (table, last_step, f)."""
     if not np.isfinite(elapsed_s) or elapsed_s <= 0:
         f = 0.0
     else:
@@ -105,7 +107,7 @@ def per_time(
     if f >= 1.0 and last_fraction >= 1.0:
         return table, last_step, 1.0
     step = np.floor(table.max_step_tick * f).astype(np.int64)
-    speedup = np.floor(table.max_speedup_tick * f).astype(np.int64)
+    speedup = np.floor(table.max_speedup_tick * f * f).astype(np.int64)
     ratio = min(1.0, f / last_fraction) if last_fraction > 0 else 0.0
     scaled_last = np.trunc(last_step * ratio).astype(np.int64)
     scaled = copy.copy(table)  # caps below 1 tick are legal here (0 = hold): bypass the per-frame check
