@@ -94,7 +94,7 @@ def _token(args: argparse.Namespace) -> str | None:
 
     if args.token_file is not None:
         try:
-            text = args.token_file.read_text(encoding="utf-8").splitlines()
+            text: list[str] = args.token_file.read_text(encoding="utf-8").splitlines()
         except (OSError, UnicodeDecodeError) as err:
             raise InputError(f"--token-file {args.token_file}: cannot read: {err}") from err
         if not text or not text[0].strip():
@@ -200,7 +200,7 @@ def _stream(args: argparse.Namespace, signals: StopSignals) -> int:
                 where = "stdin"
             trace_file.open()
         face = open_face(args, head)
-    except (StopRequested, *open_errors()) as err:
+    except (StopRequested, *open_errors()) as err:  # type: ignore[misc]  # mypy cannot read a starred tuple
         if receiver is not None:
             receiver.close()
         if recorder is not None:

@@ -19,7 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 HEARTBEAT_INTERVAL_S = 0.25  # what the page sends (documented; the server does not depend on it)
-HEARTBEAT_TIMEOUT_S = 0.8  # nothing heard for this long (3 heartbeats) on an armed socket: gone, the ease starts within 1 s
+HEARTBEAT_TIMEOUT_S = 0.8  # nothing heard for this long (3 heartbeats) on an armed socket: gone; ease starts < 1 s
 WATCH_PERIOD_S = 0.05
 
 

@@ -10,6 +10,7 @@ from servoface.controller.pipeline import FrameTrace
 from servoface.controller.service import HeadService, ServiceStatus
 from servoface.hardware.snapshot import ChainSnapshot, FaultEvent
 from servoface.sim.head import Head
+from servoface.sim.rig import JointActuator
 
 HUMAN_REGIONS: dict[str, tuple[int, ...]] = {
     "brows": (1, 2, 4),
@@ -80,7 +81,12 @@ def servo_entries(head: Head, calibration: HeadCalibration) -> list[dict[str, An
     out = []
     for a in head.actuators:
         cal = calibration.by_id(a.servo.id)
-        joint = a.kind == "joint"
+        joint = isinstance(a, JointActuator)
+        lower, upper, neutral = (
+            (a.lower_deg, a.upper_deg, a.neutral_deg)
+            if isinstance(a, JointActuator)
+            else (a.lower_mm, a.upper_mm, a.neutral_mm)
+        )
         out.append(
             {
                 "id": a.servo.id,
@@ -90,9 +96,9 @@ def servo_entries(head: Head, calibration: HeadCalibration) -> list[dict[str, An
                 "min_tick": int(cal.min_tick),
                 "max_tick": int(cal.max_tick),
                 "neutral_tick": int(cal.neutral_tick),
-                "lower": float(a.lower_deg if joint else a.lower_mm),
-                "upper": float(a.upper_deg if joint else a.upper_mm),
-                "neutral": float(a.neutral_deg if joint else a.neutral_mm),
+                "lower": float(lower),
+                "upper": float(upper),
+                "neutral": float(neutral),
             }
         )
     return out
