@@ -37,7 +37,10 @@ def test_back_to_back_steps_stay_within_the_speed_cap_per_second() -> None:
     with Face.open("human", emulate=True, wire_time=False) as face:
         wide = {"AU26": 1.0, "AU1": 1.0, "AU2": 1.0, "AU12": 1.0, "AU51": 1.0}
         frames = [wide if (k // 10) % 2 == 0 else {} for k in range(120)]
-        pairs = _speeds(face, frames, [0.0] * len(frames))
+        # each 10-frame segment: three calls a frame apart get the servos moving (from rest the speed may only
+        # grow per second of wire time, so calls microseconds apart cannot start a motion), then back to back
+        pauses = [0.02 if k % 10 < 3 else 0.0 for k in range(len(frames))]
+        pairs = _speeds(face, frames, pauses)
         moved = [p for p in pairs if p[1] > 0]
         assert moved  # the jaw and brows did move
         over = [p for p in pairs if p[1] > p[2]]
