@@ -12,6 +12,8 @@ later cue takes over from an earlier one still talking, as on a script track).""
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -20,6 +22,7 @@ from servoface.controller.errors import ControllerError
 from servoface.controller.script_say import SayCue, say_cues, without_say
 from servoface.controller.service.handles import Status
 from servoface.controller.speech.say import (
+    END_MARGIN_S,
     START_AHEAD_S,
     ScheduledSpeech,
     SpokenRun,
@@ -32,6 +35,7 @@ if TYPE_CHECKING:
     from servoface.controller.face import Face
     from servoface.controller.performance import Performance
     from servoface.controller.script import Script
+    from servoface.controller.speech.lipsync import Speech
 
 
 @dataclass(frozen=True)
@@ -64,7 +68,11 @@ def play_script_speaking(
     end_s = float(script.end_s) if duration_s is None else min(float(script.end_s), float(duration_s))
     cues = tuple(c for c in say_cues(script) if c.at_s < end_s)
     speeches = [speech_from_text(c.text, voice=c.voice) for c in cues]  # before anything moves
-    muted = without_say(script)
+    cut_s = math.inf if duration_s is None else end_s  # --duration cuts a cue (mouth and sound) there
+    total_s = max(
+        [end_s, *(min(c.at_s + _length_s(s), cut_s) for c, s in zip(cues, speeches, strict=True))]
+    )  # the face track holds the script's last pose until the last cue has finished
+    muted = dataclasses.replace(without_say(script), end_s=total_s)
     allowed = head_au_names(face.head) & mouth_aus(face.head.face_type)
     latency_s = pipeline_latency_s(face)
     scheduled: list[ScheduledSpeech] = []
@@ -72,9 +80,8 @@ def play_script_speaking(
 
     def submit(service: Any) -> Any:
         t0 = service.now_s() + START_AHEAD_S
-        script_handle = service.play(muted, track="face", at_s=t0, duration_s=end_s if end_s > 0 else None)
+        script_handle = service.play(muted, track="face", at_s=t0, duration_s=total_s if total_s > 0 else None)
         handles.append(script_handle)
-        last, last_end = script_handle, t0 + end_s
         for cue, speech in zip(cues, speeches, strict=True):
             base = {au: v for au, v in muted.sample(cue.at_s).aus.items() if au in allowed}
             one = schedule_speech(
@@ -84,17 +91,19 @@ def play_script_speaking(
                 base=base,
                 latency_s=latency_s,
                 audio_out=audio_out,
-                length_s=end_s - cue.at_s,
+                length_s=None if duration_s is None else cut_s - cue.at_s,
             )
             scheduled.append(one)
             handles.append(one.handle)
-            if one.end_s > last_end:
-                last, last_end = one.handle, one.end_s
-        return last
+        return script_handle  # it ends last (or with the last cue): the run's frames are timed from its start
 
-    total_s = max([end_s, *(c.at_s + s.plan.audio_end_s for c, s in zip(cues, speeches, strict=True))])
     perf = face._perform(submit, total_s, track=("face", "speech"))  # noqa: SLF001 - the Face's own runner
     for handle in handles:  # (the one waited for raised in _perform already)
         if handle.status is Status.FAILED:
             raise handle.error if handle.error is not None else ControllerError(f"play: {handle.detail}")
     return SpokenScript(perf, cues, tuple(one.finish(perf) for one in scheduled))
+
+
+def _length_s(speech: Speech) -> float:
+    """How long an utterance holds the speech track (as `schedule_speech` plays it)."""
+    return max(speech.plan.duration_s, speech.plan.audio_end_s) + END_MARGIN_S
