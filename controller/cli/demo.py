@@ -28,13 +28,9 @@ def run(args: argparse.Namespace) -> int:
     import os
 
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
-    from servoface.controller.demo import run_demo
-
-    if not (0 < args.rate <= 1000):
-        print(f"servoface demo: --rate must be within 0..1000 Hz, got {args.rate}", file=sys.stderr)
-        return 2
     from servoface.controller.cli import describe_os_error
     from servoface.controller.cli.outputs import writable_folder
+    from servoface.controller.demo import run_demo
 
     try:
         writable_folder(args.out)

@@ -25,13 +25,6 @@ def add_head_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--trace", type=Path, help="write every frame's trace as JSON lines to this file")
 
 
-def rate_problem(args: argparse.Namespace) -> str | None:
-    """A message if --rate is out of range, else None."""
-    if not (0 < args.rate <= 1000):
-        return f"--rate must be within 0..1000 Hz, got {args.rate}"
-    return None
-
-
 def open_errors() -> tuple[type[BaseException], ...]:
     """The errors opening a head can raise for bad input or a missing port (reported, exit 2)."""
     from servoface.calibration import CalibrationError

@@ -75,20 +75,6 @@ def add_input_arguments(parser: argparse.ArgumentParser, *, files: bool = True, 
     group.add_argument("--no-head-pose", action="store_true", help="do not turn the head from the input (AU51-56)")
 
 
-def input_problem(args: argparse.Namespace) -> str | None:
-    """A message for an out-of-range option, else None (checked before anything opens)."""
-    if args.min_confidence is not None and not 0.0 <= args.min_confidence <= 1.0:
-        return f"--min-confidence must be within 0..1, got {args.min_confidence}"
-    if not 0.0 <= args.rest_s < 1e4:
-        return f"--rest-s must be within 0..10000 s, got {args.rest_s}"
-    fps = getattr(args, "input_fps", None)
-    if fps is not None and not 0 < fps <= 10_000:
-        return f"--fps must be within 0..10000, got {fps}"
-    if args.face_id is not None and args.face_id < 0:
-        return f"--face-id must be >= 0, got {args.face_id}"
-    return None
-
-
 def load_shape_ranges(args: argparse.Namespace) -> ShapeRanges | None:
     if args.shape_ranges is None:
         return None

@@ -29,9 +29,7 @@ def run(args: argparse.Namespace) -> int:
     from servoface.controller.speech.say import say_on_face, write_outputs
     from servoface.sim.heads import load_head
 
-    if not 0 <= args.lead_ms <= 500:
-        print(f"servoface lipsync: --lead-ms must be within 0..500, got {args.lead_ms}", file=sys.stderr)
-        return 2
+    # --lead-ms was range-checked by options.parse_command
     try:
         head = load_head(args.head)
         transcript = args.text

@@ -49,9 +49,7 @@ def run(args: argparse.Namespace) -> int:
     from servoface.hardware.errors import HardwareError
     from servoface.sim.errors import SimError
 
-    if not 0 < args.rate <= 1000:
-        print(f"servoface node: --rate must be within 0..1000 Hz, got {args.rate}", file=sys.stderr)
-        return 2
+    # --rate was range-checked by options.parse_command
     try:
         keys = head_keys(args.site, args.name)
         session = open_from_args(args, node=True, keys=keys)

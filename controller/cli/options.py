@@ -2,9 +2,11 @@
 
 `parse_command` is what `servoface.controller.cli.main` runs first: argparse (a usage error exits 2 with the
 usage line and the message, control characters escaped), then `check_options` — every number finite and of
-a sane size, the shared options within their ranges — raising `CommandLineError` (exit 2, one line naming
-the option and what was expected). Nothing here opens a port, an emulator, a file or a window; the
-sub-commands' own checks of what only they know (a script's contents, a head profile) follow in ``run``.
+a sane size, every option in :data:`RANGES` within its range — raising `CommandLineError` (exit 2, one line
+naming the flag as typed on the command line, the value and what was expected). :data:`RANGES` is the one
+place a numeric option's range is written: the sub-commands' ``run`` functions do not check them again.
+Nothing here opens a port, an emulator, a file or a window; the sub-commands' own checks of what only they
+know (a script's contents, a head profile, a file's suffix) follow in ``run``.
 """
 
 from __future__ import annotations
@@ -12,7 +14,8 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from servoface.controller.cli.terminal import printable
@@ -24,15 +27,43 @@ if TYPE_CHECKING:
 MAX_INT = 2**53  # no option counts anything near this; beyond it an int is a typo or an attack
 MAX_FLOAT = 1e12  # seconds, Hz, mm, ms: nothing servoface takes is this large
 
-# option (argparse dest) -> (low, high, low included, high included), for every command that has it
-RANGES: dict[str, tuple[float, float, bool, bool]] = {
-    "rate": (0.0, 1000.0, False, True),  # Hz
-    "duration": (0.0, 1e7, False, False),  # s
-    "hold": (0.0, 1e6, True, True),  # s
-    "lead_ms": (0.0, 500.0, True, True),
-    "port_http": (0.0, 65535.0, True, True),
-    "retries": (0.0, 20.0, True, True),
-    "minutes": (0.0, 1e5, False, True),
+
+@dataclass(frozen=True)
+class Range:
+    """Where an option's value must lie: ``lo``..``hi``, each end included or not; ``what`` the value is."""
+
+    lo: float
+    hi: float
+    lo_in: bool
+    hi_in: bool
+    what: str
+
+    def contains(self, value: float) -> bool:
+        lo_ok = self.lo <= value if self.lo_in else self.lo < value
+        return lo_ok and (value <= self.hi if self.hi_in else value < self.hi)
+
+    def expected(self) -> str:
+        def show(x: float) -> str:
+            return str(int(x)) if float(x).is_integer() else str(x)
+
+        interval = f"{'[' if self.lo_in else '('}{show(self.lo)}, {show(self.hi)}{']' if self.hi_in else ')'}"
+        return f"{self.what} in {interval}"
+
+
+# option (argparse dest) -> its range, for every command that has it: the only place these are checked
+RANGES: dict[str, Range] = {
+    "rate": Range(0.0, 1000.0, False, True, "a control rate in Hz"),
+    "duration": Range(0.0, 1e7, False, False, "a positive number of seconds"),
+    "hold": Range(0.0, 1e6, True, True, "seconds"),
+    "lead_ms": Range(0.0, 500.0, True, True, "milliseconds"),
+    "port_http": Range(0.0, 65535.0, True, True, "a TCP port (0: any free one)"),
+    "retries": Range(0.0, 20.0, True, True, "a number of retries"),
+    "minutes": Range(0.0, 1e5, False, True, "minutes"),
+    "min_confidence": Range(0.0, 1.0, True, True, "a tracker confidence"),
+    "rest_s": Range(0.0, 1e4, True, False, "seconds"),
+    "input_fps": Range(0.0, 1e4, False, True, "frames per second"),
+    "face_id": Range(0.0, MAX_INT, True, True, "a face index (0: the first)"),
+    "columns": Range(1.0, 1e4, True, True, "a number of columns"),
 }
 SDK_BAUD_COMMANDS = frozenset({"play", "stream", "say", "studio", "node", "calibrate", "demo"})
 
@@ -54,25 +85,16 @@ class CheckedParser(argparse.ArgumentParser):
             super()._print_message(printable(message), file)
 
 
-def _in_range(value: float, lo: float, hi: float, lo_in: bool, hi_in: bool) -> bool:
-    return (lo <= value if lo_in else lo < value) and (value <= hi if hi_in else value < hi)
-
-
-def _expected(lo: float, hi: float, lo_in: bool, hi_in: bool) -> str:
-    def show(x: float) -> str:
-        return str(int(x)) if float(x).is_integer() else str(x)
-
-    return f"{'[' if lo_in else '('}{show(lo)}, {show(hi)}{']' if hi_in else ')'}"
-
-
-def check_options(args: argparse.Namespace) -> None:
-    """Every number finite and sane, the shared options in range; else `CommandLineError` naming it."""
+def check_options(args: argparse.Namespace, flags: Mapping[str, str] | None = None) -> None:
+    """Every number finite and sane, every option of :data:`RANGES` in range; else `CommandLineError` naming
+    it (``flags``: dest -> the flag as the command spells it; default ``--`` + the dest)."""
+    flags = flags or {}
     for dest, value in sorted(vars(args).items()):
         if dest.startswith("_") or isinstance(value, bool):
             continue
         values = value if isinstance(value, list) else [value]
         for v in values:
-            _check_number(dest, v)
+            _check_number(flags.get(dest) or "--" + dest.replace("_", "-"), dest, v)
     command = getattr(args, "command", None)
     baud = getattr(args, "baud", None)
     if command in SDK_BAUD_COMMANDS and isinstance(baud, int):
@@ -82,8 +104,7 @@ def check_options(args: argparse.Namespace) -> None:
             raise CommandLineError(f"--baud {baud}: expected one of {list(SDK_BAUDS)} bps")
 
 
-def _check_number(dest: str, v: Any) -> None:
-    flag = "--" + dest.replace("_", "-")
+def _check_number(flag: str, dest: str, v: Any) -> None:
     if isinstance(v, float):
         if not math.isfinite(v) or abs(v) > MAX_FLOAT:
             raise CommandLineError(f"{flag} {v}: expected a finite number (at most {MAX_FLOAT:g} in size)")
@@ -94,10 +115,20 @@ def _check_number(dest: str, v: Any) -> None:
             )
     else:
         return
-    if dest in RANGES:
-        lo, hi, lo_in, hi_in = RANGES[dest]
-        if not _in_range(float(v), lo, hi, lo_in, hi_in):
-            raise CommandLineError(f"{flag} {v}: expected a value in {_expected(lo, hi, lo_in, hi_in)}")
+    limits = RANGES.get(dest)
+    if limits is not None and not limits.contains(float(v)):
+        raise CommandLineError(f"{flag} {v:g}: expected {limits.expected()}")
+
+
+def option_flags(parser: argparse.ArgumentParser, command: str | None) -> dict[str, str]:
+    """dest -> the long flag of each option of sub-command ``command`` (e.g. ``input_fps`` -> ``--fps``)."""
+    subparsers = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]  # noqa: SLF001
+    sub = subparsers[0].choices.get(command) if subparsers and command else None
+    flags: dict[str, str] = {}
+    for action in (sub or parser)._actions:  # noqa: SLF001 - argparse keeps its actions there
+        if action.option_strings:
+            flags[action.dest] = max(action.option_strings, key=len)
+    return flags
 
 
 def parse_command(argv: Sequence[str] | None, parser: argparse.ArgumentParser | None = None) -> argparse.Namespace:
@@ -109,5 +140,5 @@ def parse_command(argv: Sequence[str] | None, parser: argparse.ArgumentParser | 
         parser = build_parser()
     args = parser.parse_args(argv)
     if getattr(args, "_run", None) is not None:
-        check_options(args)
+        check_options(args, option_flags(parser, getattr(args, "command", None)))
     return args

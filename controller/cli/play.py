@@ -14,9 +14,8 @@ from servoface.controller.cli.head_args import (
     open_errors,
     open_face,
     print_stop,
-    rate_problem,
 )
-from servoface.controller.cli.input_args import add_input_arguments, input_problem, read_options
+from servoface.controller.cli.input_args import add_input_arguments, read_options
 from servoface.controller.cli.terminal import printable
 from servoface.controller.stop_signals import StopSignals
 
@@ -55,18 +54,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if (problem := rate_problem(args)) is not None:
-        print(f"servoface play: {problem}", file=sys.stderr)
-        return 2
-    if (problem := input_problem(args)) is not None:
-        print(f"servoface play: {problem}", file=sys.stderr)
-        return 2
-    if args.hold is not None and not (args.hold >= 0):
-        print(f"servoface play: --hold must be >= 0 s, got {args.hold}", file=sys.stderr)
-        return 2
-    if args.duration is not None and not (0 < args.duration < 1e6):
-        print(f"servoface play: --duration must be a positive number of seconds, got {args.duration}", file=sys.stderr)
-        return 2
+    # --rate, --hold, --duration and the input options were range-checked by options.parse_command
     if (args.what is None) == (args.input is None):
         print(
             "servoface play: give what to play (an expression or a script .toml) or --input FILE, one of them",

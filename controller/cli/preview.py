@@ -67,10 +67,6 @@ def run(args: argparse.Namespace) -> int:
     # cheap checks first: nothing heavy is imported and nothing is written on bad input
     if args.all + (args.expression is not None) + (args.input is not None) != 1:
         return _fail("give one expression name, or --all for the whole library, or --input FILE")
-    from servoface.controller.cli.input_args import input_problem
-
-    if args.input is not None and (problem := input_problem(args)) is not None:
-        return _fail(problem)
     suffix = args.output.suffix.lower()
     allowed = STILL if args.all else STILL + CLIP
     if suffix not in allowed:
@@ -86,8 +82,6 @@ def run(args: argparse.Namespace) -> int:
         from servoface.controller.cli import describe_os_error
 
         return _fail(f"output {args.output}: {describe_os_error(err)}")
-    if args.columns is not None and args.columns < 1:
-        return _fail(f"--columns must be >= 1, got {args.columns}")
 
     from servoface.sim.errors import ExpressionError, HeadProfileError, RenderError, SimError
     from servoface.sim.render.renderer import parse_size

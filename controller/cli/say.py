@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from servoface.controller.cli.head_args import add_head_arguments, open_errors, open_face, rate_problem
+from servoface.controller.cli.head_args import add_head_arguments, open_errors, open_face
 
 HELP = "speak a text with lip sync on a head (espeak-ng); write speech.wav, speech.toml and a twin video"
 
@@ -28,12 +28,7 @@ def run(args: argparse.Namespace) -> int:
     from servoface.controller.speech.say import say_on_face, write_outputs
     from servoface.sim.heads import load_head
 
-    if (problem := rate_problem(args)) is not None:
-        print(f"servoface say: {problem}", file=sys.stderr)
-        return 2
-    if not 0 <= args.lead_ms <= 500:
-        print(f"servoface say: --lead-ms must be within 0..500, got {args.lead_ms}", file=sys.stderr)
-        return 2
+    # --rate and --lead-ms were range-checked by options.parse_command
     try:
         head = load_head(args.head)
         speech = speech_from_text(args.text, voice=args.voice, rate_wpm=args.rate_wpm, lead_s=args.lead_ms / 1e3)

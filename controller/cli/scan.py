@@ -58,9 +58,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as err:
         print(f"servoface scan: --ids: {err}", file=sys.stderr)
         return 2
-    if not 0 <= args.retries <= 20:
-        print(f"servoface scan: --retries must be within 0..20, got {args.retries}", file=sys.stderr)
-        return 2
+    # --retries was range-checked by options.parse_command
     bauds = DYNAMIXEL_BAUDS if args.baud == "all" else (args.baud,)
     total = 0
     for i, baud in enumerate(bauds):

@@ -18,9 +18,8 @@ from servoface.controller.cli.head_args import (
     open_errors,
     open_face,
     print_stop,
-    rate_problem,
 )
-from servoface.controller.cli.input_args import add_input_arguments, input_problem, load_shape_ranges
+from servoface.controller.cli.input_args import add_input_arguments, load_shape_ranges
 from servoface.controller.cli.terminal import printable
 from servoface.controller.stop_signals import StopSignals
 
@@ -114,12 +113,7 @@ def _fail(message: str) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    if (problem := rate_problem(args)) is not None:
-        return _fail(problem)
-    if args.duration is not None and not (0 < args.duration < 1e7):
-        return _fail(f"--duration must be a positive number of seconds, got {args.duration}")
-    if (problem := input_problem(args)) is not None:
-        return _fail(problem)
+    # --rate, --duration and the input options were range-checked by options.parse_command
     with StopSignals() as signals:  # SIGINT (twice: hurry to neutral), SIGTERM, SIGHUP: the stop path
         return _stream(args, signals)
 

@@ -54,12 +54,7 @@ def run(args: argparse.Namespace) -> int:
     if not is_loopback(args.host) and not args.allow_remote:
         print(f"servoface studio: --host {args.host} is not loopback; add --allow-remote to serve it", file=sys.stderr)
         return 2
-    if not 0 <= args.port_http <= 65535:
-        print(f"servoface studio: --port-http must be 0..65535, got {args.port_http}", file=sys.stderr)
-        return 2
-    if not 0 < args.rate <= 1000:
-        print(f"servoface studio: --rate must be within 0..1000 Hz, got {args.rate}", file=sys.stderr)
-        return 2
+    # --port-http and --rate were range-checked by options.parse_command
     for name in ("out_dir", "scripts_dir"):
         folder = getattr(args, name)
         if not folder.is_dir():
