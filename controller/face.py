@@ -122,6 +122,12 @@ def _stats_of(traces: list[FrameTrace], rate_hz: float, missed: int, overruns: i
     return stats
 
 
+def _has_say_cues(script: Script) -> bool:
+    from servoface.controller.script_say import say_cues
+
+    return bool(say_cues(script))
+
+
 class _Fixed:
     """A source played for a fixed length (what ``HeadService.play`` takes as a recording)."""
 
@@ -327,8 +333,9 @@ class Face:
     def play(self, script: Script | str | Path | Any, *, duration_s: float | None = None) -> Performance:
         """Play a timeline script to its end (or for ``duration_s`` at most): a TOML file, a shipped
         script by name (``"human_performance"``, see ``servoface list scripts``) or a loaded Script; or a
-        recording (``servoface.controller.inputs.load_recording``) to its end. A script's ``say`` cues are
-        spoken as `say` speaks (the speech track, the sound, the audio clock)."""
+        recording (``servoface.controller.inputs.load_recording``) to its end. A script's ``say`` cues and its
+        sound file (``[script] audio``) are spoken as `say` speaks (the speech track, the sound on the audio
+        device, the mouth on its clock: `servoface.controller.speech.script_play`)."""
         loaded = script if not isinstance(script, str | Path) else load_script(script)
         end_s = getattr(loaded, "end_s", None)
         if end_s is None:
@@ -351,9 +358,7 @@ class Face:
             ):
                 raise ControllerError(f"play: duration_s must be a positive number of seconds, got {duration_s!r}")
             end_s = min(end_s, float(duration_s))
-        from servoface.controller.script_say import say_cues
-
-        if isinstance(loaded, Script) and say_cues(loaded):  # spoken through the speech slot, as say() speaks
+        if isinstance(loaded, Script) and (loaded.audio or _has_say_cues(loaded)):  # spoken as say() speaks
             from servoface.controller.speech.script_play import play_script_speaking
 
             return play_script_speaking(self, loaded, duration_s=duration_s).performance

@@ -138,9 +138,10 @@ def say_cues(script: Script) -> list[SayCue]:
     return sorted(cues, key=lambda c: c.at_s)
 
 
-def without_say(script: Script) -> Script:
-    """The script with every say clip silent (same length, providing nothing): what plays on the face track
-    while the head service's speech track speaks the cues. The other layers are shared, not copied."""
+def without_say(script: Script, *, tracks: frozenset[str] = frozenset()) -> Script:
+    """The script with every say clip silent (same length, providing nothing) — and every clip of ``tracks``:
+    what plays on the face track while the head service's speech track speaks. The other layers are shared,
+    not copied."""
     from servoface.controller.timeline import Timeline
     from servoface.controller.timeline.track import Track
 
@@ -149,10 +150,11 @@ def without_say(script: Script) -> Script:
     new.validator = old.validator  # the head's allowed AUs, as the script was built with
     for name in old.layer_names:
         layer = old.layer(name)
-        if isinstance(layer, Track) and any(isinstance(p.clip, SayClip) for p in layer.items):
+        mute_all = name in tracks
+        if isinstance(layer, Track) and any(mute_all or isinstance(p.clip, SayClip) for p in layer.items):
             track = Track(name, layer.initial_pose)
             for p in layer.items:
-                clip = _Spoken(p.clip.duration_s) if isinstance(p.clip, SayClip) else p.clip
+                clip = _Spoken(p.clip.duration_s) if mute_all or isinstance(p.clip, SayClip) else p.clip
                 track.add(p.start_s, clip, p.from_pose)
             layer = track
         new.add_layer(name, layer)

@@ -72,6 +72,7 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
     from servoface.controller.script import load_script
     from servoface.controller.service import ServiceClosedError
     from servoface.controller.shipped import is_shipped_script
+    from servoface.controller.speech.script_play import play_script_speaking, prepare, speaks
     from servoface.controller.stop_signals import StopRequested, interruptible
     from servoface.hardware.errors import HardwareError
     from servoface.sim.errors import SimError
@@ -79,6 +80,7 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
     from servoface.sim.heads import load_head
 
     recording = None
+    prepared = None
     is_script = args.what is not None and (
         args.what.endswith(".toml") or Path(args.what).is_file() or is_shipped_script(args.what)
     )
@@ -93,6 +95,8 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
                 print("\n".join(recording.report.lines()))
             elif is_script:
                 what = load_script(args.what)
+                if speaks(what):  # say cues synthesised, the sound file read: before the port is opened
+                    prepared = prepare(what)
             else:
                 known = load_library(head.expressions_path or head.face_type)
                 if args.what not in known:
@@ -114,9 +118,6 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
         file=sys.stderr,
         flush=True,
     )
-    from servoface.controller.script_say import say_cues
-    from servoface.controller.speech.script_play import play_script_speaking
-
     perf = None
     spoken = None
     failed = False
@@ -127,8 +128,8 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
             hold_s = args.hold if args.hold is not None else (1.5 if len(recording) == 1 else 0.0)
             length_s = recording.duration_s + hold_s
             perf = face.perform(recording, length_s if args.duration is None else min(length_s, args.duration))
-        elif is_script and say_cues(what):  # what Face.play does, with each cue's sound and clock to report
-            spoken = play_script_speaking(face, what, duration_s=args.duration)
+        elif is_script and prepared is not None:  # what Face.play does, with each sound and clock to report
+            spoken = play_script_speaking(face, what, duration_s=args.duration, prepared=prepared)
             perf = spoken.performance
         elif is_script:
             perf = face.play(what, duration_s=args.duration)

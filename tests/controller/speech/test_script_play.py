@@ -75,3 +75,54 @@ def test_face_play_speaks_the_cue_on_the_speech_track(monkeypatch: pytest.Monkey
     jaw = [t.aus.get("AU26", 0.0) for t in perf.traces]
     assert max(jaw) > 0.3, "the jaw did not open"
     assert min(t.aus.get("AU12", 0.0) for t in perf.traces if 1.0 <= t.t_s <= 1.8) > 0.5, "the smile stays"
+
+
+@pytest.mark.slow
+def test_a_script_with_a_sound_file_plays_it_and_its_mouth_on_the_speech_track(
+    tmp_path: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """What `servoface say --out` writes (speech.wav + speech.toml, the mouth keys on the script's speech
+    track) played back: the sound from audio_start_s, the speech track's keys on the service's speech track
+    timed by the sound's clock, the face track without them."""
+    from servoface.controller.face import Face
+    from servoface.controller.script import load_script
+    from servoface.controller.service import HeadService
+    from servoface.controller.speech.lipsync import speech_from_text
+    from servoface.controller.speech.say import write_outputs
+    from servoface.controller.speech.script_play import play_script_speaking, prepare, speaks
+
+    speech = speech_from_text("Bob bought a big blue balloon.")
+    _, path = write_outputs(speech, "human", tmp_path)
+    script = load_script(path)
+    assert speaks(script) and say_cues(script) == []
+    ready = prepare(script)
+    assert ready.audio is not None and len(ready.audio[0]) == len(speech.samples)
+    calls: list[Any] = []
+    real = HeadService.speak
+
+    def speak(self: HeadService, what: Any, *, at_s: float | None = None, duration_s: float | None = None) -> Any:
+        calls.append(what)
+        return real(self, what, at_s=at_s, duration_s=duration_s)
+
+    monkeypatch.setattr(HeadService, "speak", speak)
+    quiet = without_say(script, tracks=frozenset({"speech"}))
+    assert all(quiet.sample(k * 0.05).aus.get("AU26", 0.0) == 0.0 for k in range(60)), "muted: no jaw keys"
+    with Face.open("human", emulate=True) as face:
+        spoken = play_script_speaking(face, script, prepared=ready)
+    assert len(calls) == 1 and calls[0].clock.name in ("monotonic", "device"), calls
+    assert spoken.audio is not None and spoken.audio.mouth and spoken.audio.name == "speech.wav"
+    assert any(line.startswith("played speech.wav at ") for line in spoken.lines()), spoken.lines()
+    jaw = [t.aus.get("AU26", 0.0) for t in spoken.performance.traces]
+    assert max(jaw) > 0.3, "the jaw did not open"
+
+
+def test_an_unreadable_sound_file_is_refused_before_the_port_is_opened(
+    tmp_path: Any, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from servoface.controller.cli import main
+
+    script = tmp_path / "talk.toml"
+    script.write_text('[script]\nface = "human"\naudio = "missing.wav"\n[[play]]\nat_s = 0.0\nlibrary = "happiness"\n')
+    assert main(["play", str(script), "--port", "/dev/does-not-exist"]) == 2
+    err = capsys.readouterr().err
+    assert "script.audio" in err and "missing.wav" in err and "does-not-exist" not in err, err
