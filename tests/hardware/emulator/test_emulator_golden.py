@@ -23,7 +23,11 @@ DATA = Path(__file__).parent / "data" / "golden_session.json"
 IDS = tuple(range(1, 9))
 STEPS = 1200
 BLOCK = 50  # one digest per this many steps: a mismatch names its block
-CASES = {"wire": {"wire_time": True}, "nowire": {"wire_time": False}, "packet": {"wire_time": True, "delivery": "packet"}}
+CASES = {
+    "wire": {"wire_time": True},
+    "nowire": {"wire_time": False},
+    "packet": {"wire_time": True, "delivery": "packet"},
+}
 SPANS = ((132, 4), (122, 14), (132, 15), (64, 7), (120, 27), (0, 10), (116, 4), (126, 2), (146, 1), (224, 6))
 
 
@@ -69,7 +73,9 @@ def _session(case: str, seed: int) -> list[str]:
             addr, n = rng.choice(SPANS)
             send(rng.choice(IDS), 0x02, _le(addr, 2) + _le(n, 2))
         elif r < 0.80:  # profile, torque, watchdog, LED writes (some refused)
-            addr, size, lo, hi = rng.choice(((112, 4, 0, 400), (108, 4, 0, 100), (64, 1, 0, 1), (98, 1, 0, 3), (65, 1, 0, 1)))
+            addr, size, lo, hi = rng.choice(
+                ((112, 4, 0, 400), (108, 4, 0, 100), (64, 1, 0, 1), (98, 1, 0, 3), (65, 1, 0, 1))
+            )
             send(rng.choice(IDS), 0x03, _le(addr, 2) + _le(rng.randint(lo, hi), size))
         elif r < 0.83:
             sid = rng.choice(IDS)
