@@ -220,10 +220,14 @@ class Face:
 
     # -- motion -------------------------------------------------------------------------------------
     def _perform(
-        self, submit: Callable[[HeadService], CommandHandle], duration_s: float, *, track: str = TRACK
+        self,
+        submit: Callable[[HeadService], CommandHandle],
+        duration_s: float,
+        *,
+        track: str | tuple[str, ...] = TRACK,
     ) -> Performance:
-        """Submit one command (on ``track``), wait for it and for the servos to settle; the call's frames and
-        stats. Ctrl-C stops what plays on ``track`` where it is."""
+        """Submit a command (on ``track``; or several, returning the one that ends last), wait for it and for
+        the servos to settle; the call's frames and stats. Ctrl-C stops what plays on ``track`` where it is."""
         svc = self.service
         rate = svc.rate_hz
         expected = int((duration_s + SETTLE_MAX_S) * rate) + 200
@@ -239,7 +243,8 @@ class Face:
                 if interrupt.by_signals:  # the loop stops by itself (and goes down the stop path)
                     handle.wait(5.0)
                 elif interrupt.is_set() and not handle.done():
-                    svc.stop(track, hold=True).wait(2.0)
+                    for name in (track,) if isinstance(track, str) else track:
+                        svc.stop(name, hold=True).wait(2.0)
                 elif handle.status is Status.DONE:
                     last = svc.last_trace
                     svc.wait_settled(-1 if last is None else last.index - 1, timeout_s=SETTLE_MAX_S)
@@ -322,7 +327,8 @@ class Face:
     def play(self, script: Script | str | Path | Any, *, duration_s: float | None = None) -> Performance:
         """Play a timeline script to its end (or for ``duration_s`` at most): a TOML file, a shipped
         script by name (``"human_performance"``, see ``servoface list scripts``) or a loaded Script; or a
-        recording (``servoface.controller.inputs.load_recording``) to its end."""
+        recording (``servoface.controller.inputs.load_recording``) to its end. A script's ``say`` cues are
+        spoken as `say` speaks (the speech track, the sound, the audio clock)."""
         loaded = script if not isinstance(script, str | Path) else load_script(script)
         end_s = getattr(loaded, "end_s", None)
         if end_s is None:
@@ -345,6 +351,12 @@ class Face:
             ):
                 raise ControllerError(f"play: duration_s must be a positive number of seconds, got {duration_s!r}")
             end_s = min(end_s, float(duration_s))
+        from servoface.controller.script_say import say_cues
+
+        if isinstance(loaded, Script) and say_cues(loaded):  # spoken through the speech slot, as say() speaks
+            from servoface.controller.speech.script_play import play_script_speaking
+
+            return play_script_speaking(self, loaded, duration_s=duration_s).performance
         limit = end_s if end_s > 0 else None
         return self._perform(lambda svc: svc.play(loaded, track=TRACK, duration_s=limit), end_s)
 

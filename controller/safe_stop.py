@@ -45,7 +45,7 @@ class StopReport:
     ease_note: str  # why the easing was skipped or cut ("" when it reached neutral)
     unreached: tuple[int, ...] = ()  # torque off not confirmed: may still be powered
     latched: tuple[int, ...] = ()  # latched off by the fault policy (needs Driver.clear_fault)
-    missing: tuple[int, ...] = ()  # not answering at the end
+    missing: tuple[int, ...] = ()  # out of service (MISSING) at the end, yet torque off confirmed
     error: str = ""  # what ended the run, when an error did (the head service's loop crash, a bus failure)
 
     @property
@@ -81,7 +81,10 @@ class StopReport:
         if self.latched:
             out.append(f"  latched: servo(s) {_ids(self.latched)} (a fault latched them off; see the fault table)")
         if self.missing:
-            out.append(f"  missing: servo(s) {_ids(self.missing)} did not answer at the end")
+            out.append(
+                f"  missing: servo(s) {_ids(self.missing)} out of service at the end (stopped answering during "
+                "the run); torque off confirmed"
+            )
         return out
 
 

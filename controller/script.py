@@ -42,7 +42,7 @@ from servoface.controller.alive.gaze import gaze_config_for
 from servoface.controller.errors import FrameError, ScriptError, TimelineError
 from servoface.controller.frame import AUFrame, FrameValidator
 from servoface.controller.script_fields import Reader, shown
-from servoface.controller.script_say import check_say, say_clip, with_say_rules
+from servoface.controller.script_say import check_say, say_clip, say_problem, with_say_rules
 from servoface.controller.timeline import (
     BlendPolicy,
     ChannelClip,
@@ -415,9 +415,10 @@ class _Builder:
             r_field, _, message = problem.partition(": ")
             self.r.fail(f"{path}.{r_field}", message)
         try:
-            return say_clip(text, voice, self.face, self.allowed, name=f"say: {text[:40]}")  # type: ignore[no-any-return]
+            return say_clip(text, voice, self.face, self.allowed, name=f"say: {text[:40]}")
         except Exception as err:  # noqa: BLE001 - espeak-ng missing or refusing: a script error naming the cue
-            self.r.fail(f"{path}.say", f"cannot synthesise it ({type(err).__name__}: {err})", err)
+            r_field, message = say_problem(err)
+            self.r.fail(f"{path}.{r_field}", message, err)
 
     def clip_ref(self, name: Any, path: str) -> Clip:
         if not isinstance(name, str) or name not in self.clips:

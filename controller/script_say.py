@@ -6,14 +6,25 @@ mouth AUs the speech drives blend ``override`` (speech owns the mouth while it t
 service's speech track) unless the script's ``[blend] rules`` name them. Plans are cached per
 (text, voice, face, allowed AUs): scrubbing a script in the studio re-parses it often.
 
-The sound itself is not part of the script's timeline: `servoface say` plays and writes it; a script that
-should also sound names a file with ``[script] audio``."""
+The clip is a :class:`SayClip`: the lip-sync clip plus the words and voice it was made from, so a front end
+that drives a head can find the cues (:func:`say_cues`) and speak them through the head service's speech
+slot instead — real synthesis, the sound on the audio device, the mouth on the audio clock, within the
+jaw's budget (:mod:`servoface.controller.speech.script_play`; `Face.play` and `servoface play` do) — while
+the rest of the script plays from :func:`without_say` (the same timeline, the say clips silent). Sampled
+as it is (the studio's scrubbing, previews), the script shows the same mouth on its own clock, without
+sound."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import dataclasses
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from servoface.controller.script import Script
+    from servoface.controller.timeline import Timeline
 
 MAX_SAY_CHARS = 2000
 VOICE_CHARS = frozenset("abcdefghijklmnopqrstuvwxyz0123456789-+_")
@@ -39,9 +50,113 @@ def _plan(text: str, voice: str) -> Any:
     return speech_from_text(text, voice=voice).plan
 
 
-def say_clip(text: str, voice: str, face_type: str, allowed: frozenset[str] | None, name: str) -> Any:
+def say_clip(text: str, voice: str, face_type: str, allowed: frozenset[str] | None, name: str) -> SayClip:
     """The lip-sync clip of ``text`` (raises the speech package's errors when espeak-ng cannot say it)."""
-    return _plan(text, voice).clip(face_type, allowed, name=name)
+    return SayClip(_plan(text, voice).clip(face_type, allowed, name=name), text, voice)
+
+
+def say_problem(err: Exception) -> tuple[str, str]:
+    """(field, message) for a cue espeak-ng could not say: ``voice`` when the voice is what it refused."""
+    text = str(err)
+    field = "voice" if text.startswith("voice") else "say"
+    return field, f"cannot synthesise it ({type(err).__name__}: {text})"
+
+
+@dataclass(frozen=True)
+class SayClip:
+    """A say cue's lip-sync clip (a timeline clip: it provides the mouth AUs while it runs, nothing after),
+    with the words and voice it was synthesised from."""
+
+    inner: Any  # the lip-sync ChannelClip
+    text: str
+    voice: str
+
+    @property
+    def name(self) -> str:
+        return str(self.inner.name)
+
+    @property
+    def holds(self) -> bool:
+        return bool(self.inner.holds)
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.inner.duration_s)
+
+    def sample(self, t_s: float, from_pose: Mapping[str, float]) -> dict[str, float]:
+        return dict(self.inner.sample(t_s, from_pose))
+
+    def end_pose(self, from_pose: Mapping[str, float]) -> dict[str, float]:
+        return dict(self.inner.end_pose(from_pose))
+
+    def targets(self) -> Iterator[tuple[str, float]]:
+        return iter(self.inner.targets())
+
+
+@dataclass(frozen=True)
+class _Spoken:
+    """Where a say clip was: as long, providing nothing (the head service's speech track speaks it)."""
+
+    duration_s: float
+    name: str = "say (spoken on the speech track)"
+    holds: bool = False
+
+    def sample(self, t_s: float, from_pose: Mapping[str, float]) -> dict[str, float]:
+        return {}
+
+    def end_pose(self, from_pose: Mapping[str, float]) -> dict[str, float]:
+        return {}
+
+    def targets(self) -> Iterator[tuple[str, float]]:
+        return iter(())
+
+
+@dataclass(frozen=True)
+class SayCue:
+    """One ``say`` entry of a script: when (script time), on which script track, what and in which voice."""
+
+    at_s: float
+    track: str
+    text: str
+    voice: str
+    duration_s: float  # the lip-sync clip's length in the script
+
+
+def say_cues(script: Script) -> list[SayCue]:
+    """The script's say cues, in time order."""
+    from servoface.controller.timeline.track import Track
+
+    timeline = script.timeline
+    cues = []
+    for name in timeline.layer_names:
+        layer = timeline.layer(name)
+        if isinstance(layer, Track):
+            for placed in layer.items:
+                if isinstance(placed.clip, SayClip):
+                    clip = placed.clip
+                    cues.append(SayCue(placed.start_s, name, clip.text, clip.voice, clip.duration_s))
+    return sorted(cues, key=lambda c: c.at_s)
+
+
+def without_say(script: Script) -> Script:
+    """The script with every say clip silent (same length, providing nothing): what plays on the face track
+    while the head service's speech track speaks the cues. The other layers are shared, not copied."""
+    from servoface.controller.timeline import Timeline
+    from servoface.controller.timeline.track import Track
+
+    old = script.timeline
+    new: Timeline = Timeline(old.face_type, blend=old.blend)
+    new.validator = old.validator  # the head's allowed AUs, as the script was built with
+    for name in old.layer_names:
+        layer = old.layer(name)
+        if isinstance(layer, Track) and any(isinstance(p.clip, SayClip) for p in layer.items):
+            track = Track(name, layer.initial_pose)
+            for p in layer.items:
+                clip = _Spoken(p.clip.duration_s) if isinstance(p.clip, SayClip) else p.clip
+                track.add(p.start_s, clip, p.from_pose)
+            layer = track
+        new.add_layer(name, layer)
+    return dataclasses.replace(script, timeline=new)
 
 
 def with_say_rules(blend: Mapping[str, Any], plays: Any, face_type: str) -> dict[str, Any]:

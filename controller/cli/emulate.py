@@ -97,6 +97,7 @@ def chain_state(chain: Any) -> dict[str, Any]:
         }
     return {
         "t_s": chain.time_s,
+        "packets_received": len(chain.log),  # every instruction packet the chain ever got (CRC valid)
         "servos": servos,
         "goal_writes": [[round(t, 6), sid, tick] for t, sid, tick in chain.goal_writes()],
         "torque_writes": [[round(t, 6), sid, v] for t, sid, v in chain.register_writes(64, 1)],

@@ -126,7 +126,11 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
         file=sys.stderr,
         flush=True,
     )
+    from servoface.controller.script_say import say_cues
+    from servoface.controller.speech.script_play import play_script_speaking
+
     perf = None
+    spoken = None
     failed = False
     code: int | None = None
     reason = "end"
@@ -135,6 +139,9 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
             hold_s = args.hold if args.hold is not None else (1.5 if len(recording) == 1 else 0.0)
             length_s = recording.duration_s + hold_s
             perf = face.perform(recording, length_s if args.duration is None else min(length_s, args.duration))
+        elif is_script and say_cues(what):  # what Face.play does, with each cue's sound and clock to report
+            spoken = play_script_speaking(face, what, duration_s=args.duration)
+            perf = spoken.performance
         elif is_script:
             perf = face.play(what, duration_s=args.duration)
         else:
@@ -158,6 +165,8 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
     written = None
     if perf is not None:
         _summary(args, perf)
+        if spoken is not None:
+            print("\n".join(printable(line) for line in spoken.lines()))
         _say_unshown(face, perf, args.head)
         for trace in perf.traces:
             trace_file.sink(trace)

@@ -10,6 +10,7 @@ When the speech clip ends it provides nothing and the face track has the mouth a
 from __future__ import annotations
 
 import weakref
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -22,6 +23,7 @@ from servoface.controller.speech.visemes import mouth_aus
 if TYPE_CHECKING:
     from servoface.controller.face import Face
     from servoface.controller.performance import Performance
+    from servoface.controller.speech.playback import AudioClock, AudioClockedClip, AudioOut
 
 
 START_AHEAD_S = 0.1  # the speech is scheduled this far ahead, so its start (and the sound's) is known exactly
@@ -62,37 +64,97 @@ def say_on_face(face: Face, speech: Speech, *, audio_out: bool = True, budget: J
     track (its AUs override the face track's while it plays), timed by the audio clock (the device's when
     a sound device plays it, else the monotonic clock), with the jaw's opening within its thermal budget
     (``budget``, default: the head's own account)."""
-    from servoface.controller.speech.playback import AudioClockedClip, open_audio_out
+    svc = face.service
+    allowed = head_au_names(face.head) & mouth_aus(face.head.face_type)
+    latency_s = pipeline_latency_s(face)
+    at_s = svc.now_s() + START_AHEAD_S
+    under = svc.status().tracks.get("face")  # the face's own mouth (an expression held): crossfaded
+    base = {au: v for au, v in (under.aus if under is not None else {}).items() if au in allowed}
+    scheduled: list[ScheduledSpeech] = []
+
+    def submit(service: Any) -> Any:
+        scheduled.append(
+            schedule_speech(face, speech, at_s, base=base, latency_s=latency_s, audio_out=audio_out, budget=budget)
+        )
+        return scheduled[0].handle
+
+    duration = max(speech.plan.duration_s, speech.plan.audio_end_s) + END_MARGIN_S
+    perf = face._perform(submit, duration, track="speech")  # noqa: SLF001 - the Face's own runner
+    return scheduled[0].finish(perf)
+
+
+@dataclass
+class ScheduledSpeech:
+    """One utterance submitted to the speech slot: its command, the clock its mouth follows, its sound."""
+
+    handle: Any  # the speech track's CommandHandle
+    timed: AudioClockedClip
+    clock: AudioClock
+    out: AudioOut | None
+    start_monotonic_s: float
+    audio_start_monotonic_s: float
+    latency_s: float
+    end_s: float  # on the service clock: when its command ends
+    budget: BudgetReport | None
+
+    def finish(self, performance: Performance) -> SpokenRun:
+        """Wait for the sound to finish and say how the run went."""
+        if self.out is not None:
+            self.out.wait()
+        sound = "not asked for" if self.out is None else self.out.reason
+        return SpokenRun(
+            performance,
+            self.start_monotonic_s,
+            self.audio_start_monotonic_s,
+            self.latency_s,
+            sound,
+            self.clock.name,
+            tuple(self.timed.shifts),
+            self.budget,
+        )
+
+
+def schedule_speech(
+    face: Face,
+    speech: Speech,
+    at_s: float,
+    *,
+    base: Mapping[str, float],
+    latency_s: float,
+    audio_out: bool = True,
+    budget: JawBudget | None = None,
+    length_s: float | None = None,
+) -> ScheduledSpeech:
+    """Submit ``speech`` to the head service's speech slot from ``at_s`` (service time, ahead of now) without
+    waiting: the plan within the jaw's budget, the clip crossfaded from and back to ``base`` (the face's own
+    mouth there), the sound started on the audio device for the mouth's time plus ``latency_s`` (silent
+    without one: then the monotonic clock is master), the clip timed by that clock. ``length_s`` cuts the
+    utterance (mouth and sound) that long after ``at_s``."""
+    from servoface.controller.speech.playback import AudioClockedClip, MonotonicAudioClock, open_audio_out
 
     svc = face.service
     face_type = face.head.face_type
     allowed = head_au_names(face.head) & mouth_aus(face_type)
-    latency_s = pipeline_latency_s(face)
-    at_s = svc.now_s() + START_AHEAD_S
     start = svc.clock.to_monotonic_s(at_s)
     jaw_id = face.head.servo_ids.get("jaw")
     account = budget if budget is not None else jaw_budget_for(svc)
     thermal = jaw_thermal(svc, jaw_id) if jaw_id is not None else None
     plan, report = account.apply(speech.plan, start, thermal)
-    under = svc.status().tracks.get("face")  # the face's own mouth (an expression held): crossfaded
-    base = {au: v for au, v in (under.aus if under is not None else {}).items() if au in allowed}
-    clip = plan.clip(face_type, allowed, base=base)
+    clip = plan.clip(face_type, allowed, base=dict(base))
     audio_start = start + plan.audio_start_s + latency_s
-    out = open_audio_out() if audio_out else None
-    clock = out.play_at(speech.samples, speech.rate_hz, audio_start) if out is not None else None
-    if clock is None:
-        from servoface.controller.speech.playback import MonotonicAudioClock
-
-        clock = MonotonicAudioClock(audio_start)
     duration = max(plan.duration_s, plan.audio_end_s) + END_MARGIN_S
-    timed = AudioClockedClip(clip, clock, start, latency_s, plan.audio_start_s, duration)
-    perf = face._perform(  # noqa: SLF001 - the Face's own runner (bounded, traced, interruptible)
-        lambda service: service.speak(timed, at_s=at_s), duration, track="speech"
+    samples = speech.samples
+    if length_s is not None and length_s < duration:
+        duration = max(0.0, float(length_s))
+        keep = int(max(0.0, start + duration - audio_start) * speech.rate_hz)
+        samples = samples[:keep]
+    out = open_audio_out() if audio_out and len(samples) else None
+    clock: AudioClock = (
+        out.play_at(samples, speech.rate_hz, audio_start) if out is not None else MonotonicAudioClock(audio_start)
     )
-    if out is not None:
-        out.wait()
-    sound = "not asked for" if out is None else out.reason
-    return SpokenRun(perf, start, audio_start, latency_s, sound, clock.name, tuple(timed.shifts), report)
+    timed = AudioClockedClip(clip, clock, start, latency_s, plan.audio_start_s, duration)
+    handle = svc.speak(timed, at_s=at_s)
+    return ScheduledSpeech(handle, timed, clock, out, start, audio_start, latency_s, at_s + duration, report)
 
 
 def pipeline_latency_s(face: Face) -> float:

@@ -121,3 +121,48 @@ def test_a_servo_gone_at_the_end_is_named_not_reached_and_the_run_exits_3(
     assert "torque-off NOT confirmed on servo(s) [9]" in err, err
     assert status == 3, (status, out, err)
     assert "Traceback" not in err
+
+
+def test_a_servo_missing_at_the_end_whose_torque_off_is_confirmed_is_named_missing_and_the_run_exits_1(
+    chains: list[Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Mid-run, servo 9 stops answering (a loose data wire: it still hears every packet, its replies are lost):
+    the driver takes it out of service (`MISSING`, re-probed). Its replies come back just as the stop's
+    broadcast Torque Enable = 0 goes out — after the last re-probe, so the driver still has it missing — and
+    it acknowledges its own torque-off. The README's row: the rest eased and off; the summary names 9 as
+    missing, not as NOT REACHED (its torque-off is confirmed); every servo off on the emulator, the Bus
+    Watchdog disarmed on all of them; exit 1."""
+    from servoface.hardware.emulator.packet import Instruction
+    from servoface.hardware.emulator.packet_log import register_writes
+
+    silent_since: list[float] = []
+    answers_again: list[float] = []
+
+    def lose_replies(chain: Any) -> None:
+        log = chain.log
+        real_append = log.append
+
+        def append(entry: Any) -> None:  # the far end of the wire sees the stop's broadcast torque-off
+            real_append(entry)
+            if not answers_again and entry.id == 254 and entry.instruction == Instruction.SYNC_WRITE:
+                if any(sid == 9 and v == 0 for _, sid, v in register_writes([entry], 64, 1)):
+                    answers_again.append(entry.t_s)
+                    chain.faults.clear(9, "no_reply")
+
+        log.append = append
+        silent_since.append(chain.time_s)
+        chain.faults.inject(9, "no_reply")
+
+    watcher = _when_driving(chains, lose_replies)
+    status = main(["play", "surprise", "--emulate", "--hold", "2"])
+    watcher.join(5.0)
+    out, err = capsys.readouterr()
+    chain = chains[-1]
+    assert silent_since and answers_again, "the fault never started or the stop's torque-off never came"
+    assert all(not chain.servo(s).torque_on for s in chain.ids), "a servo kept torque on"
+    assert all(chain.servo(s).read_register("Bus Watchdog") == 0 for s in chain.ids), "a watchdog left armed"
+    assert "stop (end): eased to neutral" in out and "torque off on every servo" in out, out
+    assert "missing: servo(s) 9" in out and "NOT REACHED" not in out + err, out + err
+    assert "torque off confirmed" in out, out  # it did answer at the stop: the line must not say it did not
+    assert status == 1, (status, out, err)
+    assert "Traceback" not in err

@@ -1,0 +1,77 @@
+"""A script's say cues on a head go through the head service's speech slot (`HeadService.speak`), as
+`Face.say` does; the script itself plays on the face track with its say clips silent."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from servoface.controller.script import parse_script
+from servoface.controller.script_say import SayClip, say_cues, without_say
+from servoface.controller.speech.visemes import mouth_aus
+
+SAY = """
+[script]
+face = "human"
+
+[[play]]
+at_s = 0.0
+library = "happiness"
+
+[[play]]
+at_s = 0.5
+say = "Hello, nice to meet you."
+"""
+
+
+def test_say_cues_and_the_script_without_them() -> None:
+    script = parse_script(SAY, source="say.toml")
+    (cue,) = say_cues(script)
+    assert (cue.at_s, cue.track, cue.text, cue.voice) == (0.5, "speech", "Hello, nice to meet you.", "en-us")
+    muted = without_say(script)
+    assert muted.end_s == script.end_s and muted.title == script.title
+    (placed,) = [p for p in script.timeline.layer("speech").items]  # type: ignore[attr-defined]
+    assert isinstance(placed.clip, SayClip)
+    mouth = mouth_aus("human")
+    talked = False
+    for k in range(60):
+        t = k * 0.05
+        full, quiet = script.sample(t).aus, muted.sample(t).aus
+        assert {au: v for au, v in full.items() if au not in mouth} == {
+            au: v for au, v in quiet.items() if au not in mouth
+        }, t  # the rest of the face is the same
+        assert quiet.get("AU26", 0.0) == 0.0, t  # the jaw is not the script's any more
+        talked |= full.get("AU26", 0.0) > 0.3
+    assert talked, "the script's own say clip opens the jaw (studio scrubbing, previews)"
+    assert say_cues(muted) == []
+
+
+@pytest.mark.slow
+def test_face_play_speaks_the_cue_on_the_speech_track(monkeypatch: pytest.MonkeyPatch) -> None:
+    from servoface.controller.face import Face
+    from servoface.controller.service import HeadService
+    from servoface.controller.service.handles import Status
+
+    calls: list[tuple[Any, float | None]] = []
+    real = HeadService.speak
+
+    def speak(self: HeadService, what: Any, *, at_s: float | None = None, duration_s: float | None = None) -> Any:
+        calls.append((what, at_s))
+        return real(self, what, at_s=at_s, duration_s=duration_s)
+
+    monkeypatch.setattr(HeadService, "speak", speak)
+    script = parse_script(SAY, source="say.toml")
+    with Face.open("human", emulate=True) as face:
+        events = face.service.subscribe("playback", maxlen=256)
+        perf = face.play(script)
+        seen = [(e.track, e.status) for e in events.drain()]
+        events.close()
+    assert len(calls) == 1 and calls[0][1] is not None, calls
+    assert calls[0][0].clock.name in ("monotonic", "device")
+    assert ("speech", Status.RUNNING) in seen and ("speech", Status.DONE) in seen, seen
+    assert ("face", Status.DONE) in seen, seen
+    assert perf.traces[0].t_s < 0.1, "the run's frames are timed from the script's start"
+    assert sum(1 for t in perf.traces if t.t_s < 0.45) >= 5, "the frames before the cue are the run's too"
+    jaw = [t.aus.get("AU26", 0.0) for t in perf.traces]
+    assert max(jaw) > 0.3, "the jaw did not open"
+    assert min(t.aus.get("AU12", 0.0) for t in perf.traces if 1.0 <= t.t_s <= 1.8) > 0.5, "the smile stays"
