@@ -18,7 +18,7 @@ from servoface.calibration import HeadCalibration
 from servoface.controller.errors import FrameError
 from servoface.controller.frame import AUFrame
 from servoface.controller.pipeline_ahead import Ahead
-from servoface.controller.telemetry import gate_health
+from servoface.controller.telemetry import StrainedHealth
 from servoface.hardware.driver import Driver
 from servoface.hardware.snapshot import ChainSnapshot
 from servoface.sim.errors import SimError
@@ -102,6 +102,7 @@ class Pipeline:
         self.last_goals_tick: dict[int, int] = calibration.neutral_goals()
         self.temperature_limits_c = dict(temperature_limits_c or {})
         self._ids = frozenset(s.servo_id for s in self._servos)
+        self._strained = StrainedHealth(self._ids)
         self.last_snapshot: ChainSnapshot | None = None
         self.last_cycle_s: float | None = None  # clock() of the last driver cycle (pacing)
         self.last_write_s: float | None = None  # clock() when the last goals went on the wire
@@ -200,13 +201,16 @@ class Pipeline:
             if self.driver is None or self.last_write_s is None or not self.per_time_caps
             else self.clock() - self.last_write_s
         )  # since the last goals went on the wire: the gate's caps hold per second, not per call
-        per_frame = elapsed_s is None or (
-            elapsed_s >= self.gate.frame_period_s and getattr(self.gate, "_last_fraction", 1.0) >= 1.0
-        )  # a speculative verdict was checked against whole-frame caps: usable only when those apply
+        # a speculative verdict was checked against whole-frame caps: usable only when those apply. They do
+        # after a whole period even when the last frame's caps were shrunk (`limits.per_time` with f = 1
+        # gives the per-frame caps and the last step as it was), and the check would then note f = 1
+        per_frame = elapsed_s is None or elapsed_s >= self.gate.frame_period_s
         spec = ahead.verdict_for(self.last_goals_tick, health, self.gate.step_state()) if ahead and per_frame else None
         if spec is not None and ahead is not None:
             verdict = spec
             self.gate.restore_step_state(ahead.state_after)
+            if elapsed_s is not None:
+                self.gate._last_fraction = 1.0  # what the check with elapsed_s >= the period leaves
             timings["ahead_ms"] = sum(ahead.timings_ms.values())
         else:
             verdict = self.gate.check(requested, self.last_goals_tick, health, elapsed_s=elapsed_s)
@@ -297,7 +301,7 @@ class Pipeline:
     def _health(self) -> dict[int, ServoHealth] | None:
         if self.last_snapshot is None:
             return None
-        return gate_health(self.last_snapshot, self.temperature_limits_c, self._ids)
+        return self._strained(self.last_snapshot, self.temperature_limits_c, self.gate.config.health)
 
     def _prepare(
         self, frame: AUFrame | Mapping[str, float], sent: dict[int, int], health: dict[int, ServoHealth] | None

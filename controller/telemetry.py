@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from servoface.hardware.snapshot import ChainSnapshot, FaultKind
-from servoface.sim.gate import ServoHealth
+from servoface.hardware.snapshot import ChainSnapshot, FaultKind, ServoState
+from servoface.sim.gate import HealthPolicy, ServoHealth
 
 _HOT = {FaultKind.OVERHEATING, FaultKind.THERMAL_DERATE, FaultKind.THERMAL_TORQUE_OFF}
 _OVERLOADED = {FaultKind.OVERLOAD, FaultKind.LOAD_BACKOFF}
@@ -25,12 +25,56 @@ def gate_health(
             continue
         if state.temperature_c is None or state.servo_id not in temperature_limits_c:
             continue
-        load = abs(state.load_fraction) if state.load_fraction is not None else 0.0
-        out[state.servo_id] = ServoHealth(
-            temperature_c=float(state.temperature_c),
-            temperature_limit_c=float(temperature_limits_c[state.servo_id]),
-            load_ratio=float(load),
-            overloaded=bool(state.faults & _OVERLOADED),
-            hot=bool(state.faults & _HOT) or state.derated,
-        )
+        out[state.servo_id] = _servo_health(state, temperature_limits_c[state.servo_id])
     return out
+
+
+def _servo_health(state: ServoState, limit_c: float) -> ServoHealth:
+    load = abs(state.load_fraction) if state.load_fraction is not None else 0.0
+    return ServoHealth(
+        temperature_c=float(state.temperature_c if state.temperature_c is not None else 0.0),
+        temperature_limit_c=float(limit_c),
+        load_ratio=float(load),
+        overloaded=bool(state.faults & _OVERLOADED),
+        hot=bool(state.faults & _HOT) or state.derated,
+    )
+
+
+class StrainedHealth:
+    """`gate_health` cut down to what the gate reads: the servos its policy finds strained.
+
+    The gate uses health only to narrow strained servos (`servoface.sim.gate.health.derate` skips the
+    others), so the verdict for the strained subset is the verdict for the whole (tested on random
+    telemetry). The subset is mostly empty, so it stays equal from frame to frame while the load readings
+    move, and a speculative verdict computed with it stays usable (`pipeline_ahead`). A servo's record is
+    rebuilt only when what it is made of changed (temperature, load, faults, derated, limit)."""
+
+    def __init__(self, ids: frozenset[int]) -> None:
+        self.ids = ids
+        self._records: dict[int, tuple[tuple[object, ...], ServoHealth | None]] = {}
+        self._policy: HealthPolicy | None = None
+
+    def __call__(
+        self, snapshot: ChainSnapshot, temperature_limits_c: Mapping[int, float], policy: HealthPolicy
+    ) -> dict[int, ServoHealth]:
+        if policy is not self._policy:  # another gate (a new calibration): judge every servo afresh
+            self._records.clear()
+            self._policy = policy
+        limits, ids, records = temperature_limits_c, self.ids, self._records
+        out: dict[int, ServoHealth] = {}
+        for state in snapshot:
+            sid = state.servo_id
+            if sid not in ids or state.temperature_c is None:
+                continue
+            limit_c = limits.get(sid)
+            if limit_c is None:
+                continue
+            key = (state.temperature_c, state.load_fraction, state.faults, state.derated, limit_c)
+            kept = records.get(sid)
+            if kept is None or kept[0] != key:
+                health = _servo_health(state, limit_c)
+                kept = (key, health if health.strained(policy.hot_margin_c, policy.load_limit) else None)
+                records[sid] = kept
+            if kept[1] is not None:
+                out[sid] = kept[1]
+        return out

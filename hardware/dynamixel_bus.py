@@ -14,7 +14,7 @@ from __future__ import annotations
 import select
 import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from types import TracebackType
 from typing import Any, Protocol
 
@@ -226,7 +226,7 @@ class DynamixelBus:
         self.stats = BusStats()
         self.alerts: set[int] = set()
         self._packet = sdk.PacketHandler(2.0)
-        self._sync_reads: dict[tuple[int, int, tuple[int, ...]], Any] = {}
+        self._last_ids: tuple[tuple[int, ...] | None, list[int]] = (None, [])
         self._read_plans: dict[tuple[Register, ...], tuple[int, int, tuple[Any, ...], str]] = {}
         self._lock: PortLock | None = None
         self._pending: tuple[list[int], tuple[Any, ...], int, int, bool, str] | None = None
@@ -291,7 +291,6 @@ class DynamixelBus:
     def reopen(self) -> None:
         """Close and open the port again (after a USB re-plug or a dropped pty), keeping its lock."""
         self._close_port()
-        self._sync_reads.clear()
         self._pending = None
         self.open()
 
@@ -423,25 +422,37 @@ class DynamixelBus:
 
     # -- group instructions -------------------------------------------------------------------------
     def sync_write(self, register: Register, values: Mapping[int, int]) -> None:
-        """One Sync Write packet setting ``register`` on every servo in ``values`` (no replies)."""
-        ids = check_ids(values)
+        """One Sync Write packet setting ``register`` on every servo in ``values`` (no replies).
+
+        The parameters (``id data...`` per servo, in ``values`` order: what ``GroupSyncWrite.makeParam``
+        builds) go to the SDK's own ``syncWriteTxOnly``, which frames, stuffs, checksums and sends them;
+        the per-frame goal write skips the group object and its per-servo ``addParam`` (same bytes:
+        tests/hardware/test_bus_sdk_paths.py)."""
+        ids = self._ids(values)
         if not ids:
             return
         size, signed = register.size, register.signed
         lo, hi = register.value_range
-        payload = {}
+        param: list[int] = []
         for sid in ids:  # encode all before sending any
             value = values[sid]
+            param.append(sid)
             if type(value) is int and lo <= value <= hi:  # fast path for the per-frame goal write
-                payload[sid] = list(value.to_bytes(size, "little", signed=signed))
+                param += value.to_bytes(size, "little", signed=signed)
             else:
-                payload[sid] = list(register.encode(value))  # checks and raises with the register's message
-        group = sdk.GroupSyncWrite(self._port, self._packet, register.address, register.size)
-        for sid in ids:
-            group.addParam(sid, payload[sid])
-        comm = self._call(group.txPacket)
-        self.stats.bytes_written += 14 + len(ids) * (register.size + 1)
+                param += register.encode(value)  # checks and raises with the register's message
+        comm = self._call(self._packet.syncWriteTxOnly, self._port, register.address, size, param, len(param))
+        self.stats.bytes_written += 14 + len(param)
         self._check(comm, 0, f"sync write {register.name}", ids)
+
+    def _ids(self, servo_ids: Iterable[int]) -> list[int]:
+        """`check_ids`, remembered for the last id tuple (the same servos every cycle)."""
+        key = tuple(servo_ids)
+        if key == self._last_ids[0]:
+            return self._last_ids[1]
+        ids = check_ids(key)
+        self._last_ids = (key, ids)
+        return ids
 
     def sync_read(
         self, servo_ids: Sequence[int], registers: Sequence[Register], *, fast: bool = False
@@ -460,7 +471,7 @@ class DynamixelBus:
         `sync_read_finish` collects them; in between the caller may compute but not use the bus (the SDK
         keeps the port marked busy). The reply window is the SDK's, started when the instruction left.
         """
-        ids = check_ids(servo_ids)
+        ids = self._ids(servo_ids)
         regs = tuple(registers)
         prepared = self._read_plans.get(regs)  # span, message and field offsets: once per register tuple
         if prepared is None:
@@ -474,16 +485,8 @@ class DynamixelBus:
         self._pending = (ids, fields, start, length, fast, what)
         if not ids:
             return
-        key = (start, length, tuple(ids))
-        group = self._sync_reads.get(key)
-        if group is None:
-            if len(self._sync_reads) > 64:
-                self._sync_reads.clear()
-            group = sdk.GroupSyncRead(self._port, self._packet, start, length)
-            for sid in ids:
-                group.addParam(sid)
-            self._sync_reads[key] = group
-        comm = self._call(group.fastSyncReadTxPacket if fast else group.txPacket)
+        # the SDK's own syncReadTx with the id list `GroupSyncRead.makeParam` builds (same bytes, no group)
+        comm = self._call(self._packet.syncReadTx, self._port, start, length, ids, len(ids), fast)
         if comm != sdk.COMM_SUCCESS:
             self._pending = None
             self._check(comm, 0, what, ids)

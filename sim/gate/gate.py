@@ -117,6 +117,7 @@ class TwinGate:
         self._last_sent: IntArray | None = None
         self._last_step: IntArray = np.zeros(self.table.n, dtype=np.int64)
         self._last_fraction = 1.0  # share of a frame period the previous check's step was allowed (per_time)
+        self._window: lim.RateWindow | None = None  # the timed checks' rate window (per_time)
         self._memo: tuple[bytes, list[Finding]] = (b"", [])  # (command bytes, its state findings)
 
     # ---- set-up ---------------------------------------------------------------------------------------
@@ -256,37 +257,42 @@ class TwinGate:
             else np.zeros(self.table.n, dtype=np.int64)
         )
         table, health_findings = derate(self.table, health, self.config.health)
+        rate_last = last  # rate caps apply to the step from here (a per-time window's start)
+        window = None
         if elapsed_s is not None:  # (a check without it, e.g. a speculative one, leaves the memory alone)
-            table, last_step, self._last_fraction = lim.per_time(
-                table, last_step, elapsed_s, self.frame_period_s, self._last_fraction
+            table, rate_last, last_step, window = lim.per_time(
+                table, last, last_step, elapsed_s, self.frame_period_s, self._last_fraction, self._window
             )
+            self._last_fraction = window.fraction
         req, bad = self._vector(goals_tick, last, "goals_tick")
         requested = {sid: int(t) for sid, t in zip(self.table.ids, req, strict=True)}
         if bad:
-            return self._remember(Verdict("reject", hold, tuple(health_findings + bad), 0.0, requested), last)
-        findings = health_findings + lim.findings(req, last, last_step, table)
+            return self._remember(Verdict("reject", hold, tuple(health_findings + bad), 0.0, requested), last, window)
+        findings = health_findings + lim.findings(req, rate_last, last_step, table)
         key = req.tobytes()
         if self._memo[0] != key:  # state checks depend on the command only: a held command is not redone
             self._memo = (key, self._hard_findings(req))
         hard = list(self._memo[1])
         findings += hard
         if len(findings) == len(health_findings):
-            return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last)
-        clamped = lim.clamp(req, last, last_step, table)
+            return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last, window)
+        clamped = lim.clamp(req, rate_last, last_step, table)
         if not hard and np.array_equal(clamped, req):  # only health notes fired
-            return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last)
+            return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last, window)
         hit = {f.parts for f in hard if f.check == "collision"}
         suspects = tuple(p for p, spec in enumerate(self.collisions.specs) if (spec.a, spec.b) in hit)
-        best, frac = self._scale_back(req, last, last_step, table, skip_full=bool(hard), suspects=suspects)
+        best, frac = self._scale_back(
+            req, last, last_step, table, skip_full=bool(hard), suspects=suspects, rate_last=rate_last
+        )
         if best is not None and np.array_equal(best, last) and np.array_equal(clamped, last):
             # the per-servo clamp itself is the last command and passed every check (e.g. a servo held at
             # its narrowed limit while the others have arrived): a clip at the limits, not a refusal
-            return self._remember(Verdict("clip", hold, tuple(findings), 1.0, requested), last)
+            return self._remember(Verdict("clip", hold, tuple(findings), 1.0, requested), last, window)
         if best is None or np.array_equal(best, last):
             findings.append(Finding("hold", "no safe command found between the last one and the request: holding"))
-            return self._remember(Verdict("reject", hold, tuple(findings), 0.0, requested), last)
+            return self._remember(Verdict("reject", hold, tuple(findings), 0.0, requested), last, window)
         goals = {sid: int(t) for sid, t in zip(self.table.ids, best, strict=True)}
-        return self._remember(Verdict("clip", goals, tuple(findings), frac, requested), last)
+        return self._remember(Verdict("clip", goals, tuple(findings), frac, requested), last, window)
 
     def _scale_back(
         self,
@@ -296,20 +302,23 @@ class TwinGate:
         table: lim.ServoTable,
         skip_full: bool = False,
         suspects: tuple[int, ...] = (),
+        rate_last: IntArray | None = None,
     ) -> tuple[IntArray | None, float]:
         """The largest step fraction whose clamped command passes every check (batched bisection).
-        ``skip_full``: ``req`` itself failed a state check, so its clamp is not re-checked if equal."""
+        ``skip_full``: ``req`` itself failed a state check, so its clamp is not re-checked if equal.
+        ``rate_last``: where the rate caps measure the step from (default ``last``; see `limits.per_time`)."""
         step = req - last
+        base = last if rate_last is None else rate_last
         lo, hi = 0.0, 1.0
         best: IntArray | None = None
         best_frac = 0.0
-        cand_1 = lim.clamp(req, last, last_step, table)
+        cand_1 = lim.clamp(req, base, last_step, table)
         if not (skip_full and np.array_equal(cand_1, req)) and self._last_ok(cand_1[None, :], suspects) == 0:
             return cand_1, 1.0
         for _ in range(max(1, self.config.bisection_rounds)):
             fracs = lo + (hi - lo) * np.arange(1, 9) / 8.0
             raw = last + np.trunc(fracs[:, None] * step[None, :]).astype(np.int64)
-            cands = lim.clamp(raw, last, last_step, table)
+            cands = lim.clamp(raw, base, last_step, table)
             found = self._last_ok(cands, suspects)
             if found is None:
                 hi = fracs[0]
@@ -336,11 +345,14 @@ class TwinGate:
         """Forget the previous step (the next check assumes the servos start from rest)."""
         self._last_sent = None
         self._last_step = np.zeros(self.table.n, dtype=np.int64)
+        self._window = None
 
-    def _remember(self, verdict: Verdict, last: IntArray) -> Verdict:
+    def _remember(self, verdict: Verdict, last: IntArray, window: lim.RateWindow | None = None) -> Verdict:
         sent = np.array([verdict.goals_tick[sid] for sid in self.table.ids], dtype=np.int64)
         self._last_step = sent - last
         self._last_sent = sent
+        if window is not None:  # a timed check: its window now ends at what it sent
+            self._window = window.sent(sent)
         return verdict
 
     def check_batch(

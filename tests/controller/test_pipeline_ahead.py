@@ -5,39 +5,22 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-import numpy as np
 import pytest
 from servoface.controller.face import Face
 from servoface.controller.pipeline import FrameTrace, Pipeline
 
+from tests.controller.pipeline_pairs import au_names, face_pair, random_frames
+
 
 def _frames(pipeline: Pipeline, n: int, seed: int) -> list[dict[str, float]]:
     """Random AU frames: mostly small moves, some jumps (clips), some repeats (held commands)."""
-    rng = np.random.default_rng(seed)
-    names = sorted(a for a in pipeline.face.au_names if a[-1] not in "LR")
-    current = {a: 0.0 for a in names}
-    out = []
-    for _ in range(n):
-        kind = rng.random()
-        if kind < 0.15:  # a jump: several AUs at once to random levels
-            for a in rng.choice(names, size=4, replace=False):
-                current[str(a)] = float(rng.random())
-        elif kind < 0.85:
-            a = str(rng.choice(names))
-            current[a] = float(np.clip(current[a] + rng.normal(0.0, 0.15), 0.0, 1.0))
-        out.append({a: round(v, 4) for a, v in current.items() if v > 0})
-    return out
+    return random_frames(au_names(pipeline), n, seed)
 
 
 @pytest.fixture
 def faces() -> Iterator[tuple[Face, Face]]:
-    a = Face.open("human", emulate=True, wire_time=False)
-    b = Face.open("human", emulate=True, wire_time=False)
-    for face in (a, b):  # stepped back to back: per-time caps would make the verdicts depend on timing
-        face.pipeline.per_time_caps = False
-    yield a, b
-    a.close(ease_s=0.0)
-    b.close(ease_s=0.0)
+    with face_pair() as pair:
+        yield pair
 
 
 def _same(x: FrameTrace, y: FrameTrace) -> None:

@@ -13,39 +13,24 @@ from __future__ import annotations
 import time
 from collections.abc import Iterator
 
-import numpy as np
 import pytest
 from servoface.controller.face import Face
 from servoface.controller.pipeline import PACE_MAX_SHARE, FrameTrace
 
+from tests.controller.pipeline_pairs import au_names, face_pair, random_frames
+
 
 def _frames(names: list[str], n: int, seed: int) -> list[dict[str, float]]:
     """Random AU frames; about half repeat the previous one exactly (a held expression)."""
-    rng = np.random.default_rng(seed)
-    current = {a: 0.0 for a in names}
-    out = []
-    for _ in range(n):
-        kind = rng.random()
-        if kind < 0.1:
-            for a in rng.choice(names, size=4, replace=False):
-                current[str(a)] = float(rng.random())
-        elif kind < 0.5:
-            a = str(rng.choice(names))
-            current[a] = float(np.clip(current[a] + rng.normal(0.0, 0.2), 0.0, 1.0))
-        out.append({a: round(v, 4) for a, v in current.items() if v > 0})
-    return out
+    return random_frames(names, n, seed, jump=0.1, move=0.5, sigma=0.2)
 
 
 @pytest.fixture
 def faces() -> Iterator[tuple[Face, Face]]:
-    a = Face.open("human", emulate=True, wire_time=False)
-    b = Face.open("human", emulate=True, wire_time=False)
-    for face in (a, b):  # stepped back to back: per-time caps would make the verdicts depend on timing
-        face.pipeline.per_time_caps = False
-        face.pipeline.temperature_limits_c = {}  # the two chains' telemetry is read at different instants
-    yield a, b
-    a.close(ease_s=0.0)
-    b.close(ease_s=0.0)
+    with face_pair() as pair:
+        for face in pair:  # the two chains' telemetry is read at different instants
+            face.pipeline.temperature_limits_c = {}
+        yield pair
 
 
 def _key(t: FrameTrace) -> tuple[object, ...]:
@@ -57,7 +42,7 @@ def test_cached_solve_gives_the_same_goals_and_verdicts_as_solving_every_frame(
     faces: tuple[Face, Face], ahead: bool
 ) -> None:
     cached, fresh = faces
-    names = sorted(a for a in cached.pipeline.face.au_names if a[-1] not in "LR")
+    names = au_names(cached.pipeline)
     frames = _frames(names, 140, seed=5)
     hits = 0
     for k, aus in enumerate(frames):
@@ -88,7 +73,7 @@ def test_a_frame_just_short_of_a_period_waits_it_out_and_uses_the_speculation(fa
     p = face.pipeline
     p.per_time_caps = True
     period_s = p.gate.frame_period_s
-    names = sorted(a for a in p.face.au_names if a[-1] not in "LR")
+    names = au_names(p)
     frames = _frames(names, 30, seed=9)
     used = 0
     for k, aus in enumerate(frames):

@@ -1,0 +1,99 @@
+"""`DynamixelBus` sends its Sync Write and (Fast) Sync Read instructions through the SDK's packet-level calls
+(``syncWriteTxOnly`` / ``syncReadTx``) with parameters it builds, instead of ``GroupSyncWrite`` /
+``GroupSyncRead``: the bytes that reach the emulator are the same as the group helpers', byte for byte
+(stuffing included), and the values read back are the same, on random ids, registers and values."""
+
+from __future__ import annotations
+
+import random
+from typing import Any
+
+import pytest
+from servoface.hardware.bus import open_bus
+from servoface.hardware.dynamixel_bus import DynamixelBus, sdk
+from servoface.hardware.emulator import ServoChain
+from servoface.hardware.registers import Register
+
+IDS = list(range(1, 11))
+WRITABLE = (Register.GOAL_POSITION, Register.PROFILE_VELOCITY, Register.GOAL_PWM, Register.LED, Register.GOAL_CURRENT)
+READS = (
+    (Register.PRESENT_POSITION,),
+    (Register.MOVING, Register.PRESENT_CURRENT, Register.PRESENT_VELOCITY, Register.PRESENT_POSITION),
+    (Register.PRESENT_POSITION, Register.PRESENT_INPUT_VOLTAGE, Register.PRESENT_TEMPERATURE),
+    (Register.TORQUE_ENABLE, Register.HARDWARE_ERROR_STATUS),
+)
+
+
+def _raw_log(chain: ServoChain) -> list[bytes]:
+    """Every chunk of bytes the host writes, as the chain receives it (before any parsing)."""
+    seen: list[bytes] = []
+    write = chain.host_write
+
+    def tap(data: Any, baud: int) -> int:
+        seen.append(bytes(data))
+        return write(data, baud)
+
+    chain.host_write = tap  # type: ignore[method-assign]
+    return seen
+
+
+def _value(rng: random.Random, register: Register) -> int:
+    lo, hi = register.value_range
+    if rng.random() < 0.2 and register.size == 4:  # bytes that need stuffing: FF FF FD inside the parameters
+        return int.from_bytes(bytes((0xFF, 0xFF, 0xFD, rng.randint(0, 0x7F))), "little", signed=register.signed)
+    return rng.randint(lo, hi)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_sync_write_sends_the_group_helpers_bytes(seed: int) -> None:
+    rng = random.Random(seed)
+    chain = ServoChain.create(ids=IDS, wire_time=False)
+    seen = _raw_log(chain)
+    bus = open_bus("emulator", chain=chain)
+    assert isinstance(bus, DynamixelBus)
+    port, packet = bus.sdk_handlers()
+    try:
+        for _ in range(300):
+            register = rng.choice(WRITABLE)
+            ids = rng.sample(IDS, rng.randint(1, len(IDS)))
+            values = {sid: _value(rng, register) for sid in ids}
+            bus.sync_write(register, values)
+            ours = seen.pop()
+            group = sdk.GroupSyncWrite(port, packet, register.address, register.size)
+            for sid in ids:
+                group.addParam(sid, list(register.encode(values[sid])))
+            assert group.txPacket() == sdk.COMM_SUCCESS
+            assert ours == seen.pop(), (register, values)
+        assert not seen
+    finally:
+        bus.close()
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+@pytest.mark.parametrize("fast", [False, True])
+def test_sync_read_sends_the_group_helpers_bytes_and_reads_the_same_values(seed: int, fast: bool) -> None:
+    rng = random.Random(seed)
+    chain = ServoChain.create(ids=IDS, wire_time=False)
+    seen = _raw_log(chain)
+    bus = open_bus("emulator", chain=chain)
+    assert isinstance(bus, DynamixelBus)
+    port, packet = bus.sdk_handlers()
+    try:
+        for _ in range(150):
+            registers = rng.choice(READS)
+            ids = rng.sample(IDS, rng.randint(1, len(IDS)))
+            got = bus.sync_read(ids, registers, fast=fast)
+            ours = seen.pop()
+            start = min(r.address for r in registers)
+            length = max(r.address + r.size for r in registers) - start
+            group = sdk.GroupSyncRead(port, packet, start, length)
+            for sid in ids:
+                group.addParam(sid)
+            assert (group.fastSyncRead() if fast else group.txRxPacket()) == sdk.COMM_SUCCESS
+            assert ours == seen.pop(), (registers, ids)
+            for sid in ids:
+                for r in registers:
+                    raw = group.getData(sid, r.address, r.size)
+                    assert got[sid][r] == int.from_bytes(raw.to_bytes(r.size, "little"), "little", signed=r.signed)
+    finally:
+        bus.close()
