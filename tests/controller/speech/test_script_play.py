@@ -126,3 +126,18 @@ def test_an_unreadable_sound_file_is_refused_before_the_port_is_opened(
     assert main(["play", str(script), "--port", "/dev/does-not-exist"]) == 2
     err = capsys.readouterr().err
     assert "script.audio" in err and "missing.wav" in err and "does-not-exist" not in err, err
+
+
+@pytest.mark.slow
+def test_duration_cuts_a_cue_mouth_and_sound_there() -> None:
+    from servoface.controller.face import Face
+    from servoface.controller.speech.script_play import play_script_speaking
+
+    script = parse_script(SAY, source="say.toml")  # the cue talks from 0.5 s to ~2 s
+    with Face.open("human", emulate=True) as face:
+        spoken = play_script_speaking(face, script, duration_s=0.9)
+    traces = spoken.performance.traces
+    assert max(t.aus.get("AU26", 0.0) for t in traces if t.t_s < 0.9) > 0.1, "it started talking"
+    after = [t.aus.get("AU26", 0.0) for t in traces if t.t_s > 0.95]  # the servos settling on the cut pose
+    assert after and all(v == 0.0 for v in after), after
+    assert max(t.t_s for t in traces) < 0.9 + 2.5, "the run ended at the cut (+ settling)"
