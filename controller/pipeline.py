@@ -99,6 +99,7 @@ class Pipeline:
         self._lo = np.array([s.min_target for s in self._servos])
         self._hi = np.array([s.max_target for s in self._servos])
         self._neutral = [float(s.neutral_target) for s in self._servos]  # a curve inverse each: compute once
+        self._set_columns()
         self.last_goals_tick: dict[int, int] = calibration.neutral_goals()
         self.temperature_limits_c = dict(temperature_limits_c or {})
         self._ids = frozenset(s.servo_id for s in self._servos)
@@ -142,26 +143,41 @@ class Pipeline:
         self.calibration, self.gate = calibration, gate
         self._servos, self._lo, self._hi, self._neutral = servos, lo, hi, neutral
         self.last_goals_tick = last
+        self._set_columns()
         self.gate.reset()
+
+    def _set_columns(self) -> None:
+        """What a frame reads of the calibration in array form (head role order)."""
+        self._roles = [s.role for s in self._servos]
+        self._goal_ids = [s.servo_id for s in self._servos]
+        self._cols = self.calibration.columns(self._roles)
+        self._clamp_tol = 1e-6 * np.maximum(1.0, self._hi - self._lo)
 
     # -- one frame --------------------------------------------------------------------------------
     def targets_for(self, aus: Mapping[str, float]) -> dict[str, float]:
         """Actuator targets (role -> deg/mm) the muscle model asks for (validates the AUs)."""
-        return dict(self.face.solve(aus).actuator_targets)
+        return self.face.actuator_targets(aus)
 
     def clamp_targets(self, targets: Mapping[str, float]) -> tuple[dict[str, float], list[str]]:
         """Targets clamped into each servo's calibrated range, with one reason per clamp."""
-        values = np.array([float(targets.get(s.role, n)) for s, n in zip(self._servos, self._neutral, strict=True)])
+        clamped, reasons = self._clamp_array(targets)
+        return dict(zip(self._roles, clamped.tolist(), strict=True)), reasons
+
+    def _clamp_array(self, targets: Mapping[str, float]) -> tuple[np.ndarray, list[str]]:
+        """`clamp_targets` as an array in head role order (the frame path: no dict until the trace)."""
+        values = np.array([float(targets.get(r, n)) for r, n in zip(self._roles, self._neutral, strict=True)])
         if not np.all(np.isfinite(values)):
             bad = [s.role for s, v in zip(self._servos, values, strict=True) if not np.isfinite(v)]
             raise FrameError(f"muscle model produced non-finite targets for {bad}")
         clamped = np.clip(values, self._lo, self._hi)
+        off = np.abs(values - clamped) > self._clamp_tol
         reasons = [
-            f"[target] {s.role}: {v:.2f} {s.unit} outside the calibrated {lo:.2f}..{hi:.2f}, clamped"
-            for s, v, lo, hi, c in zip(self._servos, values, self._lo, self._hi, clamped, strict=True)
-            if abs(v - c) > 1e-6 * max(1.0, hi - lo)
+            f"[target] {s.role}: {values[i]:.2f} {s.unit} outside the calibrated {self._lo[i]:.2f}.."
+            f"{self._hi[i]:.2f}, clamped"
+            for i in np.flatnonzero(off).tolist()
+            for s in (self._servos[i],)
         ]
-        return {s.role: float(c) for s, c in zip(self._servos, clamped, strict=True)}, reasons
+        return clamped, reasons
 
     def step(
         self,
@@ -273,8 +289,11 @@ class Pipeline:
         targets = self.targets_for(aus)
         t1 = time.perf_counter()
         timings["muscle_ms"] = (t1 - t0) * 1e3
-        clamped, reasons = self.clamp_targets(targets)
-        requested = self.calibration.targets_to_goals(clamped)
+        clamped_arr, reasons = self._clamp_array(targets)
+        requested = dict(
+            zip(self._goal_ids, self.calibration.column_goals(self._cols, clamped_arr).tolist(), strict=True)
+        )
+        clamped = dict(zip(self._roles, clamped_arr.tolist(), strict=True))
         timings["calibration_ms"] = (time.perf_counter() - t1) * 1e3
         result = (targets, clamped, tuple(reasons), requested)
         self._solved = ((dict(aus), id(self.face), id(self.calibration)), result)

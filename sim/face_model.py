@@ -214,7 +214,7 @@ class FaceModel:
         joint = np.clip(self._neutral + joint_delta, self._lower, self._upper)
         joint_deg = dict(zip(self.joint_names, joint.tolist(), strict=True))
         offsets = self.field.offsets(contractions, joint_deg if self.field.eyelids else None)
-        targets = self._targets(joint, offsets)
+        targets = self._targets(joint, offsets[self._anchor_vertex])
         if self.direct is not None and split.any():
             joint_deg, offsets = self._apply_direct(self.direct.deltas(split), joint, joint_deg, offsets, targets)
         pose = HeadPose(joint_deg, offsets, targets)
@@ -254,12 +254,27 @@ class FaceModel:
             offsets = offsets + self.fit.bumps(residual)
         return joint_deg, offsets
 
-    def _targets(self, joint: FloatArray, offsets: FloatArray) -> dict[str, float]:
+    def actuator_targets(self, aus: Mapping[str, float]) -> dict[str, float]:
+        """``solve(aus).actuator_targets`` (validated the same way) without posing the skin: only the anchor
+        vertices' offsets are computed (`MuscleField.offsets_at`), the rest of the arithmetic is `solve`'s.
+        A head with a direct table falls back to `solve` when a frame uses it."""
+        split = self.mapping.split(aus)
+        if self.direct is not None and split.any():
+            return dict(self.solve_detailed(aus).pose.actuator_targets)
+        contractions, joint_delta = self.mapping.evaluate_split(split)
+        joint = np.clip(self._neutral + joint_delta, self._lower, self._upper)
+        joint_deg = dict(zip(self.joint_names, joint.tolist(), strict=True)) if self.field.eyelids else None
+        return self._targets(joint, self.field.offsets_at(contractions, self._anchor_vertex, joint_deg))
+
+    def _targets(self, joint: FloatArray, anchor_offsets: FloatArray) -> dict[str, float]:
+        """Actuator targets from the joints (J,) and the anchor vertices' skin offsets (A, 3)."""
         targets: dict[str, float] = {}
+        values = joint.tolist()
         for act, cols in zip(self.joint_actuators, self._joint_cols, strict=True):
-            targets[act.role] = min(max(float(joint[cols].mean()), act.lower_deg), act.upper_deg)
+            value = values[int(cols[0])] if cols.size == 1 else float(joint[cols].mean())  # a mean of one: itself
+            targets[act.role] = min(max(value, act.lower_deg), act.upper_deg)
         if self.anchor_actuators:
-            pulls = np.einsum("ak,ak->a", offsets[self._anchor_vertex], self._anchor_line)
+            pulls = np.einsum("ak,ak->a", anchor_offsets, self._anchor_line)
             for anchor, pull in zip(self.anchor_actuators, pulls.tolist(), strict=True):
                 targets[anchor.role] = min(max(pull, anchor.lower_mm), anchor.upper_mm)
         return targets
