@@ -24,9 +24,13 @@ from servoface.hardware.snapshot import ChainSnapshot
 from servoface.sim.errors import SimError
 from servoface.sim.face_model import FaceModel
 from servoface.sim.gate import GateConfig, ServoHealth, TwinGate, Verdict
+from servoface.sim.gate.health import derate
+from servoface.sim.gate.limits import per_time
 from servoface.sim.head import Head
 
 PACE_MAX_SHARE = 0.25  # a frame at most this share of a period early waits for the period (see step)
+PLAN_MARGIN = 1.03  # a caller faster than the rate: the next write is planned this much after the last interval
+PLAN_WAIT_MAX_S = 0.5e-3  # at most this long a spin for the planned write time (see `_planned_verdict`)
 
 
 @dataclass(frozen=True)
@@ -107,6 +111,8 @@ class Pipeline:
         self.last_snapshot: ChainSnapshot | None = None
         self.last_cycle_s: float | None = None  # clock() of the last driver cycle (pacing)
         self.last_write_s: float | None = None  # clock() when the last goals went on the wire
+        self._interval_s: float | None = None  # between the last two writes (plans the speculation)
+        self._short_run = 0  # writes in a row that came well within a period of the one before
         self.per_time_caps = True  # False: the gate's per-frame caps only (deterministic replays in tests)
         self._index = 0
         self._ahead: Ahead | None = None  # the next frame, computed during this one's wait (step(next_frame=))
@@ -221,12 +227,18 @@ class Pipeline:
         # after a whole period even when the last frame's caps were shrunk (`limits.per_time` with f = 1
         # gives the per-frame caps and the last step as it was), and the check would then note f = 1
         per_frame = elapsed_s is None or elapsed_s >= self.gate.frame_period_s
-        spec = ahead.verdict_for(self.last_goals_tick, health, self.gate.step_state()) if ahead and per_frame else None
+        # (one checked for a planned elapsed time: usable when that time gives the same caps, see
+        # `_planned_verdict`)
+        spec = None
+        if ahead is not None and (per_frame or ahead.plan_s is not None):
+            spec = ahead.verdict_for(self.last_goals_tick, health, self.gate.step_state())
+            if spec is not None and ahead.plan_s is not None:
+                spec, elapsed_s = self._planned_verdict(ahead, spec, health, elapsed_s)
         if spec is not None and ahead is not None:
             verdict = spec
             self.gate.restore_step_state(ahead.state_after)
-            if elapsed_s is not None:
-                self.gate._last_fraction = 1.0  # what the check with elapsed_s >= the period leaves
+            if elapsed_s is not None:  # what the check with this elapsed time leaves (`limits.per_time`)
+                self.gate._last_fraction = min(1.0, elapsed_s / self.gate.frame_period_s)
             timings["ahead_ms"] = sum(ahead.timings_ms.values())
         else:
             verdict = self.gate.check(requested, self.last_goals_tick, health, elapsed_s=elapsed_s)
@@ -237,7 +249,12 @@ class Pipeline:
         if self.driver is not None:
             before = self.driver.bus.stats.bytes_written
             self.driver.cycle_start(sent)
-            self.last_write_s = self.clock()  # after: the goals are on the wire by now (conservative)
+            now_s = self.clock()  # after: the goals are on the wire by now (conservative)
+            interval = None if self.last_write_s is None else now_s - self.last_write_s
+            short = interval is not None and interval < self.gate.frame_period_s * (1.0 - PACE_MAX_SHARE)
+            self._short_run = self._short_run + 1 if short else 0
+            self._interval_s = interval
+            self.last_write_s = now_s
             if next_frame is not None:  # while the replies are on the wire
                 self._ahead = self._prepare(next_frame, sent, health)
             self.last_snapshot = self.driver.cycle_finish()
@@ -334,17 +351,62 @@ class Pipeline:
         except Exception:  # noqa: BLE001 - re-raised by the step of that frame, where it belongs
             return None
         t2 = time.perf_counter()
-        before = self.gate.step_state()
+        gate = self.gate
+        before, fraction = gate.step_state(), gate._last_fraction
+        plan_s = self._plan_s()
         verdict: Verdict | None
         try:
-            verdict = self.gate.check(requested, sent, health)
+            verdict = gate.check(requested, sent, health, elapsed_s=plan_s)
         except Exception:  # noqa: BLE001 - the step checks afresh (and raises there)
             verdict = None
-        after = self.gate.step_state()
-        self.gate.restore_step_state(before)
+        after = gate.step_state()
+        gate.restore_step_state(before)
+        gate._last_fraction = fraction  # (a check with elapsed_s notes its fraction: put back too)
         timings = {**solved, "gate_ms": (time.perf_counter() - t2) * 1e3}
         return Ahead(aus, targets, clamped, tuple(reasons), requested, timings, verdict, dict(sent),
-                     None if health is None else dict(health), before, after)  # fmt: skip
+                     None if health is None else dict(health), before, after, plan_s, fraction)  # fmt: skip
+
+    def _plan_s(self) -> float | None:
+        """The elapsed time the speculative check of the next frame assumes: None (a whole period, the
+        per-frame caps) for a paced caller; for one stepping faster than the rate (frames back to back, the
+        last two intervals well under a period), the last interval times `PLAN_MARGIN`."""
+        interval = self._interval_s
+        if not self.per_time_caps or interval is None or self._short_run < 2:  # (one short: a paced loop's
+            return None  # catch-up after a late frame, its next frame comes a period later)
+        plan = interval * PLAN_MARGIN
+        return plan if plan < self.gate.frame_period_s * (1.0 - PACE_MAX_SHARE) else None
+
+    def _planned_verdict(
+        self, ahead: Ahead, spec: Verdict, health: dict[int, ServoHealth] | None, elapsed_s: float | None
+    ) -> tuple[Verdict | None, float | None]:
+        """A speculation checked for a planned elapsed time (`_plan_s`): a frame a little early spins to the
+        planned write time (at most `PLAN_WAIT_MAX_S`, real clock only); then the verdict is the fresh
+        check's when the caps that elapsed time gives (`limits.per_time`: integer step, speed-up and scaled
+        last step per servo) are exactly those of the planned time — everything else the check reads is
+        already the same (`Ahead.verdict_for`). Returns (verdict or None, the elapsed time now)."""
+        plan_s, last_write_s = ahead.plan_s, self.last_write_s
+        if plan_s is None or elapsed_s is None or last_write_s is None:
+            return None, elapsed_s
+        if elapsed_s < plan_s and plan_s - elapsed_s <= PLAN_WAIT_MAX_S and self.clock is time.monotonic:
+            while self.clock() - last_write_s < plan_s:
+                pass
+            elapsed_s = self.clock() - last_write_s
+        gate = self.gate
+        if elapsed_s < plan_s or gate._last_fraction != ahead.fraction_before:
+            return None, elapsed_s
+        table, _ = derate(gate.table, health, gate.config.health)
+        mem_sent, mem_step = gate.step_state()
+        last = np.array([self.last_goals_tick[sid] for sid in gate.table.ids], dtype=np.int64)
+        last_step = mem_step if mem_sent is not None and np.array_equal(mem_sent, last) else np.zeros_like(last)
+        period_s, fraction = gate.frame_period_s, gate._last_fraction
+        a = per_time(table, last_step, plan_s, period_s, fraction)
+        b = per_time(table, last_step, elapsed_s, period_s, fraction)
+        same = (
+            np.array_equal(a[0].max_step_tick, b[0].max_step_tick)
+            and np.array_equal(a[0].max_speedup_tick, b[0].max_speedup_tick)
+            and np.array_equal(a[1], b[1])
+        )
+        return (spec if same else None), elapsed_s
 
     def _sync_with_driver(self, snapshot: ChainSnapshot) -> None:
         """Take the goal the driver really left on a servo in service as the last command when it differs
