@@ -177,7 +177,7 @@ class HeadCalibration:
         without the dicts (a control frame's path); neighbours not given sit at neutral."""
         row = self._neutral_target_row.copy()
         row[0, cols] = values
-        return self.targets_to_goals_array(row)[0, cols]
+        return np.asarray(self.targets_to_goals_array(row)[0, cols], dtype=np.int64)
 
     def goals_to_targets(self, goals: Mapping[int, int], *, clip: bool = False) -> dict[str, float]:
         """Id -> goal tick into role -> target; coupled servos use their neighbours' goals (or neutral)."""

@@ -17,7 +17,7 @@ import numpy as np
 from servoface.calibration import HeadCalibration
 from servoface.controller.errors import FrameError
 from servoface.controller.frame import AUFrame
-from servoface.controller.pipeline_ahead import Ahead
+from servoface.controller.pipeline_ahead import Ahead, StepState
 from servoface.controller.telemetry import StrainedHealth
 from servoface.hardware.driver import Driver
 from servoface.hardware.snapshot import ChainSnapshot
@@ -118,6 +118,10 @@ class Pipeline:
         self._ahead: Ahead | None = None  # the next frame, computed during this one's wait (step(next_frame=))
         self._solved: tuple[tuple[dict[str, float], int, int], tuple[Any, ...]] | None = None  # see _solve
         self.pace_writes = True  # wait out a nearly elapsed frame period before the gate (`_wait_out_period`)
+        # the next frame's gate check during the wait too (else only its muscle model and calibration): saves
+        # wall time, but costs a second check whenever new telemetry or timing voids it (`play_timeline`,
+        # paced at the rate with time to spare, turns it off: one check per frame)
+        self.speculate_gate = True
 
     # -- state ------------------------------------------------------------------------------------
     def pin_to(self, goals_tick: Mapping[int, int]) -> None:
@@ -350,6 +354,10 @@ class Pipeline:
             targets, clamped, reasons, requested = self._solve(aus, solved)
         except Exception:  # noqa: BLE001 - re-raised by the step of that frame, where it belongs
             return None
+        if not self.speculate_gate:  # the solve only; the step checks (`Ahead.verdict_for` gives None)
+            nothing: StepState = (None, np.zeros(0, dtype=np.int64))
+            return Ahead(aus, targets, clamped, tuple(reasons), requested, solved, None, dict(sent),
+                         None if health is None else dict(health), nothing, nothing)  # fmt: skip
         t2 = time.perf_counter()
         gate = self.gate
         before, fraction = gate.step_state(), gate._last_fraction

@@ -134,7 +134,7 @@ class MuscleField:
             sphincters = [(col, f, *hits(f.index)) for col, f in self.sphincters]
             lids = [(m, lid, *hits(lid.index)) for m, lid in self.eyelids]
             plan = plans[key] = (w, int(unique.size), inverse.astype(np.int64), sphincters, lids)
-        return plan  # type: ignore[no-any-return]
+        return plan
 
     def unit_displacements(self, vertices: Sequence[int] | IntArray) -> FloatArray:
         """(len(vertices), 3, M) displacement per unit contraction at the given vertices (caps ignored)."""

@@ -60,7 +60,8 @@ def test_fast_path_gives_what_the_full_checks_give(face_type: str) -> None:
         aus: dict[Any, Any] = {}
         for _ in range(int(rng.integers(0, 7))):
             name = names[int(rng.integers(len(names)))]
-            aus[name] = odd[int(rng.integers(len(odd)))] if rng.random() < 0.1 else float(rng.uniform(lo - 0.05, hi + 0.05))
+            value = float(rng.uniform(lo - 0.05, hi + 0.05))
+            aus[name] = odd[int(rng.integers(len(odd)))] if rng.random() < 0.1 else value
         got = _outcome(lambda a: validate_aus(a, face_type), aus)
         assert got == _outcome(lambda a: _reference(a, face_type), aus), aus
         kinds[got[0]] += 1
