@@ -26,7 +26,8 @@ from servoface.sim.gate.errors import TssCacheError
 from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.proofs import common_centre
 from servoface.sim.gate.spheres import SphereSet
-from servoface.sim.gate.tss_build import _grid_angles, lever_arm_mm, relative_joints
+from servoface.sim.gate.tss_build import lever_arm_mm, relative_joints
+from servoface.sim.gate.tss_sweep import grid_angles
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -107,7 +108,7 @@ def build_clearance(
         i = int(np.argmax(counts))
         counts[i] = max(2, int(counts[i] * 0.85))
     step = np.where(counts > 1, (hi - lo) / np.maximum(counts - 1, 1), 0.0)
-    angles = _grid_angles(tree, k, lo, hi, counts)
+    angles = grid_angles(tree, k, lo, hi, counts)
     from scipy.spatial import cKDTree
 
     jx = -1 if x.joint is None else tree.index[x.joint]
