@@ -14,7 +14,6 @@ the grid's box) the exact test runs as before, so the gate's verdicts do not cha
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +26,7 @@ from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.proofs import common_centre
 from servoface.sim.gate.spheres import SphereSet
 from servoface.sim.gate.tss_build import lever_arm_mm, relative_joints
+from servoface.sim.gate.tss_cache import atomic_savez
 from servoface.sim.gate.tss_sweep import grid_angles
 
 FloatArray = NDArray[np.float64]
@@ -175,28 +175,22 @@ def cached_clearance(path: Path | None, build: Callable[[], Clearance | None]) -
     got = build()
     if path is None:
         return got
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
-        if got is None:
-            np.savez(tmp, present=False)
-        else:
-            np.savez(
-                tmp,
-                present=True,
-                ball_part=got.ball_part,
-                centre=got.centre_mm,
-                radius=got.radius_mm,
-                joints=got.joints,
-                lower=got.lower_deg,
-                step=got.step_deg,
-                counts=got.counts,
-                arm=got.arm_mm,
-                slack=got.slack_mm,
-            )
-        os.replace(tmp, path)
-    except OSError as err:
-        raise TssCacheError(f"cannot write clearance cache file {path}: {err}") from err
+    if got is None:
+        atomic_savez(path, present=False)
+    else:
+        atomic_savez(
+            path,
+            present=True,
+            ball_part=got.ball_part,
+            centre=got.centre_mm,
+            radius=got.radius_mm,
+            joints=got.joints,
+            lower=got.lower_deg,
+            step=got.step_deg,
+            counts=got.counts,
+            arm=got.arm_mm,
+            slack=got.slack_mm,
+        )
     return got
 
 

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.spheres import SphereSet, cover_spheres
-from servoface.sim.gate.tss_sweep import balls_meet, bounding_ball, grid_angles, sweep
+from servoface.sim.gate.tss_sweep import balls_meet, grid_angles, sweep
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -165,20 +165,6 @@ def pair_sphere_arms(
     return arm_a, arm_b
 
 
-def _ball_arms(
-    tree: JointTree, joint_a: str | None, joint_b: str | None, sa: SphereSet, sb: SphereSet, rel: list[int]
-) -> FloatArray:
-    """Per ``rel`` joint: an upper bound (mm per rad, any pose) of how fast it moves the centre of the
-    bounding ball of the part whose chain holds it (the other part stays put in the world)."""
-    chain_a = set(tree.chain(joint_a))
-    out = []
-    for j in rel:
-        joint, spheres = (joint_a, sa) if j in chain_a else (joint_b, sb)
-        centre, _ = bounding_ball(spheres)
-        out.append(lever_arm_mm(tree, joint, SphereSet(centre[None, :], np.zeros(1)), j))
-    return np.array(out, dtype=np.float64)
-
-
 def sweep_grid(
     lo: FloatArray, hi: FloatArray, arms: FloatArray, params: TssParams
 ) -> tuple[IntArray, FloatArray, float]:
@@ -221,8 +207,7 @@ def build_pair(
     if coarse:  # no table either way: exact test every frame if the parts' bounding balls ever meet
         pad = margin + tolerance_mm
         if n_grid > _REFINE_ABOVE_NODES:
-            ball_arms = _ball_arms(tree, part_a.joint, part_b.joint, spheres_a, spheres_b, rel)
-            exact_only = pruned_balls_meet(tree, rel, lo, hi, counts, ball_arms, ja, jb, spheres_a, spheres_b, pad)
+            exact_only = pruned_balls_meet(tree, rel, lo, hi, counts, part_a.joint, spheres_a, spheres_b, ja, jb, pad)
         else:
             exact_only = balls_meet(tree, grid_angles(tree, rel, lo, hi, counts), ja, jb, spheres_a, spheres_b, pad)
     else:

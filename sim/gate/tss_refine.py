@@ -10,9 +10,9 @@ cell). So a k-d sweep of the top grid with that pad lists every pair that can hi
 each level tests at each node only the pairs its parent listed, with its own reach; and the fine level
 tests them with the plain sweep's arithmetic (the same transforms, the same distance test on the same
 points), so the hit matrix is the plain sweep's (`tss_sweep.sweep`). A pair already found is not tested
-again. The same pyramid answers whether two parts' bounding balls meet at any fine node (`balls_meet`):
-below a coarse node whose ball gap exceeds ``pad + reach`` (the balls' centres' lever arms) no fine node
-is near. `tests/sim/test_tss_sweep_equivalence.py` compares both with the plain versions.
+again. Whether two parts' bounding balls meet at any node (`pruned_balls_meet`, for pairs too coarse for a
+table) is decided on the grid as the product of the two parts' sub-grids. `tests/sim/
+test_tss_sweep_equivalence.py` compares both with the plain versions.
 """
 
 from __future__ import annotations
@@ -24,7 +24,14 @@ import numpy as np
 from numpy.typing import NDArray
 from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.spheres import SphereSet
-from servoface.sim.gate.tss_sweep import FILTER_SLACK_MM, ball_distance, bounding_ball, near_nodes, pairs_at_nodes
+from servoface.sim.gate.tss_sweep import (
+    FILTER_SLACK_MM,
+    bounding_ball,
+    grid_angles,
+    near_nodes,
+    pairs_at_nodes,
+    sweep,
+)
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -32,7 +39,7 @@ BoolArray = NDArray[np.bool_]
 _TOP_NODES = 64  # the top grid's k-d sweep: small enough that its large pad stays cheap
 _MAX_TESTS = 1_000_000  # sphere-pair tests per batch (memory)
 _NODES_PER_BATCH = 4096  # nodes whose transforms are computed together
-_FIRST_NODES = 1024  # `balls_meet` first tries the plain test on this many fine nodes (most pairs meet there)
+_CHUNK_NODES = 1024  # `pruned_balls_meet` runs the plain test on this many nodes at a time (most meet early)
 
 
 @dataclass
@@ -98,7 +105,7 @@ def refined_sweep(
     levels = grid_pyramid(lo, hi, counts)
     hit = np.zeros((sa.n, sb.n), dtype=bool)
     if len(levels) == 1:
-        return _sweep_plain(tree, rel, levels[0], ja, jb, sa, sb, pad_mm, chunk, hit)
+        return sweep(tree, grid_angles(tree, rel, lo, hi, counts), ja, jb, sa, sb, pad_mm, chunk)
     top = levels[-1]
     ta, tb = _inflated(sa, arms_mm[0], top), _inflated(sb, arms_mm[1], top)
     found = list(
@@ -134,31 +141,10 @@ def refined_sweep(
     return hit
 
 
-def _sweep_plain(
-    tree: JointTree,
-    rel: list[int],
-    fine: GridLevel,
-    ja: int,
-    jb: int,
-    sa: SphereSet,
-    sb: SphereSet,
-    pad_mm: float,
-    chunk: int,
-    hit: BoolArray,
-) -> BoolArray:
-    for _, i, j in pairs_at_nodes(tree, fine.angles(tree, rel, np.arange(fine.n_nodes)), ja, jb, sa, sb, pad_mm, chunk):
-        hit[i, j] = True
-    return hit
-
-
 def _inflated(spheres: SphereSet, arms_mm: FloatArray, level: GridLevel) -> SphereSet:
     """The spheres grown by how far each can move between a fine node and its ancestor on ``level``."""
     grow = arms_mm @ np.deg2rad(level.reach_deg) if arms_mm.size else np.zeros(spheres.n)
     return SphereSet(spheres.centres_mm, spheres.radii_mm + grow + FILTER_SLACK_MM)
-
-
-def _padded(pad_mm: float, arms_mm: FloatArray, level: GridLevel) -> float:
-    return pad_mm + float(np.sum(arms_mm * np.deg2rad(level.reach_deg))) + FILTER_SLACK_MM
 
 
 def _descend(
@@ -191,8 +177,7 @@ def _descend(
     for start in range(0, len(kids), _NODES_PER_BATCH):
         kid = kids[start : start + _NODES_PER_BATCH]
         rel_t, near = near_nodes(tree, level.angles(tree, rel, kid), ja, jb, sa, sb, ball_pad_mm)
-        kid = kid[near]
-        r3 = np.ascontiguousarray(rel_t[near][:, :3, :])
+        kid, rel_n = kid[near], rel_t[near]
         m = level.up[kid]
         cnt = count[m]
         ends = np.cumsum(cnt)
@@ -208,16 +193,28 @@ def _descend(
             if hit is not None:
                 fresh = ~hit[i, j]
                 rank, i, j = rank[fresh], i[fresh], j[fresh]
-            # the plain sweep's points: einsum over the same transform rows and centres, bit for bit
-            pts = np.einsum("kij,kj->ki", r3[rank], ha[i])
-            d = np.linalg.norm(pts - sb.centres_mm[j], axis=1)
-            ok = d <= rad_a[i] + rad_b[j] + pad_mm
-            if hit is not None:
+            diff = _moved(rel_n, ha, s, e, rank, i) - sb.centres_mm[j]
+            if hit is not None:  # the plain sweep's distance test
+                ok = np.linalg.norm(diff, axis=1) <= rad_a[i] + rad_b[j] + pad_mm
                 hit[i[ok], j[ok]] = True
-            else:
+            else:  # squared: the bound carries FILTER_SLACK_MM, far above the rounding this changes
+                ok = np.einsum("ki,ki->k", diff, diff) <= np.square(rad_a[i] + rad_b[j] + pad_mm)
                 out.append((kid[rank[ok]], i[ok], j[ok]))
             s = e
     return tuple(np.concatenate([o[k] for o in out]) for k in range(3))  # type: ignore[return-value]
+
+
+def _moved(rel_n: FloatArray, ha: FloatArray, s: int, e: int, rank: IntArray, i: IntArray) -> FloatArray:
+    """(len(i), 3) a's centres ``i`` moved by ``rel_n[rank]`` (rank in [s, e)), with the plain sweep's
+    einsum (bit for bit: each point is the same sum over the same transform row and centre): as a table over
+    the nodes s..e and the spheres named, when that is smaller than one point per test, else per test."""
+    named = np.zeros(ha.shape[0], dtype=bool)
+    named[i] = True
+    used = np.flatnonzero(named)
+    if (e - s) * len(used) <= len(i):
+        table = np.einsum("gij,nj->gni", rel_n[s:e], ha[used])[..., :3]
+        return np.asarray(table[rank - s, (np.cumsum(named) - 1)[i]], dtype=np.float64)
+    return np.asarray(np.einsum("kij,kj->ki", np.ascontiguousarray(rel_n[:, :3, :])[rank], ha[i]), dtype=np.float64)
 
 
 def pruned_balls_meet(
@@ -226,30 +223,52 @@ def pruned_balls_meet(
     lo: FloatArray,
     hi: FloatArray,
     counts: IntArray,
-    ball_arms_mm: FloatArray,
-    ja: int,
-    jb: int,
+    joint_a: str | None,
     sa: SphereSet,
     sb: SphereSet,
+    ja: int,
+    jb: int,
     pad_mm: float,
 ) -> bool:
-    """`tss_sweep.balls_meet` over the fine grid ``counts`` (the same answer), pruned on the pyramid.
-    ``ball_arms_mm``: per ``rel`` joint, how far (mm per rad) the joint moves either ball's centre."""
-    levels = grid_pyramid(lo, hi, counts)
-    fine = levels[0]
-    first = np.arange(min(_FIRST_NODES, fine.n_nodes))
+    """`tss_sweep.balls_meet` over the fine grid ``counts`` (the same answer). ``rel`` splits into the joints
+    of a's chain and those of b's (every other joint is at 0 on the grid), so the grid is the product of
+    the two sub-grids: each ball's centre is placed in the world once per node of its part's sub-grid, the
+    centres' distance at every node is one subtraction, and only nodes within the pad (plus float slack:
+    the plain test works in b's frame) go to the plain test."""
+    fine = GridLevel([np.linspace(lo[k], hi[k], int(counts[k])) for k in range(len(rel))], np.zeros(len(rel)))
+    first = np.arange(min(_CHUNK_NODES, fine.n_nodes))
     if near_nodes(tree, fine.angles(tree, rel, first), ja, jb, sa, sb, pad_mm)[1].any():
-        return True
-    _, ra = bounding_ball(sa)
-    _, rb = bounding_ball(sb)
-    nodes = np.arange(levels[-1].n_nodes)
-    for k in range(len(levels) - 1, 0, -1):
-        gap = ball_distance(tree, levels[k].angles(tree, rel, nodes), ja, jb, sa, sb)[1] - (ra + rb)
-        keep = np.zeros(levels[k].n_nodes, dtype=bool)
-        keep[nodes[gap <= _padded(pad_mm, ball_arms_mm, levels[k])]] = True
-        nodes = np.flatnonzero(keep[levels[k - 1].up])
-    nodes = nodes[nodes >= len(first)]
+        return True  # most pairs that meet do so in the grid's first chunk, as in the plain test
+    chain_a = set(tree.chain(joint_a))
+    side_a = [k for k, j in enumerate(rel) if j in chain_a]
+    side_b = [k for k, j in enumerate(rel) if j not in chain_a]
+    ca, ra = bounding_ball(sa)
+    cb, rb = bounding_ball(sb)
+    idx = np.unravel_index(np.arange(fine.n_nodes), fine.counts)
+    at_a = _placed(tree, rel, fine, side_a, ja, ca)[_sub_index(idx, fine.counts, side_a)]
+    at_b = _placed(tree, rel, fine, side_b, jb, cb)[_sub_index(idx, fine.counts, side_b)]
+    close = np.flatnonzero(np.linalg.norm(at_a - at_b, axis=1) <= ra + rb + pad_mm + FILTER_SLACK_MM)
+    close = close[close >= len(first)]
     return any(
-        bool(near_nodes(tree, fine.angles(tree, rel, nodes[s : s + _FIRST_NODES]), ja, jb, sa, sb, pad_mm)[1].any())
-        for s in range(0, len(nodes), _FIRST_NODES)
+        bool(near_nodes(tree, fine.angles(tree, rel, close[s : s + _CHUNK_NODES]), ja, jb, sa, sb, pad_mm)[1].any())
+        for s in range(0, len(close), _CHUNK_NODES)
     )
+
+
+def _sub_index(idx: tuple[IntArray, ...], counts: tuple[int, ...], side: list[int]) -> IntArray:
+    """Each fine node's flat index in the sub-grid of the axes ``side``."""
+    if not side:
+        return np.zeros(len(idx[0]) if idx else 1, dtype=np.int64)
+    return np.asarray(np.ravel_multi_index(tuple(idx[k] for k in side), tuple(counts[k] for k in side)), np.int64)
+
+
+def _placed(
+    tree: JointTree, rel: list[int], fine: GridLevel, side: list[int], joint: int, centre: FloatArray
+) -> FloatArray:
+    """(sub-grid nodes, 3) world position of a point fixed to ``joint`` (-1: the head base) at each node of
+    the sub-grid over the axes ``side``."""
+    if joint < 0 or not side:
+        return np.asarray(centre, dtype=np.float64)[None, :]
+    sub = GridLevel([fine.axes_deg[k] for k in side], np.zeros(len(side)))
+    world = tree.world_of(sub.angles(tree, [rel[k] for k in side], np.arange(sub.n_nodes)), (joint,))[:, joint]
+    return np.asarray((world @ np.r_[centre, 1.0])[:, :3], dtype=np.float64)

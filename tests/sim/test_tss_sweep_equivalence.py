@@ -161,10 +161,10 @@ def test_refined_sweep_equals_the_plain_sweep_on_the_dog_skull_and_ear() -> None
 
 
 def test_pruned_balls_meet_gives_the_plain_answer() -> None:
-    """`pruned_balls_meet` (the pyramid skips coarse nodes whose balls are far apart) answers as the plain
-    test on every pair of the demo rig and the dog, at pads just above and below the closest approach
-    over the grid (where a pruning that cut too much would flip the answer) and a random one."""
-    from servoface.sim.gate.tss_build import _ball_arms
+    """`pruned_balls_meet` (ball centres placed per sub-grid of each part, the plain test only where they
+    are close) answers as the plain test on pairs of the demo rig and the dog, at pads just above and
+    below the closest approach over the grid (where a filter that cut too much would flip the answer)
+    and a random one."""
     from servoface.sim.gate.tss_refine import pruned_balls_meet
     from servoface.sim.gate.tss_sweep import ball_distance
     from servoface.sim.heads import load_head
@@ -191,10 +191,9 @@ def test_pruned_balls_meet_gives_the_plain_answer() -> None:
             angles = grid_angles(tree, rel, lo, hi, counts)
             gap = ball_distance(tree, angles, ja, jb, sa, sb)[1] - bounding_ball(sa)[1] - bounding_ball(sb)[1]
             closest = float(gap.min())
-            arms = _ball_arms(tree, parts[a].joint, parts[b].joint, sa, sb, rel)
             for pad in (closest + 1e-9, closest - 1e-9, float(rng.uniform(-20.0, 30.0))):
                 plain = balls_meet(tree, angles, ja, jb, sa, sb, pad)
-                got = pruned_balls_meet(tree, rel, lo, hi, counts, arms, ja, jb, sa, sb, pad)
+                got = pruned_balls_meet(tree, rel, lo, hi, counts, parts[a].joint, sa, sb, ja, jb, pad)
                 assert got == plain, (a, b, counts, pad, closest, int(np.argmin(gap)))
                 answers.append(plain)
     assert any(answers) and not all(answers)
