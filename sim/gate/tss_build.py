@@ -29,7 +29,7 @@ from servoface.sim.gate.tss_sweep import balls_meet, grid_angles, sweep
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 TSS_VERSION = "tss-1"
-_REFINE_ABOVE_NODES = 1000  # larger grids are swept through the pyramid of `tss_refine`
+_REFINE_ABOVE_NODES = 64  # larger grids go through the pyramid of `tss_refine` (a smaller one is its own top)
 
 
 @dataclass(frozen=True)

@@ -235,3 +235,46 @@ def test_world_of_two_chains_is_worlds_arithmetic(name: str) -> None:
             part = tree.world_of(q, (ja, jb))
             for j in {ja, jb} - {-1}:
                 assert np.array_equal(part[:, j], full[:, j]), (ja, jb, j)
+
+
+@pytest.mark.parametrize(
+    ("params", "kinds_expected"),
+    [
+        (TssParams(spheres_per_part=80), {"table True True", "table False True"}),
+        (TssParams(spheres_per_part=140, margin_mm=1.2), {"table True True", "table False True"}),
+        (TssParams(spheres_per_part=60, max_margin_mm=0.7, max_grid_points=3000), {"coarse True", "coarse False"}),
+    ],
+)
+def test_build_pair_equals_the_plain_build_on_the_demo_rig(params: TssParams, kinds_expected: set[str]) -> None:
+    """Every pair of the demo rig: the built table (refined sweep, pruned bounding-ball test) is the plain
+    sweep's on the same grid, and a pair too coarse for a table is exact-only exactly when the plain
+    bounding-ball test says its balls meet."""
+    from servoface.sim.gate.tss_build import build_pair, pair_lever_arms, sweep_grid
+
+    head = demo_head()
+    tree = JointTree(head.joints)
+    parts = {p.name: p for p in head.parts}
+    covers: dict[int, tuple[object, SphereSet]] = {}
+    kinds = set()
+    for a, b in [(x, y) for x in sorted(parts) for y in sorted(parts) if x < y]:
+        rel = relative_joints(tree, parts[a].joint, parts[b].joint)
+        if not rel:
+            continue
+        sa, sb = _covered(parts[a].mesh, params, covers), _covered(parts[b].mesh, params, covers)
+        table = build_pair(tree, parts[a], parts[b], sa, sb, 0.0, params, "k")
+        lo, hi = tree.lower_deg[rel], tree.upper_deg[rel]
+        counts, _, margin = sweep_grid(
+            lo, hi, pair_lever_arms(tree, parts[a].joint, parts[b].joint, sa, sb, rel), params
+        )
+        angles = grid_angles(tree, rel, lo, hi, counts)
+        ja = -1 if parts[a].joint is None else tree.index[parts[a].joint]
+        jb = -1 if parts[b].joint is None else tree.index[parts[b].joint]
+        if margin > params.max_margin_mm:
+            assert table.exact_only == balls_meet(tree, angles, ja, jb, sa, sb, margin), (a, b)
+            assert table.n_tests == 0
+            kinds.add(f"coarse {table.exact_only}")
+        else:
+            ia, ib = np.nonzero(sweep(tree, angles, ja, jb, sa, sb, margin, params.chunk_elements))
+            assert np.array_equal(table.ia, ia) and np.array_equal(table.ib, ib), (a, b)
+            kinds.add(f"table {len(ia) > 0} {len(angles) > 64}")
+    assert kinds_expected <= kinds, kinds
