@@ -39,7 +39,8 @@ BoolArray = NDArray[np.bool_]
 _TOP_NODES = 64  # the top grid's k-d sweep: small enough that its large pad stays cheap
 _MAX_TESTS = 1_000_000  # sphere-pair tests per batch (memory)
 _NODES_PER_BATCH = 4096  # nodes whose transforms are computed together
-_CHUNK_NODES = 1024  # `pruned_balls_meet` runs the plain test on this many nodes at a time (most meet early)
+_FIRST_NODES = 32  # `pruned_balls_meet` runs the plain test on the closest nodes first, then in chunks of
+_CHUNK_NODES = 1024
 
 
 @dataclass
@@ -236,9 +237,6 @@ def pruned_balls_meet(
     centres' distance at every node is one subtraction, and only nodes within the pad (plus float slack:
     the plain test works in b's frame) go to the plain test."""
     fine = GridLevel([np.linspace(lo[k], hi[k], int(counts[k])) for k in range(len(rel))], np.zeros(len(rel)))
-    first = np.arange(min(_CHUNK_NODES, fine.n_nodes))
-    if near_nodes(tree, fine.angles(tree, rel, first), ja, jb, sa, sb, pad_mm)[1].any():
-        return True  # most pairs that meet do so in the grid's first chunk, as in the plain test
     chain_a = set(tree.chain(joint_a))
     side_a = [k for k, j in enumerate(rel) if j in chain_a]
     side_b = [k for k, j in enumerate(rel) if j not in chain_a]
@@ -247,11 +245,14 @@ def pruned_balls_meet(
     idx = np.unravel_index(np.arange(fine.n_nodes), fine.counts)
     at_a = _placed(tree, rel, fine, side_a, ja, ca)[_sub_index(idx, fine.counts, side_a)]
     at_b = _placed(tree, rel, fine, side_b, jb, cb)[_sub_index(idx, fine.counts, side_b)]
-    close = np.flatnonzero(np.linalg.norm(at_a - at_b, axis=1) <= ra + rb + pad_mm + FILTER_SLACK_MM)
-    close = close[close >= len(first)]
+    dist = np.linalg.norm(at_a - at_b, axis=1)
+    close = np.flatnonzero(dist <= ra + rb + pad_mm + FILTER_SLACK_MM)
+    close = close[np.argsort(dist[close], kind="stable")]  # nearest first: a pair that meets stops early
+    starts = [0, *range(_FIRST_NODES, max(len(close), _FIRST_NODES), _CHUNK_NODES)]
     return any(
-        bool(near_nodes(tree, fine.angles(tree, rel, close[s : s + _CHUNK_NODES]), ja, jb, sa, sb, pad_mm)[1].any())
-        for s in range(0, len(close), _CHUNK_NODES)
+        bool(near_nodes(tree, fine.angles(tree, rel, close[s:e]), ja, jb, sa, sb, pad_mm)[1].any())
+        for s, e in zip(starts, [*starts[1:], len(close)], strict=True)
+        if e > s
     )
 
 
@@ -266,9 +267,17 @@ def _placed(
     tree: JointTree, rel: list[int], fine: GridLevel, side: list[int], joint: int, centre: FloatArray
 ) -> FloatArray:
     """(sub-grid nodes, 3) world position of a point fixed to ``joint`` (-1: the head base) at each node of
-    the sub-grid over the axes ``side``."""
+    the sub-grid over the axes ``side`` (row-major in ``rel`` order, which runs root first along the chain).
+    Built joint by joint from the part's own joint up: each joint's transform per angle applied to the
+    positions so far, a new slowest axis each time (joints of the chain outside ``side`` are at 0)."""
+    pts = np.asarray(centre, dtype=np.float64)[None, :]
     if joint < 0 or not side:
-        return np.asarray(centre, dtype=np.float64)[None, :]
-    sub = GridLevel([fine.axes_deg[k] for k in side], np.zeros(len(side)))
-    world = tree.world_of(sub.angles(tree, [rel[k] for k in side], np.arange(sub.n_nodes)), (joint,))[:, joint]
-    return np.asarray((world @ np.r_[centre, 1.0])[:, :3], dtype=np.float64)
+        return pts
+    angles_of = {rel[k]: fine.axes_deg[k] for k in side}
+    for j in tree.chain(tree.names[joint]):
+        if j not in angles_of:
+            continue
+        local = tree.local(angles_of[j][:, None], [j])[:, 0]  # (n, 4, 4)
+        moved = np.einsum("aij,mj->ami", local[:, :3, :3], pts) + local[:, None, :3, 3]
+        pts = moved.reshape(-1, 3)
+    return pts
