@@ -38,6 +38,7 @@ IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 _TOP_NODES = 64  # the top grid's k-d sweep: small enough that its large pad stays cheap
 _MAX_TESTS = 1_000_000  # sphere-pair tests per batch (memory)
+_FINE_TESTS = 20_000  # on the fine level: small batches, so pairs found are not tested again at later nodes
 _NODES_PER_BATCH = 4096  # nodes whose transforms are computed together
 _FIRST_NODES = 32  # `pruned_balls_meet` runs the plain test on the closest nodes first, then in chunks of
 _CHUNK_NODES = 1024
@@ -174,6 +175,7 @@ def _descend(
     kids = np.flatnonzero(count[level.up] > 0)
     ha = np.c_[sa.centres_mm, np.ones(sa.n)]
     rad_a, rad_b = radii_mm
+    batch = _MAX_TESTS if hit is None else _FINE_TESTS
     out: list[tuple[IntArray, IntArray, IntArray]] = [(np.zeros(0, np.int64),) * 3]
     for start in range(0, len(kids), _NODES_PER_BATCH):
         kid = kids[start : start + _NODES_PER_BATCH]
@@ -183,9 +185,9 @@ def _descend(
         cnt = count[m]
         ends = np.cumsum(cnt)
         s = 0
-        while s < len(m):  # batches of nodes holding at most _MAX_TESTS pair tests
+        while s < len(m):  # batches of nodes holding at most `batch` pair tests
             base = ends[s - 1] if s else 0
-            e = max(s + 1, int(np.searchsorted(ends, base + _MAX_TESTS, side="right")))
+            e = max(s + 1, int(np.searchsorted(ends, base + batch, side="right")))
             c = cnt[s:e]
             total = int(c.sum())
             rank = np.repeat(np.arange(s, e), c)
