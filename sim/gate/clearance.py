@@ -117,7 +117,7 @@ def build_clearance(
     kd = cKDTree(sy.centres_mm)
     ch = np.r_[c, 1.0]
     for s in range(0, angles.shape[0], _CHUNK_NODES):
-        world = tree.world(angles[s : s + _CHUNK_NODES])
+        world = tree.world_of(angles[s : s + _CHUNK_NODES], (jx, jy))  # `world` along the two chains only
         g = world.shape[0]
         tx = world[:, jx] if jx >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))
         ty = world[:, jy] if jy >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))
