@@ -40,8 +40,8 @@ _TOP_NODES = 64  # the top grid's k-d sweep: small enough that its large pad sta
 _MAX_TESTS = 1_000_000  # sphere-pair tests per batch (memory)
 _FINE_TESTS = 20_000  # on the fine level: small batches, so pairs found are not tested again at later nodes
 _NODES_PER_BATCH = 4096  # nodes whose transforms are computed together
-_FIRST_NODES = 32  # `pruned_balls_meet` runs the plain test on the closest nodes first, then in chunks of
-_CHUNK_NODES = 1024
+_FIRST_NODES = 32  # `pruned_balls_meet` runs the plain test on this many closest nodes first,
+_CHUNK_NODES = 1024  # then on the others this many at a time
 
 
 @dataclass
