@@ -29,6 +29,7 @@ from servoface.sim.gate.coupling import CouplingCheck, CouplingLimit, limits_fro
 from servoface.sim.gate.errors import GateConfigError, GateInputError
 from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.health import HealthPolicy, ServoHealth, derate
+from servoface.sim.gate.skin_proof import proven_static
 from servoface.sim.gate.skin_source import face_model_source, falloff_source
 from servoface.sim.gate.skin_static import build_static
 from servoface.sim.gate.strain import SkinTwin, StrainLimits, strain_findings
@@ -58,6 +59,7 @@ class GateConfig:
     use_cache: bool = True
     clearance: bool = True  # clearance tables for pairs without a TSS table (False: exact test whenever)
     bisection_rounds: int = 2  # 8 fractions per round: resolution 1/8**rounds of the step
+    skin_proofs: bool = True  # leave out of the strain measure the joint-only skin proven safe (skin_proof)
 
 
 @dataclass(frozen=True)
@@ -111,6 +113,12 @@ class TwinGate:
         self.coupling = CouplingCheck(rules, self.poser.roles)
         self.skin = self._build_skin(face_model)
         self.static_skin = build_static(self.skin, self.poser, self.tree)
+        self.skin_proven = (0, 0)  # (edges, triangles) left out of the per-frame strain measure by proof
+        if self.static_skin is None and cfg.skin_proofs:
+            proof = proven_static(self.skin, self.tree, cfg.strain)
+            if proof is not None and (proof[0].any() or proof[1].any()):
+                self.skin.measure_only(~proof[0], ~proof[1])
+                self.skin_proven = (int(proof[0].sum()), int(proof[1].sum()))
         cache = (cfg.cache_dir or default_cache_dir()) if cfg.use_cache else None
         pairs = list(cfg.collision_pairs) if cfg.collision_pairs is not None else auto_pairs(head, self.tree)
         self.collisions = PartCollisions(head, self.tree, pairs, cfg.tss, cache, clearance=cfg.clearance)

@@ -117,6 +117,11 @@ class SkinTwin:
         self._fn32 = np.ascontiguousarray(self._rest_normal32[:, faces])
         self._ffw_t32 = np.ascontiguousarray(self._face_w_t32[:, faces])
 
+    def measure_only(self, edges: NDArray[np.bool_], faces: NDArray[np.bool_]) -> None:
+        """Let `measure_one` measure only these of the active edges / faces (the rest proven within the
+        limits in every pose: `skin_proof`)."""
+        self._fast_subset(edges, faces)
+
     def split_static(self) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
         """Leave out of `measure_one` the active edges and faces no anchor pull moves (their shape follows
         the joints alone, so the caller tabulates them: `measure_static`). Returns those (edge, face)
