@@ -189,7 +189,8 @@ class TwinGate:
         """(targets (k, n), angles (k, J), world (k, J, 4, 4), pulls (k, a)) for (k, n) goals."""
         targets = self.poser.targets(goals)
         angles = self.poser.joint_angles(targets)
-        return targets, angles, self.tree.world(angles), self.poser.pulls(targets)
+        world = self.tree.world_one(angles[0])[None] if len(angles) == 1 else self.tree.world(angles)
+        return targets, angles, world, self.poser.pulls(targets)
 
     def _shares(self, targets: FloatArray) -> FloatArray:
         p = self.poser
