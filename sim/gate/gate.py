@@ -157,6 +157,18 @@ class TwinGate:
         return {sid: int(t) for sid, t in zip(self.table.ids, self.table.neutral_tick, strict=True)}
 
     def _vector(self, goals: Mapping[Any, Any], base: IntArray | None, what: str) -> tuple[IntArray, list[Finding]]:
+        """(n,) ticks in table order from a goal map (``base`` fills servos it leaves out), and the input
+        findings. A map of every servo, in table order, of plain ints in range takes a fast path (the
+        usual frame): the same array, no findings."""
+        if len(goals) == self.table.n and tuple(goals) == self.table.ids and all(type(k) is int for k in goals):
+            values = list(goals.values())
+            if all(type(v) is int for v in values) and -_BIG < min(values) and max(values) < _BIG:
+                return np.array(values, dtype=np.int64), []
+        return self._vector_checked(goals, base, what)
+
+    def _vector_checked(
+        self, goals: Mapping[Any, Any], base: IntArray | None, what: str
+    ) -> tuple[IntArray, list[Finding]]:
         out = np.zeros(self.table.n, dtype=np.int64) if base is None else base.copy()
         bad: list[Finding] = []
         seen = set()
@@ -259,7 +271,7 @@ class TwinGate:
         last, bad_last = self._vector(last_goals_tick, None, "last_goals_tick")
         if bad_last:
             raise GateInputError("; ".join(f.message for f in bad_last))
-        hold = {sid: int(t) for sid, t in zip(self.table.ids, last, strict=True)}
+        hold = dict(zip(self.table.ids, last.tolist(), strict=True))
         last_step = (
             self._last_step
             if self._last_sent is not None and np.array_equal(self._last_sent, last)
@@ -274,7 +286,7 @@ class TwinGate:
             )
             self._last_fraction = window.fraction
         req, bad = self._vector(goals_tick, last, "goals_tick")
-        requested = {sid: int(t) for sid, t in zip(self.table.ids, req, strict=True)}
+        requested = dict(zip(self.table.ids, req.tolist(), strict=True))
         if bad:
             return self._remember(Verdict("reject", hold, tuple(health_findings + bad), 0.0, requested), last, window)
         findings = health_findings + lim.findings(req, rate_last, last_step, table)
@@ -300,7 +312,7 @@ class TwinGate:
         if best is None or np.array_equal(best, last):
             findings.append(Finding("hold", "no safe command found between the last one and the request: holding"))
             return self._remember(Verdict("reject", hold, tuple(findings), 0.0, requested), last, window)
-        goals = {sid: int(t) for sid, t in zip(self.table.ids, best, strict=True)}
+        goals = dict(zip(self.table.ids, best.tolist(), strict=True))
         return self._remember(Verdict("clip", goals, tuple(findings), frac, requested), last, window)
 
     def _scale_back(
@@ -419,6 +431,9 @@ class TwinGate:
         offsets = self.skin_source.offsets(pulls[0])
         joint_deg = {n: float(a) for n, a in zip(self.tree.names, angles[0], strict=True)}
         return joint_deg, offsets, {r: float(t) for r, t in zip(self.poser.roles, targets[0], strict=True)}
+
+
+_BIG = 2**62  # plain ints inside this fit int64 (outside, the checked path raises as it always did)
 
 
 def _is_int(value: Any) -> bool:

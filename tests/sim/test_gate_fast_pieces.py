@@ -57,3 +57,40 @@ def test_world_one_equals_the_batched_transforms(gate: TwinGate) -> None:
     for k in range(len(q)):
         assert np.array_equal(tree.world_one(q[k]), tree.world(q[k][None])[0])
         assert np.array_equal(tree.world_one(q[k]), batched[k])
+
+
+def test_goal_vector_fast_path_equals_the_checked_path(gate: TwinGate) -> None:
+    """The fast path of `TwinGate._vector` (every servo, table order, plain ints) gives what the checked
+    path gives on random goal maps, well-formed and malformed (bool / numpy / float keys and values, huge
+    ints, missing, extra and reordered servos)."""
+    t = gate.table
+    rng = np.random.default_rng(5)
+    base = t.neutral_tick.copy()
+    odd_values = [True, 1.5, float("nan"), np.int64(7), 2**62, -(2**62), 2**63 + 5, "12", None]
+    for trial in range(400):
+        values: list[object] = [int(v) for v in rng.integers(t.min_tick, t.max_tick + 1)]
+        keys: list[object] = list(t.ids)
+        kind = trial % 8
+        if kind == 1:
+            values[int(rng.integers(t.n))] = odd_values[int(rng.integers(len(odd_values)))]
+        elif kind == 2:
+            keys[0] = True if keys[0] == 1 else np.int64(keys[0])
+        elif kind == 3:
+            keys, values = keys[::-1], values[::-1]
+        elif kind == 4:
+            keys, values = keys[:-1], values[:-1]
+        elif kind == 5:
+            keys[-1] = max(t.ids) + 1
+        elif kind == 6:
+            keys[1] = float(keys[1])
+        goals = dict(zip(keys, values, strict=True))
+        for use_base in (None, base):
+            try:
+                fast = gate._vector(goals, use_base, "goals_tick")
+            except OverflowError:
+                with pytest.raises(OverflowError):
+                    gate._vector_checked(goals, use_base, "goals_tick")
+                continue
+            slow = gate._vector_checked(goals, use_base, "goals_tick")
+            assert np.array_equal(fast[0], slow[0]) and fast[0].dtype == slow[0].dtype
+            assert [(f.check, f.message) for f in fast[1]] == [(f.check, f.message) for f in slow[1]]
