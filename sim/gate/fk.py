@@ -55,6 +55,29 @@ class JointTree:
         self.lower_deg = np.array([by_name[n].lower_deg for n in self.names], dtype=np.float64)
         self.upper_deg = np.array([by_name[n].upper_deg for n in self.names], dtype=np.float64)
         self.neutral_deg = np.array([getattr(by_name[n], "neutral_deg", 0.0) for n in self.names], dtype=np.float64)
+        self._one: tuple[FloatArray, FloatArray, list[int]] | None = None  # `world_one`'s constants
+
+    def world_one(self, angles_deg: FloatArray) -> FloatArray:
+        """`world` for one pose: angles (J,) deg -> (J, 4, 4), bit for bit the same numbers (the same
+        elementwise Rodrigues terms with the constant axis products kept, the same products down the tree)
+        without the batch axis' overhead (the gate's per-frame check poses one command)."""
+        if self._one is None:
+            a = self.axis
+            k = np.zeros((a.shape[0], 3, 3))
+            k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -a[:, 2], a[:, 1], -a[:, 0]
+            k[:, 1, 0], k[:, 2, 0], k[:, 2, 1] = a[:, 2], -a[:, 1], a[:, 0]
+            self._one = (k, k @ k, [int(p) for p in self.parent_index])
+        k, kk, parents = self._one
+        th = np.deg2rad(angles_deg)[:, None, None]
+        r = np.eye(3) + np.sin(th) * k + (1.0 - np.cos(th)) * kk
+        loc = np.zeros((len(parents), 4, 4))
+        loc[:, :3, :3] = r
+        loc[:, :3, 3] = self.pivot_mm - np.einsum("...ij,...j->...i", r, self.pivot_mm)
+        loc[:, 3, 3] = 1.0
+        out = np.empty_like(loc)
+        for i, p in enumerate(parents):
+            out[i] = loc[i] if p < 0 else out[p] @ loc[i]
+        return out
 
     def chain(self, name: str | None) -> list[int]:
         """Indices of ``name`` and its ancestors (root last); [] for the head base."""

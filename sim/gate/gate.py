@@ -29,6 +29,7 @@ from servoface.sim.gate.coupling import CouplingCheck, CouplingLimit, limits_fro
 from servoface.sim.gate.errors import GateConfigError, GateInputError
 from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.health import HealthPolicy, ServoHealth, derate
+from servoface.sim.gate.skin_proof import proven_static
 from servoface.sim.gate.skin_source import face_model_source, falloff_source
 from servoface.sim.gate.skin_static import build_static
 from servoface.sim.gate.strain import SkinTwin, StrainLimits, strain_findings
@@ -58,6 +59,7 @@ class GateConfig:
     use_cache: bool = True
     clearance: bool = True  # clearance tables for pairs without a TSS table (False: exact test whenever)
     bisection_rounds: int = 2  # 8 fractions per round: resolution 1/8**rounds of the step
+    skin_proofs: bool = True  # leave out of the strain measure the joint-only skin proven safe (skin_proof)
 
 
 @dataclass(frozen=True)
@@ -111,6 +113,12 @@ class TwinGate:
         self.coupling = CouplingCheck(rules, self.poser.roles)
         self.skin = self._build_skin(face_model)
         self.static_skin = build_static(self.skin, self.poser, self.tree)
+        self.skin_proven = (0, 0)  # (edges, triangles) left out of the per-frame strain measure by proof
+        if self.static_skin is None and cfg.skin_proofs:
+            proof = proven_static(self.skin, self.tree, cfg.strain)
+            if proof is not None and (proof[0].any() or proof[1].any()):
+                self.skin.measure_only(~proof[0], ~proof[1])
+                self.skin_proven = (int(proof[0].sum()), int(proof[1].sum()))
         cache = (cfg.cache_dir or default_cache_dir()) if cfg.use_cache else None
         pairs = list(cfg.collision_pairs) if cfg.collision_pairs is not None else auto_pairs(head, self.tree)
         self.collisions = PartCollisions(head, self.tree, pairs, cfg.tss, cache, clearance=cfg.clearance)
@@ -149,6 +157,18 @@ class TwinGate:
         return {sid: int(t) for sid, t in zip(self.table.ids, self.table.neutral_tick, strict=True)}
 
     def _vector(self, goals: Mapping[Any, Any], base: IntArray | None, what: str) -> tuple[IntArray, list[Finding]]:
+        """(n,) ticks in table order from a goal map (``base`` fills servos it leaves out), and the input
+        findings. A map of every servo, in table order, of plain ints in range takes a fast path (the
+        usual frame): the same array, no findings."""
+        if len(goals) == self.table.n and tuple(goals) == self.table.ids and all(type(k) is int for k in goals):
+            values = list(goals.values())
+            if all(type(v) is int for v in values) and -_BIG < min(values) and max(values) < _BIG:
+                return np.array(values, dtype=np.int64), []
+        return self._vector_checked(goals, base, what)
+
+    def _vector_checked(
+        self, goals: Mapping[Any, Any], base: IntArray | None, what: str
+    ) -> tuple[IntArray, list[Finding]]:
         out = np.zeros(self.table.n, dtype=np.int64) if base is None else base.copy()
         bad: list[Finding] = []
         seen = set()
@@ -181,7 +201,8 @@ class TwinGate:
         """(targets (k, n), angles (k, J), world (k, J, 4, 4), pulls (k, a)) for (k, n) goals."""
         targets = self.poser.targets(goals)
         angles = self.poser.joint_angles(targets)
-        return targets, angles, self.tree.world(angles), self.poser.pulls(targets)
+        world = self.tree.world_one(angles[0])[None] if len(angles) == 1 else self.tree.world(angles)
+        return targets, angles, world, self.poser.pulls(targets)
 
     def _shares(self, targets: FloatArray) -> FloatArray:
         p = self.poser
@@ -250,7 +271,7 @@ class TwinGate:
         last, bad_last = self._vector(last_goals_tick, None, "last_goals_tick")
         if bad_last:
             raise GateInputError("; ".join(f.message for f in bad_last))
-        hold = {sid: int(t) for sid, t in zip(self.table.ids, last, strict=True)}
+        hold = dict(zip(self.table.ids, last.tolist(), strict=True))
         last_step = (
             self._last_step
             if self._last_sent is not None and np.array_equal(self._last_sent, last)
@@ -265,7 +286,7 @@ class TwinGate:
             )
             self._last_fraction = window.fraction
         req, bad = self._vector(goals_tick, last, "goals_tick")
-        requested = {sid: int(t) for sid, t in zip(self.table.ids, req, strict=True)}
+        requested = dict(zip(self.table.ids, req.tolist(), strict=True))
         if bad:
             return self._remember(Verdict("reject", hold, tuple(health_findings + bad), 0.0, requested), last, window)
         findings = health_findings + lim.findings(req, rate_last, last_step, table)
@@ -291,7 +312,7 @@ class TwinGate:
         if best is None or np.array_equal(best, last):
             findings.append(Finding("hold", "no safe command found between the last one and the request: holding"))
             return self._remember(Verdict("reject", hold, tuple(findings), 0.0, requested), last, window)
-        goals = {sid: int(t) for sid, t in zip(self.table.ids, best, strict=True)}
+        goals = dict(zip(self.table.ids, best.tolist(), strict=True))
         return self._remember(Verdict("clip", goals, tuple(findings), frac, requested), last, window)
 
     def _scale_back(
@@ -410,6 +431,9 @@ class TwinGate:
         offsets = self.skin_source.offsets(pulls[0])
         joint_deg = {n: float(a) for n, a in zip(self.tree.names, angles[0], strict=True)}
         return joint_deg, offsets, {r: float(t) for r, t in zip(self.poser.roles, targets[0], strict=True)}
+
+
+_BIG = 2**62  # plain ints inside this fit int64 (outside, the checked path raises as it always did)
 
 
 def _is_int(value: Any) -> bool:

@@ -45,7 +45,8 @@ class ServoTable:
     max_step_tick: IntArray
     max_speedup_tick: IntArray
     # a per-time window (`per_time`) part-way through: the step from its start may not turn back on the
-    # motion already made in it (the window moves one way, as one frame's step does); None elsewhere
+    # motion already made in it (the window moves one way, as one frame's step does), nor change the last
+    # call's step by more than the per-frame caps allow; None elsewhere
     window_lo_tick: IntArray | None = None
     window_hi_tick: IntArray | None = None
 
@@ -152,6 +153,9 @@ def per_time(
     else:
         f = min(1.0, float(elapsed_s) / frame_period_s)
     last = np.asarray(last_tick, dtype=np.int64)
+    # each call also keeps the per-frame caps against the previous call's step (as one call per frame does),
+    # so a window's motion comes out in steps that never speed up by more than a frame's speed-up per call
+    call_lo, call_hi = step_bounds(np.asarray(last_step, dtype=np.int64), table)
     valid = window is not None and window.start_tick.shape == last.shape and np.array_equal(window.end_tick, last)
     if valid and window is not None and window.fraction < _FULL and window.fraction + f <= 2.0 - _FULL:
         grown_f = min(1.0, window.fraction + f)  # the call falls inside the window's period
@@ -160,10 +164,9 @@ def per_time(
         lo, hi = step_bounds(caps[1], caps[0])
         if bool(np.all((moved >= lo) & (moved <= hi))):  # (a derated servo may close it early)
             fraction = 1.0 if grown_f >= _FULL else grown_f
-            caps_w = copy.copy(caps[0])
-            object.__setattr__(caps_w, "window_lo_tick", np.where(moved > 0, moved, np.iinfo(np.int64).min))
-            object.__setattr__(caps_w, "window_hi_tick", np.where(moved < 0, moved, np.iinfo(np.int64).max))
-            return caps_w, window.start_tick, caps[1], replace(window, fraction=fraction)
+            lo_w = np.maximum(np.where(moved > 0, moved, np.iinfo(np.int64).min), moved + call_lo)
+            hi_w = np.minimum(np.where(moved < 0, moved, np.iinfo(np.int64).max), moved + call_hi)
+            return _bounded(caps[0], lo_w, hi_w), window.start_tick, caps[1], replace(window, fraction=fraction)
         base, base_fraction = moved, window.fraction
     elif valid and window is not None:
         base, base_fraction = last - window.start_tick, window.fraction  # the window closed with the last call
@@ -171,7 +174,17 @@ def per_time(
         base, base_fraction = np.asarray(last_step, dtype=np.int64), last_fraction
     fraction = 1.0 if f >= _FULL else f
     scaled, scaled_last = _window_caps(table, base, base_fraction, fraction)
+    if not np.array_equal(base, last_step):  # (else the caps are inside the call bounds already)
+        scaled = _bounded(scaled, call_lo, call_hi)
     return scaled, last, scaled_last, RateWindow(last.copy(), last.copy(), fraction, base.copy(), base_fraction)
+
+
+def _bounded(table: ServoTable, lo_tick: IntArray, hi_tick: IntArray) -> ServoTable:
+    """``table`` with the step (from the rate base) also kept inside [lo_tick, hi_tick] (both contain 0)."""
+    out = copy.copy(table)
+    object.__setattr__(out, "window_lo_tick", np.asarray(lo_tick, dtype=np.int64))
+    object.__setattr__(out, "window_hi_tick", np.asarray(hi_tick, dtype=np.int64))
+    return out
 
 
 def _window_caps(
@@ -267,7 +280,8 @@ def findings(goals: IntArray, last: IntArray, last_step: IntArray, table: ServoT
             out.append(
                 Finding(
                     "accel",
-                    f"{table.label(i)}: step {s} tick turns back within one frame period",
+                    f"{table.label(i)}: step {s} tick turns back within one frame period or speeds up"
+                    f" by more than one frame's speed-up since the last call",
                     role,
                     sid,
                     float(s),

@@ -39,6 +39,7 @@ class SkinSource:
     lower_mm: FloatArray
     upper_mm: FloatArray
     movable: BoolArray  # (n,)
+    field_rows: Callable[[FloatArray, NDArray[np.int64]], FloatArray] | None = None  # field(c)[rows], cheaper
     _rows: dict[int, tuple[NDArray[np.int64], Any, FloatArray]] = dc_field(default_factory=dict)
 
     def offsets(self, pulls_mm: FloatArray) -> FloatArray:
@@ -65,6 +66,8 @@ class SkinSource:
             return np.asarray(base + (bumps @ p).reshape(-1, 3), dtype=np.float64)
         c = self.contract(p)
         fit = np.asarray(bumps @ (p - self.unit_pull @ c), dtype=np.float64).reshape(-1, 3)
+        if self.field_rows is not None:
+            return base + self.field_rows(c, rows) + fit
         return base + np.take(self.field(c), rows, axis=0) + fit  # take: a row gather ~5x faster
 
     def offsets_batch(self, pulls_mm: FloatArray) -> FloatArray:
@@ -156,4 +159,35 @@ def face_model_source(face_model: Any, anchors: Sequence[Any]) -> SkinSource:
         lower_mm=np.array([a.lower_mm for a in anchors], dtype=np.float64),
         upper_mm=np.array([a.upper_mm for a in anchors], dtype=np.float64),
         movable=movable,
+        field_rows=_field_rows(fm.field),
     )
+
+
+def _field_rows(field: Any) -> Callable[[FloatArray, NDArray[np.int64]], FloatArray]:
+    """``field.offsets(c)[rows]`` computed on those rows only: the linear part's rows of the sparse matrix
+    (each row's sum is the same products in the same order) plus the sphincters' displacements at the rows
+    they reach, added in the same order — the same numbers as the whole field, gathered."""
+    cache: dict[int, tuple[NDArray[np.int64], Any, list[tuple[int, Any, NDArray[np.int64], NDArray[np.int64]]]]] = {}
+
+    def rows_of(c: FloatArray, rows: NDArray[np.int64]) -> FloatArray:
+        got = cache.get(id(rows))
+        if got is None or got[0] is not rows:
+            flat = (3 * rows[:, None] + np.arange(3)[None, :]).ravel()
+            matrix = field.linear_matrix[flat]
+            where = np.full(field.n_vertices, -1, dtype=np.int64)
+            where[rows] = np.arange(len(rows))
+            caps = []
+            for col, sph in field.sphincters:
+                pos = where[sph.index]
+                inside = np.flatnonzero(pos >= 0)
+                caps.append((int(col), sph, inside, pos[inside]))
+            got = (rows, matrix, caps)
+            cache[id(rows)] = got
+        _, matrix, caps = got
+        out = np.asarray(matrix @ c, dtype=np.float64).reshape(len(rows), 3)
+        for col, sph, inside, pos in caps:
+            if c[col] != 0.0:
+                out[pos] += sph.displacement(float(c[col]))[inside]
+        return out
+
+    return rows_of

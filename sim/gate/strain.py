@@ -117,6 +117,11 @@ class SkinTwin:
         self._fn32 = np.ascontiguousarray(self._rest_normal32[:, faces])
         self._ffw_t32 = np.ascontiguousarray(self._face_w_t32[:, faces])
 
+    def measure_only(self, edges: NDArray[np.bool_], faces: NDArray[np.bool_]) -> None:
+        """Let `measure_one` measure only these of the active edges / faces (the rest proven within the
+        limits in every pose: `skin_proof`)."""
+        self._fast_subset(edges, faces)
+
     def split_static(self) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
         """Leave out of `measure_one` the active edges and faces no anchor pull moves (their shape follows
         the joints alone, so the caller tabulates them: `measure_static`). Returns those (edge, face)
@@ -240,10 +245,10 @@ class SkinTwin:
         pz += m[10] * z
         pz += m[11]
         e0, e1 = self._e0, self._e1
-        dx, dy, dz = px[e0], py[e0], pz[e0]
-        dx -= px[e1]
-        dy -= py[e1]
-        dz -= pz[e1]
+        dx, dy, dz = px.take(e0), py.take(e0), pz.take(e0)
+        dx -= px.take(e1)
+        dy -= py.take(e1)
+        dz -= pz.take(e1)
         dx *= dx
         dy *= dy
         dz *= dz
@@ -262,12 +267,12 @@ class SkinTwin:
         ez += r[9] * n1
         ez += r[10] * n2
         f0, f1, f2 = self._f0, self._f1, self._f2
-        ax, ay, az = px[f0], py[f0], pz[f0]
-        ux, uy, uz = px[f1], py[f1], pz[f1]
+        ax, ay, az = px.take(f0), py.take(f0), pz.take(f0)
+        ux, uy, uz = px.take(f1), py.take(f1), pz.take(f1)
         ux -= ax
         uy -= ay
         uz -= az
-        wx, wy, wz = px[f2], py[f2], pz[f2]
+        wx, wy, wz = px.take(f2), py.take(f2), pz.take(f2)
         wx -= ax
         wy -= ay
         wz -= az

@@ -69,8 +69,16 @@ def test_fast_state_checks_match_the_audit(gate_fm: tuple[TwinGate, Any]) -> Non
         rows = gate.skin.fast_vertices
         offsets = gate.skin_source.offsets_rows(pulls[0], rows)
         s, c, f = gate.skin.measure_one(world[0], offsets, gate._static(row))
-        assert s == pytest.approx(float(s_ref), rel=1e-4) and c == pytest.approx(float(c_ref), rel=1e-4)
         assert f == int(f_ref)
+        lim = gate.config.strain
+        if gate.skin_proven == (0, 0):
+            assert s == pytest.approx(float(s_ref), rel=1e-4) and c == pytest.approx(float(c_ref), rel=1e-4)
+        else:  # skin proven inside the limits is not measured: the numbers agree where they decide
+            assert s <= float(s_ref) * (1 + 1e-4) and c >= float(c_ref) * (1 - 1e-4)
+            if float(s_ref) > lim.max_stretch:
+                assert s == pytest.approx(float(s_ref), rel=1e-4)
+            if float(c_ref) < lim.min_compression:
+                assert c == pytest.approx(float(c_ref), rel=1e-4)
     assert kinds_seen & {"collision", "coupling", "strain", "flip"}, "no state check ever fired"
 
 

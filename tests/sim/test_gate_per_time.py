@@ -54,7 +54,7 @@ def _per_frame(table: lim.ServoTable, targets: np.ndarray, frames: int) -> list[
 
 @pytest.mark.parametrize("calls_per_frame", [1, 3, 7, 50, 1000])
 def test_fast_calls_add_up_to_one_frame_call(calls_per_frame: int) -> None:
-    table = _table([51, 93, 41, 5], [17, 31, 13, 1])
+    table = _table([51, 93, 41, 12], [17, 31, 13, 4])
     targets = np.array([4000, 100, 3000, 2100], dtype=np.int64)
     frames = 12
     sent, _ = _drive(table, targets, [PERIOD_S / calls_per_frame] * (frames * calls_per_frame))
@@ -69,11 +69,28 @@ def test_fast_calls_add_up_to_one_frame_call(calls_per_frame: int) -> None:
     assert np.all(grow <= table.max_speedup_tick) and np.all(np.abs(steps[0]) <= table.max_speedup_tick)
 
 
+@pytest.mark.parametrize("calls_per_frame", [3, 50, 1000])
+def test_a_small_speedup_cap_is_never_beaten_and_still_moves(calls_per_frame: int) -> None:
+    """With a speed-up cap of two or three ticks per frame the call-to-call caps can leave a fast caller a
+    tick behind the one-call-per-frame caller at a frame boundary: never ahead of it, and it moves. (With a
+    cap of one tick a fast caller's speed stays at one tick per frame: safe, slow.)"""
+    table = _table([5, 7], [2, 3])
+    targets = np.array([4000, 100], dtype=np.int64)
+    sent, _ = _drive(table, targets, [PERIOD_S / calls_per_frame] * (10 * calls_per_frame))
+    reference = _per_frame(table, targets, 10)
+    start = table.neutral_tick
+    for k in range(11):
+        fast, ref = np.abs(sent[k * calls_per_frame] - start), np.abs(reference[k] - start)
+        assert np.all(fast <= ref) and np.all(fast >= ref - k), (k, fast, ref)
+    assert np.all(sent[-1] != start)
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_random_call_patterns_never_beat_the_caps_per_second(seed: int) -> None:
     """Random gaps (microseconds to two periods) and random targets: over any span of calls lasting at most
     ``m`` periods the motion is at most ``m + 1`` frames' steps (as for one call per frame, where a span can
-    hold ``m + 1`` calls); and motion does start."""
+    hold ``m + 1`` calls); from call to call the per-frame caps hold as well (step and speed-up against the
+    previous call's step); and motion does start."""
     rng = np.random.default_rng(seed)
     table = _table([51, 93, 41, 7], [17, 31, 13, 2])
     elapsed = (rng.choice([1e-6, 1e-4, 1e-3, 4e-3, 0.017, 0.03], size=600) * rng.uniform(0.5, 1.5, 600)).tolist()
@@ -88,6 +105,8 @@ def test_random_call_patterns_never_beat_the_caps_per_second(seed: int) -> None:
         fraction = window.fraction
         goal = lim.clamp(targets, rate_last, rate_step, caps)
         window = window.sent(goal)
+        lo, hi = lim.step_bounds(last_step, table)  # call to call, the per-frame caps hold too
+        assert np.all((goal - last >= lo) & (goal - last <= hi)), (i, goal - last, last_step)
         last_step, last = goal - last, goal
         t += e
         sent.append(goal.copy())

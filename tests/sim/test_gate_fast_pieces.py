@@ -1,0 +1,157 @@
+"""Pieces of the gate's per-frame path that compute the same numbers more cheaply, compared bit for bit with
+the straightforward computation on random inputs (both built-in heads)."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+import pytest
+from servoface.sim.gate import TwinGate
+
+
+def _gate(name: str) -> TwinGate:
+    from servoface.calibration.fileformat import load_calibration
+    from servoface.sim.heads import load_head
+
+    head = load_head(name)
+    assert head.calibration_path is not None
+    return TwinGate(head, load_calibration(head.calibration_path), 1 / 60)
+
+
+@pytest.fixture(scope="module", params=["human", "dog"])
+def gate(request: pytest.FixtureRequest) -> TwinGate:
+    return _gate(request.param)
+
+
+def test_field_rows_equal_the_whole_field_gathered(gate: TwinGate) -> None:
+    """`SkinSource.offsets_rows` with the field computed on the rows only (sparse rows + sphincter caps)
+    equals the whole field's rows, bit for bit, for random pulls and random contractions (sphincters
+    contracted both ways, past their caps too)."""
+    src = gate.skin_source
+    assert src.field_rows is not None and src.field is not None
+    rows = gate.skin.fast_vertices
+    plain = dataclasses.replace(src, field_rows=None, _rows={})
+    rng = np.random.default_rng(11)
+    span = src.upper_mm - src.lower_mm
+    pulls = rng.uniform(src.lower_mm - 0.1 * span, src.upper_mm + 0.1 * span, size=(40, len(span)))
+    for p in pulls:
+        assert np.array_equal(src.offsets_rows(p, rows), plain.offsets_rows(p, rows))
+    n_muscles = src.unit_pull.shape[1]
+    sub = rng.choice(gate.skin.active_vertices, size=min(300, len(gate.skin.active_vertices)), replace=False)
+    sub = np.sort(sub).astype(np.int64)
+    for _ in range(40):
+        c = rng.uniform(-0.5, 3.0, n_muscles) * (rng.random(n_muscles) < 0.6)
+        assert np.array_equal(src.field_rows(c, sub), src.field(c)[sub])
+        assert np.array_equal(src.field_rows(c, rows), src.field(c)[rows])
+
+
+def test_world_one_equals_the_batched_transforms(gate: TwinGate) -> None:
+    """`JointTree.world_one` (the per-frame check's single pose) equals `world` on a batch of one, bit for
+    bit, on random angles inside and beyond the joint limits."""
+    tree = gate.tree
+    rng = np.random.default_rng(3)
+    span = tree.upper_deg - tree.lower_deg
+    q = rng.uniform(tree.lower_deg - 0.2 * span - 5, tree.upper_deg + 0.2 * span + 5, size=(300, len(tree.names)))
+    batched = tree.world(q)
+    for k in range(len(q)):
+        assert np.array_equal(tree.world_one(q[k]), tree.world(q[k][None])[0])
+        assert np.array_equal(tree.world_one(q[k]), batched[k])
+
+
+def test_goal_vector_fast_path_equals_the_checked_path(gate: TwinGate) -> None:
+    """The fast path of `TwinGate._vector` (every servo, table order, plain ints) gives what the checked
+    path gives on random goal maps, well-formed and malformed (bool / numpy / float keys and values, huge
+    ints, missing, extra and reordered servos)."""
+    t = gate.table
+    rng = np.random.default_rng(5)
+    base = t.neutral_tick.copy()
+    odd_values = [True, 1.5, float("nan"), np.int64(7), 2**62, -(2**62), 2**63 + 5, "12", None]
+    for trial in range(400):
+        values: list[object] = [int(v) for v in rng.integers(t.min_tick, t.max_tick + 1)]
+        keys: list[object] = list(t.ids)
+        kind = trial % 8
+        if kind == 1:
+            values[int(rng.integers(t.n))] = odd_values[int(rng.integers(len(odd_values)))]
+        elif kind == 2:
+            keys[0] = True if keys[0] == 1 else np.int64(keys[0])
+        elif kind == 3:
+            keys, values = keys[::-1], values[::-1]
+        elif kind == 4:
+            keys, values = keys[:-1], values[:-1]
+        elif kind == 5:
+            keys[-1] = max(t.ids) + 1
+        elif kind == 6:
+            keys[1] = float(keys[1])
+        goals = dict(zip(keys, values, strict=True))
+        for use_base in (None, base):
+            try:
+                fast = gate._vector(goals, use_base, "goals_tick")
+            except OverflowError:
+                with pytest.raises(OverflowError):
+                    gate._vector_checked(goals, use_base, "goals_tick")
+                continue
+            slow = gate._vector_checked(goals, use_base, "goals_tick")
+            assert np.array_equal(fast[0], slow[0]) and fast[0].dtype == slow[0].dtype
+            assert [(f.check, f.message) for f in fast[1]] == [(f.check, f.message) for f in slow[1]]
+
+
+def _measure_one_gathers(skin: Any, world: np.ndarray, offsets: np.ndarray, static: tuple[float, float, int]) -> Any:
+    """`SkinTwin.measure_one` written plainly: the same float32 steps with the corners gathered by index."""
+    mats = skin._mats(world).astype(np.float32)
+    m = mats.T @ skin._fw_t32
+    o = offsets.T.astype(np.float32)
+    rv = skin._frest_vt32
+    x, y, z = rv[0] + o[0], rv[1] + o[1], rv[2] + o[2]
+    p = [((m[4 * r] * x + m[4 * r + 1] * y) + m[4 * r + 2] * z) + m[4 * r + 3] for r in range(3)]
+    d = [c[skin._e0] - c[skin._e1] for c in p]
+    r2 = ((d[0] * d[0] + d[1] * d[1]) + d[2] * d[2]) * skin._fe_inv
+    r = mats.T @ skin._ffw_t32
+    n0, n1, n2 = skin._fn32
+    e = [(r[4 * k] * n0 + r[4 * k + 1] * n1) + r[4 * k + 2] * n2 for k in range(3)]
+    u = [c[skin._f1] - c[skin._f0] for c in p]
+    w = [c[skin._f2] - c[skin._f0] for c in p]
+    cx = (u[1] * w[2] - u[2] * w[1]) * e[0]
+    cy = (u[2] * w[0] - u[0] * w[2]) * e[1]
+    cz = (u[0] * w[1] - u[1] * w[0]) * e[2]
+    dot = (cx + cy) + cz
+    hi2 = max(float(r2.max()), static[0]) if r2.size else static[0]
+    lo2 = min(float(r2.min()), static[1]) if r2.size else static[1]
+    stretch = max(float(np.sqrt(hi2)), skin._const_max)
+    comp = min(float(np.sqrt(lo2)), skin._const_min)
+    return stretch, comp, int(np.count_nonzero(dot <= 0.0)) + skin._const_flips + static[2]
+
+
+def test_measure_one_equals_the_plain_gathers(gate: TwinGate) -> None:
+    """The per-frame strain measure (in place, gathers by `take`) equals the plain gather-and-subtract
+    arithmetic exactly, on random commands anywhere in the limits."""
+    t = gate.table
+    rng = np.random.default_rng(13)
+    rows = gate.skin.fast_vertices
+    for _ in range(60):
+        goal = rng.integers(t.min_tick, t.max_tick + 1).astype(np.int64)
+        _, _, world, pulls = gate._pose_arrays(goal[None, :])
+        offsets = gate.skin_source.offsets_rows(pulls[0], rows)
+        static = gate._static(goal)
+        assert gate.skin.measure_one(world[0], offsets, static) == _measure_one_gathers(
+            gate.skin, world[0], offsets, static
+        )
+
+
+def test_one_pose_broad_phase_equals_the_plain_gathers(gate: TwinGate) -> None:
+    """The one-pose TSS broad phase (gathers by `take`) flags exactly the pairs the plain fancy-index
+    distances flag, on random poses."""
+    broad = gate.collisions.broad
+    tree = gate.tree
+    rng = np.random.default_rng(17)
+    q = rng.uniform(tree.lower_deg, tree.upper_deg, size=(80, len(tree.names)))
+    for k in range(len(q)):
+        world = tree.world_one(q[k])
+        cx, cy, cz = np.ascontiguousarray(broad.centres(world).T)
+        ga, gb = broad.ga, broad.gb
+        d2 = (cx[ga] - cx[gb]) ** 2 + (cy[ga] - cy[gb]) ** 2 + (cz[ga] - cz[gb]) ** 2
+        want = np.zeros(broad.n_pairs, dtype=bool)
+        if broad.n_tests:
+            want[broad._nonempty] = np.logical_or.reduceat(d2 <= broad.thr2, broad._starts)
+        assert np.array_equal(broad._overlaps_flat(world), want)
