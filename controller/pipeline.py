@@ -17,15 +17,13 @@ import numpy as np
 from servoface.calibration import HeadCalibration
 from servoface.controller.errors import FrameError
 from servoface.controller.frame import AUFrame
-from servoface.controller.pipeline_ahead import Ahead, StepState
+from servoface.controller.pipeline_ahead import Ahead
 from servoface.controller.telemetry import StrainedHealth
 from servoface.hardware.driver import Driver
 from servoface.hardware.snapshot import ChainSnapshot
 from servoface.sim.errors import SimError
 from servoface.sim.face_model import FaceModel
 from servoface.sim.gate import GateConfig, ServoHealth, TwinGate, Verdict
-from servoface.sim.gate.health import derate
-from servoface.sim.gate.limits import per_time
 from servoface.sim.head import Head
 
 PACE_MAX_SHARE = 0.25  # a frame at most this share of a period early waits for the period (see step)
@@ -227,22 +225,19 @@ class Pipeline:
             if self.driver is None or self.last_write_s is None or not self.per_time_caps
             else self.clock() - self.last_write_s
         )  # since the last goals went on the wire: the gate's caps hold per second, not per call
-        # a speculative verdict was checked against whole-frame caps: usable only when those apply. They do
-        # after a whole period even when the last frame's caps were shrunk (`limits.per_time` with f = 1
-        # gives the per-frame caps and the last step as it was), and the check would then note f = 1
-        per_frame = elapsed_s is None or elapsed_s >= self.gate.frame_period_s
-        # (one checked for a planned elapsed time: usable when that time gives the same caps, see
-        # `_planned_verdict`)
+        # a speculative verdict is used when its inputs are exactly this check's: the same AUs, last command,
+        # health and gate memory (`Ahead.verdict_for`), and rate caps that this elapsed time makes exactly the
+        # ones it was checked with (`TwinGate.rate_key`: per-frame caps, or a planned interval's)
         spec = None
-        if ahead is not None and (per_frame or ahead.plan_s is not None):
+        if ahead is not None:
             spec = ahead.verdict_for(self.last_goals_tick, health, self.gate.step_state())
-            if spec is not None and ahead.plan_s is not None:
-                spec, elapsed_s = self._planned_verdict(ahead, spec, health, elapsed_s)
+            if spec is not None:
+                elapsed_s = self._reach_plan(ahead, elapsed_s)
+                if self.gate.rate_key(self.last_goals_tick, health, elapsed_s) != ahead.rate_key:
+                    spec = None
         if spec is not None and ahead is not None:
             verdict = spec
-            self.gate.restore_step_state(ahead.state_after)
-            if elapsed_s is not None:  # what the check with this elapsed time leaves (`limits.per_time`)
-                self.gate._last_fraction = min(1.0, elapsed_s / self.gate.frame_period_s)
+            self.gate.remember_check(spec, self.last_goals_tick, health, elapsed_s)  # as the check would
             timings["ahead_ms"] = sum(ahead.timings_ms.values())
         else:
             verdict = self.gate.check(requested, self.last_goals_tick, health, elapsed_s=elapsed_s)
@@ -355,24 +350,22 @@ class Pipeline:
         except Exception:  # noqa: BLE001 - re-raised by the step of that frame, where it belongs
             return None
         if not self.speculate_gate:  # the solve only; the step checks (`Ahead.verdict_for` gives None)
-            nothing: StepState = (None, np.zeros(0, dtype=np.int64))
             return Ahead(aus, targets, clamped, tuple(reasons), requested, solved, None, dict(sent),
-                         None if health is None else dict(health), nothing, nothing)  # fmt: skip
+                         None if health is None else dict(health), None, b"")  # fmt: skip
         t2 = time.perf_counter()
         gate = self.gate
-        before, fraction = gate.step_state(), gate._last_fraction
+        before = gate.step_state()
         plan_s = self._plan_s()
         verdict: Verdict | None
         try:
+            key = gate.rate_key(sent, health, plan_s)
             verdict = gate.check(requested, sent, health, elapsed_s=plan_s)
         except Exception:  # noqa: BLE001 - the step checks afresh (and raises there)
-            verdict = None
-        after = gate.step_state()
-        gate.restore_step_state(before)
-        gate._last_fraction = fraction  # (a check with elapsed_s notes its fraction: put back too)
+            key, verdict = b"", None
+        gate.restore_step_state(before)  # never left in a speculative state
         timings = {**solved, "gate_ms": (time.perf_counter() - t2) * 1e3}
         return Ahead(aus, targets, clamped, tuple(reasons), requested, timings, verdict, dict(sent),
-                     None if health is None else dict(health), before, after, plan_s, fraction)  # fmt: skip
+                     None if health is None else dict(health), before, key, plan_s)  # fmt: skip
 
     def _plan_s(self) -> float | None:
         """The elapsed time the speculative check of the next frame assumes: None (a whole period, the
@@ -384,37 +377,18 @@ class Pipeline:
         plan = interval * PLAN_MARGIN
         return plan if plan < self.gate.frame_period_s * (1.0 - PACE_MAX_SHARE) else None
 
-    def _planned_verdict(
-        self, ahead: Ahead, spec: Verdict, health: dict[int, ServoHealth] | None, elapsed_s: float | None
-    ) -> tuple[Verdict | None, float | None]:
+    def _reach_plan(self, ahead: Ahead, elapsed_s: float | None) -> float | None:
         """A speculation checked for a planned elapsed time (`_plan_s`): a frame a little early spins to the
-        planned write time (at most `PLAN_WAIT_MAX_S`, real clock only); then the verdict is the fresh
-        check's when the caps that elapsed time gives (`limits.per_time`: integer step, speed-up and scaled
-        last step per servo) are exactly those of the planned time — everything else the check reads is
-        already the same (`Ahead.verdict_for`). Returns (verdict or None, the elapsed time now)."""
+        planned write time (at most `PLAN_WAIT_MAX_S`, real clock only), so that its caps can be the planned
+        ones (`TwinGate.rate_key` decides). Returns the elapsed time now."""
         plan_s, last_write_s = ahead.plan_s, self.last_write_s
         if plan_s is None or elapsed_s is None or last_write_s is None:
-            return None, elapsed_s
+            return elapsed_s
         if elapsed_s < plan_s and plan_s - elapsed_s <= PLAN_WAIT_MAX_S and self.clock is time.monotonic:
             while self.clock() - last_write_s < plan_s:
                 pass
             elapsed_s = self.clock() - last_write_s
-        gate = self.gate
-        if elapsed_s < plan_s or gate._last_fraction != ahead.fraction_before:
-            return None, elapsed_s
-        table, _ = derate(gate.table, health, gate.config.health)
-        mem_sent, mem_step = gate.step_state()
-        last = np.array([self.last_goals_tick[sid] for sid in gate.table.ids], dtype=np.int64)
-        last_step = mem_step if mem_sent is not None and np.array_equal(mem_sent, last) else np.zeros_like(last)
-        period_s, fraction = gate.frame_period_s, gate._last_fraction
-        a = per_time(table, last_step, plan_s, period_s, fraction)
-        b = per_time(table, last_step, elapsed_s, period_s, fraction)
-        same = (
-            np.array_equal(a[0].max_step_tick, b[0].max_step_tick)
-            and np.array_equal(a[0].max_speedup_tick, b[0].max_speedup_tick)
-            and np.array_equal(a[1], b[1])
-        )
-        return (spec if same else None), elapsed_s
+        return elapsed_s
 
     def _sync_with_driver(self, snapshot: ChainSnapshot) -> None:
         """Take the goal the driver really left on a servo in service as the last command when it differs

@@ -15,10 +15,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-import numpy as np
 from servoface.sim.gate import ServoHealth, Verdict
-
-StepState = tuple[np.ndarray | None, np.ndarray]  # TwinGate.step_state()
+from servoface.sim.gate.gate import GateMemory
 
 
 @dataclass(frozen=True)
@@ -34,25 +32,17 @@ class Ahead:
     verdict: Verdict | None  # None: the speculative check could not run (then the step checks)
     last_goals_tick: dict[int, int]
     health: dict[int, ServoHealth] | None
-    state_before: StepState
-    state_after: StepState
+    state_before: GateMemory | None  # the gate's memory the check started from (None: no check ran)
+    rate_key: bytes  # `TwinGate.rate_key` of the check: its caps, step origin and previous step
     plan_s: float | None = None  # the elapsed time the check assumed (None: a whole period, per-frame caps)
-    fraction_before: float = 1.0  # the gate's last-frame fraction the check started from
 
     def verdict_for(
-        self, last_goals_tick: Mapping[int, int], health: Mapping[int, ServoHealth] | None, state: StepState
+        self, last_goals_tick: Mapping[int, int], health: Mapping[int, ServoHealth] | None, state: GateMemory
     ) -> Verdict | None:
-        """The speculative verdict if its inputs are exactly the step's, else None."""
+        """The speculative verdict if its inputs but the elapsed time are exactly the step's, else None (the
+        caller compares the rate caps: `TwinGate.rate_key`)."""
         if self.verdict is None or dict(last_goals_tick) != self.last_goals_tick:
             return None
-        if (None if health is None else dict(health)) != self.health or not same_state(state, self.state_before):
+        if (None if health is None else dict(health)) != self.health or self.state_before is None:
             return None
-        return self.verdict
-
-
-def same_state(a: StepState, b: StepState) -> bool:
-    if (a[0] is None) != (b[0] is None):
-        return False
-    if a[0] is not None and b[0] is not None and not np.array_equal(a[0], b[0]):
-        return False
-    return bool(np.array_equal(a[1], b[1]))
+        return self.verdict if state.same(self.state_before) else None

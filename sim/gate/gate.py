@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numbers
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -77,6 +77,24 @@ class BatchReport:
         return self.limit_ok & self.speed_ok & self.accel_ok & self.coupling_ok & self.broad_clear
 
 
+@dataclass(frozen=True)
+class GateMemory:
+    """What `TwinGate.check` carries from one call to the next (`TwinGate.step_state`)."""
+
+    last_sent: IntArray | None  # the last command it passed (None: none yet, or reset)
+    last_step: IntArray  # that command's step
+    last_fraction: float  # share of a frame period the last timed check's step was allowed (`limits.per_time`)
+
+    def same(self, other: GateMemory) -> bool:
+        """Equal memories (arrays compared by value)."""
+        if (self.last_sent is None) != (other.last_sent is None) or self.last_fraction != other.last_fraction:
+            return False
+        if self.last_sent is not None and other.last_sent is not None:
+            if not np.array_equal(self.last_sent, other.last_sent):
+                return False
+        return bool(np.array_equal(self.last_step, other.last_step))
+
+
 class TwinGate:
     """The digital-twin gate of one head. Build once (TSS tables load from cache), call per frame."""
 
@@ -125,7 +143,6 @@ class TwinGate:
         self._last_sent: IntArray | None = None
         self._last_step: IntArray = np.zeros(self.table.n, dtype=np.int64)
         self._last_fraction = 1.0  # share of a frame period the previous check's step was allowed (per_time)
-        self._window: lim.RateWindow | None = None  # the timed checks' rate window (per_time)
         self._memo: tuple[bytes, list[Finding]] = (b"", [])  # (command bytes, its state findings)
 
     # ---- set-up ---------------------------------------------------------------------------------------
@@ -272,23 +289,14 @@ class TwinGate:
         if bad_last:
             raise GateInputError("; ".join(f.message for f in bad_last))
         hold = dict(zip(self.table.ids, last.tolist(), strict=True))
-        last_step = (
-            self._last_step
-            if self._last_sent is not None and np.array_equal(self._last_sent, last)
-            else np.zeros(self.table.n, dtype=np.int64)
-        )
         table, health_findings = derate(self.table, health, self.config.health)
-        rate_last = last  # rate caps apply to the step from here (a per-time window's start)
-        window = None
-        if elapsed_s is not None:  # (a check without it, e.g. a speculative one, leaves the memory alone)
-            table, rate_last, last_step, window = lim.per_time(
-                table, last, last_step, elapsed_s, self.frame_period_s, self._last_fraction, self._window
-            )
-            self._last_fraction = window.fraction
+        table, rate_last, last_step, fraction = self._rate_inputs(last, table, elapsed_s)
+        if fraction is not None:  # (a check without elapsed_s leaves the fraction alone)
+            self._last_fraction = fraction
         req, bad = self._vector(goals_tick, last, "goals_tick")
         requested = dict(zip(self.table.ids, req.tolist(), strict=True))
         if bad:
-            return self._remember(Verdict("reject", hold, tuple(health_findings + bad), 0.0, requested), last, window)
+            return self._remember(Verdict("reject", hold, tuple(health_findings + bad), 0.0, requested), last)
         findings = health_findings + lim.findings(req, rate_last, last_step, table)
         key = req.tobytes()
         if self._memo[0] != key:  # state checks depend on the command only: a held command is not redone
@@ -296,10 +304,10 @@ class TwinGate:
         hard = list(self._memo[1])
         findings += hard
         if len(findings) == len(health_findings):
-            return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last, window)
+            return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last)
         clamped = lim.clamp(req, rate_last, last_step, table)
         if not hard and np.array_equal(clamped, req):  # only health notes fired
-            return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last, window)
+            return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last)
         hit = {f.parts for f in hard if f.check == "collision"}
         suspects = tuple(p for p, spec in enumerate(self.collisions.specs) if (spec.a, spec.b) in hit)
         best, frac = self._scale_back(
@@ -308,12 +316,12 @@ class TwinGate:
         if best is not None and np.array_equal(best, last) and np.array_equal(clamped, last):
             # the per-servo clamp itself is the last command and passed every check (e.g. a servo held at
             # its narrowed limit while the others have arrived): a clip at the limits, not a refusal
-            return self._remember(Verdict("clip", hold, tuple(findings), 1.0, requested), last, window)
+            return self._remember(Verdict("clip", hold, tuple(findings), 1.0, requested), last)
         if best is None or np.array_equal(best, last):
             findings.append(Finding("hold", "no safe command found between the last one and the request: holding"))
-            return self._remember(Verdict("reject", hold, tuple(findings), 0.0, requested), last, window)
+            return self._remember(Verdict("reject", hold, tuple(findings), 0.0, requested), last)
         goals = dict(zip(self.table.ids, best.tolist(), strict=True))
-        return self._remember(Verdict("clip", goals, tuple(findings), frac, requested), last, window)
+        return self._remember(Verdict("clip", goals, tuple(findings), frac, requested), last)
 
     def _scale_back(
         self,
@@ -352,28 +360,84 @@ class TwinGate:
                 break
         return best, best_frac
 
-    def step_state(self) -> tuple[IntArray | None, IntArray]:
-        """What `check` carries from one call to the next (the last command it passed and that step), for
-        a caller that checks a command speculatively and puts the state back (`restore_step_state`)."""
-        return (None if self._last_sent is None else self._last_sent.copy(), self._last_step.copy())
+    def step_state(self) -> GateMemory:
+        """What `check` carries from one call to the next (the last command it passed, that step, the
+        per-time fraction), for a caller that checks a command speculatively and puts the
+        state back (`restore_step_state`)."""
+        sent = None if self._last_sent is None else self._last_sent.copy()
+        return GateMemory(sent, self._last_step.copy(), self._last_fraction)
 
-    def restore_step_state(self, state: tuple[IntArray | None, IntArray]) -> None:
-        last_sent, last_step = state
-        self._last_sent = None if last_sent is None else last_sent.copy()
-        self._last_step = last_step.copy()
+    def restore_step_state(self, state: GateMemory) -> None:
+        self._last_sent = None if state.last_sent is None else state.last_sent.copy()
+        self._last_step = state.last_step.copy()
+        self._last_fraction = state.last_fraction
+
+    def rate_key(
+        self,
+        last_goals_tick: Mapping[int, int],
+        health: Mapping[int, ServoHealth] | None = None,
+        elapsed_s: float | None = None,
+    ) -> bytes:
+        """Everything of the rate checks that ``elapsed_s`` changes in `check` with this memory, last command
+        and health: the caps after `limits.per_time`, the step's origin and the previous step. Two checks of
+        one command from one memory, last command and health whose keys are equal give equal verdicts (the
+        other checks are pure functions of the command); a speculative verdict checked for one elapsed time
+        is good for another with the same key. Leaves the memory alone."""
+        last, bad_last = self._vector(last_goals_tick, None, "last_goals_tick")
+        if bad_last:
+            raise GateInputError("; ".join(f.message for f in bad_last))
+        table, _ = derate(self.table, health, self.config.health)
+        caps, rate_last, last_step, _ = self._rate_inputs(last, table, elapsed_s)
+        parts = [getattr(caps, f.name) for f in fields(caps)] + [rate_last, last_step]  # every cap array
+        return b"|".join(
+            b"-" if a is None else np.asarray(a, dtype=np.int64).tobytes()
+            for a in parts
+            if a is None or isinstance(a, np.ndarray)
+        )
+
+    def remember_check(
+        self,
+        verdict: Verdict,
+        last_goals_tick: Mapping[int, int],
+        health: Mapping[int, ServoHealth] | None = None,
+        elapsed_s: float | None = None,
+    ) -> None:
+        """Note ``verdict`` as `check` would have after checking it with these inputs (a speculative verdict
+        a caller uses instead of checking again: see `rate_key`): the memory ends exactly as that check's."""
+        last, bad_last = self._vector(last_goals_tick, None, "last_goals_tick")
+        if bad_last:
+            raise GateInputError("; ".join(f.message for f in bad_last))
+        table, _ = derate(self.table, health, self.config.health)
+        _, _, _, fraction = self._rate_inputs(last, table, elapsed_s)
+        if fraction is not None:
+            self._last_fraction = fraction
+        self._remember(verdict, last)
+
+    def _rate_inputs(
+        self, last: IntArray, table: lim.ServoTable, elapsed_s: float | None
+    ) -> tuple[lim.ServoTable, IntArray, IntArray, float | None]:
+        """(caps, the step's origin, the previous step, the fraction to note) for a check after ``last`` from
+        this memory: the per-frame caps and None without ``elapsed_s``, else `limits.per_time`'s."""
+        last_step = (
+            self._last_step
+            if self._last_sent is not None and np.array_equal(self._last_sent, last)
+            else np.zeros(self.table.n, dtype=np.int64)
+        )
+        if elapsed_s is None:
+            return table, last, last_step, None
+        period_s = self.frame_period_s
+        caps, scaled_last, fraction = lim.per_time(table, last_step, elapsed_s, period_s, self._last_fraction)
+        return caps, last, scaled_last, fraction
 
     def reset(self) -> None:
         """Forget the previous step (the next check assumes the servos start from rest)."""
         self._last_sent = None
         self._last_step = np.zeros(self.table.n, dtype=np.int64)
-        self._window = None
 
-    def _remember(self, verdict: Verdict, last: IntArray, window: lim.RateWindow | None = None) -> Verdict:
+    def _remember(self, verdict: Verdict, last: IntArray) -> Verdict:
         sent = np.array([verdict.goals_tick[sid] for sid in self.table.ids], dtype=np.int64)
         self._last_step = sent - last
         self._last_sent = sent
-        if window is not None:  # a timed check: its window now ends at what it sent
-            self._window = window.sent(sent)
         return verdict
 
     def check_batch(

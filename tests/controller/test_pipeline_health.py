@@ -81,15 +81,13 @@ def test_the_gate_gives_the_same_verdict_for_the_strained_health_as_for_the_full
         cut = StrainedHealth(p._ids)(snap, p.temperature_limits_c, policy)
         requested = p._solve(aus, {})[3]
         elapsed_s = None if rng.random() < 0.5 else float(rng.uniform(0.3, 1.5)) * gate.frame_period_s
-        before, fraction = gate.step_state(), gate._last_fraction
+        before = gate.step_state()
         a = gate.check(requested, last, full, elapsed_s=elapsed_s)
-        after_a, fraction_a = gate.step_state(), gate._last_fraction
+        after_a = gate.step_state()
         gate.restore_step_state(before)
-        gate._last_fraction = fraction
         b = gate.check(requested, last, cut, elapsed_s=elapsed_s)
         assert a == b
-        assert gate._last_fraction == fraction_a
-        assert all(np.array_equal(x, y) for x, y in zip(after_a, gate.step_state(), strict=True))
+        assert after_a.same(gate.step_state())
         kinds.add(a.kind)
         narrowed += "health" in a.checks
         last = dict(a.goals_tick)
@@ -119,7 +117,7 @@ def test_speculation_after_a_shrunk_frame_gives_the_plain_steps(faces: tuple[Fac
         now[0] = t0 + gap * period_s + 1e-9  # the same instants for both
         y = ahead.pipeline.step(aus, next_frame=frames[k + 1] if k + 1 < len(frames) else None)
         assert (x.verdict, x.goals_sent, x.checks, x.reasons) == (y.verdict, y.goals_sent, y.checks, y.reasons), k
-        assert plain.pipeline.gate._last_fraction == ahead.pipeline.gate._last_fraction, k
+        assert plain.pipeline.gate.step_state().same(ahead.pipeline.gate.step_state()), k
         after_shrunk += shrunk and "ahead_ms" in y.timings_ms
         shrunk = gap < 1.0
     assert after_shrunk > 12
@@ -152,7 +150,7 @@ def test_speculation_for_a_planned_interval_gives_the_plain_steps(faces: tuple[F
         now[0] = t0 + gap
         y = ahead.pipeline.step(aus, next_frame=frames[k + 1] if k + 1 < len(frames) else None)
         assert (x.verdict, x.goals_sent, x.checks, x.reasons) == (y.verdict, y.goals_sent, y.checks, y.reasons), k
-        assert plain.pipeline.gate._last_fraction == ahead.pipeline.gate._last_fraction, k
+        assert plain.pipeline.gate.step_state().same(ahead.pipeline.gate.step_state()), k
         used += "ahead_ms" in y.timings_ms
     assert 30 < used < len(frames) - 20  # used where the caps matched, checked afresh elsewhere
     assert [g[1:] for g in plain.chain.goal_writes()] == [g[1:] for g in ahead.chain.goal_writes()]
