@@ -92,6 +92,33 @@ class ChainSnapshot:
     def __post_init__(self) -> None:
         object.__setattr__(self, "servos", MappingProxyType(dict(self.servos)))
 
+    @classmethod
+    def owning(
+        cls,
+        t_s: float,
+        cycle: int,
+        servos: dict[int, ServoState],
+        events: tuple[FaultEvent, ...],
+        stats: BusCounters,
+        bus_connected: bool,
+    ) -> ChainSnapshot:
+        """A snapshot that takes ``servos`` as its own (the caller keeps no reference to the dict): equal to
+        ``ChainSnapshot(...)`` without its defensive copy (the driver builds one per cycle)."""
+        snap: ChainSnapshot = object.__new__(cls)
+        object.__setattr__(
+            snap,
+            "__dict__",
+            {
+                "t_s": t_s,
+                "cycle": cycle,
+                "servos": MappingProxyType(servos),
+                "events": events,
+                "stats": stats,
+                "bus_connected": bus_connected,
+            },
+        )
+        return snap
+
     def __getitem__(self, servo_id: int) -> ServoState:
         return self.servos[servo_id]
 

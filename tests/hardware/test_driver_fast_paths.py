@@ -19,10 +19,11 @@ from collections.abc import Mapping
 import numpy as np
 import pytest
 from servoface.hardware.driver import Driver
+from servoface.hardware.driver_reads import POSITION, TelemetryGroup
 from servoface.hardware.errors import GoalRejectedError
 from servoface.hardware.fault_policy import ThermalTrend, eased_goal
 from servoface.hardware.goal_check import check_goals
-from servoface.hardware.registers import HardwareErrorBits, Register, model_by_name
+from servoface.hardware.registers import HardwareErrorBits, Register, model_by_name, span
 from servoface.hardware.servo_config import ServoSpec
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import ChainSnapshot, FaultKind
@@ -58,8 +59,10 @@ def _mutate(rec: ServoRecord, rng: random.Random) -> str:
     elif name in ("voltage_v", "backoff_scale", "seconds_to_limit") or name.endswith("_s"):
         new = rng.choice([None, rng.uniform(0, 100)]) if value is None or name.endswith("_s") else rng.uniform(0, 1)
     else:
-        new = rng.choice([None, rng.randint(-2000, 4000)]) if value is None or name.endswith("_raw") else rng.randint(
-            0, 4000
+        new = (
+            rng.choice([None, rng.randint(-2000, 4000)])
+            if value is None or name.endswith("_raw")
+            else rng.randint(0, 4000)
         )
     setattr(rec, name, new)
     return name
@@ -156,6 +159,41 @@ class StraightDriver(Driver):
             self.bus.sync_write(Register.GOAL_POSITION, frame)
             for sid, tick in frame.items():
                 self._records[sid].goal_tick = tick
+
+    def _read_positions(self, now: float) -> None:
+        started, self._position_ids = self._position_ids, None
+        if started is None:
+            ids = self._readable(now)
+            registers = self._position_block(now)
+        else:
+            ids = started
+            registers = POSITION if self._folded is None else POSITION + self._folded.registers
+        got = self._read_group(ids, registers, fast=self.fast_sync_read, started=started is not None)
+        if self.fast_sync_read and ids:
+            self._check_fast_read_support(self._group_failed and len(got) == len(ids))
+        for sid, values in got.items():
+            rec = self._records[sid]
+            rec.position_tick = values[Register.PRESENT_POSITION]
+            rec.position_t_s = now
+        group, self._folded = self._folded, None
+        if group is not None and ids:
+            self._folded_this_cycle = True
+            group.due_s = now + group.period_s
+            extra_bytes = len(ids) * (span(registers)[1] - span(POSITION)[1])
+            group.cost_s = extra_bytes * 10.0 / max(1, int(getattr(self.bus, "baud", 1_000_000)))
+            self.telemetry_reads[group.name] += 1
+            self._apply_group(group, got, now)
+        self._mark_results(ids, got, now)
+
+    def _due_group(self, now: float) -> TelemetryGroup | None:
+        late = 1.0 / self.policy.telemetry_floor_share - 1.0
+        ready = [
+            g
+            for g in self._groups
+            if g.due_s <= now
+            and (g.due_s == float("-inf") or self._idle_s >= g.cost_s or now >= g.due_s + g.period_s * late)
+        ]
+        return min(ready, key=lambda g: g.due_s) if ready else None
 
     def _freeze(self, now: float) -> ChainSnapshot:
         snap = ChainSnapshot(
