@@ -120,7 +120,7 @@ class ServoMotion:
     # ----------------------------------------------------------------- physics
     def heard(self, t_s: float) -> None:
         """An instruction packet reached this servo at ``t_s`` (feeds the Bus Watchdog)."""
-        if self.mem[A_WATCHDOG]:
+        if self.mem[A_WATCHDOG] and t_s > self._t:
             self.advance(t_s)  # a trip due before this packet must happen first
         if t_s > self._last_rx_s:
             self._last_rx_s = t_s
