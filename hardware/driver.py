@@ -532,7 +532,7 @@ class Driver(ChainReads):
         snap = ChainSnapshot.owning(  # the fresh dict is the snapshot's own: no defensive copy
             now,
             self._cycle,
-            {sid: rec.freeze() for sid, rec in self._records.items()},
+            {sid: rec.freeze_lazy() for sid, rec in self._records.items()},  # states built when looked at
             tuple(self._cycle_events),
             self.bus.stats.copy(),
             self._connected,

@@ -1,7 +1,8 @@
 """The driver's cheap per-cycle paths give exactly what the straightforward ones give.
 
-- `ServoRecord.freeze` (reuses the last state while only the position moved) == `freeze_full` (built field
-  by field), whatever field of the record changes;
+- `ServoRecord.freeze` (reuses the last state while only the position moved) == `freeze_lazy` (a capture of
+  the values that moved, built into a state when a snapshot's servo is looked at) == `freeze_full` (built
+  field by field), whatever field of the record changes;
 - `check_goals`'s fast path for plain int frames accepts and refuses exactly as the full checks do;
 - a `Driver` with the fast paths and one with the straightforward ones (the previous code, kept here as a
   subclass) driven by the same random commands, faults and obstacles on two identical manual-clock chains:
@@ -26,7 +27,7 @@ from servoface.hardware.goal_check import check_goals
 from servoface.hardware.registers import HardwareErrorBits, Register, model_by_name, span
 from servoface.hardware.servo_config import ServoSpec
 from servoface.hardware.servo_record import ServoRecord
-from servoface.hardware.snapshot import ChainSnapshot, FaultKind
+from servoface.hardware.snapshot import ChainSnapshot, FaultKind, LazyServoStates, build_state
 
 from tests.hardware.driver_helpers import DT_S, LIMITS, make_driver
 
@@ -79,8 +80,11 @@ def test_cached_freeze_equals_the_full_freeze_whatever_changes(seed: int) -> Non
         if rng.random() < 0.5:  # the common cycle: only the position, its time and the goal move
             rec.position_tick, rec.position_t_s = rng.randint(0, 4095), rng.uniform(0, 10)
             rec.goal_tick = rng.randint(0, 4095)
+        lazy = rec.freeze_lazy()  # a state, or a capture built into one on first access
+        lazy_state = build_state(lazy) if isinstance(lazy, tuple) else lazy
         got, want = rec.freeze(), rec.freeze_full()
         assert got == want
+        assert lazy_state == want and dataclasses.asdict(lazy_state) == dataclasses.asdict(want)
         assert dataclasses.asdict(got) == dataclasses.asdict(want)
         with pytest.raises(dataclasses.FrozenInstanceError):
             got.position_tick = 1  # type: ignore[misc]
@@ -285,3 +289,20 @@ def test_telemetry_folded_into_the_position_read_gives_the_same_states_and_react
     assert drv_f.bus.stats.transactions < drv_s.bus.stats.transactions  # fewer transactions when folded
     assert any(e.kind == FaultKind.LOAD_BACKOFF for e in drv_f.events)
     assert any(e.kind == FaultKind.THERMAL_DERATE for e in drv_f.events)
+
+
+def test_lazy_snapshot_states_are_built_once_equal_and_read_only() -> None:
+    chain, driver = make_driver(ids=(1, 2, 3))
+    driver.cycle({1: 2000})
+    snap = driver.cycle({1: 2100, 2: 1600})
+    assert isinstance(snap.servos, LazyServoStates)
+    eager = {sid: rec.freeze_full() for sid, rec in driver._records.items()}
+    assert dict(snap.servos) == eager and snap.servos == eager and eager == dict(snap.servos)
+    assert snap[1] is snap.servos[1]  # built once, then kept
+    assert list(snap.servos) == [1, 2, 3] and len(snap.servos) == 3 and 2 in snap.servos and 9 not in snap.servos
+    assert snap.servos.get(9) is None and snap.positions_tick() == {s: st.position_tick for s, st in eager.items()}
+    later = driver.cycle({1: 2200})
+    assert dict(snap.servos) == eager  # an earlier snapshot does not move with the records
+    assert later[1].goal_tick == 2200 and snap[1].goal_tick == 2100
+    with pytest.raises(TypeError):
+        snap.servos[1] = snap[1]  # type: ignore[index]
