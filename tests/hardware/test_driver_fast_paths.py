@@ -19,6 +19,7 @@ from collections.abc import Mapping
 
 import numpy as np
 import pytest
+from servoface.hardware.bus import BusCounters, BusStats
 from servoface.hardware.driver import Driver
 from servoface.hardware.driver_reads import POSITION, TelemetryGroup
 from servoface.hardware.errors import GoalRejectedError
@@ -80,16 +81,35 @@ def test_cached_freeze_equals_the_full_freeze_whatever_changes(seed: int) -> Non
         if rng.random() < 0.5:  # the common cycle: only the position, its time and the goal move
             rec.position_tick, rec.position_t_s = rng.randint(0, 4095), rng.uniform(0, 10)
             rec.goal_tick = rng.randint(0, 4095)
-        lazy = rec.freeze_lazy()  # a state, or a capture built into one on first access
-        lazy_state = build_state(lazy) if isinstance(lazy, tuple) else lazy
         got, want = rec.freeze(), rec.freeze_full()
         assert got == want
-        assert lazy_state == want and dataclasses.asdict(lazy_state) == dataclasses.asdict(want)
         assert dataclasses.asdict(got) == dataclasses.asdict(want)
         with pytest.raises(dataclasses.FrozenInstanceError):
             got.position_tick = 1  # type: ignore[misc]
         states.append((got, want))
     assert all(a == b for a, b in states)  # an earlier state never changed under a later freeze
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_lazy_freeze_builds_the_full_freeze_whatever_changes(seed: int) -> None:
+    """`freeze_lazy` alone (its own cache, no `freeze` in between) against `freeze_full`."""
+    rng = random.Random(seed)
+    rec = _record()
+    kept = []
+    for _ in range(3000):
+        for _ in range(rng.choice([0, 1, 1, 2])):
+            _mutate(rec, rng)
+        if rng.random() < 0.5:
+            rec.position_tick, rec.position_t_s = rng.randint(0, 4095), rng.uniform(0, 10)
+            rec.goal_tick = rng.randint(0, 4095)
+        lazy = rec.freeze_lazy()  # a state, or a capture built into one on first access
+        want = rec.freeze_full()
+        if isinstance(lazy, tuple) and rng.random() < 0.5:
+            kept.append((lazy, want))  # built later, after more mutations
+            continue
+        got = build_state(lazy) if isinstance(lazy, tuple) else lazy
+        assert got == want and dataclasses.asdict(got) == dataclasses.asdict(want)
+    assert kept and all(build_state(c) == w for c, w in kept)
 
 
 def _check_goals_reference(goals_tick: Mapping[int, int], specs: Mapping[int, ServoSpec]) -> dict[int, int]:
@@ -306,3 +326,17 @@ def test_lazy_snapshot_states_are_built_once_equal_and_read_only() -> None:
     assert later[1].goal_tick == 2200 and snap[1].goal_tick == 2100
     with pytest.raises(TypeError):
         snap.servos[1] = snap[1]  # type: ignore[index]
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_bus_stats_copy_equals_the_dataclass_built_copy(seed: int) -> None:
+    rng = random.Random(seed)
+    stats = BusStats()
+    for _ in range(200):
+        setattr(stats, rng.choice([f.name for f in dataclasses.fields(BusStats)]), rng.randint(0, 10**6))
+        got, want = stats.copy(), BusCounters(**vars(stats))
+        assert type(got) is BusCounters and got == want and dataclasses.asdict(got) == dataclasses.asdict(want)
+        stats.transactions += 1
+        assert got == want  # a copy, not a view
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            got.timeouts = 0  # type: ignore[misc]
