@@ -61,7 +61,11 @@ class BusStats:
     stray: int = 0  # status packets of another id skipped (late replies to an earlier instruction)
 
     def copy(self) -> BusCounters:
-        return BusCounters(**vars(self))
+        """A frozen copy, equal to ``BusCounters(**vars(self))`` (built without the frozen ``__init__``'s
+        per-field setattr: one per cycle, into the snapshot)."""
+        counters: BusCounters = object.__new__(BusCounters)
+        object.__setattr__(counters, "__dict__", self.__dict__.copy())
+        return counters
 
 
 @runtime_checkable

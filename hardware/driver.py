@@ -364,8 +364,14 @@ class Driver(ChainReads):
         backoff = FaultKind.LOAD_BACKOFF
         for sid, goal in goals.items():
             rec = records[sid]
-            if not rec.in_service:
-                continue
+            if (
+                rec.missing
+                or not rec.torque_on
+                or rec.latched
+                or rec.reboot_at_s is not None
+                or rec.recover_at_s is not None
+            ):
+                continue  # not `rec.in_service` (the same test, inlined: once per servo per frame)
             if rec.faults and backoff in rec.faults and rec.position_tick is not None:
                 goal = eased_goal(goal, rec.position_tick, rec.backoff_scale, *rec.limits_tick)
             spec = rec.spec  # the last line of defence before the wire (`_guard`), inlined: once per servo
@@ -523,13 +529,13 @@ class Driver(ChainReads):
         return self._last
 
     def _freeze(self, now: float) -> ChainSnapshot:
-        snap = ChainSnapshot(
-            t_s=now,
-            cycle=self._cycle,
-            servos={sid: rec.freeze() for sid, rec in self._records.items()},
-            events=tuple(self._cycle_events),
-            stats=self.bus.stats.copy(),
-            bus_connected=self._connected,
+        snap = ChainSnapshot.owning(  # the fresh dict is the snapshot's own: no defensive copy
+            now,
+            self._cycle,
+            {sid: rec.freeze_lazy() for sid, rec in self._records.items()},  # states built when looked at
+            tuple(self._cycle_events),
+            self.bus.stats.copy(),
+            self._connected,
         )
         self._last = snap
         return snap

@@ -152,10 +152,12 @@ class ChainReads:
             self._check_fast_read_support(self._group_failed and len(got) == len(ids))
         records = self._records
         position = Register.PRESENT_POSITION
-        for sid, values in got.items():
+        for sid, values in got.items():  # `_mark_results` for the servos that answered, in the same pass
             rec = records[sid]
             rec.position_tick = values[position]
             rec.position_t_s = now
+            rec.failures = 0
+            rec.stale = False
         group, self._folded = self._folded, None
         if group is not None and ids:
             self._folded_this_cycle = True
@@ -165,7 +167,8 @@ class ChainReads:
             group.cost_s = extra_bytes * 10.0 / max(1, int(getattr(self.bus, "baud", 1_000_000)))
             self.telemetry_reads[group.name] += 1
             self._apply_group(group, got, now)
-        self._mark_results(ids, got, now)
+        if len(got) < len(ids):  # the silent ones (`got` holds only ids asked for)
+            self._mark_results([sid for sid in ids if sid not in got], got, now)
 
     def _check_fast_read_support(self, only_fast_failed: bool) -> None:
         """Fast Sync Read failing while every single read works means the firmware lacks it: fall back."""
@@ -184,13 +187,14 @@ class ChainReads:
         reaction, the first read), when the caller left the bus idle for at least as long as its last read
         took (nominal rate: the read fills idle time), or once overdue beyond the floor rate."""
         late = 1.0 / self.policy.telemetry_floor_share - 1.0
-        ready = [
-            g
-            for g in self._groups
-            if g.due_s <= now
-            and (g.due_s == float("-inf") or self._idle_s >= g.cost_s or now >= g.due_s + g.period_s * late)
-        ]
-        return min(ready, key=lambda g: g.due_s) if ready else None
+        best: TelemetryGroup | None = None
+        for g in self._groups:  # the first most overdue of the ready ones (as min() picks)
+            due = g.due_s
+            if due > now or (best is not None and due >= best.due_s):
+                continue
+            if due == float("-inf") or self._idle_s >= g.cost_s or now >= due + g.period_s * late:
+                best = g
+        return best
 
     def _read_slow_group(self, now: float) -> None:
         """At most one slow group per cycle: none after a folded one (`_position_block`), except the status

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from servoface.hardware.fault_policy import ThermalTrend
 from servoface.hardware.registers import VELOCITY_RPM_PER_LSB, HardwareErrorBits, ModelInfo, Register
 from servoface.hardware.servo_config import ServoSpec
-from servoface.hardware.snapshot import FaultKind, ServoState
+from servoface.hardware.snapshot import FaultKind, ServoState, StateCapture
 
 _NO_FAULTS: frozenset[FaultKind] = frozenset()
 
@@ -140,6 +140,48 @@ class ServoRecord:
         object.__setattr__(state, "__dict__", fields)  # a frozen dataclass: its fields, bypassing __init__
         self._frozen = state
         return state
+
+    def freeze_lazy(self) -> ServoState | StateCapture:
+        """`freeze`, except that a state which would be the last one with only position, its time, goal and
+        stale replaced is returned as a capture of those values (`build_state` makes the equal state)."""
+        faults = self.faults
+        key = (  # `_slow_key()`, inlined (every servo, every cycle)
+            self.spec,
+            self.info,
+            self.current_limit,
+            self.velocity_raw,
+            self.current_raw,
+            self.moving,
+            self.temperature_c,
+            self.voltage_v,
+            self.telemetry_t_s,
+            self.hardware_error,
+            self.torque_on,
+            self.missing,
+            self.derated,
+            frozenset(faults) if faults else _NO_FAULTS,
+            self.seconds_to_limit,
+        )
+        last = self._frozen
+        if last is None or key != self._frozen_key:
+            last = self.freeze_full()
+            self._frozen, self._frozen_key = last, key
+            return last
+        was = last.__dict__
+        position_tick, position_t_s, goal_tick, stale = (
+            self.position_tick,
+            self.position_t_s,
+            self.goal_tick,
+            self.stale,
+        )
+        if (
+            was["position_tick"] == position_tick
+            and was["position_t_s"] == position_t_s
+            and was["goal_tick"] == goal_tick
+            and was["stale"] == stale
+        ):
+            return last  # frozen: safe to share between snapshots
+        return (last, position_tick, position_t_s, goal_tick, stale)
 
     def freeze_full(self) -> ServoState:
         """The record as a `ServoState`, built field by field (the reference for `freeze`)."""

@@ -6,6 +6,7 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from enum import Enum
 from types import MappingProxyType
+from typing import Any
 
 from servoface.hardware.bus import BusCounters
 from servoface.hardware.registers import HardwareErrorBits
@@ -78,6 +79,55 @@ class ServoState:
         return not self.missing and not self.faults and self.hardware_error == HardwareErrorBits.NONE
 
 
+# What `ServoRecord.freeze_lazy` captures while only the position moved: (the last state, position_tick,
+# position_t_s, goal_tick, stale) — the state is built from it when first asked for (`LazyServoStates`).
+StateCapture = tuple[ServoState, Any, Any, Any, bool]
+
+
+def build_state(capture: StateCapture) -> ServoState:
+    """The `ServoState` a capture stands for: the last state's fields with the four that moved replaced."""
+    last, position_tick, position_t_s, goal_tick, stale = capture
+    fields = last.__dict__.copy()
+    fields["position_tick"] = position_tick
+    fields["position_t_s"] = position_t_s
+    fields["goal_tick"] = goal_tick
+    fields["stale"] = stale
+    state: ServoState = object.__new__(ServoState)
+    object.__setattr__(state, "__dict__", fields)  # a frozen dataclass: its fields, bypassing __init__
+    return state
+
+
+class LazyServoStates(Mapping[int, ServoState]):
+    """A snapshot's servos (read-only mapping id -> `ServoState`) whose states are built on first access from
+    what the cycle captured (immutable values, so the states are the same whenever, and on whichever
+    thread, they are built; a race builds two equal states). A caller that never looks at a servo's state
+    in a cycle (a back-to-back loop) does not pay for building it."""
+
+    __slots__ = ("_items",)
+
+    def __init__(self, items: dict[int, ServoState | StateCapture]) -> None:
+        self._items = items
+
+    def __getitem__(self, servo_id: int) -> ServoState:
+        item = self._items[servo_id]
+        if type(item) is tuple:
+            item = build_state(item)
+            self._items[servo_id] = item
+        return item  # type: ignore[return-value]
+
+    def __iter__(self) -> Iterator[int]:
+        return iter(self._items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __contains__(self, servo_id: object) -> bool:
+        return servo_id in self._items
+
+    def __repr__(self) -> str:
+        return f"{{{', '.join(f'{k!r}: {v!r}' for k, v in self.items())}}}"
+
+
 @dataclass(frozen=True)
 class ChainSnapshot:
     """The whole chain after one `Driver.cycle`. ``events``: the fault reactions of that cycle only."""
@@ -91,6 +141,34 @@ class ChainSnapshot:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "servos", MappingProxyType(dict(self.servos)))
+
+    @classmethod
+    def owning(
+        cls,
+        t_s: float,
+        cycle: int,
+        servos: dict[int, ServoState | StateCapture],
+        events: tuple[FaultEvent, ...],
+        stats: BusCounters,
+        bus_connected: bool,
+    ) -> ChainSnapshot:
+        """A snapshot that takes ``servos`` as its own (the caller keeps no reference to the dict): equal to
+        ``ChainSnapshot(...)`` without its defensive copy (the driver builds one per cycle); its values are
+        states or captures of them (`StateCapture`), built on first access (`LazyServoStates`)."""
+        snap: ChainSnapshot = object.__new__(cls)
+        object.__setattr__(
+            snap,
+            "__dict__",
+            {
+                "t_s": t_s,
+                "cycle": cycle,
+                "servos": LazyServoStates(servos),
+                "events": events,
+                "stats": stats,
+                "bus_connected": bus_connected,
+            },
+        )
+        return snap
 
     def __getitem__(self, servo_id: int) -> ServoState:
         return self.servos[servo_id]

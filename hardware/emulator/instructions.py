@@ -29,7 +29,8 @@ def dispatch(
     if packet.id != BROADCAST_ID or packet.instruction in _STATE_BROADCASTS:
         # every instruction acts on the servo as it is when the packet arrives: physics first
         for servo in listeners if packet.id == BROADCAST_ID else by_id.get(packet.id, ()):
-            servo.advance(t_s)
+            if servo._t < t_s:  # else already there (`heard` advanced it): advance would do nothing
+                servo.advance(t_s)
     inst = packet.instruction
     pid = packet.id
     params = packet.params

@@ -308,7 +308,9 @@ class EmulatedServo(ServoMotion):
                 self._sync_live()
             head = bytes(self.mem[address:size]) if address < size else b""
             return ErrorNumber.ACCESS, head + bytes(length - len(head))
-        self.advance()
+        t_s = self._clock()  # `advance()` inlined: one clock reading, no call when already there
+        if t_s > self._t or self._real is not None:
+            self.advance(t_s)
         end = address + length
         if address < 147 and end > 120:
             self._sync_live()
@@ -378,7 +380,9 @@ class EmulatedServo(ServoMotion):
 
     def wire_write(self, address: int, data: bytes) -> int:
         """Check then apply a Write from the bus; returns its error number."""
-        self.advance()
+        t_s = self._clock()  # `advance()` inlined: one clock reading, no call when already there
+        if t_s > self._t or self._real is not None:
+            self.advance(t_s)
         if self._indirect_lo < address + len(data) and address < self._indirect_hi:
             return self._write_indirect(address, data)
         err = self.check_write(address, data)

@@ -30,6 +30,7 @@ ACC_UNIT_TICK_S2 = ACCELERATION_UNIT_RPM2 / 3600.0 * TICKS_PER_REV
 POSITION_MODES = (3, 4, 5)
 A_TORQUE, A_GOAL_POS, A_HW_ERR, A_WATCHDOG, A_MODE, A_DRIVE = 64, 116, 70, 98, 11, 10
 IN_POSITION_TICK = 2.0
+STEP_S = physics.STEP_S
 THERMAL_DEFER_S = 0.02  # at rest, heat is integrated at most this often (exact: the load is constant)
 
 
@@ -115,12 +116,15 @@ class ServoMotion:
         else:
             v = prof_v * VEL_UNIT_TICK_S if prof_v else v_cap
             a = prof_a * ACC_UNIT_TICK_S2 if prof_a else math.inf
-            self._profile = physics.MotionProfile(min(v, v_cap), a)
+            v = min(v, v_cap)
+            profile = self._profile  # a new goal under the same profile registers: the same limits again
+            if profile.v_max != v or profile.a_max != a:
+                self._profile = physics.MotionProfile(v, a)
 
     # ----------------------------------------------------------------- physics
     def heard(self, t_s: float) -> None:
         """An instruction packet reached this servo at ``t_s`` (feeds the Bus Watchdog)."""
-        if self.mem[A_WATCHDOG]:
+        if self.mem[A_WATCHDOG] and t_s > self._t:
             self.advance(t_s)  # a trip due before this packet must happen first
         if t_s > self._last_rx_s:
             self._last_rx_s = t_s
@@ -129,7 +133,8 @@ class ServoMotion:
         """Bring the physics up to ``t_s`` (default: now)."""
         real = self._real
         if real is None:
-            self._advance_ideal(t_s)
+            if t_s is None or t_s > self._t:  # else nothing to integrate (the common repeat call)
+                self._advance_ideal(t_s)
             return
         t0 = self._t
         self._advance_ideal(t_s)
@@ -144,7 +149,8 @@ class ServoMotion:
         if t1 <= t0:
             return
         self._t = t1
-        if self._faults.has_any(self.uid):
+        faults = self._faults
+        if faults.any and faults.has_any(self.uid):
             self._apply_faults(t0, t1)
         mem = self.mem
         motor = self.motor
@@ -180,24 +186,27 @@ class ServoMotion:
         self._settle_thermal(t0)
         self._live_dirty = True
         t = t0
+        profile, obstacle = self._profile, self.obstacle
+        step_motion, load_fraction, thermal = physics.step_motion, physics.load_fraction, self._thermal
         while t < t1:
-            dt = min(physics.STEP_S, t1 - t)
+            dt = min(STEP_S, t1 - t)
             v0 = motor.vel
-            physics.step_motion(motor, self._profile, dt, self.obstacle)
-            self._accel = (motor.vel - v0) / dt
-            load = physics.load_fraction(motor, True, self.obstacle, self._accel)
+            step_motion(motor, profile, dt, obstacle)
+            accel = self._accel = (motor.vel - v0) / dt
+            load = load_fraction(motor, True, obstacle, accel)
             motor.load = load
-            self._thermal(dt, load)
+            thermal(dt, load)
             t += dt
             if not mem[A_TORQUE]:
                 motor.load = 0.0
                 break
-            if motor.at_rest:
-                motor.load = physics.load_fraction(motor, True, self.obstacle, 0.0)
-                self._thermal(t1 - t, motor.load)
+            if motor.vel == 0.0 and motor.pos == motor.target:  # `motor.at_rest`, inlined
+                motor.load = load_fraction(motor, True, obstacle, 0.0)
+                if t1 - t > 0:  # `_thermal` of a zero step does nothing
+                    thermal(t1 - t, motor.load)
                 t = t1
                 break
-            if physics.blocked_by(motor, self.obstacle) and t < t1:
+            if physics.blocked_by(motor, obstacle) and t < t1:
                 # stalled: constant load until the end (or until a trip drops torque)
                 rest = t1 - t
                 chunk = min(rest, 0.05)

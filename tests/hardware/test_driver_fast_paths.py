@@ -1,7 +1,8 @@
 """The driver's cheap per-cycle paths give exactly what the straightforward ones give.
 
-- `ServoRecord.freeze` (reuses the last state while only the position moved) == `freeze_full` (built field
-  by field), whatever field of the record changes;
+- `ServoRecord.freeze` (reuses the last state while only the position moved) == `freeze_lazy` (a capture of
+  the values that moved, built into a state when a snapshot's servo is looked at) == `freeze_full` (built
+  field by field), whatever field of the record changes;
 - `check_goals`'s fast path for plain int frames accepts and refuses exactly as the full checks do;
 - a `Driver` with the fast paths and one with the straightforward ones (the previous code, kept here as a
   subclass) driven by the same random commands, faults and obstacles on two identical manual-clock chains:
@@ -18,14 +19,16 @@ from collections.abc import Mapping
 
 import numpy as np
 import pytest
+from servoface.hardware.bus import BusCounters, BusStats
 from servoface.hardware.driver import Driver
+from servoface.hardware.driver_reads import POSITION, TelemetryGroup
 from servoface.hardware.errors import GoalRejectedError
 from servoface.hardware.fault_policy import ThermalTrend, eased_goal
 from servoface.hardware.goal_check import check_goals
-from servoface.hardware.registers import HardwareErrorBits, Register, model_by_name
+from servoface.hardware.registers import HardwareErrorBits, Register, model_by_name, span
 from servoface.hardware.servo_config import ServoSpec
 from servoface.hardware.servo_record import ServoRecord
-from servoface.hardware.snapshot import ChainSnapshot, FaultKind
+from servoface.hardware.snapshot import ChainSnapshot, FaultKind, LazyServoStates, build_state
 
 from tests.hardware.driver_helpers import DT_S, LIMITS, make_driver
 
@@ -58,8 +61,10 @@ def _mutate(rec: ServoRecord, rng: random.Random) -> str:
     elif name in ("voltage_v", "backoff_scale", "seconds_to_limit") or name.endswith("_s"):
         new = rng.choice([None, rng.uniform(0, 100)]) if value is None or name.endswith("_s") else rng.uniform(0, 1)
     else:
-        new = rng.choice([None, rng.randint(-2000, 4000)]) if value is None or name.endswith("_raw") else rng.randint(
-            0, 4000
+        new = (
+            rng.choice([None, rng.randint(-2000, 4000)])
+            if value is None or name.endswith("_raw")
+            else rng.randint(0, 4000)
         )
     setattr(rec, name, new)
     return name
@@ -83,6 +88,28 @@ def test_cached_freeze_equals_the_full_freeze_whatever_changes(seed: int) -> Non
             got.position_tick = 1  # type: ignore[misc]
         states.append((got, want))
     assert all(a == b for a, b in states)  # an earlier state never changed under a later freeze
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_lazy_freeze_builds_the_full_freeze_whatever_changes(seed: int) -> None:
+    """`freeze_lazy` alone (its own cache, no `freeze` in between) against `freeze_full`."""
+    rng = random.Random(seed)
+    rec = _record()
+    kept = []
+    for _ in range(3000):
+        for _ in range(rng.choice([0, 1, 1, 2])):
+            _mutate(rec, rng)
+        if rng.random() < 0.5:
+            rec.position_tick, rec.position_t_s = rng.randint(0, 4095), rng.uniform(0, 10)
+            rec.goal_tick = rng.randint(0, 4095)
+        lazy = rec.freeze_lazy()  # a state, or a capture built into one on first access
+        want = rec.freeze_full()
+        if isinstance(lazy, tuple) and rng.random() < 0.5:
+            kept.append((lazy, want))  # built later, after more mutations
+            continue
+        got = build_state(lazy) if isinstance(lazy, tuple) else lazy
+        assert got == want and dataclasses.asdict(got) == dataclasses.asdict(want)
+    assert kept and all(build_state(c) == w for c, w in kept)
 
 
 def _check_goals_reference(goals_tick: Mapping[int, int], specs: Mapping[int, ServoSpec]) -> dict[int, int]:
@@ -156,6 +183,41 @@ class StraightDriver(Driver):
             self.bus.sync_write(Register.GOAL_POSITION, frame)
             for sid, tick in frame.items():
                 self._records[sid].goal_tick = tick
+
+    def _read_positions(self, now: float) -> None:
+        started, self._position_ids = self._position_ids, None
+        if started is None:
+            ids = self._readable(now)
+            registers = self._position_block(now)
+        else:
+            ids = started
+            registers = POSITION if self._folded is None else POSITION + self._folded.registers
+        got = self._read_group(ids, registers, fast=self.fast_sync_read, started=started is not None)
+        if self.fast_sync_read and ids:
+            self._check_fast_read_support(self._group_failed and len(got) == len(ids))
+        for sid, values in got.items():
+            rec = self._records[sid]
+            rec.position_tick = values[Register.PRESENT_POSITION]
+            rec.position_t_s = now
+        group, self._folded = self._folded, None
+        if group is not None and ids:
+            self._folded_this_cycle = True
+            group.due_s = now + group.period_s
+            extra_bytes = len(ids) * (span(registers)[1] - span(POSITION)[1])
+            group.cost_s = extra_bytes * 10.0 / max(1, int(getattr(self.bus, "baud", 1_000_000)))
+            self.telemetry_reads[group.name] += 1
+            self._apply_group(group, got, now)
+        self._mark_results(ids, got, now)
+
+    def _due_group(self, now: float) -> TelemetryGroup | None:
+        late = 1.0 / self.policy.telemetry_floor_share - 1.0
+        ready = [
+            g
+            for g in self._groups
+            if g.due_s <= now
+            and (g.due_s == float("-inf") or self._idle_s >= g.cost_s or now >= g.due_s + g.period_s * late)
+        ]
+        return min(ready, key=lambda g: g.due_s) if ready else None
 
     def _freeze(self, now: float) -> ChainSnapshot:
         snap = ChainSnapshot(
@@ -247,3 +309,34 @@ def test_telemetry_folded_into_the_position_read_gives_the_same_states_and_react
     assert drv_f.bus.stats.transactions < drv_s.bus.stats.transactions  # fewer transactions when folded
     assert any(e.kind == FaultKind.LOAD_BACKOFF for e in drv_f.events)
     assert any(e.kind == FaultKind.THERMAL_DERATE for e in drv_f.events)
+
+
+def test_lazy_snapshot_states_are_built_once_equal_and_read_only() -> None:
+    chain, driver = make_driver(ids=(1, 2, 3))
+    driver.cycle({1: 2000})
+    snap = driver.cycle({1: 2100, 2: 1600})
+    assert isinstance(snap.servos, LazyServoStates)
+    eager = {sid: rec.freeze_full() for sid, rec in driver._records.items()}
+    assert dict(snap.servos) == eager and snap.servos == eager and eager == dict(snap.servos)
+    assert snap[1] is snap.servos[1]  # built once, then kept
+    assert list(snap.servos) == [1, 2, 3] and len(snap.servos) == 3 and 2 in snap.servos and 9 not in snap.servos
+    assert snap.servos.get(9) is None and snap.positions_tick() == {s: st.position_tick for s, st in eager.items()}
+    later = driver.cycle({1: 2200})
+    assert dict(snap.servos) == eager  # an earlier snapshot does not move with the records
+    assert later[1].goal_tick == 2200 and snap[1].goal_tick == 2100
+    with pytest.raises(TypeError):
+        snap.servos[1] = snap[1]  # type: ignore[index]
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_bus_stats_copy_equals_the_dataclass_built_copy(seed: int) -> None:
+    rng = random.Random(seed)
+    stats = BusStats()
+    for _ in range(200):
+        setattr(stats, rng.choice([f.name for f in dataclasses.fields(BusStats)]), rng.randint(0, 10**6))
+        got, want = stats.copy(), BusCounters(**vars(stats))
+        assert type(got) is BusCounters and got == want and dataclasses.asdict(got) == dataclasses.asdict(want)
+        stats.transactions += 1
+        assert got == want  # a copy, not a view
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            got.timeouts = 0  # type: ignore[misc]
