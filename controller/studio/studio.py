@@ -543,10 +543,21 @@ class Studio:
             script, _, _ = self._script(body)
         if body.track not in self.service.tracks.slots:
             raise InvalidValueError(f"track: expected one of {list(self.service.tracks.slots)}", field="track")
-        result = self._motion(lambda: self.service.play(script, track=body.track), "document")
+        result = self._motion(lambda: self._play_script(script, body.track), "document")
         if body.loop:
             self._start_loop(script, body.track, result)
         return result
+
+    def _play_script(self, script: Any, track: str) -> CommandHandle:
+        """Play a script on ``track``; one with say cues or a sound file (beside the scripts folder's files)
+        is spoken as everywhere (:func:`~servoface.controller.speech.script_play.submit_script_speaking`: the
+        speech track, the head's jaw budget, the sound on this machine's output)."""
+        from servoface.controller.speech.script_play import speaks, submit_script_speaking
+
+        if not speaks(script):
+            return self.service.play(script, track=track)
+        handle, _ = submit_script_speaking(self.service, script, track=track, audio_dir=self.options.scripts_dir)
+        return handle
 
     def _start_loop(self, script: Any, track: str, first: dict[str, Any]) -> None:
         self._loop_stop.set()
@@ -560,7 +571,7 @@ class Studio:
                 if stop.is_set():
                     return
                 try:
-                    self.service.play(script, track=track)
+                    self._play_script(script, track)
                 except ControllerError:
                     return
 
