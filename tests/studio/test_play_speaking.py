@@ -9,6 +9,7 @@ from typing import Any
 
 import pytest
 from servoface.controller.service import HeadService
+
 from tests.studio.conftest import StudioRig
 
 SAY = """[script]
@@ -47,8 +48,10 @@ def test_a_say_cue_played_in_the_studio_speaks_on_the_speech_track(studio: Studi
     r = studio.client.post("/api/play", json={"toml": SAY})
     assert r.status_code == 202, r.text
     assert len(speaks) == 1 and speaks[0].clock.name == "monotonic", speaks  # no sound card here
-    studio.wait_for(lambda: studio.service.status().tracks["speech"].state == "running", what="the speech track talking")
-    studio.wait_for(lambda: studio.service.status().tracks["speech"].state == "empty", what="the end of the cue")
+    studio.wait_for(
+        lambda: studio.service.status().tracks["speech"].state == "running", what="the speech track talking"
+    )
+    studio.wait_for(lambda: studio.service.status().tracks["speech"].state == "empty", what="the cue's end")
     goals = _jaw_goals(studio)
     assert goals and max(goals) - min(goals) > 20, "the jaw did not talk on the wire"
 
