@@ -57,6 +57,7 @@ if TYPE_CHECKING:
     from servoface.controller.face import Face
     from servoface.controller.performance import Performance
     from servoface.controller.script import Script
+    from servoface.controller.service.handles import CommandHandle
     from servoface.controller.speech.lipsync import Speech
     from servoface.controller.speech.playback import AudioOut
 
@@ -213,14 +214,16 @@ class SpeakingScript:
         self.played: list[tuple[AudioOut | None, str]] = []
         self.budgets: list[BudgetReport] = []  # the sound file's mouth's (a cue's is on its ScheduledSpeech)
 
-    def submit(self, at_s: float | None = None) -> Any:
+    def submit(self, at_s: float | None = None) -> CommandHandle:
         """Submit everything from ``at_s`` (service time; default: START_AHEAD_S from now); the script's
         command handle."""
         svc, script = self.service, self.script
         allowed = head_au_names(svc.head) & mouth_aus(svc.head.face_type)
         t0 = svc.now_s() + START_AHEAD_S if at_s is None else float(at_s)
         total = self.total_s
-        script_handle = svc.play(self.muted, track=self.track, at_s=t0, duration_s=total if total > 0 else None)
+        script_handle: CommandHandle = svc.play(
+            self.muted, track=self.track, at_s=t0, duration_s=total if total > 0 else None
+        )
         self.handles.append(script_handle)
         for cue, speech in self.kept:
             base = {au: v for au, v in self.muted.sample(cue.at_s).aus.items() if au in allowed}
@@ -305,7 +308,7 @@ def submit_script_speaking(
     at_s: float | None = None,
     audio_dir: Path | None = None,
     audio_out: bool = True,
-) -> tuple[Any, SpeakingScript]:
+) -> tuple[CommandHandle, SpeakingScript]:
     """For a front end holding only a head service (the studio, the network node): synthesise, then submit
     ``script`` with its speech on ``service`` without waiting; (the script's command, the run). The sound
     goes to this machine's default output (the head's speaker), silent without one."""
