@@ -75,6 +75,7 @@ class Studio:
         self.recording: Any = None  # a StreamRecording (record.py) while one runs
         self.scripts = ScriptFolder(self.options.scripts_dir, service.validator.names)
         self._loop_stop = threading.Event()
+        self._played_s = 0.0  # how long the last script played holds the head (its speech included)
         self._head_info = views.head_info(service, (self.options.width, self.options.height))
 
     # -- fan-out -----------------------------------------------------------------------------------
@@ -554,9 +555,11 @@ class Studio:
         speech track, the head's jaw budget, the sound on this machine's output)."""
         from servoface.controller.speech.script_play import speaks, submit_script_speaking
 
+        self._played_s = float(script.end_s)
         if not speaks(script):
             return self.service.play(script, track=track)
-        handle, _ = submit_script_speaking(self.service, script, track=track, audio_dir=self.options.scripts_dir)
+        handle, run = submit_script_speaking(self.service, script, track=track, audio_dir=self.options.scripts_dir)
+        self._played_s = run.total_s  # its speech may end after the script: a loop waits for it
         return handle
 
     def _start_loop(self, script: Any, track: str, first: dict[str, Any]) -> None:
@@ -565,7 +568,7 @@ class Studio:
 
         def again() -> None:
             while not stop.is_set():
-                end = self.service.now_s() + float(script.end_s)
+                end = self.service.now_s() + max(float(script.end_s), self._played_s)
                 while not stop.is_set() and self.service.now_s() < end:
                     stop.wait(0.05)
                 if stop.is_set():
