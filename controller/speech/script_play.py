@@ -131,13 +131,23 @@ class SpokenScript:
             words = cue.text if len(cue.text) <= 40 else cue.text[:37] + "..."
             out.append(
                 f"said {words!r} at {cue.at_s:g} s on the speech track: sound: {run.sound}; "
-                f"the mouth followed the {run.clock} clock"
+                f"the mouth followed the {run.clock} clock{budget_note(run.budget)}"
             )
         if self.audio is not None:
             a = self.audio
             mouth = f"the {SPEECH_TRACK} track's mouth followed the {a.clock} clock" if a.mouth else "no mouth keys"
-            out.append(f"played {a.name} at {a.start_s:g} s: sound: {a.sound}; {mouth}")
+            out.append(f"played {a.name} at {a.start_s:g} s: sound: {a.sound}; {mouth}{budget_note(a.budget)}")
         return out
+
+
+def budget_note(report: BudgetReport | None) -> str:
+    """``"; jaw budget: ..."`` when the budget changed the jaw (a warm jaw, a long talk), else nothing."""
+    if report is None or (report.level == 0 and report.min_scale >= 1.0):
+        return ""
+    return (
+        f"; jaw budget: thermal level {report.level}, the jaw x{report.jaw_gain * report.min_scale:.2f} at least, "
+        f"scaled down on {report.scaled_share:.0%} of it"
+    )
 
 
 class _TrackClip:

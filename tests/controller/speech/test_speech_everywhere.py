@@ -98,6 +98,7 @@ def test_a_warm_jaw_that_talked_a_lot_talks_less_from_a_sound_file_on_the_wire(t
             swings.append(_jaw_swing(face.chain, jaw))
             assert spoken.audio is not None and spoken.audio.mouth
             reports.append(spoken.audio.budget)
+            assert any("jaw budget: " in line for line in spoken.lines()) == warm, spoken.lines()
             lips = [t.aus.get("AU25", 0.0) for t in spoken.performance.traces]
             assert max(lips) > 0.3, "the lips did not move"
     cool, warm_report = reports
