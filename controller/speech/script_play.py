@@ -86,6 +86,13 @@ def prepare(script: Script, *, audio_dir: Path | None = None) -> Prepared:
     from servoface.controller.speech.lipsync import speech_from_text
 
     cues = tuple(say_cues(script))
+    if cues and script.audio and _edited_mouth(script):
+        raise SpeechError(
+            f"{script.source}: script.audio: the speech track has both say cues and mouth keys for the sound file "
+            f"{script.audio!r}; a head has one speech track, so the keys could not follow the sound (nor the "
+            "jaw budget) while the cues speak: move the say cues to a script of their own, or remove "
+            "[script] audio and the keys"
+        )
     speeches = []
     for cue in cues:
         try:
@@ -169,6 +176,17 @@ class _TrackClip:
     def targets(self) -> Iterator[tuple[str, float]]:
         for placed in self.track.items:
             yield from placed.clip.targets()
+
+
+def _edited_mouth(script: Script) -> bool:
+    """True when the script's speech track has clips that are not say cues (mouth keys, as `say --out` writes)."""
+    from servoface.controller.script_say import SayClip
+    from servoface.controller.timeline.track import Track
+
+    if SPEECH_TRACK not in script.timeline.layer_names:
+        return False
+    layer = script.timeline.layer(SPEECH_TRACK)
+    return isinstance(layer, Track) and any(not isinstance(p.clip, SayClip) for p in layer.items)
 
 
 def _speech_track(script: Script, cues: tuple[SayCue, ...]) -> Any:

@@ -228,3 +228,21 @@ def test_a_stop_mid_cue_ends_its_sound(fake_device: type[_FakeStream], how: str)
     length = len(run.kept[0][1].samples)
     assert stream.aborted and stream.frames_out < length * 0.6, (stream.frames_out, length)
     assert took < 1.0, f"the sound went on for {took:.2f} s after the {how}"
+
+
+def test_say_cues_beside_a_sound_files_mouth_keys_are_refused_before_anything_moves(tmp_path: Any) -> None:
+    """A `say --out` script (mouth keys for its sound file on the speech track) with a say cue added (the
+    studio's speech lane): the keys could not follow the sound nor the jaw budget, so it is refused,
+    naming script.audio; with the keys or the audio gone it is fine."""
+    from servoface.controller.script import load_script
+    from servoface.controller.speech.errors import SpeechError
+    from servoface.controller.speech.script_play import prepare
+
+    script = _say_out(tmp_path, "Bob bought a big blue balloon.")
+    path = tmp_path / "speech.toml"
+    path.write_text(path.read_text() + '\n[[play]]\nat_s = 3.0\nsay = "And hello."\n')
+    with pytest.raises(SpeechError, match=r"script\.audio: the speech track has both say cues and mouth keys"):
+        prepare(load_script(path))
+    assert prepare(script).audio is not None  # the keys with their sound alone
+    cue_only = parse_script('[script]\nface = "human"\n[[play]]\nat_s = 0.0\nsay = "Hi."\n', source="c.toml")
+    assert len(prepare(cue_only).cues) == 1
