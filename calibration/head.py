@@ -10,7 +10,7 @@ after their neighbours, in dependency order; a dependency cycle is refused at co
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -166,6 +166,18 @@ class HeadCalibration:
         row[0, cols] = [float(v) for v in targets.values()]
         ticks = self.targets_to_goals_array(row)[0]
         return {self._ids[j]: int(ticks[j]) for j in cols}
+
+    def columns(self, roles: Iterable[str]) -> NDArray[np.int64]:
+        """The batch-array column of each role (:attr:`roles` order); raises on an unknown role."""
+        return np.array([self._column(role) for role in roles], dtype=np.int64)
+
+    def column_goals(self, cols: NDArray[np.int64], values: ArrayLike) -> NDArray[np.int64]:
+        """`targets_to_goals` with the targets as an array: ``values[k]`` for the role of column ``cols[k]``
+        (see `columns`) -> the goal ticks of those columns, (len(cols),) int64. The same arithmetic
+        without the dicts (a control frame's path); neighbours not given sit at neutral."""
+        row = self._neutral_target_row.copy()
+        row[0, cols] = values
+        return np.asarray(self.targets_to_goals_array(row)[0, cols], dtype=np.int64)
 
     def goals_to_targets(self, goals: Mapping[int, int], *, clip: bool = False) -> dict[str, float]:
         """Id -> goal tick into role -> target; coupled servos use their neighbours' goals (or neutral)."""

@@ -85,6 +85,11 @@ def validate_aus(
     if len(aus) > MAX_AUS:
         raise FrameError(f"{where or 'aus'}: {len(aus)} entries; an AU frame has at most {MAX_AUS}")
     for raw, value in aus.items():
+        if names is not None and type(value) is float and raw in names and raw not in out:
+            a, b = ranges.get(raw, (lo, hi))
+            if a <= value <= b:  # a canonical name and a finite float in range: what the checks below return
+                out[raw] = value
+                continue
         shown = raw if isinstance(raw, str) and raw.isprintable() and len(raw) <= 40 else _shown(raw)
         field = f"{where}.{shown}" if where else str(shown)
         name = raw if names is not None and raw in names else canonical_au(raw, field=field)

@@ -101,11 +101,18 @@ def play_timeline(
         return None
 
     loop = FixedRateLoop(frame, rate, clock=clock, sleep=sleep)
-    if stop_on_interrupt and threading.current_thread() is threading.main_thread():
-        with stop_on_sigint(loop):
+    speculate = getattr(pipeline, "speculate_gate", None)
+    if speculate is not None:  # paced frames have time to spare: one gate check each, never a wasted one
+        pipeline.speculate_gate = False
+    try:
+        if stop_on_interrupt and threading.current_thread() is threading.main_thread():
+            with stop_on_sigint(loop):
+                result.stats = loop.run(duration_s=duration_s + 0.5 / rate)
+        else:
             result.stats = loop.run(duration_s=duration_s + 0.5 / rate)
-    else:
-        result.stats = loop.run(duration_s=duration_s + 0.5 / rate)
+    finally:
+        if speculate is not None:
+            pipeline.speculate_gate = speculate
     result.interrupted = loop.stopping and result.bus_failure is None
     last_t = result.traces[-1].t_s if result.traces else None
     if (

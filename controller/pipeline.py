@@ -17,16 +17,20 @@ import numpy as np
 from servoface.calibration import HeadCalibration
 from servoface.controller.errors import FrameError
 from servoface.controller.frame import AUFrame
-from servoface.controller.pipeline_ahead import Ahead
+from servoface.controller.pipeline_ahead import Ahead, StepState
 from servoface.controller.telemetry import StrainedHealth
 from servoface.hardware.driver import Driver
 from servoface.hardware.snapshot import ChainSnapshot
 from servoface.sim.errors import SimError
 from servoface.sim.face_model import FaceModel
 from servoface.sim.gate import GateConfig, ServoHealth, TwinGate, Verdict
+from servoface.sim.gate.health import derate
+from servoface.sim.gate.limits import per_time
 from servoface.sim.head import Head
 
 PACE_MAX_SHARE = 0.25  # a frame at most this share of a period early waits for the period (see step)
+PLAN_MARGIN = 1.03  # a caller faster than the rate: the next write is planned this much after the last interval
+PLAN_WAIT_MAX_S = 0.5e-3  # at most this long a spin for the planned write time (see `_planned_verdict`)
 
 
 @dataclass(frozen=True)
@@ -99,6 +103,7 @@ class Pipeline:
         self._lo = np.array([s.min_target for s in self._servos])
         self._hi = np.array([s.max_target for s in self._servos])
         self._neutral = [float(s.neutral_target) for s in self._servos]  # a curve inverse each: compute once
+        self._set_columns()
         self.last_goals_tick: dict[int, int] = calibration.neutral_goals()
         self.temperature_limits_c = dict(temperature_limits_c or {})
         self._ids = frozenset(s.servo_id for s in self._servos)
@@ -106,11 +111,17 @@ class Pipeline:
         self.last_snapshot: ChainSnapshot | None = None
         self.last_cycle_s: float | None = None  # clock() of the last driver cycle (pacing)
         self.last_write_s: float | None = None  # clock() when the last goals went on the wire
+        self._interval_s: float | None = None  # between the last two writes (plans the speculation)
+        self._short_run = 0  # writes in a row that came well within a period of the one before
         self.per_time_caps = True  # False: the gate's per-frame caps only (deterministic replays in tests)
         self._index = 0
         self._ahead: Ahead | None = None  # the next frame, computed during this one's wait (step(next_frame=))
         self._solved: tuple[tuple[dict[str, float], int, int], tuple[Any, ...]] | None = None  # see _solve
         self.pace_writes = True  # wait out a nearly elapsed frame period before the gate (`_wait_out_period`)
+        # the next frame's gate check during the wait too (else only its muscle model and calibration): saves
+        # wall time, but costs a second check whenever new telemetry or timing voids it (`play_timeline`,
+        # paced at the rate with time to spare, turns it off: one check per frame)
+        self.speculate_gate = True
 
     # -- state ------------------------------------------------------------------------------------
     def pin_to(self, goals_tick: Mapping[int, int]) -> None:
@@ -142,26 +153,41 @@ class Pipeline:
         self.calibration, self.gate = calibration, gate
         self._servos, self._lo, self._hi, self._neutral = servos, lo, hi, neutral
         self.last_goals_tick = last
+        self._set_columns()
         self.gate.reset()
+
+    def _set_columns(self) -> None:
+        """What a frame reads of the calibration in array form (head role order)."""
+        self._roles = [s.role for s in self._servos]
+        self._goal_ids = [s.servo_id for s in self._servos]
+        self._cols = self.calibration.columns(self._roles)
+        self._clamp_tol = 1e-6 * np.maximum(1.0, self._hi - self._lo)
 
     # -- one frame --------------------------------------------------------------------------------
     def targets_for(self, aus: Mapping[str, float]) -> dict[str, float]:
         """Actuator targets (role -> deg/mm) the muscle model asks for (validates the AUs)."""
-        return dict(self.face.solve(aus).actuator_targets)
+        return self.face.actuator_targets(aus)
 
     def clamp_targets(self, targets: Mapping[str, float]) -> tuple[dict[str, float], list[str]]:
         """Targets clamped into each servo's calibrated range, with one reason per clamp."""
-        values = np.array([float(targets.get(s.role, n)) for s, n in zip(self._servos, self._neutral, strict=True)])
+        clamped, reasons = self._clamp_array(targets)
+        return dict(zip(self._roles, clamped.tolist(), strict=True)), reasons
+
+    def _clamp_array(self, targets: Mapping[str, float]) -> tuple[np.ndarray, list[str]]:
+        """`clamp_targets` as an array in head role order (the frame path: no dict until the trace)."""
+        values = np.array([float(targets.get(r, n)) for r, n in zip(self._roles, self._neutral, strict=True)])
         if not np.all(np.isfinite(values)):
             bad = [s.role for s, v in zip(self._servos, values, strict=True) if not np.isfinite(v)]
             raise FrameError(f"muscle model produced non-finite targets for {bad}")
         clamped = np.clip(values, self._lo, self._hi)
+        off = np.abs(values - clamped) > self._clamp_tol
         reasons = [
-            f"[target] {s.role}: {v:.2f} {s.unit} outside the calibrated {lo:.2f}..{hi:.2f}, clamped"
-            for s, v, lo, hi, c in zip(self._servos, values, self._lo, self._hi, clamped, strict=True)
-            if abs(v - c) > 1e-6 * max(1.0, hi - lo)
+            f"[target] {s.role}: {values[i]:.2f} {s.unit} outside the calibrated {self._lo[i]:.2f}.."
+            f"{self._hi[i]:.2f}, clamped"
+            for i in np.flatnonzero(off).tolist()
+            for s in (self._servos[i],)
         ]
-        return {s.role: float(c) for s, c in zip(self._servos, clamped, strict=True)}, reasons
+        return clamped, reasons
 
     def step(
         self,
@@ -205,12 +231,18 @@ class Pipeline:
         # after a whole period even when the last frame's caps were shrunk (`limits.per_time` with f = 1
         # gives the per-frame caps and the last step as it was), and the check would then note f = 1
         per_frame = elapsed_s is None or elapsed_s >= self.gate.frame_period_s
-        spec = ahead.verdict_for(self.last_goals_tick, health, self.gate.step_state()) if ahead and per_frame else None
+        # (one checked for a planned elapsed time: usable when that time gives the same caps, see
+        # `_planned_verdict`)
+        spec = None
+        if ahead is not None and (per_frame or ahead.plan_s is not None):
+            spec = ahead.verdict_for(self.last_goals_tick, health, self.gate.step_state())
+            if spec is not None and ahead.plan_s is not None:
+                spec, elapsed_s = self._planned_verdict(ahead, spec, health, elapsed_s)
         if spec is not None and ahead is not None:
             verdict = spec
             self.gate.restore_step_state(ahead.state_after)
-            if elapsed_s is not None:
-                self.gate._last_fraction = 1.0  # what the check with elapsed_s >= the period leaves
+            if elapsed_s is not None:  # what the check with this elapsed time leaves (`limits.per_time`)
+                self.gate._last_fraction = min(1.0, elapsed_s / self.gate.frame_period_s)
             timings["ahead_ms"] = sum(ahead.timings_ms.values())
         else:
             verdict = self.gate.check(requested, self.last_goals_tick, health, elapsed_s=elapsed_s)
@@ -221,7 +253,12 @@ class Pipeline:
         if self.driver is not None:
             before = self.driver.bus.stats.bytes_written
             self.driver.cycle_start(sent)
-            self.last_write_s = self.clock()  # after: the goals are on the wire by now (conservative)
+            now_s = self.clock()  # after: the goals are on the wire by now (conservative)
+            interval = None if self.last_write_s is None else now_s - self.last_write_s
+            short = interval is not None and interval < self.gate.frame_period_s * (1.0 - PACE_MAX_SHARE)
+            self._short_run = self._short_run + 1 if short else 0
+            self._interval_s = interval
+            self.last_write_s = now_s
             if next_frame is not None:  # while the replies are on the wire
                 self._ahead = self._prepare(next_frame, sent, health)
             self.last_snapshot = self.driver.cycle_finish()
@@ -273,8 +310,11 @@ class Pipeline:
         targets = self.targets_for(aus)
         t1 = time.perf_counter()
         timings["muscle_ms"] = (t1 - t0) * 1e3
-        clamped, reasons = self.clamp_targets(targets)
-        requested = self.calibration.targets_to_goals(clamped)
+        clamped_arr, reasons = self._clamp_array(targets)
+        requested = dict(
+            zip(self._goal_ids, self.calibration.column_goals(self._cols, clamped_arr).tolist(), strict=True)
+        )
+        clamped = dict(zip(self._roles, clamped_arr.tolist(), strict=True))
         timings["calibration_ms"] = (time.perf_counter() - t1) * 1e3
         result = (targets, clamped, tuple(reasons), requested)
         self._solved = ((dict(aus), id(self.face), id(self.calibration)), result)
@@ -314,18 +354,67 @@ class Pipeline:
             targets, clamped, reasons, requested = self._solve(aus, solved)
         except Exception:  # noqa: BLE001 - re-raised by the step of that frame, where it belongs
             return None
+        if not self.speculate_gate:  # the solve only; the step checks (`Ahead.verdict_for` gives None)
+            nothing: StepState = (None, np.zeros(0, dtype=np.int64))
+            return Ahead(aus, targets, clamped, tuple(reasons), requested, solved, None, dict(sent),
+                         None if health is None else dict(health), nothing, nothing)  # fmt: skip
         t2 = time.perf_counter()
-        before = self.gate.step_state()
+        gate = self.gate
+        before, fraction = gate.step_state(), gate._last_fraction
+        plan_s = self._plan_s()
         verdict: Verdict | None
         try:
-            verdict = self.gate.check(requested, sent, health)
+            verdict = gate.check(requested, sent, health, elapsed_s=plan_s)
         except Exception:  # noqa: BLE001 - the step checks afresh (and raises there)
             verdict = None
-        after = self.gate.step_state()
-        self.gate.restore_step_state(before)
+        after = gate.step_state()
+        gate.restore_step_state(before)
+        gate._last_fraction = fraction  # (a check with elapsed_s notes its fraction: put back too)
         timings = {**solved, "gate_ms": (time.perf_counter() - t2) * 1e3}
         return Ahead(aus, targets, clamped, tuple(reasons), requested, timings, verdict, dict(sent),
-                     None if health is None else dict(health), before, after)  # fmt: skip
+                     None if health is None else dict(health), before, after, plan_s, fraction)  # fmt: skip
+
+    def _plan_s(self) -> float | None:
+        """The elapsed time the speculative check of the next frame assumes: None (a whole period, the
+        per-frame caps) for a paced caller; for one stepping faster than the rate (frames back to back, the
+        last two intervals well under a period), the last interval times `PLAN_MARGIN`."""
+        interval = self._interval_s
+        if not self.per_time_caps or interval is None or self._short_run < 2:  # (one short: a paced loop's
+            return None  # catch-up after a late frame, its next frame comes a period later)
+        plan = interval * PLAN_MARGIN
+        return plan if plan < self.gate.frame_period_s * (1.0 - PACE_MAX_SHARE) else None
+
+    def _planned_verdict(
+        self, ahead: Ahead, spec: Verdict, health: dict[int, ServoHealth] | None, elapsed_s: float | None
+    ) -> tuple[Verdict | None, float | None]:
+        """A speculation checked for a planned elapsed time (`_plan_s`): a frame a little early spins to the
+        planned write time (at most `PLAN_WAIT_MAX_S`, real clock only); then the verdict is the fresh
+        check's when the caps that elapsed time gives (`limits.per_time`: integer step, speed-up and scaled
+        last step per servo) are exactly those of the planned time — everything else the check reads is
+        already the same (`Ahead.verdict_for`). Returns (verdict or None, the elapsed time now)."""
+        plan_s, last_write_s = ahead.plan_s, self.last_write_s
+        if plan_s is None or elapsed_s is None or last_write_s is None:
+            return None, elapsed_s
+        if elapsed_s < plan_s and plan_s - elapsed_s <= PLAN_WAIT_MAX_S and self.clock is time.monotonic:
+            while self.clock() - last_write_s < plan_s:
+                pass
+            elapsed_s = self.clock() - last_write_s
+        gate = self.gate
+        if elapsed_s < plan_s or gate._last_fraction != ahead.fraction_before:
+            return None, elapsed_s
+        table, _ = derate(gate.table, health, gate.config.health)
+        mem_sent, mem_step = gate.step_state()
+        last = np.array([self.last_goals_tick[sid] for sid in gate.table.ids], dtype=np.int64)
+        last_step = mem_step if mem_sent is not None and np.array_equal(mem_sent, last) else np.zeros_like(last)
+        period_s, fraction = gate.frame_period_s, gate._last_fraction
+        a = per_time(table, last_step, plan_s, period_s, fraction)
+        b = per_time(table, last_step, elapsed_s, period_s, fraction)
+        same = (
+            np.array_equal(a[0].max_step_tick, b[0].max_step_tick)
+            and np.array_equal(a[0].max_speedup_tick, b[0].max_speedup_tick)
+            and np.array_equal(a[1], b[1])
+        )
+        return (spec if same else None), elapsed_s
 
     def _sync_with_driver(self, snapshot: ChainSnapshot) -> None:
         """Take the goal the driver really left on a servo in service as the last command when it differs

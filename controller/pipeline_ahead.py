@@ -36,6 +36,8 @@ class Ahead:
     health: dict[int, ServoHealth] | None
     state_before: StepState
     state_after: StepState
+    plan_s: float | None = None  # the elapsed time the check assumed (None: a whole period, per-frame caps)
+    fraction_before: float = 1.0  # the gate's last-frame fraction the check started from
 
     def verdict_for(
         self, last_goals_tick: Mapping[int, int], health: Mapping[int, ServoHealth] | None, state: StepState

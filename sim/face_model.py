@@ -20,6 +20,7 @@ import dataclasses
 import math
 import time
 from collections.abc import Mapping
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -214,7 +215,7 @@ class FaceModel:
         joint = np.clip(self._neutral + joint_delta, self._lower, self._upper)
         joint_deg = dict(zip(self.joint_names, joint.tolist(), strict=True))
         offsets = self.field.offsets(contractions, joint_deg if self.field.eyelids else None)
-        targets = self._targets(joint, offsets)
+        targets = self._targets(joint, offsets[self._anchor_vertex])
         if self.direct is not None and split.any():
             joint_deg, offsets = self._apply_direct(self.direct.deltas(split), joint, joint_deg, offsets, targets)
         pose = HeadPose(joint_deg, offsets, targets)
@@ -254,15 +255,43 @@ class FaceModel:
             offsets = offsets + self.fit.bumps(residual)
         return joint_deg, offsets
 
-    def _targets(self, joint: FloatArray, offsets: FloatArray) -> dict[str, float]:
-        targets: dict[str, float] = {}
-        for act, cols in zip(self.joint_actuators, self._joint_cols, strict=True):
-            targets[act.role] = min(max(float(joint[cols].mean()), act.lower_deg), act.upper_deg)
+    def actuator_targets(self, aus: Mapping[str, float]) -> dict[str, float]:
+        """``solve(aus).actuator_targets`` (validated the same way) without posing the skin: only the anchor
+        vertices' offsets are computed (`MuscleField.offsets_at`), the rest of the arithmetic is `solve`'s.
+        A head with a direct table falls back to `solve` when a frame uses it."""
+        split = self.mapping.split(aus)
+        if self.direct is not None and split.any():
+            return dict(self.solve_detailed(aus).pose.actuator_targets)
+        contractions, joint_delta = self.mapping.evaluate_split(split)
+        joint = np.clip(self._neutral + joint_delta, self._lower, self._upper)
+        joint_deg = dict(zip(self.joint_names, joint.tolist(), strict=True)) if self.field.eyelids else None
+        return self._targets(joint, self.field.offsets_at(contractions, self._anchor_vertex, joint_deg))
+
+    def _targets(self, joint: FloatArray, anchor_offsets: FloatArray) -> dict[str, float]:
+        """Actuator targets from the joints (J,) and the anchor vertices' skin offsets (A, 3): a joint
+        actuator's joints' mean, an anchor's pull along its line, each clamped to the actuator's range."""
+        first, multi, j_lo, j_hi, a_lo, a_hi, roles = self._target_plan
+        values = joint[first]  # a mean of one joint is that joint
+        for k, cols in multi:
+            values[k] = joint[cols].mean()
+        out = np.minimum(np.maximum(values, j_lo), j_hi).tolist()
         if self.anchor_actuators:
-            pulls = np.einsum("ak,ak->a", offsets[self._anchor_vertex], self._anchor_line)
-            for anchor, pull in zip(self.anchor_actuators, pulls.tolist(), strict=True):
-                targets[anchor.role] = min(max(pull, anchor.lower_mm), anchor.upper_mm)
-        return targets
+            pulls = np.einsum("ak,ak->a", anchor_offsets, self._anchor_line)
+            out += np.minimum(np.maximum(pulls, a_lo), a_hi).tolist()
+        return dict(zip(roles, out, strict=True))
+
+    @cached_property
+    def _target_plan(self) -> tuple[Any, ...]:
+        """`_targets`' constants: each joint actuator's first joint column, the actuators with several joints,
+        the ranges, and the roles in the targets' order (joint actuators, then anchors)."""
+        first = np.array([int(c[0]) if c.size else 0 for c in self._joint_cols], dtype=np.int64)
+        multi = [(k, c) for k, c in enumerate(self._joint_cols) if c.size != 1]
+        j_lo = np.array([a.lower_deg for a in self.joint_actuators], dtype=np.float64)
+        j_hi = np.array([a.upper_deg for a in self.joint_actuators], dtype=np.float64)
+        a_lo = np.array([a.lower_mm for a in self.anchor_actuators], dtype=np.float64)
+        a_hi = np.array([a.upper_mm for a in self.anchor_actuators], dtype=np.float64)
+        roles = [a.role for a in self.joint_actuators] + [a.role for a in self.anchor_actuators]
+        return first, multi, j_lo, j_hi, a_lo, a_hi, roles
 
     # --- inverse: targets -> pose (the twin) ------------------------------------------------------------
 

@@ -99,18 +99,23 @@ class BlendPolicy:
         self, contributions: Sequence[tuple[str, Mapping[str, float]]], lo: float = -1.0, hi: float = 1.0
     ) -> dict[str, float]:
         """Blend ``[(track_name, aus), ...]`` (in layer order) into one pose clamped to [lo, hi]."""
-        ranked = sorted(
-            ((self.rank(name, i), aus) for i, (name, aus) in enumerate(contributions)),
-            key=lambda item: item[0],
-        )
+        if len(contributions) > 1:
+            ranked = [
+                aus
+                for _, aus in sorted(
+                    ((self.rank(name, i), aus) for i, (name, aus) in enumerate(contributions)),
+                    key=lambda item: item[0],
+                )
+            ]
+        else:
+            ranked = [aus for _, aus in contributions]
+        cache: dict[str, BlendRule] = self.__dict__.setdefault("_rule_cache", {})
         out: dict[str, float] = {}
-        seen: set[str] = set()
-        for _, aus in ranked:  # highest priority first
+        for aus in ranked:  # highest priority first
             for au, value in aus.items():
-                rule = self.rule_for(au)
-                if au not in seen:
+                rule = cache.get(au) or self.rule_for(au)  # (every name through rule_for once: it parses)
+                if au not in out:  # the first (highest-priority) value of an AU
                     out[au] = value
-                    seen.add(au)
                 elif rule is BlendRule.SUM:
                     out[au] += value
                 elif rule is BlendRule.MAX and abs(value) > abs(out[au]):
@@ -119,4 +124,4 @@ class BlendPolicy:
             if pos in out and neg in out:
                 net = out[pos] - out[neg]
                 out[pos], out[neg] = max(net, 0.0), max(-net, 0.0)
-        return {au: min(hi, max(lo, v)) for au, v in out.items()}
+        return {au: v if lo <= v <= hi else min(hi, max(lo, v)) for au, v in out.items()}

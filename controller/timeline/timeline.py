@@ -50,6 +50,7 @@ class Timeline:
         self.blend = blend or BlendPolicy.for_face(face_type)
         self._initial = self.validator.pose(initial_pose or {}, where="initial_pose")
         self._layers: dict[str, Layer] = {}
+        self._tracks: tuple[int, list[Track]] = (0, [])  # the layers that are tracks (`is_playing`)
         self._range = intensity_range(face_type)
 
     # -- building ---------------------------------------------------------------------------------
@@ -134,4 +135,6 @@ class Timeline:
 
     def is_playing(self, t_s: float) -> bool:
         """True while any track has a clip running at ``t_s``."""
-        return any(isinstance(layer, Track) and layer.is_playing(t_s) for layer in self._layers.values())
+        if self._tracks[0] != len(self._layers):  # layers are only ever added: recount when one was
+            self._tracks = (len(self._layers), [x for x in self._layers.values() if isinstance(x, Track)])
+        return any(track.is_playing(t_s) for track in self._tracks[1])

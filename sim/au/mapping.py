@@ -67,6 +67,7 @@ class AUMapping:
             entry = table.entries[number]
             self.channels += [(number, "L"), (number, "R")] if entry.sided else [(number, "")]
         self.channel_index = {ch: i for i, ch in enumerate(self.channels)}
+        self._names: dict[str, tuple[tuple[int, ...], float, float]] = {}  # see `channel_values`
         k = len(self.channels)
         # columns 0..k-1: positive part; k..2k-1: magnitude of the negative (counter) part
         self.to_muscles = np.zeros((len(self.muscle_names), 2 * k))
@@ -132,13 +133,31 @@ class AUMapping:
     # --- validation -------------------------------------------------------------------------------------
 
     def channel_values(self, aus: Mapping[str, float]) -> FloatArray:
-        """Validate ``aus`` and return the summed, clamped value of every channel (K,)."""
+        """Validate ``aus`` and return the summed, clamped value of every channel (K,).
+
+        A name seen before is not parsed again (`_channels_of`); a plain finite float inside its range is
+        taken as `check_au` would take it, anything else goes through `check_au` (which raises)."""
         values = np.zeros(len(self.channels))
+        names = self._names
         for name, value in aus.items():
-            number, side, x = check_au(self.table, name, value)
-            for s in ("L", "R") if self.table.entries[number].sided and not side else (side,):
-                values[self.channel_index[(number, s)]] += x
+            known = names.get(name) if type(name) is str else None
+            if known is not None and type(value) is float and known[1] <= value <= known[2]:
+                x = value  # (NaN fails the comparison, +-inf is outside every range)
+                channels = known[0]
+            else:
+                number, side, x = check_au(self.table, name, value)
+                channels = self._channels_of(name, number, side)
+            for ch in channels:
+                values[ch] += x
         return np.clip(values, self.low, self.high)
+
+    def _channels_of(self, name: object, number: int, side: str) -> tuple[int, ...]:
+        """The channel columns of a validated AU name, kept with its range for the next frame."""
+        entry = self.table.entries[number]
+        channels = tuple(self.channel_index[(number, s)] for s in (("L", "R") if entry.sided and not side else (side,)))
+        if type(name) is str:
+            self._names[name] = (channels, float(entry.range[0]), float(entry.range[1]))
+        return channels
 
     # --- evaluation -------------------------------------------------------------------------------------
 

@@ -14,7 +14,6 @@ the grid's box) the exact test runs as before, so the gate's verdicts do not cha
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,7 +25,9 @@ from servoface.sim.gate.errors import TssCacheError
 from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.proofs import common_centre
 from servoface.sim.gate.spheres import SphereSet
-from servoface.sim.gate.tss_build import _grid_angles, lever_arm_mm, relative_joints
+from servoface.sim.gate.tss_build import lever_arm_mm, relative_joints
+from servoface.sim.gate.tss_cache import atomic_savez
+from servoface.sim.gate.tss_sweep import grid_angles
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -107,7 +108,7 @@ def build_clearance(
         i = int(np.argmax(counts))
         counts[i] = max(2, int(counts[i] * 0.85))
     step = np.where(counts > 1, (hi - lo) / np.maximum(counts - 1, 1), 0.0)
-    angles = _grid_angles(tree, k, lo, hi, counts)
+    angles = grid_angles(tree, k, lo, hi, counts)
     from scipy.spatial import cKDTree
 
     jx = -1 if x.joint is None else tree.index[x.joint]
@@ -116,7 +117,7 @@ def build_clearance(
     kd = cKDTree(sy.centres_mm)
     ch = np.r_[c, 1.0]
     for s in range(0, angles.shape[0], _CHUNK_NODES):
-        world = tree.world(angles[s : s + _CHUNK_NODES])
+        world = tree.world_of(angles[s : s + _CHUNK_NODES], (jx, jy))  # `world` along the two chains only
         g = world.shape[0]
         tx = world[:, jx] if jx >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))
         ty = world[:, jy] if jy >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))
@@ -174,28 +175,22 @@ def cached_clearance(path: Path | None, build: Callable[[], Clearance | None]) -
     got = build()
     if path is None:
         return got
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
-        if got is None:
-            np.savez(tmp, present=False)
-        else:
-            np.savez(
-                tmp,
-                present=True,
-                ball_part=got.ball_part,
-                centre=got.centre_mm,
-                radius=got.radius_mm,
-                joints=got.joints,
-                lower=got.lower_deg,
-                step=got.step_deg,
-                counts=got.counts,
-                arm=got.arm_mm,
-                slack=got.slack_mm,
-            )
-        os.replace(tmp, path)
-    except OSError as err:
-        raise TssCacheError(f"cannot write clearance cache file {path}: {err}") from err
+    if got is None:
+        atomic_savez(path, present=False)
+    else:
+        atomic_savez(
+            path,
+            present=True,
+            ball_part=got.ball_part,
+            centre=got.centre_mm,
+            radius=got.radius_mm,
+            joints=got.joints,
+            lower=got.lower_deg,
+            step=got.step_deg,
+            counts=got.counts,
+            arm=got.arm_mm,
+            slack=got.slack_mm,
+        )
     return got
 
 

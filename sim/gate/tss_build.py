@@ -24,12 +24,12 @@ import numpy as np
 from numpy.typing import NDArray
 from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.spheres import SphereSet, cover_spheres
+from servoface.sim.gate.tss_sweep import balls_meet, grid_angles, sweep
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 TSS_VERSION = "tss-1"
-REFINE_FACTOR = 2.0  # the fine sweep is seeded from a grid this much coarser per axis (`tss_refine`)
-_FILTER_SLACK_MM = 1e-6  # pre-filters keep a candidate this far beyond their bound (float rounding)
+_REFINE_ABOVE_NODES = 64  # larger grids go through the pyramid of `tss_refine` (a smaller one is its own top)
 
 
 @dataclass(frozen=True)
@@ -133,6 +133,53 @@ def lever_arm_mm(tree: JointTree, joint_name: str | None, spheres: SphereSet, j:
     return float(reach.max()) + length
 
 
+def sphere_arms_mm(tree: JointTree, joint_name: str | None, spheres: SphereSet, j: int) -> FloatArray:
+    """`lever_arm_mm` per sphere (n,): a bound of how fast (mm per rad) joint j moves that sphere."""
+    start, length = _tree_distance_bound(tree, joint_name, j)
+    reach = np.linalg.norm(spheres.centres_mm - tree.pivot_mm[start], axis=1) + spheres.radii_mm
+    return np.asarray(reach + length, dtype=np.float64)
+
+
+def pair_lever_arms(
+    tree: JointTree, joint_a: str | None, joint_b: str | None, sa: SphereSet, sb: SphereSet, rel: list[int]
+) -> FloatArray:
+    """(R,) per ``rel`` joint: `lever_arm_mm` of the part whose chain holds it (the TSS margin's arms)."""
+    chain_a = set(tree.chain(joint_a))
+    return np.array(
+        [lever_arm_mm(tree, joint_a, sa, j) if j in chain_a else lever_arm_mm(tree, joint_b, sb, j) for j in rel]
+    )
+
+
+def pair_sphere_arms(
+    tree: JointTree, joint_a: str | None, joint_b: str | None, sa: SphereSet, sb: SphereSet, rel: list[int]
+) -> tuple[FloatArray, FloatArray]:
+    """(n_a, R), (n_b, R): per sphere and ``rel`` joint, how fast (mm per rad) the joint moves that sphere
+    (`sphere_arms_mm`), 0 where the joint is in the other part's chain (it moves the other part instead)."""
+    chain_a = set(tree.chain(joint_a))
+    arm_a, arm_b = np.zeros((sa.n, len(rel))), np.zeros((sb.n, len(rel)))
+    for col, j in enumerate(rel):
+        if j in chain_a:
+            arm_a[:, col] = sphere_arms_mm(tree, joint_a, sa, j)
+        else:
+            arm_b[:, col] = sphere_arms_mm(tree, joint_b, sb, j)
+    return arm_a, arm_b
+
+
+def sweep_grid(
+    lo: FloatArray, hi: FloatArray, arms: FloatArray, params: TssParams
+) -> tuple[IntArray, FloatArray, float]:
+    """(nodes per joint, step deg, margin mm) of a pair's sweep over the box [lo, hi]: steps that keep the
+    in-cell motion within the margin budget, coarsened (finest axis first) to ``max_grid_points``."""
+    budget = params.margin_mm / max(len(lo), 1)
+    step = np.minimum(np.rad2deg(2.0 * budget / np.maximum(arms, 1e-9)), params.max_step_deg)
+    counts = np.maximum(1, np.ceil((hi - lo) / np.maximum(step, 1e-9))).astype(np.int64) + 1
+    while float(np.prod(counts.astype(np.float64))) > params.max_grid_points and np.any(counts > 2):
+        i = int(np.argmax(counts))  # coarsen the finest axis first
+        counts[i] = max(2, int(counts[i] * 0.85))
+    step = np.where(counts > 1, (hi - lo) / np.maximum(counts - 1, 1), 0.0)
+    return counts, step, float(np.sum(arms * np.deg2rad(step) / 2.0))
+
+
 def build_pair(
     tree: JointTree,
     part_a: Any,
@@ -144,26 +191,13 @@ def build_pair(
     key: str,
 ) -> PairTable:
     """Sweep the pair's relative joint space and tabulate the sphere pairs that can come close."""
+    from servoface.sim.gate.tss_refine import pruned_balls_meet, refined_sweep
+
     rel = relative_joints(tree, part_a.joint, part_b.joint)
-    chain_a = set(tree.chain(part_a.joint))
-    arms = np.array(
-        [
-            lever_arm_mm(tree, part_a.joint, spheres_a, j)
-            if j in chain_a
-            else lever_arm_mm(tree, part_b.joint, spheres_b, j)
-            for j in rel
-        ]
-    )
+    arms = pair_lever_arms(tree, part_a.joint, part_b.joint, spheres_a, spheres_b, rel)
     lo = tree.lower_deg[rel]
     hi = tree.upper_deg[rel]
-    budget = params.margin_mm / max(len(rel), 1)
-    step = np.minimum(np.rad2deg(2.0 * budget / np.maximum(arms, 1e-9)), params.max_step_deg)
-    counts = np.maximum(1, np.ceil((hi - lo) / np.maximum(step, 1e-9))).astype(np.int64) + 1
-    while float(np.prod(counts.astype(np.float64))) > params.max_grid_points and np.any(counts > 2):
-        i = int(np.argmax(counts))  # coarsen the finest axis first
-        counts[i] = max(2, int(counts[i] * 0.85))
-    step = np.where(counts > 1, (hi - lo) / np.maximum(counts - 1, 1), 0.0)
-    margin = float(np.sum(arms * np.deg2rad(step) / 2.0))
+    counts, step, margin = sweep_grid(lo, hi, arms, params)
     ja = -1 if part_a.joint is None else tree.index[part_a.joint]
     jb = -1 if part_b.joint is None else tree.index[part_b.joint]
     coarse = margin > params.max_margin_mm
@@ -171,44 +205,19 @@ def build_pair(
     ia = ib = np.zeros(0, dtype=np.int64)
     exact_only = False
     if coarse:  # no table either way: exact test every frame if the parts' bounding balls ever meet
-        exact_only = _balls_meet(
-            tree, _grid_angles(tree, rel, lo, hi, counts), ja, jb, spheres_a, spheres_b, margin + tolerance_mm
-        )
+        pad = margin + tolerance_mm
+        if n_grid > _REFINE_ABOVE_NODES:
+            exact_only = pruned_balls_meet(tree, rel, lo, hi, counts, part_a.joint, spheres_a, spheres_b, ja, jb, pad)
+        else:
+            exact_only = balls_meet(tree, grid_angles(tree, rel, lo, hi, counts), ja, jb, spheres_a, spheres_b, pad)
     else:
-        # coarse to fine: a sweep at a quarter of the resolution (its larger margin keeps it conservative)
-        # finds the spheres that can come close at all; the fine sweep only queries those
-        cand_a = np.ones(spheres_a.n, dtype=bool)
-        cand_b = np.ones(spheres_b.n, dtype=bool)
-        if n_grid > 1000:
-            c_counts = np.maximum(2, np.ceil(counts / 4.0)).astype(np.int64)
-            c_step = np.where(c_counts > 1, (hi - lo) / np.maximum(c_counts - 1, 1), 0.0)
-            c_margin = float(np.sum(arms * np.deg2rad(c_step) / 2.0))
-            c_hit = _sweep(
-                tree,
-                _grid_angles(tree, rel, lo, hi, c_counts),
-                ja,
-                jb,
-                spheres_a,
-                spheres_b,
-                c_margin + tolerance_mm,
-                params.chunk_elements,
-            )
-            cand_a, cand_b = np.asarray(c_hit.any(axis=1)), np.asarray(c_hit.any(axis=0))
-        if cand_a.any() and cand_b.any():
-            ia_c, ib_c = np.flatnonzero(cand_a), np.flatnonzero(cand_b)
-            sa_c, sb_c = _subset(spheres_a, ia_c), _subset(spheres_b, ib_c)
-            pad, chunk = margin + tolerance_mm, params.chunk_elements
-            if n_grid > 1000:  # each fine node tests only the pairs found near its coarse node (same table)
-                from servoface.sim.gate.tss_refine import refined_sweep
-
-                r_counts = np.maximum(2, np.ceil(counts / REFINE_FACTOR)).astype(np.int64)
-                r_step = np.where(r_counts > 1, (hi - lo) / np.maximum(r_counts - 1, 1), 0.0)
-                r_margin = float(np.sum(arms * np.deg2rad(r_step) / 2.0))
-                sub = refined_sweep(tree, rel, lo, hi, counts, r_counts, r_margin, ja, jb, sa_c, sb_c, pad, chunk)
-            else:
-                sub = _sweep(tree, _grid_angles(tree, rel, lo, hi, counts), ja, jb, sa_c, sb_c, pad, chunk)
-            si, sj = np.nonzero(sub)  # row-major, as np.nonzero of the full (n_a, n_b) matrix would be
-            ia, ib = ia_c[si], ib_c[sj]
+        pad, chunk = margin + tolerance_mm, params.chunk_elements
+        if n_grid > _REFINE_ABOVE_NODES:  # seeded from coarser grids (`tss_refine`): the plain sweep's table
+            arms_ab = pair_sphere_arms(tree, part_a.joint, part_b.joint, spheres_a, spheres_b, rel)
+            hit = refined_sweep(tree, rel, lo, hi, counts, arms_ab, ja, jb, spheres_a, spheres_b, pad, chunk)
+        else:
+            hit = sweep(tree, grid_angles(tree, rel, lo, hi, counts), ja, jb, spheres_a, spheres_b, pad, chunk)
+        ia, ib = np.nonzero(hit)
     return PairTable(
         part_a.name,
         part_b.name,
@@ -225,133 +234,6 @@ def build_pair(
         key,
         exact_only,
     )
-
-
-def _grid_angles(tree: JointTree, rel: list[int], lo: FloatArray, hi: FloatArray, counts: IntArray) -> FloatArray:
-    """(G, J) joint angles of a regular grid over the ``rel`` joints (others at 0)."""
-    axes = [np.linspace(lo[i], hi[i], int(counts[i])) for i in range(len(rel))]
-    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(rel)) if rel else np.zeros((1, 0))
-    angles = np.zeros((grid.shape[0], len(tree.names)))
-    angles[:, rel] = grid
-    return angles
-
-
-def _subset(spheres: SphereSet, idx: IntArray) -> SphereSet:
-    return SphereSet(spheres.centres_mm[idx], spheres.radii_mm[idx])
-
-
-def _sweep(
-    tree: JointTree,
-    angles: FloatArray,
-    ja: int,
-    jb: int,
-    sa: SphereSet,
-    sb: SphereSet,
-    pad_mm: float,
-    chunk: int,
-) -> NDArray[np.bool_]:
-    """(n_a, n_b) True where spheres i of a and j of b come within r_i + r_j + pad at some grid node.
-
-    Works in b's rest frame (a's centres moved by inv(T_b) T_a), so b's k-d tree is built once; grid
-    nodes where the two parts' bounding balls stay apart are skipped.
-    """
-    from scipy.spatial import cKDTree
-
-    hit = np.zeros((sa.n, sb.n), dtype=bool)
-    kd = cKDTree(sb.centres_mm)
-    ha = np.c_[sa.centres_mm, np.ones(sa.n)]
-    rmax_b = float(sb.radii_mm.max())
-    cb_ball, rb_ball = _bounding_ball(sb)
-    per_chunk = max(1, chunk // max(sa.n, 1))
-    for start in range(0, angles.shape[0], per_chunk):
-        rel, near = _near_nodes(tree, angles[start : start + per_chunk], ja, jb, sa, sb, pad_mm)
-        if not near.any():
-            continue
-        pts = np.einsum("gij,nj->gni", rel[near], ha)[..., :3].reshape(-1, 3)
-        idx_a = np.tile(np.arange(sa.n), int(near.sum()))
-        if sa.n > 2 * sb.n:  # fewer queries from b's side: candidates found in a's frame
-            rows, cols = _candidates_from_b(rel[near], sa, sb, pad_mm)
-        else:
-            rows, cols = _candidates_from_a(pts, idx_a, kd, sa, sb, cb_ball, rb_ball, rmax_b, pad_mm)
-        if rows.size == 0:
-            continue
-        d = np.linalg.norm(pts[rows] - sb.centres_mm[cols], axis=1)
-        ok = d <= sa.radii_mm[idx_a[rows]] + sb.radii_mm[cols] + pad_mm
-        hit[idx_a[rows[ok]], cols[ok]] = True
-    return hit
-
-
-def _bounding_ball(spheres: SphereSet) -> tuple[FloatArray, float]:
-    centre = (spheres.centres_mm.min(axis=0) + spheres.centres_mm.max(axis=0)) / 2.0
-    return centre, float(np.max(np.linalg.norm(spheres.centres_mm - centre, axis=1) + spheres.radii_mm))
-
-
-def _near_nodes(
-    tree: JointTree, angles: FloatArray, ja: int, jb: int, sa: SphereSet, sb: SphereSet, pad_mm: float
-) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """(G, 4, 4) a's rest frame -> b's rest frame at each grid node, and (G,) where the two parts'
-    bounding balls come within ``pad_mm``."""
-    ca_ball, ra_ball = _bounding_ball(sa)
-    cb_ball, rb_ball = _bounding_ball(sb)
-    world = tree.world_of(angles, (ja, jb))
-    g = world.shape[0]
-    ta = world[:, ja] if ja >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))
-    tb = world[:, jb] if jb >= 0 else np.broadcast_to(np.eye(4), (g, 4, 4))
-    rel = np.linalg.inv(tb) @ ta
-    ball = np.einsum("gij,j->gi", rel, np.r_[ca_ball, 1.0])[:, :3]
-    return rel, np.linalg.norm(ball - cb_ball, axis=1) <= ra_ball + rb_ball + pad_mm
-
-
-def _balls_meet(
-    tree: JointTree, angles: FloatArray, ja: int, jb: int, sa: SphereSet, sb: SphereSet, pad_mm: float
-) -> bool:
-    """Whether the two parts' bounding balls come within ``pad_mm`` at some grid node."""
-    per_chunk = 1024  # most pairs that meet do so early in the grid: stop at the first chunk that does
-    return any(
-        bool(_near_nodes(tree, angles[s : s + per_chunk], ja, jb, sa, sb, pad_mm)[1].any())
-        for s in range(0, angles.shape[0], per_chunk)
-    )
-
-
-def _flat(cand: Any) -> tuple[IntArray, IntArray]:
-    """(query index, found index) pairs of a ``query_ball_point`` answer (an object array of lists)."""
-    lens = np.fromiter(map(len, cand), dtype=np.int64, count=len(cand))
-    found = np.fromiter(itertools.chain.from_iterable(cand), dtype=np.int64, count=int(lens.sum()))
-    return np.repeat(np.arange(len(cand)), lens), found
-
-
-def _candidates_from_a(
-    pts: FloatArray,
-    idx_a: IntArray,
-    kd: Any,
-    sa: SphereSet,
-    sb: SphereSet,
-    cb_ball: FloatArray,
-    rb_ball: float,
-    rmax_b: float,
-    pad_mm: float,
-) -> tuple[IntArray, IntArray]:
-    """Candidate (row of ``pts``, sphere of b) pairs: a's moved centres queried in b's k-d tree, only those
-    that reach b's bounding ball (a sphere of a that cannot reach it cannot reach any sphere of b)."""
-    reach = np.linalg.norm(pts - cb_ball, axis=1) <= sa.radii_mm[idx_a] + rb_ball + pad_mm + _FILTER_SLACK_MM
-    kept = np.flatnonzero(reach)
-    cand = kd.query_ball_point(pts[kept], r=sa.radii_mm[idx_a[kept]] + rmax_b + pad_mm, return_sorted=False)
-    rows, cols = _flat(cand)
-    return kept[rows], cols
-
-
-def _candidates_from_b(rel: FloatArray, sa: SphereSet, sb: SphereSet, pad_mm: float) -> tuple[IntArray, IntArray]:
-    """The same candidates found from b's side (a part much larger than the other): b's centres moved into
-    a's rest frame at each node, queried in a's k-d tree; rows index the (node, sphere of a) points."""
-    from scipy.spatial import cKDTree
-
-    kd_a = cKDTree(sa.centres_mm)
-    q = np.einsum("gij,nj->gni", np.linalg.inv(rel), np.c_[sb.centres_mm, np.ones(sb.n)])[..., :3].reshape(-1, 3)
-    idx_b = np.tile(np.arange(sb.n), rel.shape[0])
-    r = sb.radii_mm[idx_b] + float(sa.radii_mm.max()) + pad_mm + _FILTER_SLACK_MM
-    found_q, found_a = _flat(kd_a.query_ball_point(q, r=r, return_sorted=False))
-    node = found_q // sb.n
-    return node * sa.n + found_a, idx_b[found_q]
 
 
 @dataclass(frozen=True)

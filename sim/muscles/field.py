@@ -15,6 +15,7 @@ corner (AU12, AU14, AU15, AU20) moves both lips as before.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -73,6 +74,7 @@ class MuscleField:
             w = sp.csr_matrix((n_rows, n_cols))
         w.eliminate_zeros()
         self.linear_matrix: sp.csr_matrix = w
+        self._subsets: dict[bytes, Any] = {}  # `offsets_at`: row subsets per vertex list
         self.eyelids: list[tuple[EyelidMuscle, EyelidField]] = [
             (m, m.field(rest)) for m in muscles if isinstance(m, EyelidMuscle)
         ]
@@ -90,6 +92,49 @@ class MuscleField:
                 if angle != 0.0:
                     out[lid.index] += lid.displacement(angle)
         return np.asarray(out, dtype=np.float64)
+
+    def offsets_at(
+        self, contractions: FloatArray, vertices: IntArray, joint_deg: Mapping[str, float] | None = None
+    ) -> FloatArray:
+        """``offsets(contractions, joint_deg)[vertices]`` (len(vertices), 3) mm, computed on those vertices
+        only (e.g. the actuator anchors, for targets without the skin). The same arithmetic row by row: a
+        CSR row's products summed in the same order, then each sphincter's and lid's term added, in the same
+        order. The row subset is built once per vertex list."""
+        c = np.asarray(contractions, dtype=np.float64)
+        if len(vertices) == 0:
+            return np.zeros((0, 3))
+        plan = self._subset(np.asarray(vertices, dtype=np.int64))
+        w, n_unique, inverse, sphincters, lids = plan
+        out = (w @ c).reshape(n_unique, 3)
+        for col, field, at, take in sphincters:
+            if c[col] != 0.0:
+                out[at] += field.displacement(float(c[col]))[take]
+        if joint_deg:
+            for muscle, lid, at, take in lids:
+                angle = float(joint_deg.get(muscle.joint, 0.0))
+                if angle != 0.0:
+                    out[at] += lid.displacement(angle)[take]
+        return np.asarray(out[inverse], dtype=np.float64)
+
+    def _subset(self, vertices: IntArray) -> tuple[sp.csr_matrix, int, IntArray, list[Any], list[Any]]:
+        key = vertices.tobytes()
+        plans = self._subsets
+        plan = plans.get(key)
+        if plan is None:
+            unique, inverse = np.unique(vertices, return_inverse=True)
+            rows = (3 * unique[:, None] + np.arange(3)[None, :]).ravel()
+            w = self.linear_matrix[rows]
+            where = {int(v): i for i, v in enumerate(unique)}
+
+            def hits(index: IntArray) -> tuple[IntArray, IntArray]:
+                pairs = [(where[int(v)], k) for k, v in enumerate(index) if int(v) in where]
+                at = np.array([a for a, _ in pairs], dtype=np.int64)
+                return at, np.array([k for _, k in pairs], dtype=np.int64)
+
+            sphincters = [(col, f, *hits(f.index)) for col, f in self.sphincters]
+            lids = [(m, lid, *hits(lid.index)) for m, lid in self.eyelids]
+            plan = plans[key] = (w, int(unique.size), inverse.astype(np.int64), sphincters, lids)
+        return plan
 
     def unit_displacements(self, vertices: Sequence[int] | IntArray) -> FloatArray:
         """(len(vertices), 3, M) displacement per unit contraction at the given vertices (caps ignored)."""

@@ -85,3 +85,31 @@ def test_an_invalid_next_frame_raises_at_its_own_step_before_anything_is_sent(fa
     with pytest.raises(Exception, match="AU12"):
         p.step({"AU12": float("nan")})
     assert len(face.chain.goal_writes()) == writes
+
+
+def test_without_the_gate_speculation_the_next_frame_is_solved_ahead_and_checked_once(
+    faces: tuple[Face, Face],
+) -> None:
+    """`speculate_gate = False` (what `play_timeline` sets): the next frame's muscle model and calibration
+    still run during the wait, the gate checks every frame once at its step, and the goals are the plain
+    step's."""
+    plain, ahead = faces
+    for face in faces:
+        face.pipeline.temperature_limits_c = {}
+    ahead.pipeline.speculate_gate = False
+    checks = [0]
+    check = ahead.pipeline.gate.check
+
+    def counted(*args: object, **kwargs: object) -> object:
+        checks[0] += 1
+        return check(*args, **kwargs)  # type: ignore[arg-type]
+
+    ahead.pipeline.gate.check = counted  # type: ignore[method-assign]
+    frames = _frames(plain.pipeline, 80, seed=17)
+    for k, aus in enumerate(frames):
+        x = plain.pipeline.step(aus)
+        y = ahead.pipeline.step(aus, next_frame=frames[k + 1] if k + 1 < len(frames) else None)
+        _same(x, y)
+        assert "ahead_ms" not in y.timings_ms
+    assert checks[0] == len(frames)
+    assert [g[1:] for g in plain.chain.goal_writes()] == [g[1:] for g in ahead.chain.goal_writes()]
