@@ -435,6 +435,10 @@ class Face:
         if isinstance(ease_s, bool) or not isinstance(ease_s, int | float) or not math.isfinite(ease_s):
             ease_s = EASE_S  # a stop never refuses to stop
         ease = max(0.0, float(ease_s))
+        if self._service is not None:  # no sound outlives the face that spoke it (a device plays on otherwise)
+            from servoface.controller.speech.playback import stop_sounds
+
+            stop_sounds(self._service)
         try:
             if self._service is not None:
                 self.stop_report = self._service.shutdown(

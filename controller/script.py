@@ -17,7 +17,7 @@ errors carry tomllib's line and column. The format (all times in seconds, intens
         library = "happiness" [+ onset_s, apex_s, offset_s, easing | + timing (dog)]  (servoface.sim.expressions)
     [[play]]                 at_s, track = "face" (default) | any name; expression = "name" |
                              sequence = ["a", "b"] | recipe = "anger" | library = "happiness" |
-                             say = "words" [+ voice = "en-us"] (lip sync, track "speech" by default;
+                             say = "words" [+ voice = "en-us"] (lip sync, always on track "speech";
                              script_say.py); from = pose (optional start pose)
     [[gaze]]                 at_s, look_at_mm = [x, y, z] (head frame: +x head's left, +y up, +z forward)
                              | ahead = true
@@ -42,7 +42,7 @@ from servoface.controller.alive.gaze import gaze_config_for
 from servoface.controller.errors import FrameError, ScriptError, TimelineError
 from servoface.controller.frame import AUFrame, FrameValidator
 from servoface.controller.script_fields import Reader, shown
-from servoface.controller.script_say import check_say, say_clip, say_problem, with_say_rules
+from servoface.controller.script_say import SAY_TRACK, check_say, say_clip, say_problem, with_say_rules
 from servoface.controller.timeline import (
     BlendPolicy,
     ChannelClip,
@@ -375,6 +375,12 @@ class _Builder:
                 f"{path}.track",
                 f"expected a track name like 'face', 'gesture', 'speech' "
                 f"(not {', '.join(ALIVE_LAYERS)}), got {shown(track)}",
+            )
+        if "say" in entry and track != SAY_TRACK:  # one mouth, one speech track: see script_say's docstring
+            r.fail(
+                f"{path}.track",
+                f"a say cue is spoken on the head's one speech track: leave track out or write "
+                f"track = '{SAY_TRACK}', got {shown(track)}",
             )
         kinds = [k for k in ("expression", "sequence", "recipe", "library", "say") if k in entry]
         if len(kinds) != 1:

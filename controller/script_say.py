@@ -1,10 +1,18 @@
-"""The script format's speech cue: ``[[play]] at_s = 1.0, say = "Hello there"`` (+ ``voice = "en-us"``,
-``track`` default ``"speech"``). The text is synthesised by espeak-ng (:mod:`servoface.controller.speech`,
-offline) into the same lip-sync clip `servoface say` plays: the mouth AUs as per-AU keys, visemes from
-espeak's own phoneme events, providing nothing after the utterance. While a script has a speech cue, the
-mouth AUs the speech drives blend ``override`` (speech owns the mouth while it talks, as on the head
-service's speech track) unless the script's ``[blend] rules`` name them. Plans are cached per
-(text, voice, face, allowed AUs): scrubbing a script in the studio re-parses it often.
+"""The script format's speech cue: ``[[play]] at_s = 1.0, say = "Hello there"`` (+ ``voice = "en-us"``).
+
+**Track.** A say cue is always on the script's ``speech`` track (``track`` may be left out or be
+``"speech"``; any other name is refused naming ``play[i].track``): a head has one mouth and its service one
+speech track, so a cue on another script track could not be played as written — two cues on two tracks
+would overlap in the script but not on the head, where a later utterance takes over from an earlier one
+still talking. On the one track the script shows what the head does: a later cue cuts an earlier one,
+in the studio's scrubbing, in previews and on the head alike.
+
+The text is synthesised by espeak-ng (:mod:`servoface.controller.speech`, offline) into the same lip-sync
+clip `servoface say` plays: the mouth AUs as per-AU keys, visemes from espeak's own phoneme events,
+providing nothing after the utterance. While a script has a speech cue, the mouth AUs the speech drives
+blend ``override`` (speech owns the mouth while it talks, as on the head service's speech track) unless the
+script's ``[blend] rules`` name them. Plans are cached per (text, voice, face, allowed AUs): scrubbing a
+script in the studio re-parses it often.
 
 The clip is a :class:`SayClip`: the lip-sync clip plus the words and voice it was made from, so a front end
 that drives a head can find the cues (:func:`say_cues`) and speak them through the head service's speech
@@ -26,6 +34,7 @@ if TYPE_CHECKING:
     from servoface.controller.script import Script
     from servoface.controller.timeline import Timeline
 
+SAY_TRACK = "speech"  # the only script track a say cue may be on (the head service's speech track)
 MAX_SAY_CHARS = 2000
 VOICE_CHARS = frozenset("abcdefghijklmnopqrstuvwxyz0123456789-+_")
 

@@ -15,12 +15,14 @@ Safety on the network:
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import queue
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from servoface.controller.network.errors import MessageError
@@ -34,12 +36,42 @@ CUE_WINDOW_S = (-0.5, 120.0)  # a cue may start at most this far in the past / f
 
 
 def needs_synthesis(verb: str, body: dict[str, Any]) -> bool:
-    """Whether a command synthesises speech (``say``, or a ``cue`` whose ``what`` is a ``say``): those run on the
-    node's slow worker, never on Zenoh's callback thread."""
+    """Whether a command synthesises speech (``say``, a ``play`` of a shipped script that speaks, or a ``cue``
+    whose ``what`` is one of those): those run on the node's slow worker, never on Zenoh's callback thread."""
     if verb == "say":
         return True
+    if verb == "play":
+        return speaking_shipped_script(body.get("name"))
     what = body.get("what") if verb == "cue" else None
-    return isinstance(what, dict) and what.get("verb") == "say"
+    return isinstance(what, dict) and what.get("verb") in ("say", "play") and needs_synthesis(str(what["verb"]), what)
+
+
+@functools.lru_cache(maxsize=64)
+def _speaks_text(path: str, mtime_ns: int) -> bool:
+    import tomllib
+
+    try:
+        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False  # the play itself reports the error
+    plays = data.get("play", [])
+    head = data.get("script", {})
+    cues = isinstance(plays, list) and any(isinstance(p, dict) and "say" in p for p in plays)
+    return cues or (isinstance(head, dict) and bool(head.get("audio")))
+
+
+def speaking_shipped_script(name: object) -> bool:
+    """True when ``name`` is a shipped script with say cues or a sound file (read as TOML only: cheap, no
+    synthesis), played with its speech (:mod:`servoface.controller.speech.script_play`)."""
+    from servoface.controller.shipped import is_shipped_script, resolve_script
+
+    if not isinstance(name, str) or not is_shipped_script(name):
+        return False
+    path = resolve_script(name)
+    try:
+        return _speaks_text(str(path), path.stat().st_mtime_ns)
+    except OSError:
+        return False
 
 
 class HeadNode:
@@ -235,6 +267,8 @@ class HeadNode:
                 from servoface.controller.timeline.library import library_clip
 
                 return svc.play(library_clip(svc.head.face_type, name), track=body.get("track", "face"), at_s=at_s)
+            if speaking_shipped_script(name):  # its say cues / sound file spoken as everywhere else
+                return self._play_speaking(name, body.get("track", "face"), at_s)
             return svc.play(name, track=body.get("track", "face"), at_s=at_s)
         if verb == "look_at":
             point = body.get("point_mm")
@@ -246,24 +280,36 @@ class HeadNode:
         raise MessageError(f"unknown command {verb!r}")
 
     def _say(self, body: dict[str, Any], at_s: float | None) -> Any:
+        """Speak ``text`` on the speech track as `Face.say` does (:func:`~servoface.controller.speech.say.
+        schedule_speech`: the head's jaw budget, the sound on this machine's output, the mouth on its clock,
+        crossfaded from the face track's mouth)."""
         from servoface.controller.au_names import head_au_names
         from servoface.controller.speech.lipsync import speech_from_text
+        from servoface.controller.speech.say import START_AHEAD_S, schedule_speech, service_latency_s
         from servoface.controller.speech.visemes import mouth_aus
 
         text = body.get("text")
         if not isinstance(text, str) or not text.strip() or len(text) > 2000:
             raise MessageError("say: text must be a non-empty string of at most 2000 characters")
-        from servoface.controller.speech.jaw_budget import jaw_thermal
-        from servoface.controller.speech.say import jaw_budget_for
-
         speech = speech_from_text(text)
         svc = self.service
-        face_type = svc.head.face_type
-        start = svc.clock.to_monotonic_s(svc.now_s() if at_s is None else at_s)
-        jaw = svc.head.servo_ids.get("jaw")
-        plan, _ = jaw_budget_for(svc).apply(speech.plan, start, jaw_thermal(svc, jaw) if jaw is not None else None)
-        clip = plan.clip(face_type, head_au_names(svc.head) & mouth_aus(face_type))
-        return svc.speak(clip, at_s=at_s)
+        start = svc.now_s() + START_AHEAD_S if at_s is None else at_s
+        allowed = head_au_names(svc.head) & mouth_aus(svc.head.face_type)
+        under = svc.status().tracks.get("face")
+        base = {au: v for au, v in (under.aus if under is not None else {}).items() if au in allowed}
+        return schedule_speech(svc, speech, start, base=base, latency_s=service_latency_s(svc)).handle
+
+    def _play_speaking(self, name: str, track: Any, at_s: float | None) -> Any:
+        from servoface.controller.script import load_script
+        from servoface.controller.speech.script_play import submit_script_speaking
+
+        script = load_script(name)
+        if script.face_type != self.service.head.face_type:
+            raise MessageError(
+                f"play: {name} is for a {script.face_type} face; this head is {self.service.head.face_type}"
+            )
+        handle, _ = submit_script_speaking(self.service, script, track=track, at_s=at_s)  # bad track: raises first
+        return handle
 
     def _cue(self, body: dict[str, Any]) -> Any:
         what = body.get("what")

@@ -31,6 +31,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 from servoface.controller.speech.errors import SpeechError
 from servoface.controller.speech.plan import LipSyncPlan
 from servoface.controller.speech.visemes import FEATURES
@@ -130,15 +131,26 @@ class JawBudget:
     ) -> tuple[LipSyncPlan, BudgetReport]:
         """The plan with its jaw opening within the budget, starting at ``start_s`` (monotonic); the
         account then runs to the plan's end."""
-        budget, gain, level = self.limits(jaw)
         j = FEATURES.index("open")
-        t = np.asarray(plan.times_s, dtype=float)
-        opening = np.asarray(plan.features[:, j], dtype=float) * gain
+        opening, report = self.apply_opening(plan.times_s, plan.features[:, j], start_s, jaw)
+        features = np.array(plan.features, dtype=float, copy=True)
+        features[:, j] = opening
+        return dataclasses.replace(plan, features=features), report
+
+    def apply_opening(
+        self, times_s: NDArray[np.float64], opening: NDArray[np.float64], start_s: float, jaw: JawThermal | None = None
+    ) -> tuple[NDArray[np.float64], BudgetReport]:
+        """The jaw's opening (0..1 at ``times_s``, mouth clock from ``start_s`` monotonic) within the budget:
+        what :meth:`apply` does to a plan, for any mouth (a script's edited keys too); the account then
+        runs to the last time."""
+        budget, gain, level = self.limits(jaw)
+        t = np.asarray(times_s, dtype=float)
+        wanted = np.clip(np.asarray(opening, dtype=float), 0.0, None) * gain
         u = before = self.account_at(start_s)
-        out = np.empty_like(opening)
+        out = np.empty_like(wanted)
         scale, peak, min_scale, scaled = 1.0, u, 1.0, 0
         prev_t = float(t[0]) if len(t) else 0.0
-        for i, (ti, d) in enumerate(zip(t.tolist(), opening.tolist(), strict=True)):
+        for i, (ti, d) in enumerate(zip(t.tolist(), wanted.tolist(), strict=True)):
             dt = max(ti - prev_t, 1e-6) if i else 1.0 / 100.0
             prev_t = ti
             a = 1.0 - math.exp(-dt / self.window_s)
@@ -154,12 +166,10 @@ class JawBudget:
             u += (d_eff * d_eff - u) * a
             peak = max(peak, u)
             out[i] = d_eff
-        features = np.array(plan.features, dtype=float, copy=True)
-        features[:, j] = out
         self.account = u
         self._t_s = start_s + (float(t[-1]) if len(t) else 0.0)
         report = BudgetReport(budget, gain, level, before, u, peak, min_scale, scaled / len(t) if len(t) else 0.0)
-        return dataclasses.replace(plan, features=features), report
+        return out, report
 
 
 def jaw_thermal(service: object, jaw_id: int) -> JawThermal | None:

@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+import weakref
 from collections import deque
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
@@ -128,15 +129,50 @@ class AudioClockedClip:
         return {}
 
 
-@dataclass
+STOP_POLL_S = 0.02  # how often the sound thread looks for a stop (a stop is silent within this + a buffer)
+_ENDED = ("cancelled", "failed")  # a command's statuses (service.handles.Status) that end its sound
+
+
+@dataclass(eq=False)  # hashable by identity: kept in a WeakSet while it plays
 class AudioOut:
     """Plays one buffer on the default output, started at a monotonic time; ``available`` False means no
-    device (silent)."""
+    device (silent).
+
+    **Stopping.** :meth:`stop` (any thread) ends the sound at once: the callback outputs silence and raises
+    ``CallbackAbort``, the stream is aborted (PortAudio drops what is queued) and closed; a sound not
+    started yet never starts. :meth:`stop_with` ties the sound to a head service command (the utterance's
+    speech command, a script's face command): when that command is cancelled or fails — a stop, Ctrl-C,
+    an e-stop, a torque-off, the service's shutdown (`Face.close`, the safe stop), a newer utterance taking
+    the speech track — the sound stops with the mouth; ``owner`` (the head service) stopping does too."""
 
     available: bool
     reason: str = ""
+    owner: Any = None
     _thread: threading.Thread | None = None
     _done: threading.Event = field(default_factory=threading.Event)
+    _stop: threading.Event = field(default_factory=threading.Event)
+    _with: list[Any] = field(default_factory=list)
+
+    def stop(self) -> None:
+        """End the sound now (silent within one poll and one buffer); safe to call twice, from any thread."""
+        self._stop.set()
+
+    @property
+    def stopped(self) -> bool:
+        return self._stop.is_set()
+
+    def stop_with(self, handle: Any) -> None:
+        """Stop the sound when ``handle`` (a head service CommandHandle) is cancelled or fails."""
+        self._with.append(handle)
+
+    def _should_stop(self) -> bool:
+        if self._stop.is_set():
+            return True
+        owner_gone = self.owner is not None and getattr(self.owner, "running", True) is False
+        if owner_gone or any(str(h.status) in _ENDED for h in list(self._with)):
+            self._stop.set()
+            return True
+        return False
 
     def play_at(self, samples: NDArray[np.float64], rate_hz: int, start_monotonic_s: float) -> AudioClock:
         """Start ``samples`` so that the first reaches the speaker at ``start_monotonic_s``; returns the
@@ -145,6 +181,7 @@ class AudioOut:
             return MonotonicAudioClock(start_monotonic_s)
         clock = DeviceAudioClock(rate_hz, start_monotonic_s)
         data = np.asarray(samples, dtype=np.float32).reshape(-1)
+        _PLAYING.add(self)
 
         def run() -> None:
             import sounddevice
@@ -152,6 +189,9 @@ class AudioOut:
             done = [0]
 
             def callback(outdata: Any, frames: int, time_info: Any, status: Any) -> None:
+                if self._stop.is_set():
+                    outdata.fill(0)
+                    raise sounddevice.CallbackAbort
                 n = done[0]
                 chunk = data[n : n + frames]
                 outdata[: len(chunk), 0] = chunk
@@ -167,16 +207,27 @@ class AudioOut:
                     samplerate=rate_hz, channels=1, dtype="float32", callback=callback, finished_callback=self._done.set
                 )
                 try:
-                    delay = start_monotonic_s - float(stream.latency) - time.monotonic()
-                    if delay > 0:
-                        time.sleep(delay)
+                    start_at = start_monotonic_s - float(stream.latency)
+                    while not self._should_stop() and time.monotonic() < start_at:
+                        time.sleep(min(STOP_POLL_S, max(0.0, start_at - time.monotonic())))
+                    if self._stop.is_set():
+                        self.reason = f"{self.reason}; stopped before it started".lstrip("; ")
+                        return
                     stream.start()
-                    self._done.wait(len(data) / rate_hz + 5.0)
+                    give_up = time.monotonic() + len(data) / rate_hz + 5.0
+                    while not self._done.wait(STOP_POLL_S) and time.monotonic() < give_up:
+                        if self._should_stop():
+                            break
+                    if self._stop.is_set():  # (the callback may have raised CallbackAbort already)
+                        stream.abort()
+                        self.reason = f"{self.reason}; stopped at {done[0] / rate_hz:.2f} s".lstrip("; ")
                 finally:
                     stream.close()
             except Exception as err:  # noqa: BLE001 - a device that fails mid-way: the mouth keeps its schedule
                 self.reason = f"sound output failed ({type(err).__name__}: {err})"
+            finally:
                 self._done.set()
+                _PLAYING.discard(self)
 
         self._thread = threading.Thread(target=run, name="servoface-audio", daemon=True)
         self._thread.start()
@@ -187,14 +238,27 @@ class AudioOut:
             self._thread.join(timeout_s)
 
 
-def open_audio_out() -> AudioOut:
-    """An output on the default sound device, or a silent one saying why not."""
+_PLAYING: weakref.WeakSet[AudioOut] = weakref.WeakSet()
+
+
+def stop_sounds(owner: Any = None) -> int:
+    """Stop every sound playing (for ``owner``, a head service, only; None: all of this process's): how
+    many. `Face.close` calls it, so no sound outlives the face that spoke it."""
+    outs = [o for o in list(_PLAYING) if owner is None or o.owner is owner]
+    for out in outs:
+        out.stop()
+    return len(outs)
+
+
+def open_audio_out(owner: Any = None) -> AudioOut:
+    """An output on the default sound device (``owner``: the head service it speaks for, see
+    :class:`AudioOut`), or a silent one saying why not."""
     try:
         import sounddevice
     except (ImportError, OSError) as err:
-        return AudioOut(False, f"no sound output (sounddevice/PortAudio not available: {err})")
+        return AudioOut(False, f"no sound output (sounddevice/PortAudio not available: {err})", owner)
     try:
         device = sounddevice.query_devices(kind="output")
     except Exception as err:  # PortAudio raises its own error type when there is no device  # noqa: BLE001
-        return AudioOut(False, f"no sound output device ({err})")
-    return AudioOut(True, f"sound on {device.get('name', 'default output')}")
+        return AudioOut(False, f"no sound output device ({err})", owner)
+    return AudioOut(True, f"sound on {device.get('name', 'default output')}", owner)

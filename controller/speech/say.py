@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from servoface.controller.au_names import head_au_names
-from servoface.controller.speech.jaw_budget import BudgetReport, JawBudget, jaw_thermal
+from servoface.controller.speech.jaw_budget import BudgetReport, JawBudget, JawThermal, jaw_thermal
 from servoface.controller.speech.lipsync import Speech
 from servoface.controller.speech.visemes import mouth_aus
 
@@ -74,7 +74,7 @@ def say_on_face(face: Face, speech: Speech, *, audio_out: bool = True, budget: J
 
     def submit(service: Any) -> Any:
         scheduled.append(
-            schedule_speech(face, speech, at_s, base=base, latency_s=latency_s, audio_out=audio_out, budget=budget)
+            schedule_speech(svc, speech, at_s, base=base, latency_s=latency_s, audio_out=audio_out, budget=budget)
         )
         return scheduled[0].handle
 
@@ -115,7 +115,7 @@ class ScheduledSpeech:
 
 
 def schedule_speech(
-    face: Face,
+    service: Any,
     speech: Speech,
     at_s: float,
     *,
@@ -125,21 +125,20 @@ def schedule_speech(
     budget: JawBudget | None = None,
     length_s: float | None = None,
 ) -> ScheduledSpeech:
-    """Submit ``speech`` to the head service's speech slot from ``at_s`` (service time, ahead of now) without
-    waiting: the plan within the jaw's budget, the clip crossfaded from and back to ``base`` (the face's own
+    """Submit ``speech`` to a head service's speech slot from ``at_s`` (service time, ahead of now) without
+    waiting (every front end's speech comes here: `Face.say`, a script's say cues, the node's ``cmd/say``):
+    the plan within the jaw's budget, the clip crossfaded from and back to ``base`` (the face's own
     mouth there), the sound started on the audio device for the mouth's time plus ``latency_s`` (silent
     without one: then the monotonic clock is master), the clip timed by that clock. ``length_s`` cuts the
     utterance (mouth and sound) that long after ``at_s``."""
     from servoface.controller.speech.playback import AudioClockedClip, MonotonicAudioClock, open_audio_out
 
-    svc = face.service
-    face_type = face.head.face_type
-    allowed = head_au_names(face.head) & mouth_aus(face_type)
+    svc = service
+    face_type = svc.head.face_type
+    allowed = head_au_names(svc.head) & mouth_aus(face_type)
     start = svc.clock.to_monotonic_s(at_s)
-    jaw_id = face.head.servo_ids.get("jaw")
     account = budget if budget is not None else jaw_budget_for(svc)
-    thermal = jaw_thermal(svc, jaw_id) if jaw_id is not None else None
-    plan, report = account.apply(speech.plan, start, thermal)
+    plan, report = account.apply(speech.plan, start, jaw_state(svc))
     clip = plan.clip(face_type, allowed, base=dict(base))
     audio_start = start + plan.audio_start_s + latency_s
     duration = max(plan.duration_s, plan.audio_end_s) + END_MARGIN_S
@@ -148,13 +147,36 @@ def schedule_speech(
         duration = max(0.0, float(length_s))
         keep = int(max(0.0, start + duration - audio_start) * speech.rate_hz)
         samples = samples[:keep]
-    out = open_audio_out() if audio_out and len(samples) else None
+    out = open_audio_out(svc) if audio_out and len(samples) else None
     clock: AudioClock = (
         out.play_at(samples, speech.rate_hz, audio_start) if out is not None else MonotonicAudioClock(audio_start)
     )
     timed = AudioClockedClip(clip, clock, start, latency_s, plan.audio_start_s, duration)
     handle = svc.speak(timed, at_s=at_s)
+    if out is not None:
+        out.stop_with(handle)  # a stop, an e-stop or a newer utterance ends the sound with the mouth
     return ScheduledSpeech(handle, timed, clock, out, start, audio_start, latency_s, at_s + duration, report)
+
+
+def jaw_state(service: Any) -> JawThermal | None:
+    """The head's jaw as its driver last read it (None: no jaw, offline, not read yet)."""
+    jaw_id = service.head.servo_ids.get("jaw")
+    return jaw_thermal(service, jaw_id) if jaw_id is not None else None
+
+
+def budgeted_mouth(service: Any, clip: Any, start_monotonic_s: float) -> tuple[Any, BudgetReport]:
+    """A mouth clip that is not a plan (a script's edited speech keys) within the head's jaw budget, from
+    ``start_monotonic_s``: the same account and driver state as every utterance."""
+    from servoface.controller.speech.jaw_clip import budget_clip
+
+    return budget_clip(clip, service.head.face_type, start_monotonic_s, jaw_budget_for(service), jaw_state(service))
+
+
+def service_latency_s(service: Any) -> float:
+    """The last frame's time from due to wire (0 before any): :func:`pipeline_latency_s` for a front end
+    that keeps no frames of its own (the studio, the node)."""
+    last = service.last_trace
+    return 0.0 if last is None else float(last.timings_ms.get("total_ms", 0.0)) / 1e3
 
 
 def pipeline_latency_s(face: Face) -> float:

@@ -8,12 +8,18 @@ Two kinds of speech in a script:
   the mouth is the speech track's while it talks (its AUs override the face track's), the sound goes to the
   audio device for that time plus the pipeline's frame time (silent without a device: then the monotonic
   clock is master, as for `servoface say`), the jaw stays within its thermal budget, carried from one cue
-  to the next. All cues go on the service's one ``speech`` track whatever script track they name (a later
-  cue takes over from an earlier one still talking, as on a script track).
+  to the next. A cue is always on the script's ``speech`` track (the parser refuses another ``track``) and
+  speaks on the service's one speech track (a later cue takes over from an earlier one still talking, as
+  on the script track).
 - **a sound file** (``[script] audio = "speech.wav"`` + ``audio_start_s``, what `servoface say --out` and
   `lipsync` write): read before anything moves, played from the script's start + ``audio_start_s``; the
   script's ``speech`` track (the mouth keys written with it) plays on the service's speech track slaved to
-  that sound's clock, as a say cue's mouth is (the keys as written: no jaw budget on edited keys).
+  that sound's clock, as a say cue's mouth is, its jaw within the same thermal budget
+  (:mod:`.jaw_clip`: the keys' jaw opening scaled down as a plan's would be; the lips as written).
+
+Every front end plays a speaking script here: `Face.play` / `servoface play` (:func:`play_script_speaking`,
+blocking), the studio and the network node (:func:`submit_script_speaking`, returning the script's
+command). A stop of the script's or the speech's command (Ctrl-C, e-stop, shutdown) stops its sound.
 
 The rest of the script (:func:`~servoface.controller.script_say.without_say`: the same timeline, the speech
 silent) plays on the face track from ``t0``; everything is submitted with absolute start times."""
@@ -24,6 +30,7 @@ import dataclasses
 import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -33,13 +40,16 @@ from servoface.controller.errors import ControllerError
 from servoface.controller.script_say import SayCue, say_cues, without_say
 from servoface.controller.service.handles import Status
 from servoface.controller.speech.errors import SpeechError
+from servoface.controller.speech.jaw_budget import BudgetReport
 from servoface.controller.speech.say import (
     END_MARGIN_S,
     START_AHEAD_S,
     ScheduledSpeech,
     SpokenRun,
+    budgeted_mouth,
     pipeline_latency_s,
     schedule_speech,
+    service_latency_s,
 )
 from servoface.controller.speech.visemes import mouth_aus
 
@@ -47,6 +57,7 @@ if TYPE_CHECKING:
     from servoface.controller.face import Face
     from servoface.controller.performance import Performance
     from servoface.controller.script import Script
+    from servoface.controller.service.handles import CommandHandle
     from servoface.controller.speech.lipsync import Speech
     from servoface.controller.speech.playback import AudioOut
 
@@ -67,13 +78,21 @@ class Prepared:
     audio: tuple[NDArray[np.float64], int] | None  # (mono samples -1..1, rate) of [script] audio
 
 
-def prepare(script: Script) -> Prepared:
+def prepare(script: Script, *, audio_dir: Path | None = None) -> Prepared:
     """Synthesise every say cue and read the script's sound file (SpeechError naming the cue or the file):
-    the CLI calls this before the port is opened, so a cue espeak-ng cannot say moves nothing."""
+    the CLI calls this before the port is opened, so a cue espeak-ng cannot say moves nothing. The sound
+    file is beside the script, or in ``audio_dir`` (the studio's scripts folder: its scripts are text)."""
     from servoface.controller.speech.audio import read_wav
     from servoface.controller.speech.lipsync import speech_from_text
 
     cues = tuple(say_cues(script))
+    if cues and script.audio and _edited_mouth(script):
+        raise SpeechError(
+            f"{script.source}: script.audio: the speech track has both say cues and mouth keys for the sound file "
+            f"{script.audio!r}; a head has one speech track, so the keys could not follow the sound (nor the "
+            "jaw budget) while the cues speak: move the say cues to a script of their own, or remove "
+            "[script] audio and the keys"
+        )
     speeches = []
     for cue in cues:
         try:
@@ -81,7 +100,7 @@ def prepare(script: Script) -> Prepared:
         except SpeechError as err:
             raise SpeechError(f"{script.source}: say cue at {cue.at_s:g} s: {err}") from err
     audio = None
-    path = script.audio_path
+    path = script.audio_path if audio_dir is None or not script.audio else Path(audio_dir) / script.audio
     if path is not None:
         try:
             audio = read_wav(path)
@@ -99,6 +118,7 @@ class SpokenAudio:
     sound: str
     clock: str
     mouth: bool  # the script's speech track followed it
+    budget: BudgetReport | None = None  # what the jaw budget did to that mouth
 
 
 @dataclass(frozen=True)
@@ -118,13 +138,23 @@ class SpokenScript:
             words = cue.text if len(cue.text) <= 40 else cue.text[:37] + "..."
             out.append(
                 f"said {words!r} at {cue.at_s:g} s on the speech track: sound: {run.sound}; "
-                f"the mouth followed the {run.clock} clock"
+                f"the mouth followed the {run.clock} clock{budget_note(run.budget)}"
             )
         if self.audio is not None:
             a = self.audio
             mouth = f"the {SPEECH_TRACK} track's mouth followed the {a.clock} clock" if a.mouth else "no mouth keys"
-            out.append(f"played {a.name} at {a.start_s:g} s: sound: {a.sound}; {mouth}")
+            out.append(f"played {a.name} at {a.start_s:g} s: sound: {a.sound}; {mouth}{budget_note(a.budget)}")
         return out
+
+
+def budget_note(report: BudgetReport | None) -> str:
+    """``"; jaw budget: ..."`` when the budget changed the jaw (a warm jaw, a long talk), else nothing."""
+    if report is None or (report.level == 0 and report.min_scale >= 1.0):
+        return ""
+    return (
+        f"; jaw budget: thermal level {report.level}, the jaw x{report.jaw_gain * report.min_scale:.2f} at least, "
+        f"scaled down on {report.scaled_share:.0%} of it"
+    )
 
 
 class _TrackClip:
@@ -148,14 +178,136 @@ class _TrackClip:
             yield from placed.clip.targets()
 
 
-def _speech_track(script: Script, cues: tuple[SayCue, ...]) -> Any:
-    """The script's speech track when its mouth goes with the sound file (not when say cues are on it)."""
+def _edited_mouth(script: Script) -> bool:
+    """True when the script's speech track has clips that are not say cues (mouth keys, as `say --out` writes)."""
+    from servoface.controller.script_say import SayClip
     from servoface.controller.timeline.track import Track
 
-    if SPEECH_TRACK not in script.timeline.layer_names or any(c.track == SPEECH_TRACK for c in cues):
+    if SPEECH_TRACK not in script.timeline.layer_names:
+        return False
+    layer = script.timeline.layer(SPEECH_TRACK)
+    return isinstance(layer, Track) and any(not isinstance(p.clip, SayClip) for p in layer.items)
+
+
+def _speech_track(script: Script, cues: tuple[SayCue, ...]) -> Any:
+    """The script's speech track when its mouth goes with the sound file (not when say cues are on it:
+    they take the service's speech track when they speak)."""
+    from servoface.controller.timeline.track import Track
+
+    if SPEECH_TRACK not in script.timeline.layer_names or cues:
         return None
     layer = script.timeline.layer(SPEECH_TRACK)
     return layer if isinstance(layer, Track) and layer.items else None
+
+
+class SpeakingScript:
+    """A speaking script made ready for one head service (no waiting, any front end): :meth:`submit` puts
+    the muted script on ``track`` and every cue and the sound file's mouth on the speech track, each
+    through the head's jaw budget, and returns the script's command (it ends last: the face track holds
+    the script's last pose until the speech has finished, ``total_s``). `Face.play` waits for it; the
+    studio and the network node return it."""
+
+    def __init__(
+        self,
+        service: Any,
+        script: Script,
+        prepared: Prepared,
+        *,
+        duration_s: float | None = None,
+        audio_out: bool = True,
+        latency_s: float = 0.0,
+        track: str = "face",
+    ) -> None:
+        self.service = service
+        self.script = script
+        self.latency_s = float(latency_s)
+        self.audio_out = audio_out
+        self.track = track
+        self.duration_s = duration_s
+        end_s = float(script.end_s) if duration_s is None else min(float(script.end_s), float(duration_s))
+        self.cut_s = math.inf if duration_s is None else end_s  # --duration cuts the speech (mouth and sound)
+        self.kept = [(c, s) for c, s in zip(prepared.cues, prepared.speeches, strict=True) if c.at_s < end_s]
+        self.cues = tuple(c for c, _ in self.kept)
+        ends = [min(c.at_s + _length_s(s), self.cut_s) for c, s in self.kept]
+        audio = prepared.audio
+        self.sound = audio if audio is not None and script.audio_start_s < end_s else None
+        if self.sound is not None:
+            ends.append(min(script.audio_start_s + len(self.sound[0]) / self.sound[1] + END_MARGIN_S, self.cut_s))
+        self.mouth_track = _speech_track(script, self.cues) if self.sound is not None else None
+        self.total_s = max([end_s, *ends])  # the face track holds the last pose until the speech has finished
+        muted = without_say(script, tracks=frozenset({SPEECH_TRACK}) if self.mouth_track is not None else frozenset())
+        self.muted = dataclasses.replace(muted, end_s=self.total_s)
+        self.scheduled: list[ScheduledSpeech] = []
+        self.handles: list[Any] = []
+        self.played: list[tuple[AudioOut | None, str]] = []
+        self.budgets: list[BudgetReport] = []  # the sound file's mouth's (a cue's is on its ScheduledSpeech)
+
+    def submit(self, at_s: float | None = None) -> CommandHandle:
+        """Submit everything from ``at_s`` (service time; default: START_AHEAD_S from now); the script's
+        command handle."""
+        svc, script = self.service, self.script
+        allowed = head_au_names(svc.head) & mouth_aus(svc.head.face_type)
+        t0 = svc.now_s() + START_AHEAD_S if at_s is None else float(at_s)
+        total = self.total_s
+        script_handle: CommandHandle = svc.play(
+            self.muted, track=self.track, at_s=t0, duration_s=total if total > 0 else None
+        )
+        self.handles.append(script_handle)
+        for cue, speech in self.kept:
+            base = {au: v for au, v in self.muted.sample(cue.at_s).aus.items() if au in allowed}
+            length = None if self.duration_s is None else self.cut_s - cue.at_s
+            one = schedule_speech(
+                svc,
+                speech,
+                t0 + cue.at_s,
+                base=base,
+                latency_s=self.latency_s,
+                audio_out=self.audio_out,
+                length_s=length,
+            )
+            self.scheduled.append(one)
+            self.handles.append(one.handle)
+        if self.sound is not None:
+            out, clock = _play_sound(
+                svc, self.sound, t0, script.audio_start_s, self.latency_s, self.cut_s, self.audio_out
+            )
+            if out is not None:
+                out.stop_with(script_handle)  # the script stopped (Ctrl-C, e-stop, shutdown): its sound too
+            self.played.append((out, clock.name))
+            if self.mouth_track is not None:
+                from servoface.controller.speech.playback import AudioClockedClip
+
+                start = svc.clock.to_monotonic_s(t0)
+                mouth, report = budgeted_mouth(svc, _TrackClip(self.mouth_track), start)
+                self.budgets.append(report)
+                length = min(mouth.duration_s, self.cut_s)
+                timed = AudioClockedClip(mouth, clock, start, self.latency_s, script.audio_start_s, length)
+                handle = svc.speak(timed, at_s=t0)
+                if out is not None:
+                    out.stop_with(handle)
+                self.handles.append(handle)
+        return script_handle
+
+    def check(self) -> None:
+        """Raise the error of any of its commands that failed."""
+        for handle in self.handles:
+            if handle.status is Status.FAILED:
+                raise handle.error if handle.error is not None else ControllerError(f"play: {handle.detail}")
+
+    def finish(self, performance: Performance) -> SpokenScript:
+        """Wait for the sounds to end; how it went."""
+        self.check()
+        audio = None
+        script = self.script
+        if self.played:
+            out, clock_name = self.played[0]
+            if out is not None:
+                out.wait()
+            where = "not asked for" if out is None else out.reason
+            name = script.audio_path.name if script.audio_path is not None else script.audio
+            budget = self.budgets[0] if self.budgets else None
+            audio = SpokenAudio(name, script.audio_start_s, where, clock_name, self.mouth_track is not None, budget)
+        return SpokenScript(performance, self.cues, tuple(one.finish(performance) for one in self.scheduled), audio)
 
 
 def play_script_speaking(
@@ -169,62 +321,28 @@ def play_script_speaking(
     """Play ``script`` on ``face`` (blocking) to its end, or for ``duration_s`` at most, its say cues and its
     sound file spoken through ``HeadService.speak`` (``prepared``: from :func:`prepare`, else made here)."""
     ready = prepared if prepared is not None else prepare(script)
-    end_s = float(script.end_s) if duration_s is None else min(float(script.end_s), float(duration_s))
-    cut_s = math.inf if duration_s is None else end_s  # --duration cuts the speech (mouth and sound) there
-    kept = [(c, s) for c, s in zip(ready.cues, ready.speeches, strict=True) if c.at_s < end_s]
-    cues = tuple(c for c, _ in kept)
-    ends = [min(c.at_s + _length_s(s), cut_s) for c, s in kept]
-    sound = ready.audio if ready.audio is not None and script.audio_start_s < end_s else None
-    if sound is not None:
-        ends.append(min(script.audio_start_s + len(sound[0]) / sound[1] + END_MARGIN_S, cut_s))
-    track = _speech_track(script, cues) if sound is not None else None
-    total_s = max([end_s, *ends])  # the face track holds the script's last pose until the speech has finished
-    muted = without_say(script, tracks=frozenset({SPEECH_TRACK}) if track is not None else frozenset())
-    muted = dataclasses.replace(muted, end_s=total_s)
-    allowed = head_au_names(face.head) & mouth_aus(face.head.face_type)
-    latency_s = pipeline_latency_s(face)
-    scheduled: list[ScheduledSpeech] = []
-    handles: list[Any] = []
-    played: list[tuple[AudioOut | None, str]] = []
+    run = SpeakingScript(
+        face.service, script, ready, duration_s=duration_s, audio_out=audio_out, latency_s=pipeline_latency_s(face)
+    )
+    perf = face._perform(lambda svc: run.submit(), run.total_s, track=("face", "speech"))  # noqa: SLF001
+    return run.finish(perf)
 
-    def submit(service: Any) -> Any:
-        t0 = service.now_s() + START_AHEAD_S
-        script_handle = service.play(muted, track="face", at_s=t0, duration_s=total_s if total_s > 0 else None)
-        handles.append(script_handle)
-        for cue, speech in kept:
-            base = {au: v for au, v in muted.sample(cue.at_s).aus.items() if au in allowed}
-            length = None if duration_s is None else cut_s - cue.at_s
-            one = schedule_speech(
-                face, speech, t0 + cue.at_s, base=base, latency_s=latency_s, audio_out=audio_out, length_s=length
-            )
-            scheduled.append(one)
-            handles.append(one.handle)
-        if sound is not None:
-            out, clock = _play_sound(service, sound, t0, script.audio_start_s, latency_s, cut_s, audio_out)
-            played.append((out, clock.name))
-            if track is not None:
-                from servoface.controller.speech.playback import AudioClockedClip
 
-                start = service.clock.to_monotonic_s(t0)
-                mouth = _TrackClip(track)
-                length = min(mouth.duration_s, cut_s)
-                timed = AudioClockedClip(mouth, clock, start, latency_s, script.audio_start_s, length)
-                handles.append(service.speak(timed, at_s=t0))
-        return script_handle  # it ends last (or with the last speech): the run's frames are timed from its start
-
-    perf = face._perform(submit, total_s, track=("face", "speech"))  # noqa: SLF001 - the Face's own runner
-    for handle in handles:  # (the one waited for raised in _perform already)
-        if handle.status is Status.FAILED:
-            raise handle.error if handle.error is not None else ControllerError(f"play: {handle.detail}")
-    audio = None
-    if played:
-        out, clock_name = played[0]
-        if out is not None:
-            out.wait()
-        where = "not asked for" if out is None else out.reason
-        name = script.audio_path.name if script.audio_path is not None else script.audio
-        audio = SpokenAudio(name, script.audio_start_s, where, clock_name, track is not None)
-    return SpokenScript(perf, cues, tuple(one.finish(perf) for one in scheduled), audio)
+def submit_script_speaking(
+    service: Any,
+    script: Script,
+    *,
+    track: str = "face",
+    at_s: float | None = None,
+    audio_dir: Path | None = None,
+    audio_out: bool = True,
+) -> tuple[CommandHandle, SpeakingScript]:
+    """For a front end holding only a head service (the studio, the network node): synthesise, then submit
+    ``script`` with its speech on ``service`` without waiting; (the script's command, the run). The sound
+    goes to this machine's default output (the head's speaker), silent without one."""
+    ready = prepare(script, audio_dir=audio_dir)
+    run = SpeakingScript(service, script, ready, latency_s=service_latency_s(service), track=track, audio_out=audio_out)
+    return run.submit(at_s), run
 
 
 def _play_sound(
@@ -244,7 +362,7 @@ def _play_sound(
     if math.isfinite(cut_s):
         samples = samples[: int(max(0.0, cut_s - start_s) * rate)]
     at = service.clock.to_monotonic_s(t0) + start_s + latency_s
-    out = open_audio_out() if audio_out and len(samples) else None
+    out = open_audio_out(service) if audio_out and len(samples) else None
     clock = out.play_at(samples, rate, at) if out is not None else MonotonicAudioClock(at)
     return out, clock
 

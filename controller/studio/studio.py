@@ -75,6 +75,7 @@ class Studio:
         self.recording: Any = None  # a StreamRecording (record.py) while one runs
         self.scripts = ScriptFolder(self.options.scripts_dir, service.validator.names)
         self._loop_stop = threading.Event()
+        self._played_s = 0.0  # how long the last script played holds the head (its speech included)
         self._head_info = views.head_info(service, (self.options.width, self.options.height))
 
     # -- fan-out -----------------------------------------------------------------------------------
@@ -543,10 +544,23 @@ class Studio:
             script, _, _ = self._script(body)
         if body.track not in self.service.tracks.slots:
             raise InvalidValueError(f"track: expected one of {list(self.service.tracks.slots)}", field="track")
-        result = self._motion(lambda: self.service.play(script, track=body.track), "document")
+        result = self._motion(lambda: self._play_script(script, body.track), "document")
         if body.loop:
             self._start_loop(script, body.track, result)
         return result
+
+    def _play_script(self, script: Any, track: str) -> CommandHandle:
+        """Play a script on ``track``; one with say cues or a sound file (beside the scripts folder's files)
+        is spoken as everywhere (:func:`~servoface.controller.speech.script_play.submit_script_speaking`: the
+        speech track, the head's jaw budget, the sound on this machine's output)."""
+        from servoface.controller.speech.script_play import speaks, submit_script_speaking
+
+        self._played_s = float(script.end_s)
+        if not speaks(script):
+            return self.service.play(script, track=track)
+        handle, run = submit_script_speaking(self.service, script, track=track, audio_dir=self.options.scripts_dir)
+        self._played_s = run.total_s  # its speech may end after the script: a loop waits for it
+        return handle
 
     def _start_loop(self, script: Any, track: str, first: dict[str, Any]) -> None:
         self._loop_stop.set()
@@ -554,13 +568,13 @@ class Studio:
 
         def again() -> None:
             while not stop.is_set():
-                end = self.service.now_s() + float(script.end_s)
+                end = self.service.now_s() + max(float(script.end_s), self._played_s)
                 while not stop.is_set() and self.service.now_s() < end:
                     stop.wait(0.05)
                 if stop.is_set():
                     return
                 try:
-                    self.service.play(script, track=track)
+                    self._play_script(script, track)
                 except ControllerError:
                     return
 
