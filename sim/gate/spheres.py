@@ -51,8 +51,7 @@ def cover_spheres(
     vertices, faces = subdivide(vertices, faces, max_edge=cell / 2.0, max_iter=12)  # type: ignore[no-untyped-call]
     tri = vertices[faces]  # (m, 3, 3)
     keys = np.floor(tri.mean(axis=1) / cell).astype(np.int64)
-    _, label = np.unique(keys, axis=0, return_inverse=True)
-    label = label.reshape(-1)
+    label = patch_labels(keys)
     n = int(label.max()) + 1
     pts = tri.reshape(-1, 3)
     plabel = np.repeat(label, 3)
@@ -64,3 +63,21 @@ def cover_spheres(
     radii = np.zeros(n)
     np.maximum.at(radii, plabel, np.linalg.norm(pts - centres[plabel], axis=1))
     return SphereSet(centres, radii * (1.0 + 1e-9) + 1e-9)
+
+
+def patch_labels(keys: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Label of each row of ``keys`` (m, 3) voxel integers: the rank of its row among the distinct rows in
+    lexicographic order, as ``np.unique(keys, axis=0, return_inverse=True)`` gives, but sorting one int64
+    per row (each column shifted to start at 0, mixed radix) instead of rows; falls back to the row sort
+    when the radix product would not fit in an int64."""
+    if keys.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    lo = keys.min(axis=0)
+    span = keys.max(axis=0) - lo + 1
+    if float(span[0]) * float(span[1]) * float(span[2]) >= 2.0**62:
+        _, label = np.unique(keys, axis=0, return_inverse=True)
+        return np.asarray(label, dtype=np.int64).reshape(-1)
+    shifted = keys - lo
+    code = (shifted[:, 0] * span[1] + shifted[:, 1]) * span[2] + shifted[:, 2]
+    _, label = np.unique(code, return_inverse=True)
+    return np.asarray(label, dtype=np.int64).reshape(-1)
