@@ -36,9 +36,9 @@ def _fast_read(
     crc = crc16(head)
     for owner, block in blocks:
         crc = crc16(block, crc)
-        part = block + bytes((crc & 0xFF, crc >> 8))
-        crc = crc16(part[-2:], crc)
-        parts.append((owner, part))
+        tail = bytes((crc & 0xFF, crc >> 8))
+        crc = crc16(tail, crc)
+        parts.append((owner, block + tail))
     logical = b"".join(p for _, p in parts)
     if b"\xff\xff\xfd" in bytes((0x55,)) + logical[:-2]:
         # rare: the body needs byte stuffing; send it as one stuffed packet (the SDK does not unstuff it)

@@ -97,6 +97,13 @@ def load_fraction(state: MotorState, torque_on: bool, obstacle: Obstacle | None,
     return HOLD_LOAD if error >= 0 else -HOLD_LOAD
 
 
+def free_load(vel: float, error: float, accel: float) -> float:
+    """``load_fraction(state, True, None, accel)`` with no obstacle, from the numbers it reads (hot path)."""
+    if vel != 0.0:
+        return math.copysign(MOVE_LOAD, vel) + max(-0.5, min(0.5, accel * 1e-5))
+    return HOLD_LOAD if error >= 0 else -HOLD_LOAD
+
+
 def step_thermal(temperature_c: float, ambient_c: float, load: float, dt: float) -> float:
     """Exact first-order response over ``dt`` at constant ``load`` (heating ∝ current²)."""
     target = ambient_c + THERMAL_RISE_C * load * load

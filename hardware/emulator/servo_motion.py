@@ -188,25 +188,34 @@ class ServoMotion:
         t = t0
         profile, obstacle = self._profile, self.obstacle
         step_motion, load_fraction, thermal = physics.step_motion, physics.load_fraction, self._thermal
+        free = obstacle is None  # no wall: `free_load` gives `load_fraction`'s value without its checks
+        free_load = physics.free_load
         while t < t1:
             dt = min(STEP_S, t1 - t)
             v0 = motor.vel
             step_motion(motor, profile, dt, obstacle)
-            accel = self._accel = (motor.vel - v0) / dt
-            load = load_fraction(motor, True, obstacle, accel)
+            vel = motor.vel
+            accel = self._accel = (vel - v0) / dt
+            if free:
+                load = free_load(vel, motor.target - motor.pos, accel)
+            else:
+                load = load_fraction(motor, True, obstacle, accel)
             motor.load = load
             thermal(dt, load)
             t += dt
             if not mem[A_TORQUE]:
                 motor.load = 0.0
                 break
-            if motor.vel == 0.0 and motor.pos == motor.target:  # `motor.at_rest`, inlined
-                motor.load = load_fraction(motor, True, obstacle, 0.0)
+            if vel == 0.0 and motor.pos == motor.target:  # `motor.at_rest`, inlined
+                if free:
+                    motor.load = free_load(0.0, 0.0, 0.0)
+                else:
+                    motor.load = load_fraction(motor, True, obstacle, 0.0)
                 if t1 - t > 0:  # `_thermal` of a zero step does nothing
                     thermal(t1 - t, motor.load)
                 t = t1
                 break
-            if physics.blocked_by(motor, obstacle) and t < t1:
+            if not free and physics.blocked_by(motor, obstacle) and t < t1:
                 # stalled: constant load until the end (or until a trip drops torque)
                 rest = t1 - t
                 chunk = min(rest, 0.05)
