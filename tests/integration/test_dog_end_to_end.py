@@ -2,7 +2,7 @@
 included) through muscle model, calibration, gate and driver; the wire stays inside limits and caps, and
 after settling the servos stand on the gate's last goals, whose twin pose is the calibration's.
 
-The full gate runs, part collisions included: built from nothing, the dog's TSS tables take about 15 s
+The full gate runs, part collisions included: built from nothing, the dog's TSS tables take a few seconds
 (cached per geometry in ~/.cache/servoface/tss afterwards)."""
 
 from __future__ import annotations
