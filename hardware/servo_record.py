@@ -144,24 +144,7 @@ class ServoRecord:
     def freeze_lazy(self) -> ServoState | StateCapture:
         """`freeze`, except that a state which would be the last one with only position, its time, goal and
         stale replaced is returned as a capture of those values (`build_state` makes the equal state)."""
-        faults = self.faults
-        key = (  # `_slow_key()`, inlined (every servo, every cycle)
-            self.spec,
-            self.info,
-            self.current_limit,
-            self.velocity_raw,
-            self.current_raw,
-            self.moving,
-            self.temperature_c,
-            self.voltage_v,
-            self.telemetry_t_s,
-            self.hardware_error,
-            self.torque_on,
-            self.missing,
-            self.derated,
-            frozenset(faults) if faults else _NO_FAULTS,
-            self.seconds_to_limit,
-        )
+        key = self._slow_key()
         last = self._frozen
         if last is None or key != self._frozen_key:
             last = self.freeze_full()
