@@ -248,16 +248,30 @@ class TwinGate:
         ]
         return out
 
-    def _last_ok(self, goals: IntArray, suspects: tuple[int, ...] = ()) -> int | None:
+    def _last_ok(
+        self, goals: IntArray, suspects: tuple[int, ...] = (), known: dict[bytes, bool] | None = None
+    ) -> int | None:
         """Index of the last of (k, n) candidates passing every state check, or None. Coupling is checked
         for all at once (cheap); collisions, then strain, one candidate at a time from the end, stopping at
         the first that passes. ``suspects``: pair indices the request collided on, tested exactly first
-        (a contact found by the exact test fails the candidate whatever the broad phase says)."""
+        (a contact found by the exact test fails the candidate whatever the broad phase says). ``known``:
+        answers of commands already checked in this search (command bytes -> passed), used instead of
+        checking them again and filled with the new ones (the state checks are pure functions of the command,
+        so the index returned is the same)."""
         targets, angles, world, pulls = self._pose_arrays(goals)
         coupling_ok = np.flatnonzero(self.coupling.ok(self._shares(targets)))
         s = self.config.strain
         col = self.collisions
+        memo: dict[bytes, bool] = {} if known is None else known
         for k in (int(i) for i in coupling_ok[::-1]):
+            key = goals[k].tobytes()
+            answer = memo.get(key)
+            if answer is not None:
+                if answer:
+                    self._memo = (key, [])
+                    return k
+                continue
+            memo[key] = False
             # contact first (broad phase, exact test on flagged pairs): where candidates fail it is mostly
             # by contact, and that is cheaper than the skin; a pass needs both, so the order changes nothing
             if any(col._collide(col.specs[p], world[k]) for p in suspects):
@@ -268,7 +282,8 @@ class TwinGate:
             offsets = self.skin_source.offsets_rows(pulls[k], self.skin.fast_vertices)
             stretch, comp, flips = self.skin.measure_one(world[k], offsets, self._static(goals[k]))
             if stretch <= s.max_stretch and comp >= s.min_compression and flips <= s.max_flipped:
-                self._memo = (goals[k].tobytes(), [])
+                memo[key] = True
+                self._memo = (key, [])
                 return k
         return None
 
@@ -341,14 +356,20 @@ class TwinGate:
         lo, hi = 0.0, 1.0
         best: IntArray | None = None
         best_frac = 0.0
+        # answers already known in this search (command bytes -> passed), from every candidate checked: a
+        # round's last candidate is always one (round 1's is the clamped request, a later round's the failed
+        # top end of the previous round), and truncation makes neighbouring candidates repeat
+        known: dict[bytes, bool] = {}
         cand_1 = lim.clamp(req, base, last_step, table)
-        if not (skip_full and np.array_equal(cand_1, req)) and self._last_ok(cand_1[None, :], suspects) == 0:
+        if skip_full and np.array_equal(cand_1, req):
+            known[cand_1.tobytes()] = False  # the request itself failed a state check
+        elif self._last_ok(cand_1[None, :], suspects, known) == 0:
             return cand_1, 1.0
         for _ in range(max(1, self.config.bisection_rounds)):
             fracs = lo + (hi - lo) * np.arange(1, 9) / 8.0
             raw = last + np.trunc(fracs[:, None] * step[None, :]).astype(np.int64)
             cands = lim.clamp(raw, base, last_step, table)
-            found = self._last_ok(cands, suspects)
+            found = self._last_ok(cands, suspects, known)
             if found is None:
                 hi = fracs[0]
                 continue
