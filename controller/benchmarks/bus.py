@@ -2,12 +2,14 @@
 
 24 XL330-M288 on the in-process emulator port with wire time on, at 1 Mbps and 4 Mbps, Return Delay Time 0
 (written to every servo before measuring). Per baud and read (plain Sync Read / Fast Sync Read of Present
-Position), three loops on the same chain, interleaved (`interleave`: 20 rounds of one 0.1 s window each):
+Position), three loops on the same chain, interleaved (`interleave`: 20 rounds of one 0.25 s window each):
 the plain stock-SDK loop (`servoface.hardware.stock_loop`), `ServoBus` sync write + sync read, and a full
 `Driver.cycle`. Each figure is the median window rate next to the wire limit from
 `servoface.hardware.wire.cycle_budget` (packet sizes, baud, return delay), plus its ratio to the stock SDK
 loop (median of per-round ratios); the best window and the machine's load are in the note. The same three
-at 1 Mbps over a pty with the emulator in another process (its CPU then is not the measured process's). A
+over a pty with the emulator in another process (`servoface emulate`; its CPU then is not the measured
+process's, as a real chain's is not) at 1 Mbps sync read and 4 Mbps sync / fast sync read, each with a
+pacing check (no window may beat the wire limit: the emulator paces bytes at 10 bit / baud). A
 last group of figures splits the CPU time of one cycle (no wire time) between dynamixel-sdk, the emulator and servoface.
 """
 
@@ -16,6 +18,8 @@ from __future__ import annotations
 import cProfile
 import pstats
 import statistics
+import subprocess
+import sys
 import time
 from collections.abc import Callable, Iterator
 
@@ -32,6 +36,7 @@ from servoface.hardware.wire import cycle_budget
 
 N_SERVOS = 24
 BAUDS = (1_000_000, 4_000_000)
+PTY_CONFIGS = ((1_000_000, False), (4_000_000, False), (4_000_000, True))  # (baud, fast): over a pty
 RETURN_DELAY_US = 0
 GOAL_RATIO = 0.9
 DRIVER_GOAL_RATIO = 0.95
@@ -114,7 +119,8 @@ def run(quick: bool = False) -> Iterator[Figure]:
     for baud in BAUDS:
         for fast in (False, True):
             yield from _interleaved_figures(baud, fast, rounds, window_s)
-    yield from _pty_figures(rounds, window_s)
+    for baud, fast in PTY_CONFIGS:
+        yield from _pty_figures(baud, fast, rounds, window_s)
     yield Figure(
         "return delay time (bench configuration)",
         RETURN_DELAY_US,
@@ -183,13 +189,43 @@ def _interleaved_figures(baud: int, fast: bool, rounds: int, window_s: float) ->
         chain.close()
 
 
-def _pty_figures(rounds: int, window_s: float) -> Iterator[Figure]:
-    """The same three loops over a pty at 1 Mbps, the emulator in another process (as `servoface emulate`
-    serves it): the in-process figures above pay for the emulator's CPU in the measured process."""
-    from servoface.controller.benchmarks.cpu import EmulatorProcess
+class _EmulateProcess:
+    """`servoface emulate --ids 1-N --model XL330-M288 --baud B` in another process (wire time on): the
+    chain's CPU is not the measured process's, as a real chain's is not. Its pty thread reads the host's baud
+    from the pty's termios and paces every byte at 10 bit / baud (`ServoChain.host_write` / `_schedule`)."""
 
-    baud = BAUDS[0]
-    emulator = EmulatorProcess("--servos", str(N_SERVOS))
+    def __init__(self, baud: int) -> None:
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "servoface.controller.cli", "emulate", "--ids", f"1-{N_SERVOS}",
+             "--model", "XL330-M288", "--baud", str(baud)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )  # fmt: skip
+        assert self.proc.stdout is not None
+        self.path = self.proc.stdout.readline().strip()
+        self.stats = ""
+        if not self.path.startswith("/"):
+            self.close()
+            raise RuntimeError(f"servoface emulate printed no pty path: {self.path!r}")
+
+    def close(self) -> None:
+        """SIGTERM (the CLI exits 0); keeps its pty thread's punctuality line (late reply bursts)."""
+        self.proc.terminate()
+        try:
+            _, err = self.proc.communicate(timeout=5.0)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            _, err = self.proc.communicate()
+        self.stats = next((ln[len("# pty: ") :] for ln in (err or "").splitlines() if ln.startswith("# pty: ")), "")
+
+
+def _pty_figures(baud: int, fast: bool, rounds: int, window_s: float) -> Iterator[Figure]:
+    """The same three loops over a pty, the emulator in another process (`servoface emulate` at ``baud``):
+    the in-process figures above pay for the emulator's CPU in the measured process, a real chain does not.
+    The pty hands a reply burst over when its last byte has arrived (one write, as a USB adapter hands over
+    frames), so the controller parses after the wire, not during it."""
+    emulator = _EmulateProcess(baud)
     try:
         setup = open_bus("dynamixel", port=emulator.path, baud=baud, warn_latency=False)
         ids = list(range(1, N_SERVOS + 1))
@@ -197,14 +233,28 @@ def _pty_figures(rounds: int, window_s: float) -> Iterator[Figure]:
             setup.write(sid, Register.RETURN_DELAY_TIME, RETURN_DELAY_US // 2)
         # one bus for the three: the port lock admits one controller per chain (a second open of the pty
         # raises PortLockedError), and the contenders take turns anyway
-        steps, driver, buses = contenders(lambda: setup, ids, False)
+        steps, driver, buses = contenders(lambda: setup, ids, fast)
         try:
-            yield from _figures(steps, driver, buses, baud, False, rounds, window_s, ", over a pty")
+            bests: list[float] = []
+            figures = list(_figures(steps, driver, buses, baud, fast, rounds, window_s, ", over a pty", bests))
         finally:
             for b in buses:
                 b.close()
     finally:
         emulator.close()
+    yield from figures
+    budget = cycle_budget(N_SERVOS, baud, return_delay_us=RETURN_DELAY_US, fast=fast)
+    best = max(bests, default=0.0) / budget.limit_hz
+    read = "fast sync read" if fast else "sync read"
+    yield Figure(
+        f"pacing check: best window of the three loops / wire limit, {read} @{baud // 1_000_000}M over a pty",
+        best,
+        "x wire limit",
+        limit=1.0,
+        better="lower",
+        note="no loop can beat the wire: above 1 the emulator process would not pace its bytes at 10 bit / "
+        f"{baud} bps (it reads the baud from the pty's termios); emulator's pty thread: {emulator.stats or 'no stats'}",
+    )
 
 
 def _figures(
@@ -216,7 +266,9 @@ def _figures(
     rounds: int,
     window_s: float,
     where: str,
+    bests: list[float] | None = None,
 ) -> Iterator[Figure]:
+    """The figures of one interleaved run (``bests`` collects every contender's best window rate)."""
     reads0 = dict(driver.telemetry_reads)
     t0 = time.perf_counter()
     stats = interleaved(steps, STOCK, rounds, window_s, settle=SETTLE)
@@ -229,6 +281,8 @@ def _figures(
     telemetry = {k: (v - reads0.get(k, 0)) / driver_s for k, v in driver.telemetry_reads.items()}
     timeouts = sum(b.stats.timeouts for b in buses)
     corrupt = sum(b.stats.corrupt for b in buses)
+    if bests is not None:
+        bests.extend(st.best for st in stats.values())
     for name, st in stats.items():
         goal = GOAL_RATIO
         if name.startswith("Driver") and baud == BAUDS[0] and not fast:

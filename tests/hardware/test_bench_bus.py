@@ -29,3 +29,12 @@ def test_cpu_split_names_who_spends_the_time() -> None:
 
 def test_bench_limit_is_the_wire_arithmetic() -> None:
     assert cycle_budget(24, 1_000_000).bytes_total == (14 + 24 * 5) + (14 + 24) + 24 * 15
+
+
+def test_pty_figures_at_4m_run_against_another_process_and_never_beat_the_wire() -> None:
+    figures = list(bench._pty_figures(4_000_000, True, rounds=1, window_s=0.02))
+    rates = [f for f in figures if f.unit == "cycles/s"]
+    assert len(rates) == 3 and all(f.value > 0 and "@4M, over a pty" in f.name for f in rates)
+    pacing = figures[-1]
+    assert pacing.name.startswith("pacing check") and 0 < pacing.value <= 1.0
+    assert "reply bursts" in pacing.note  # the emulator process's own account of its pty thread
