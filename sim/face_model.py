@@ -155,6 +155,7 @@ class FaceModel:
             self._anchor_line,
             [a.radius_mm for a in self.anchor_actuators],
             slit=self.field.slit,
+            near=self.field.near,
         )
         self.roles: tuple[str, ...] = tuple(a.role for a in actuators)
         self._direct_setup()

@@ -10,6 +10,10 @@ Given the skin's ``faces``, a linear or sheet field that reaches a slit (the lip
 insertion edge): it moves the far side of the slit only as far as it reaches it round the slit's ends, so
 a lip muscle moves its own lip and the lips can part (AU10, AU16), while a muscle inserting at a mouth
 corner (AU12, AU14, AU15, AU20) moves both lips as before.
+
+The build looks up the vertices near a linear muscle's attachment (within rf) and the vertex nearest an
+insertion in a k-d tree (``servoface.sim.muscles.near``) instead of measuring every vertex per muscle; the
+fields are the same arrays (`tests/sim/test_muscle_build_equivalence.py`).
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 from servoface.sim.muscles.eyelid import EyelidField, EyelidMuscle
 from servoface.sim.muscles.linear import LinearMuscle
+from servoface.sim.muscles.near import NearVertices
 from servoface.sim.muscles.sheet import SheetMuscle
 from servoface.sim.muscles.slit import SlitGate, slit_gate
 from servoface.sim.muscles.sphincter import SphincterField, SphincterMuscle
@@ -47,6 +52,8 @@ class MuscleField:
         rest = np.asarray(rest_mm, dtype=np.float64)
         self.slit: SlitGate | None = slit_gate(rest, faces) if faces is not None else None
         self.n_vertices = int(rest.shape[0])
+        gated = self.slit is not None and self.slit.has_slit
+        self.near: NearVertices = self.slit.near if self.slit is not None and gated else NearVertices(rest)
         vector = [m for m in muscles if not isinstance(m, EyelidMuscle)]
         self.names: tuple[str, ...] = tuple(m.name for m in vector)
         self.index: dict[str, int] = {name: i for i, name in enumerate(self.names)}
@@ -58,9 +65,9 @@ class MuscleField:
             if isinstance(muscle, SphincterMuscle):
                 self.sphincters.append((col, muscle.field(rest)))
                 continue
-            idx, disp = muscle.unit_field(rest)
+            idx, disp = self._unit_field(muscle, rest)
             if self.slit is not None and self.slit.has_slit and idx.size and self.slit.on_slit[idx].any():
-                source = int(np.argmin(np.linalg.norm(rest - _insertion_mm(muscle), axis=1)))
+                source = self.near.nearest(_insertion_mm(muscle))
                 disp = disp * self.slit.gate(source, idx)[:, None]
             rows.append((3 * idx[:, None] + np.arange(3)[None, :]).ravel())
             cols.append(np.full(3 * idx.size, col, dtype=np.int64))
@@ -78,6 +85,15 @@ class MuscleField:
         self.eyelids: list[tuple[EyelidMuscle, EyelidField]] = [
             (m, m.field(rest)) for m in muscles if isinstance(m, EyelidMuscle)
         ]
+
+    def _unit_field(self, muscle: LinearMuscle | SheetMuscle, rest: FloatArray) -> tuple[IntArray, FloatArray]:
+        """``muscle.unit_field(rest)``; a linear muscle's from the vertices within its rf of its attachment
+        only (it moves no other vertex, and its arithmetic is per vertex)."""
+        if not isinstance(muscle, LinearMuscle):
+            return muscle.unit_field(rest)
+        cand = self.near.within(np.asarray(muscle.attachment_mm, dtype=np.float64), muscle.rf_mm)
+        idx, disp = muscle.unit_field(rest[cand])
+        return cand[idx], disp
 
     def offsets(self, contractions: FloatArray, joint_deg: Mapping[str, float] | None = None) -> FloatArray:
         """Skin offsets (n, 3) mm for contractions (M,) (already clamped by the caller) and lid angles."""

@@ -18,6 +18,9 @@ pulled along its line, and the twin must show a whole face. Method:
    every anchor's projected pull equals its target exactly (when K is regular). With a ``slit`` gate
    (``servoface.sim.muscles.slit``) a bump reaches the far side of a slit only round its ends: the
    upper-lip anchor does not drag the lower lip.
+
+The bump weights are computed on the vertices a k-d tree finds within each anchor's radius
+(``servoface.sim.muscles.near``; pass the skin's ``near`` to share its tree), not on every vertex per anchor.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 from scipy.optimize import lsq_linear, nnls
+from servoface.sim.muscles.near import NearVertices
 from servoface.sim.muscles.slit import SlitGate
 
 FloatArray = NDArray[np.float64]
@@ -49,6 +53,7 @@ class AnchorFit:
         radii_mm: Sequence[float],
         regularisation_mm: float = REGULARISATION_MM,
         slit: SlitGate | None = None,
+        near: NearVertices | None = None,
     ) -> None:
         self.unit_pull = np.asarray(unit_pull_mm, dtype=np.float64)  # (A, M)
         n_anchor, n_muscle = self.unit_pull.shape
@@ -62,10 +67,14 @@ class AnchorFit:
         rest = np.asarray(rest_mm, dtype=np.float64)
         n_vertices = rest.shape[0]
         rows, cols, vals = [], [], []
+        if near is None and n_anchor:
+            near = NearVertices(rest)
         for a, (vertex, radius) in enumerate(zip(self.anchor_vertices, radii_mm, strict=True)):
-            d = np.linalg.norm(rest - rest[vertex], axis=1)
-            idx = np.nonzero(d < radius)[0]
-            weight = np.cos(d[idx] / radius * (math.pi / 2))
+            cand = near.within(rest[vertex], radius) if near is not None else np.zeros(0, dtype=np.int64)
+            d = np.linalg.norm(rest[cand] - rest[vertex], axis=1)
+            inside = d < radius
+            idx, d = cand[inside], d[inside]
+            weight = np.cos(d / radius * (math.pi / 2))
             if slit is not None and slit.has_slit and slit.on_slit[idx].any():
                 weight = weight * slit.gate(int(vertex), idx)
             rows.append(idx)
