@@ -32,7 +32,7 @@ from servoface.sim.gate.health import HealthPolicy, ServoHealth, derate
 from servoface.sim.gate.skin_proof import proven_static
 from servoface.sim.gate.skin_source import face_model_source, falloff_source
 from servoface.sim.gate.skin_static import build_static
-from servoface.sim.gate.strain import SkinTwin, StrainLimits, strain_findings
+from servoface.sim.gate.strain import FlipProbe, SkinTwin, StrainLimits, flip_probe, probe_dots, strain_findings
 from servoface.sim.gate.tss_build import TssParams, default_cache_dir
 from servoface.sim.gate.twin import TwinPoser
 from servoface.sim.gate.verdict import Finding, Verdict
@@ -144,6 +144,9 @@ class TwinGate:
         self._last_step: IntArray = np.zeros(self.table.n, dtype=np.int64)
         self._last_fraction = 1.0  # share of a frame period the previous check's step was allowed (per_time)
         self._memo: tuple[bytes, list[Finding]] = (b"", [])  # (command bytes, its state findings)
+        # triangles a skin-first clip search probes first (`_skin_ok`): costs only, never answers
+        self._flip_probe: FlipProbe | None = None
+        self._all_faces_probe: FlipProbe | None = None
 
     # ---- set-up ---------------------------------------------------------------------------------------
     def _build_skin(self, face_model: Any) -> SkinTwin:
@@ -279,7 +282,7 @@ class TwinGate:
             memo[key] = False
             # contact first (broad phase, exact test on flagged pairs) unless the request failed on the skin
             # alone: where candidates fail it is mostly on what the request failed on, and a pass needs both
-            if skin_first and not self._skin_ok(goals[k], world[k], pulls[k]):
+            if skin_first and not self._skin_ok(goals[k], world[k], pulls[k], probe=True):
                 continue
             if any(col._collide(col.specs[p], world[k]) for p in suspects):
                 continue
@@ -292,11 +295,27 @@ class TwinGate:
                 return k
         return None
 
-    def _skin_ok(self, goal: IntArray, world: FloatArray, pulls: FloatArray) -> bool:
-        """The strain and flip limits hold for one candidate ((n,) goal, its (J, 4, 4) pose and pulls)."""
+    def _skin_ok(self, goal: IntArray, world: FloatArray, pulls: FloatArray, probe: bool = False) -> bool:
+        """The strain and flip limits hold for one candidate ((n,) goal, its (J, 4, 4) pose and pulls).
+
+        ``probe``: first count the flips among the triangles the last candidate that failed on flips had
+        flipped (`strain.probe_dots`: the same numbers as the whole measure, on a few triangles): more of
+        them flipped than the limit allows fails the candidate as the whole measure would (its count can
+        only be larger), at a fraction of its cost. Which triangles are probed changes no answer."""
         s = self.config.strain
         offsets = self.skin_source.offsets_rows(pulls, self.skin.fast_vertices)
-        stretch, comp, flips = self.skin.measure_one(world, offsets, self._static(goal))
+        static = self._static(goal)
+        if probe and self._flip_probe is not None and self._flip_probe.subset == self.skin.subset:
+            dots = probe_dots(self.skin, world, offsets, self._flip_probe)
+            if int(np.count_nonzero(dots <= 0.0)) + self.skin.const_flips + static[2] > s.max_flipped:
+                return False
+        stretch, comp, flips = self.skin.measure_one(world, offsets, static)
+        if probe and flips > s.max_flipped:  # probe these triangles on the next candidates
+            everything = self._all_faces_probe
+            if everything is None or everything.subset != self.skin.subset:
+                everything = self._all_faces_probe = flip_probe(self.skin, np.arange(self.skin.n_measured_faces))
+            flipped = everything.faces[probe_dots(self.skin, world, offsets, everything) <= 0.0]
+            self._flip_probe = flip_probe(self.skin, flipped) if len(flipped) else None
         return stretch <= s.max_stretch and comp >= s.min_compression and flips <= s.max_flipped
 
     # ---- public ---------------------------------------------------------------------------------------

@@ -104,7 +104,8 @@ class SkinTwin:
 
     def _fast_subset(self, edges: NDArray[np.bool_], faces: NDArray[np.bool_]) -> None:
         """The active edges and faces `measure_one` measures (all of them, or the pull-driven ones), and
-        the vertices they touch (`fast_vertices`)."""
+        the vertices they touch (`fast_vertices`). Each call is a new `subset` (a `FlipProbe` is of one)."""
+        self.subset = getattr(self, "subset", 0) + 1
         sel = np.unique(np.concatenate([self._edges[edges].ravel(), self._faces[faces].ravel()]))
         remap = np.full(len(self._v), -1, dtype=np.int64)
         remap[sel] = np.arange(len(sel))
@@ -156,6 +157,16 @@ class SkinTwin:
             np.asarray(lo, dtype=np.float64),
             np.asarray(flips, dtype=np.int64),
         )
+
+    @property
+    def const_flips(self) -> int:
+        """Flips `measure_one` adds to those it counts (the unmeasured skin's)."""
+        return int(self._const_flips)
+
+    @property
+    def n_measured_faces(self) -> int:
+        """Triangles `measure_one` measures (the indices a `FlipProbe` takes)."""
+        return len(self._f0)
 
     @property
     def active_vertices(self) -> NDArray[np.int64]:
@@ -230,20 +241,7 @@ class SkinTwin:
         mats = self._mats(world).astype(np.float32)  # (u, 12)
         m = mats.T @ self._fw_t32  # (12, nv)
         o = offsets.T.astype(np.float32)
-        rv = self._frest_vt32
-        x, y, z = rv[0] + o[0], rv[1] + o[1], rv[2] + o[2]
-        px = m[0] * x
-        px += m[1] * y
-        px += m[2] * z
-        px += m[3]
-        py = m[4] * x
-        py += m[5] * y
-        py += m[6] * z
-        py += m[7]
-        pz = m[8] * x
-        pz += m[9] * y
-        pz += m[10] * z
-        pz += m[11]
+        px, py, pz = _pose(m, self._frest_vt32, o)
         e0, e1 = self._e0, self._e1
         dx, dy, dz = px.take(e0), py.take(e0), pz.take(e0)
         dx -= px.take(e1)
@@ -292,6 +290,93 @@ class SkinTwin:
         stretch = max(float(np.sqrt(hi2)), self._const_max)
         comp = min(float(np.sqrt(lo2)), self._const_min)
         return stretch, comp, int(np.count_nonzero(cx <= 0.0)) + self._const_flips + static[2]
+
+
+@dataclass(frozen=True)
+class FlipProbe:
+    """Some of the triangles `SkinTwin.measure_one` measures (``faces``: indices into them), with the
+    vertices they need (``verts``: indices into `fast_vertices`) and each corner's place among those."""
+
+    subset: int  # `SkinTwin.subset` it was made for
+    faces: NDArray[np.int64]
+    verts: NDArray[np.int64]
+    corners: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]
+    normals: tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]
+
+
+def flip_probe(skin: SkinTwin, faces: NDArray[np.int64]) -> FlipProbe:
+    """The probe of these measured triangles (indices into the faces `measure_one` measures)."""
+    f = np.asarray(faces, dtype=np.int64)
+    corners = np.stack([skin._f0[f], skin._f1[f], skin._f2[f]])
+    verts, inv = np.unique(corners, return_inverse=True)
+    inv = inv.reshape(corners.shape)
+    n = skin._fn32[:, f]
+    return FlipProbe(skin.subset, f, verts, (inv[0], inv[1], inv[2]), (n[0], n[1], n[2]))
+
+
+def probe_dots(skin: SkinTwin, world: FloatArray, offsets: FloatArray, probe: FlipProbe) -> NDArray[np.float32]:
+    """Posed normal . carried rest normal of the probe's triangles, the same numbers `measure_one` computes
+    for them (the same float32 products, elementwise on the probe's vertices and triangles; the two blend
+    products are the whole ones, gathered), so a triangle flips here exactly when it flips there."""
+    if probe.subset != skin.subset:
+        raise GateConfigError("flip probe made for another measured subset of the skin")
+    mats = skin._mats(world).astype(np.float32)
+    m = (mats.T @ skin._fw_t32).take(probe.verts, axis=1)
+    o = offsets.T.astype(np.float32).take(probe.verts, axis=1)
+    px, py, pz = _pose(m, np.ascontiguousarray(skin._frest_vt32.take(probe.verts, axis=1)), o)
+    r = (mats.T @ skin._ffw_t32).take(probe.faces, axis=1)
+    n0, n1, n2 = probe.normals
+    ex = r[0] * n0
+    ex += r[1] * n1
+    ex += r[2] * n2
+    ey = r[4] * n0
+    ey += r[5] * n1
+    ey += r[6] * n2
+    ez = r[8] * n0
+    ez += r[9] * n1
+    ez += r[10] * n2
+    f0, f1, f2 = probe.corners
+    ax, ay, az = px.take(f0), py.take(f0), pz.take(f0)
+    ux, uy, uz = px.take(f1), py.take(f1), pz.take(f1)
+    ux -= ax
+    uy -= ay
+    uz -= az
+    wx, wy, wz = px.take(f2), py.take(f2), pz.take(f2)
+    wx -= ax
+    wy -= ay
+    wz -= az
+    cx = uy * wz
+    cx -= uz * wy
+    cx *= ex
+    cy = uz * wx
+    cy -= ux * wz
+    cy *= ey
+    cz = ux * wy
+    cz -= uy * wx
+    cz *= ez
+    cx += cy
+    cx += cz
+    return np.asarray(cx, dtype=np.float32)
+
+
+def _pose(
+    m: NDArray[np.float32], rv: NDArray[np.float32], o: NDArray[np.float32]
+) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
+    """Posed x, y, z (float32) of vertices from their (12, nv) blended transforms, rest (3, nv) and offsets."""
+    x, y, z = rv[0] + o[0], rv[1] + o[1], rv[2] + o[2]
+    px = m[0] * x
+    px += m[1] * y
+    px += m[2] * z
+    px += m[3]
+    py = m[4] * x
+    py += m[5] * y
+    py += m[6] * z
+    py += m[7]
+    pz = m[8] * x
+    pz += m[9] * y
+    pz += m[10] * z
+    pz += m[11]
+    return px, py, pz
 
 
 def strain_findings(stretch: float, compression: float, flipped: int, limits: StrainLimits) -> list[Finding]:
