@@ -301,7 +301,8 @@ class FlipProbe:
     faces: NDArray[np.int64]
     verts: NDArray[np.int64]
     corners: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]
-    normals: tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]
+    normals: NDArray[np.float32]  # (3, p) rest normals of the triangles
+    rest32: NDArray[np.float32]  # (3, q) rest x, y, z of the vertices
 
 
 def flip_probe(skin: SkinTwin, faces: NDArray[np.int64]) -> FlipProbe:
@@ -310,53 +311,46 @@ def flip_probe(skin: SkinTwin, faces: NDArray[np.int64]) -> FlipProbe:
     corners = np.stack([skin._f0[f], skin._f1[f], skin._f2[f]])
     verts, inv = np.unique(corners, return_inverse=True)
     inv = inv.reshape(corners.shape)
-    n = skin._fn32[:, f]
-    return FlipProbe(skin.subset, f, verts, (inv[0], inv[1], inv[2]), (n[0], n[1], n[2]))
+    normals = np.ascontiguousarray(skin._fn32[:, f])
+    rest = np.ascontiguousarray(skin._frest_vt32[:, verts])
+    return FlipProbe(skin.subset, f, verts, (inv[0], inv[1], inv[2]), normals, rest)
 
 
 def probe_dots(skin: SkinTwin, world: FloatArray, offsets: FloatArray, probe: FlipProbe) -> NDArray[np.float32]:
     """Posed normal . carried rest normal of the probe's triangles, the same numbers `measure_one` computes
-    for them (the same float32 products, elementwise on the probe's vertices and triangles; the two blend
-    products are the whole ones, gathered), so a triangle flips here exactly when it flips there."""
+    for them (the same float32 products in the same order, elementwise on the probe's vertices and
+    triangles, x / y / z stacked as rows; the two blend products are the whole ones, gathered), so a
+    triangle flips here exactly when it flips there."""
     if probe.subset != skin.subset:
         raise GateConfigError("flip probe made for another measured subset of the skin")
     mats = skin._mats(world).astype(np.float32)
-    m = (mats.T @ skin._fw_t32).take(probe.verts, axis=1)
-    o = offsets.T.astype(np.float32).take(probe.verts, axis=1)
-    px, py, pz = _pose(m, np.ascontiguousarray(skin._frest_vt32.take(probe.verts, axis=1)), o)
-    r = (mats.T @ skin._ffw_t32).take(probe.faces, axis=1)
-    n0, n1, n2 = probe.normals
-    ex = r[0] * n0
-    ex += r[1] * n1
-    ex += r[2] * n2
-    ey = r[4] * n0
-    ey += r[5] * n1
-    ey += r[6] * n2
-    ez = r[8] * n0
-    ez += r[9] * n1
-    ez += r[10] * n2
+    m = (mats.T @ skin._fw_t32).take(probe.verts, axis=1).reshape(3, 4, -1)  # [coordinate, column, vertex]
+    v = probe.rest32 + offsets.take(probe.verts, axis=0).T.astype(np.float32)
+    p = m[:, 0] * v[0]
+    p += m[:, 1] * v[1]
+    p += m[:, 2] * v[2]
+    p += m[:, 3]  # posed x, y, z rows
+    r = (mats.T @ skin._ffw_t32).take(probe.faces, axis=1).reshape(3, 4, -1)
+    n = probe.normals
+    e = r[:, 0] * n[0]
+    e += r[:, 1] * n[1]
+    e += r[:, 2] * n[2]  # carried rest normal rows
     f0, f1, f2 = probe.corners
-    ax, ay, az = px.take(f0), py.take(f0), pz.take(f0)
-    ux, uy, uz = px.take(f1), py.take(f1), pz.take(f1)
-    ux -= ax
-    uy -= ay
-    uz -= az
-    wx, wy, wz = px.take(f2), py.take(f2), pz.take(f2)
-    wx -= ax
-    wy -= ay
-    wz -= az
-    cx = uy * wz
-    cx -= uz * wy
-    cx *= ex
-    cy = uz * wx
-    cy -= ux * wz
-    cy *= ey
-    cz = ux * wy
-    cz -= uy * wx
-    cz *= ez
-    cx += cy
-    cx += cz
-    return np.asarray(cx, dtype=np.float32)
+    a = p.take(f0, axis=1)
+    u = p.take(f1, axis=1)
+    u -= a
+    w = p.take(f2, axis=1)
+    w -= a
+    c = u[_NEXT] * w[_AFTER]
+    c -= u[_AFTER] * w[_NEXT]  # posed normal (u x w) rows
+    c *= e
+    out = c[0] + c[1]
+    out += c[2]
+    return np.asarray(out, dtype=np.float32)
+
+
+_NEXT = np.array([1, 2, 0])
+_AFTER = np.array([2, 0, 1])
 
 
 def _pose(
