@@ -146,7 +146,6 @@ class TwinGate:
         self._memo: tuple[bytes, list[Finding]] = (b"", [])  # (command bytes, its state findings)
         # triangles a skin-first clip search probes first (`_skin_ok`): costs only, never answers
         self._flip_probe: FlipProbe | None = None
-        self._all_faces_probe: FlipProbe | None = None
 
     # ---- set-up ---------------------------------------------------------------------------------------
     def _build_skin(self, face_model: Any) -> SkinTwin:
@@ -309,13 +308,10 @@ class TwinGate:
             dots = probe_dots(self.skin, world, offsets, self._flip_probe)
             if int(np.count_nonzero(dots <= 0.0)) + self.skin.const_flips + static[2] > s.max_flipped:
                 return False
-        stretch, comp, flips = self.skin.measure_one(world, offsets, static)
+        stretch, comp, flips, flipped = self.skin.measure_one_faces(world, offsets, static)
         if probe and flips > s.max_flipped:  # probe these triangles on the next candidates
-            everything = self._all_faces_probe
-            if everything is None or everything.subset != self.skin.subset:
-                everything = self._all_faces_probe = flip_probe(self.skin, np.arange(self.skin.n_measured_faces))
-            flipped = everything.faces[probe_dots(self.skin, world, offsets, everything) <= 0.0]
-            self._flip_probe = flip_probe(self.skin, flipped) if len(flipped) else None
+            faces = np.flatnonzero(flipped)
+            self._flip_probe = flip_probe(self.skin, faces) if len(faces) else None
         return stretch <= s.max_stretch and comp >= s.min_compression and flips <= s.max_flipped
 
     # ---- public ---------------------------------------------------------------------------------------

@@ -235,9 +235,17 @@ class SkinTwin:
     def measure_one(
         self, world: FloatArray, offsets: FloatArray, static: tuple[float, float, int] = (0.0, np.inf, 0)
     ) -> tuple[float, float, int]:
+        """`measure_one_faces` without the flipped triangles."""
+        stretch, comp, flips, _ = self.measure_one_faces(world, offsets, static)
+        return stretch, comp, flips
+
+    def measure_one_faces(
+        self, world: FloatArray, offsets: FloatArray, static: tuple[float, float, int] = (0.0, np.inf, 0)
+    ) -> tuple[float, float, int, NDArray[np.bool_]]:
         """`measure` for one frame: (J, 4, 4) transforms and the offsets of the active vertices only
         (`fast_vertices`, (nv, 3)). Same quantities as `measure` (float32 from the transforms on, in
-        place, each corner gathered once): about half its cost per frame."""
+        place, each corner gathered once): about half its cost per frame. Also which measured triangles
+        flipped ((nf,) mask, in the order `FlipProbe` indexes them)."""
         mats = self._mats(world).astype(np.float32)  # (u, 12)
         m = mats.T @ self._fw_t32  # (12, nv)
         o = offsets.T.astype(np.float32)
@@ -289,7 +297,8 @@ class SkinTwin:
         lo2 = min(float(dx.min()), static[1]) if dx.size else static[1]
         stretch = max(float(np.sqrt(hi2)), self._const_max)
         comp = min(float(np.sqrt(lo2)), self._const_min)
-        return stretch, comp, int(np.count_nonzero(cx <= 0.0)) + self._const_flips + static[2]
+        flipped = cx <= 0.0
+        return stretch, comp, int(np.count_nonzero(flipped)) + self._const_flips + static[2], flipped
 
 
 @dataclass(frozen=True)

@@ -61,6 +61,7 @@ def test_probe_counts_what_measure_one_counts(gate: TwinGate) -> None:
         static = gate._static(goal)
         _, _, flips = skin.measure_one(world[0], offsets, static)
         dots = probe_dots(skin, world[0], offsets, everything)
+        assert np.array_equal(skin.measure_one_faces(world[0], offsets, static)[3], dots <= 0.0)
         assert np.array_equal(dots.view(np.uint32), _plain_dots(skin, world[0], offsets, everything).view(np.uint32))
         assert int(np.count_nonzero(dots <= 0.0)) + skin.const_flips + static[2] == flips
         flipped_poses += flips > 0
