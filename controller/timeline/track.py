@@ -40,6 +40,7 @@ class Track:
         self._items: list[Placed] = []
         self._starts: list[float] = []
         self._froms: list[dict[str, float]] = []
+        self.revision = 0  # counts the changes (add, clear): caches of what the track plays key on it
 
     @property
     def items(self) -> tuple[Placed, ...]:
@@ -54,12 +55,14 @@ class Track:
         self._items.insert(index, placed)
         self._starts.insert(index, placed.start_s)
         self._recompute(index)
+        self.revision += 1
         return placed
 
     def clear(self) -> None:
         self._items.clear()
         self._starts.clear()
         self._froms.clear()
+        self.revision += 1
 
     def _recompute(self, first: int) -> None:
         del self._froms[first:]
@@ -94,6 +97,16 @@ class Track:
     def is_playing(self, t_s: float) -> bool:
         i = self.active_index(t_s)
         return i is not None and t_s < self._items[i].end_s
+
+    def playing_spans(self) -> list[tuple[float, float]]:
+        """The times `is_playing` is true, as half-open spans ``[start, stop)`` in time order: clip i is in
+        charge from its start to the next clip's start, and plays until its end."""
+        spans = []
+        for i, item in enumerate(self._items):
+            stop = item.end_s if i + 1 == len(self._items) else min(item.end_s, self._starts[i + 1])
+            if stop > item.start_s:
+                spans.append((item.start_s, stop))
+        return spans
 
     @property
     def end_s(self) -> float:
