@@ -57,13 +57,15 @@ def angles_to_aus(
     hr = head_roll_deg / cfg.neck_limit_roll_deg
     ey = eye_yaw_deg / cfg.eye_limit_yaw_deg
     ep = eye_pitch_deg / cfg.eye_limit_pitch_deg
-    if face_type == "human":
+    if face_type == "human":  # each pair as `_split` gives it, in this order
         out: dict[str, float] = {}
-        out |= _split(hy, "AU51", "AU52")
-        out |= _split(hp, "AU53", "AU54")
-        out |= _split(hr, "AU55", "AU56")
-        out |= _split(ey, "AU61", "AU62")
-        out |= _split(ep, "AU63", "AU64")
+        for value, pos, neg in ((hy, "AU51", "AU52"), (hp, "AU53", "AU54"), (hr, "AU55", "AU56"),
+                                (ey, "AU61", "AU62"), (ep, "AU63", "AU64")):  # fmt: skip
+            v = max(-1.0, min(1.0, value))
+            if v >= 0:
+                out[pos], out[neg] = v, 0.0
+            else:
+                out[pos], out[neg] = 0.0, -v
         return out
     if face_type == "dog":
         return {

@@ -114,16 +114,23 @@ class BlendPolicy:
             order = orders.get(names)
             if order is None:
                 order = sorted(range(len(names)), key=lambda i: self.rank(names[i], i))  # stable, as plain
+                if len(orders) >= 256:  # (callers with ever new track names: keep it bounded)
+                    orders.clear()
                 orders[names] = order
             ranked = [contributions[i][1] for i in order]
         else:
             ranked = [aus for _, aus in contributions]
         cache: dict[str, BlendRule] = self.__dict__.setdefault("_rule_cache", {})
-        out: dict[str, float] = {}
         if only is not None:
             wanted = self._with_antagonists(only)
             ranked = [{au: v for au, v in aus.items() if au in wanted} for aus in ranked]
-        for aus in ranked:  # highest priority first
+        if not ranked:
+            return {}
+        for au in ranked[0]:  # every name through rule_for once (it parses, and raises for a bad one)
+            if au not in cache:
+                self.rule_for(au)
+        out: dict[str, float] = dict(ranked[0])  # the highest-priority values: each AU's first
+        for aus in ranked[1:]:
             for au, value in aus.items():
                 rule = cache.get(au) or self.rule_for(au)  # (every name through rule_for once: it parses)
                 if au not in out:  # the first (highest-priority) value of an AU

@@ -12,8 +12,9 @@ from collections.abc import Mapping
 import numpy as np
 import pytest
 from servoface.controller.alive.blink import BlinkConfig, BlinkLayer
-from servoface.controller.alive.gaze_layer import GazeLayer, angles_to_aus
-from servoface.controller.alive.idle import IdleLayer
+from servoface.controller.alive.gaze import GazeConfig
+from servoface.controller.alive.gaze_layer import GazeLayer, _split, angles_to_aus
+from servoface.controller.alive.idle import CHANNELS, IdleLayer, _bspline
 from servoface.controller.script import SCRIPTS_DIR, Script, load_script
 from servoface.controller.timeline import Timeline
 from servoface.controller.timeline.blend import DEFAULT_PRIORITY, HUMAN_DIRECTION_PAIRS, BlendPolicy
@@ -62,11 +63,15 @@ def test_blend_equals_blend_plain_and_only_gives_those_aus_of_it(face_type: str)
         contributions = []
         for _ in range(int(rng.integers(1, 6))):
             names = rng.choice(aus, size=int(rng.integers(0, 9)), replace=False)
-            contributions.append((str(rng.choice(tracks)), {str(a): float(rng.uniform(-1.3, 1.3)) for a in names}))
+            odd = [-0.0, 0.0, 1.0, -1.0]
+            values = {
+                str(a): odd[int(rng.integers(4))] if rng.random() < 0.1 else float(rng.uniform(-1.3, 1.3)) for a in names
+            }
+            contributions.append((str(rng.choice(tracks)), values))
         lo, hi = (-1.0, 1.0) if rng.random() < 0.7 else (0.0, 1.0)
         want = policy.blend_plain(contributions, lo, hi)
         got = policy.blend(contributions, lo, hi)
-        assert list(got.items()) == list(want.items())
+        assert repr(list(got.items())) == repr(list(want.items()))  # (repr: the sign of a zero too)
         only = frozenset(str(a) for a in rng.choice(aus, size=int(rng.integers(0, 5)), replace=False))
         part = policy.blend(contributions, lo, hi, only)
         assert part == _only_view(want, only, policy)
@@ -166,3 +171,43 @@ def test_random_timelines_sample_the_same_frames_with_the_fast_paths(face_type: 
             blink = fast.layer("blink")
             suppressed += blink.closure(t) > 0 and "AU45" not in a and "AU15" not in a  # type: ignore[attr-defined]
     assert suppressed > 0  # the lids closed by a clip did hold a blink back: the blend below was read
+
+
+def _channel_plain(layer: IdleLayer, name: str, t_s: float) -> float:
+    """`IdleLayer.channel` knot by knot, as it was."""
+    period = layer.config.head_period_s if name.startswith("head") else layer.config.eye_period_s
+    x = max(0.0, t_s) / period
+    k = int(math.floor(x))
+    c0, c1, c2, c3 = (layer._knot(name, k + j) for j in range(4))
+    return _bspline(c0, c1, c2, c3, x - k)
+
+
+def test_idle_channels_equal_the_knot_by_knot_evaluation_in_any_query_order() -> None:
+    rng = np.random.default_rng(45)
+    for seed in range(5):
+        fast, plain = IdleLayer("human", seed), IdleLayer("human", seed)
+        for t in rng.uniform(-1.0, 60.0, size=300) * (rng.random() < 0.5 or 0.1):
+            name = str(rng.choice(CHANNELS))
+            assert fast.channel(name, float(t)) == _channel_plain(plain, name, float(t))
+
+
+def _angles_plain(face_type: str, cfg: GazeConfig, *angles_deg: float) -> dict[str, float]:
+    hy, hp, ey, ep, hr = angles_deg
+    if face_type != "human":
+        return angles_to_aus(face_type, cfg, hy, hp, ey, ep, hr)  # type: ignore[arg-type]
+    out: dict[str, float] = {}
+    out |= _split(hy / cfg.neck_limit_yaw_deg, "AU51", "AU52")
+    out |= _split(hp / cfg.neck_limit_pitch_deg, "AU53", "AU54")
+    out |= _split(hr / cfg.neck_limit_roll_deg, "AU55", "AU56")
+    out |= _split(ey / cfg.eye_limit_yaw_deg, "AU61", "AU62")
+    out |= _split(ep / cfg.eye_limit_pitch_deg, "AU63", "AU64")
+    return out
+
+
+def test_angles_to_aus_equals_the_pairwise_split() -> None:
+    rng = np.random.default_rng(46)
+    cfg = GazeConfig()
+    for _ in range(2000):
+        angles = [float(a) if rng.random() < 0.9 else 0.0 for a in rng.uniform(-90, 90, size=5)]
+        got = angles_to_aus("human", cfg, *angles)
+        assert repr(list(got.items())) == repr(list(_angles_plain("human", cfg, *angles).items()))
