@@ -65,7 +65,8 @@ def test_blend_equals_blend_plain_and_only_gives_those_aus_of_it(face_type: str)
             names = rng.choice(aus, size=int(rng.integers(0, 9)), replace=False)
             odd = [-0.0, 0.0, 1.0, -1.0]
             values = {
-                str(a): odd[int(rng.integers(4))] if rng.random() < 0.1 else float(rng.uniform(-1.3, 1.3)) for a in names
+                str(a): odd[int(rng.integers(4))] if rng.random() < 0.1 else float(rng.uniform(-1.3, 1.3))
+                for a in names
             }
             contributions.append((str(rng.choice(tracks)), values))
         lo, hi = (-1.0, 1.0) if rng.random() < 0.7 else (0.0, 1.0)
