@@ -53,9 +53,8 @@ class Timeline:
         self.blend = blend or BlendPolicy.for_face(face_type)
         self._initial = self.validator.pose(initial_pose or {}, where="initial_pose")
         self._layers: dict[str, Layer] = {}
-        self._tracks: tuple[int, list[Track]] = (0, [])  # the layers that are tracks (`is_playing`)
-        # when any track plays, merged (`is_playing`), for the tracks' revisions it was built from
-        self._playing: tuple[tuple[int, ...], list[float], list[float]] = ((), [], [])
+        # when any track plays, merged (`is_playing`), for the layer count and `Track.changes` it was built at
+        self._playing: tuple[tuple[int, int], list[float], list[float]] = ((-1, -1), [], [])
         self._range = intensity_range(face_type)
 
     # -- building ---------------------------------------------------------------------------------
@@ -142,11 +141,10 @@ class Timeline:
     def is_playing(self, t_s: float) -> bool:
         """True while any track has a clip running at ``t_s`` (`is_playing_plain`, from the union of the
         tracks' playing spans, rebuilt when a track changes)."""
-        if self._tracks[0] != len(self._layers):  # layers are only ever added: recount when one was
-            self._tracks = (len(self._layers), [x for x in self._layers.values() if isinstance(x, Track)])
-        key = tuple([track.revision for track in self._tracks[1]])
+        key = (len(self._layers), Track.changes)  # layers are only ever added; any track's change counts
         if key != self._playing[0]:
-            self._playing = (key, *_union(span for track in self._tracks[1] for span in track.playing_spans()))
+            tracks = [x for x in self._layers.values() if isinstance(x, Track)]
+            self._playing = (key, *_union(span for track in tracks for span in track.playing_spans()))
         _, starts, stops = self._playing
         j = bisect.bisect_right(starts, t_s) - 1
         return j >= 0 and t_s < stops[j]

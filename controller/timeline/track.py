@@ -11,6 +11,7 @@ import bisect
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import ClassVar
 
 from servoface.controller.errors import TimelineError
 from servoface.controller.timeline.clip import Clip, Pose
@@ -33,6 +34,7 @@ class Track:
     """Placed clips on one named track (e.g. "face", "gesture", "speech")."""
 
     uses_below = False
+    changes: ClassVar[int] = 0  # counts every track's changes (add, clear): what `Timeline.is_playing` keys on
 
     def __init__(self, name: str, initial_pose: Pose | None = None) -> None:
         self.name = name
@@ -40,7 +42,6 @@ class Track:
         self._items: list[Placed] = []
         self._starts: list[float] = []
         self._froms: list[dict[str, float]] = []
-        self.revision = 0  # counts the changes (add, clear): caches of what the track plays key on it
 
     @property
     def items(self) -> tuple[Placed, ...]:
@@ -55,14 +56,14 @@ class Track:
         self._items.insert(index, placed)
         self._starts.insert(index, placed.start_s)
         self._recompute(index)
-        self.revision += 1
+        Track.changes += 1
         return placed
 
     def clear(self) -> None:
         self._items.clear()
         self._starts.clear()
         self._froms.clear()
-        self.revision += 1
+        Track.changes += 1
 
     def _recompute(self, first: int) -> None:
         del self._froms[first:]
