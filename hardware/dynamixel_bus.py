@@ -504,9 +504,19 @@ class DynamixelBus:
         if not ids:
             return {}
         if fast:
-            blocks = self._fast_blocks(ids, length, what)
-        else:
-            blocks = self._status_blocks(ids, length, what, patient)
+            return self._fast_values(self._fast_reply(ids, length, what), ids, length, fields, what)
+        blocks = self._status_blocks(ids, length, what, patient)
+        return self._values(blocks, ids, length, fields, what)
+
+    def _values(
+        self,
+        blocks: Mapping[int, tuple[bytes, int]],
+        ids: list[int],
+        length: int,
+        fields: tuple[tuple[Register, int, int, bool], ...],
+        what: str,
+    ) -> dict[int, dict[Register, int]]:
+        """Per servo: its block's values (``fields``: register, start, end, signed), its Alert bit kept."""
         self._check(sdk.COMM_SUCCESS, 0, what, ids)
         out: dict[int, dict[Register, int]] = {}
         from_bytes = int.from_bytes
@@ -557,15 +567,46 @@ class DynamixelBus:
         port.nap_until(wake_s)
         return backlog
 
-    def _fast_blocks(self, ids: list[int], length: int, what: str) -> dict[int, tuple[bytes, int]]:
-        """The one combined Fast Sync Read reply (the SDK's ``fastSyncReadRx``), split per servo: ``ERR ID
-        data CRC`` each, as ``GroupSyncRead.fastSyncReadRxPacket`` does, but keeping the error bytes."""
+    def _fast_reply(self, ids: list[int], length: int, what: str) -> bytes:
+        """The one combined Fast Sync Read reply's parameters (the SDK's ``fastSyncReadRx``)."""
         port = self._port  # one packet: sleep until its last bytes, less its parse (~ 2 packets' worth)
         if port.getBytesAvailable() == 0:
             port.nap_until(
                 port.tx_done_s + (8 + len(ids) * (length + 4)) * port.tx_time_per_byte * 1e-3 - 2 * self._parse_s
             )
-        raw = self._combined_reply((length + 4) * len(ids), what, ids)
+        return self._combined_reply((length + 4) * len(ids), what, ids)
+
+    def _fast_values(
+        self,
+        raw: bytes,
+        ids: list[int],
+        length: int,
+        fields: tuple[tuple[Register, int, int, bool], ...],
+        what: str,
+    ) -> dict[int, dict[Register, int]]:
+        """`_values` of the combined reply's blocks (`_fast_blocks`). The per-cycle position read (one field,
+        every block's id the one asked for at its place: the usual reply) is read in one pass, no blocks
+        dict: the same values, alerts, counters and errors (tests/hardware/test_bus_sdk_paths.py)."""
+        step = length + 4
+        n = len(ids)
+        if len(fields) != 1 or len(raw) < n * step - 2 or raw[1::step][:n] != bytes(ids):
+            return self._values(self._fast_blocks(raw, ids, length, what), ids, length, fields, what)
+        self._check(sdk.COMM_SUCCESS, 0, what, ids)
+        register, a, b, signed = fields[0]
+        from_bytes = int.from_bytes
+        out: dict[int, dict[Register, int]] = {}
+        at = 2
+        for sid in ids:
+            if raw[at - 2] & STATUS_ALERT_BIT:
+                self.stats.alerts += 1
+                self.alerts.add(sid)
+            out[sid] = {register: from_bytes(raw[at + a : at + b], "little", signed=signed)}
+            at += step
+        return out
+
+    def _fast_blocks(self, raw: bytes, ids: list[int], length: int, what: str) -> dict[int, tuple[bytes, int]]:
+        """The combined reply split per servo: ``ERR ID data CRC`` each, as
+        ``GroupSyncRead.fastSyncReadRxPacket`` does, but keeping the error bytes."""
         blocks: dict[int, tuple[bytes, int]] = {}
         wanted = set(ids)
         for k in range(len(ids)):

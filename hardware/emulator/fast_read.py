@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from servoface.hardware.emulator.answers import Outcome, Reply, answers, error_byte, servos_with
-from servoface.hardware.emulator.crc import crc16
+from servoface.hardware.emulator.crc import crc16, crc16_even, crc16_own_tail
 from servoface.hardware.emulator.packet import BROADCAST_ID, HEADER, Instruction, stuff
 from servoface.hardware.emulator.servo import EmulatedServo
 
@@ -34,11 +34,10 @@ def _fast_read(
     head = HEADER + bytes((BROADCAST_ID, length_field & 0xFF, length_field >> 8, 0x55))
     parts: list[tuple[EmulatedServo | None, bytes]] = []
     crc = crc16(head)
-    for owner, block in blocks:
-        crc = crc16(block, crc)
-        tail = bytes((crc & 0xFF, crc >> 8))
-        crc = crc16(tail, crc)
-        parts.append((owner, block + tail))
+    for owner, block in blocks:  # crc16 of the block, then of its own CRC's two bytes (crc.py: same values)
+        crc = crc16_even(block, crc) if not len(block) & 1 else crc16(block, crc)
+        parts.append((owner, block + bytes((crc & 0xFF, crc >> 8))))
+        crc = crc16_own_tail(crc)
     logical = b"".join(p for _, p in parts)
     if b"\xff\xff\xfd" in bytes((0x55,)) + logical[:-2]:
         # rare: the body needs byte stuffing; send it as one stuffed packet (the SDK does not unstuff it)
