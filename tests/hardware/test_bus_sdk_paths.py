@@ -115,9 +115,18 @@ def _combined(rng: random.Random, ids: list[int], length: int) -> bytes:
     return raw
 
 
-def _outcome(bus: DynamixelBus, parse: Any) -> tuple[Any, ...]:
+def _blocks_parse(bus: DynamixelBus) -> Any:
+    """The parse before the one-pass path: the blocks dict, then the per-field values."""
+
+    def parse(raw: bytes, ids: list[int], length: int, fields: Any, what: str) -> Any:
+        return bus._values(bus._fast_blocks(raw, ids, length, what), ids, length, fields, what)
+
+    return parse
+
+
+def _outcome(bus: DynamixelBus, parse: Any, raw: bytes, ids: list[int], length: int, fields: Any) -> tuple[Any, ...]:
     try:
-        result: Any = parse()
+        result: Any = parse(raw, ids, length, fields, "read")
     except Exception as err:  # noqa: BLE001 - the error is part of what must be equal
         result = (type(err), str(err))
     stats = bus.stats
@@ -140,10 +149,8 @@ def test_fast_read_one_pass_parse_equals_the_blocks_parse(seed: int) -> None:
             fields = tuple((r, r.address - start, r.address - start + r.size, r.signed) for r in registers)
             ids = rng.sample(IDS, rng.randint(1, len(IDS)))
             raw = _combined(rng, ids, length)
-            got = _outcome(fast, lambda: fast._fast_values(raw, ids, length, fields, "read"))
-            want = _outcome(
-                plain, lambda: plain._values(plain._fast_blocks(raw, ids, length, "read"), ids, length, fields, "read")
-            )
+            got = _outcome(fast, fast._fast_values, raw, ids, length, fields)
+            want = _outcome(plain, _blocks_parse(plain), raw, ids, length, fields)
             assert got == want, (registers, ids, raw.hex())
     finally:
         for bus in buses:
