@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 from servoface.hardware.bus import open_bus
-from servoface.hardware.dynamixel_bus import DynamixelBus, sdk
+from servoface.hardware.dynamixel_bus import DynamixelBus, TableCrcPacketHandler, sdk
 from servoface.hardware.emulator import ServoChain
 from servoface.hardware.registers import Register
 
@@ -155,3 +155,27 @@ def test_fast_read_one_pass_parse_equals_the_blocks_parse(seed: int) -> None:
     finally:
         for bus in buses:
             bus.close()
+
+
+def _sdk_crc(handler: Any, crc: int, data: Any, size: int) -> Any:
+    try:
+        return handler.updateCRC(crc, data, size)
+    except Exception as err:  # noqa: BLE001 - the error is part of what must be equal
+        return type(err)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_table_crc_packet_handler_equals_the_sdk_crc(seed: int) -> None:
+    """The bus's packet handler (`TableCrcPacketHandler.updateCRC`) returns what the SDK's byte loop does, on
+    random packets as the SDK passes them (lists, bytes), any size argument, start value and odd values."""
+    rng = random.Random(seed)
+    ours, stock = TableCrcPacketHandler(), sdk.PacketHandler(2.0)
+    for _ in range(3000):
+        data: Any = [rng.randrange(256) for _ in range(rng.randrange(0, 120))]
+        if rng.random() < 0.05 and data:
+            data[rng.randrange(len(data))] = rng.choice((256, 511, -1))  # the SDK masks; bytes() cannot
+        if rng.random() < 0.3:
+            data = bytes(x & 0xFF for x in data)
+        size = rng.choice((len(data), len(data) - 2, rng.randrange(-2, len(data) + 3)))
+        crc = rng.choice((0, 0, rng.randrange(0x10000), rng.randrange(0x10000, 0x30000)))
+        assert _sdk_crc(ours, crc, data, size) == _sdk_crc(stock, crc, data, size), (crc, size, data)
