@@ -9,6 +9,7 @@ frame whose input is invalid raises before anything is computed or sent.
 from __future__ import annotations
 
 import time
+from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -27,7 +28,7 @@ from servoface.sim.gate import GateConfig, ServoHealth, TwinGate, Verdict
 from servoface.sim.head import Head
 
 PACE_MAX_SHARE = 0.25  # a frame at most this share of a period early waits for the period (see step)
-PLAN_MARGIN = 1.03  # a caller faster than the rate: the next write is planned this much after the last interval
+PLAN_HISTORY = 4  # a caller faster than the rate: its next check is planned at the shortest of this many elapsed
 PLAN_WAIT_MAX_S = 0.5e-3  # at most this long a spin for the planned write time (see `_planned_verdict`)
 
 
@@ -111,6 +112,7 @@ class Pipeline:
         self.last_write_s: float | None = None  # clock() when the last goals went on the wire
         self._interval_s: float | None = None  # between the last two writes (plans the speculation)
         self._short_run = 0  # writes in a row that came well within a period of the one before
+        self._elapsed_s: deque[float] = deque(maxlen=PLAN_HISTORY)  # the last checks' elapsed times (`_plan_s`)
         self.per_time_caps = True  # False: the gate's per-frame caps only (deterministic replays in tests)
         self._index = 0
         self._ahead: Ahead | None = None  # the next frame, computed during this one's wait (step(next_frame=))
@@ -228,13 +230,18 @@ class Pipeline:
         # a speculative verdict is used when its inputs are exactly this check's: the same AUs, last command,
         # health and gate memory (`Ahead.verdict_for`), and rate caps that this elapsed time makes exactly the
         # ones it was checked with (`TwinGate.rate_key`: per-frame caps, or a planned interval's)
+        # — or, for a clean accept checked for a planned elapsed time, any longer time (`Ahead.holds_for`)
         spec = None
         if ahead is not None:
             spec = ahead.verdict_for(self.last_goals_tick, health, self.gate.step_state())
             if spec is not None:
                 elapsed_s = self._reach_plan(ahead, elapsed_s)
-                if self.gate.rate_key(self.last_goals_tick, health, elapsed_s) != ahead.rate_key:
+                if not ahead.holds_for(elapsed_s) and (
+                    self.gate.rate_key(self.last_goals_tick, health, elapsed_s) != ahead.rate_key
+                ):
                     spec = None
+        if elapsed_s is not None:
+            self._elapsed_s.append(elapsed_s)
         if spec is not None and ahead is not None:
             verdict = spec
             self.gate.remember_check(spec, self.last_goals_tick, health, elapsed_s)  # as the check would
@@ -370,11 +377,13 @@ class Pipeline:
     def _plan_s(self) -> float | None:
         """The elapsed time the speculative check of the next frame assumes: None (a whole period, the
         per-frame caps) for a paced caller; for one stepping faster than the rate (frames back to back, the
-        last two intervals well under a period), the last interval times `PLAN_MARGIN`."""
+        last two intervals well under a period), the shortest elapsed time of the last `PLAN_HISTORY`
+        checks: the next check most likely comes at least that late, and a clean accept checked for it holds
+        for any later time (`Ahead.holds_for`)."""
         interval = self._interval_s
-        if not self.per_time_caps or interval is None or self._short_run < 2:  # (one short: a paced loop's
-            return None  # catch-up after a late frame, its next frame comes a period later)
-        plan = interval * PLAN_MARGIN
+        if not self.per_time_caps or interval is None or self._short_run < 2 or not self._elapsed_s:
+            return None  # (one short: a paced loop's catch-up after a late frame, its next comes a period later)
+        plan = min(self._elapsed_s)
         return plan if plan < self.gate.frame_period_s * (1.0 - PACE_MAX_SHARE) else None
 
     def _reach_plan(self, ahead: Ahead, elapsed_s: float | None) -> float | None:

@@ -8,6 +8,16 @@ a check made then would be: the same AUs, the same last command (the driver re-p
 the same health (no new telemetry changed it) and the gate's step memory untouched since (no hold/reset).
 Otherwise the gate checks afresh. So every command is still checked against the last command actually
 sent, with the health of the last cycle; the overlap only moves *when* the same computation runs.
+
+The elapsed time: the gate's rate caps grow with the time since the last command went on the wire
+(`servoface.sim.gate.limits.per_time`: the step cap ``floor(cap * f)``, the speed-up cap ``floor(cap * f²)``
+and the previous step taken over ``min(1, f / f_last)`` of its time, ``f = min(1, elapsed / period)``, each
+non-decreasing in the elapsed time), and every rate check is an interval test that only widens as they grow.
+So a **clean accept** (no finding but health: every rate check passed, no state check fired) checked for a
+planned elapsed time is also what a check after any *longer* time gives — the same kind, goals and findings
+(`Ahead.holds_for`); the pipeline plans a time it is likely to exceed (`Pipeline._plan_s`). Any other
+verdict (a clip, or an accept at the limits of a derated servo, whose findings hold a rate check) is used
+only when the real time gives exactly the caps it was checked with (`TwinGate.rate_key`).
 """
 
 from __future__ import annotations
@@ -46,3 +56,12 @@ class Ahead:
         if (None if health is None else dict(health)) != self.health or self.state_before is None:
             return None
         return self.verdict if state.same(self.state_before) else None
+
+    def holds_for(self, elapsed_s: float | None) -> bool:
+        """True if the speculative verdict is a clean accept checked for a planned elapsed time that
+        ``elapsed_s`` (the step's, with the inputs `verdict_for` compared) reaches: then a check after
+        ``elapsed_s`` gives the same verdict (see the module docstring). Else the caller compares rate keys."""
+        v, plan_s = self.verdict, self.plan_s
+        if v is None or v.kind != "accept" or plan_s is None or elapsed_s is None or elapsed_s < plan_s:
+            return False
+        return all(f.check == "health" for f in v.findings)
