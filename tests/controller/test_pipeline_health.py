@@ -143,7 +143,7 @@ def test_speculation_for_a_planned_interval_gives_the_plain_steps(faces: tuple[F
         if rng.random() < 0.1:
             base = float(rng.uniform(0.2, 0.6)) * period_s
         gap = base * (1.0 + float(rng.choice([-0.15, -0.05, -0.01, -1e-6, 0.0, 1e-6, 0.01, 0.04, 0.2])))
-        plan = ahead.pipeline._plan_s()
+        plan = ahead.pipeline._plans_s()[0]
         t0 = now[0]
         now[0] = t0 + gap
         x = plain.pipeline.step(aus)

@@ -1,23 +1,23 @@
 """A speculative clean accept checked for a planned elapsed time is what the gate gives after any longer
-time (`Ahead.holds_for`): checked straight against the gate on random commands, memories and health, with
+time (`Speculation.holds_for`): checked straight against the gate on random commands, memories and health, with
 the elapsed time at, above and below the plan, and with the one accept that does not hold (a derated servo
 at its narrowed limit, whose accept carries a limit finding)."""
 
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 
 import numpy as np
 import pytest
 from servoface.controller.face import Face
-from servoface.controller.pipeline_ahead import Ahead
+from servoface.controller.pipeline_ahead import Speculation
 from servoface.sim.gate import ServoHealth, TwinGate, Verdict
 from servoface.sim.gate import limits as lim
 from servoface.sim.gate.gate import GateMemory
 from servoface.sim.gate.health import derate
 
-from tests.controller.pipeline_pairs import face_pair
+from tests.controller.pipeline_pairs import au_names, face_pair, random_frames
 
 HOT = ServoHealth(temperature_c=68.0, temperature_limit_c=70.0, load_ratio=0.2)  # strained: derated
 
@@ -28,8 +28,8 @@ def face() -> Iterator[Face]:
         yield a
 
 
-def _ahead(verdict: Verdict, plan_s: float | None) -> Ahead:
-    return Ahead({}, {}, {}, (), {}, {}, verdict, {}, None, None, b"", plan_s)
+def _ahead(verdict: Verdict, plan_s: float | None) -> Speculation:
+    return Speculation(verdict, b"", plan_s)
 
 
 def _lo_step(gate: TwinGate, health: dict[int, ServoHealth], memory: GateMemory, elapsed_s: float) -> np.ndarray:
@@ -43,7 +43,6 @@ def test_a_clean_accept_for_a_planned_time_is_the_verdict_after_any_longer_time(
     gate = face.pipeline.gate
     table, period_s = gate.table, gate.frame_period_s
     ids, n = table.ids, table.n
-    policy = gate.config.health
     rng = np.random.default_rng(21)
     seen: Counter[str] = Counter()
     for _ in range(500):
@@ -106,3 +105,43 @@ def test_no_plan_no_elapsed_time_or_a_clip_never_holds(face: Face) -> None:
     assert not _ahead(accept, None).holds_for(0.03)
     assert not _ahead(accept, 0.005).holds_for(None)
     assert not _ahead(clip, 0.005).holds_for(0.03)
+
+
+def test_every_speculation_used_back_to_back_on_the_real_clock_is_the_fresh_check(face: Face) -> None:
+    """Per-time caps on, the real clock, frames back to back (clips included): the pipeline plans a short
+    and a long elapsed time, waits for the long one when a frame comes before it, and uses a speculation
+    when it holds. Every used one is what a fresh check with the step's own inputs, memory and elapsed time
+    gives (checked after the run, from the memory recorded at each step, so the checks do not disturb the
+    timing)."""
+    p = face.pipeline
+    p.per_time_caps = True
+    p.temperature_limits_c = {}
+    gate = p.gate
+    frames = random_frames(au_names(p), 240, seed=31, jump=0.05, move=0.5, sigma=0.03)
+    noted: list[tuple[object, ...]] = []
+    remember = gate.remember_check
+
+    def noting(
+        verdict: Verdict, last: Mapping[int, int], health: Mapping[int, ServoHealth] | None = None,
+        elapsed_s: float | None = None,
+    ) -> None:
+        noted.append((verdict, elapsed_s))
+        remember(verdict, last, health, elapsed_s)
+
+    gate.remember_check = noting  # type: ignore[method-assign]
+    used: list[tuple[object, ...]] = []
+    for k, aus in enumerate(frames):
+        state, last, health = gate.step_state(), dict(p.last_goals_tick), p._health()
+        noted.clear()
+        trace = p.step(aus, next_frame=frames[k + 1] if k + 1 < len(frames) else None)
+        if "ahead_ms" in trace.timings_ms:
+            assert len(noted) == 1
+            used.append((state, last, health, trace.goals_requested, *noted[0]))
+    gate.remember_check = remember  # type: ignore[method-assign]
+    kinds: Counter[str] = Counter()
+    for state, last, health, requested, verdict, elapsed_s in used:
+        gate.restore_step_state(state)  # type: ignore[arg-type]
+        fresh = gate.check(requested, last, health, elapsed_s=elapsed_s)  # type: ignore[arg-type]
+        assert fresh == verdict
+        kinds[fresh.kind] += 1
+    assert sum(kinds.values()) > 15, kinds  # (how many depends on the machine's timing; the equality does not)
