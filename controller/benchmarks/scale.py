@@ -72,11 +72,13 @@ def mesh_costs(levels: int, folder: Path, n_frames: int, n_render: int) -> dict[
     from servoface.sim.face_model import FaceModel
     from servoface.sim.gate import GateConfig, TwinGate
     from servoface.sim.heads import load_head
+    from servoface.sim.muscles.slit import forget_shared_gates
 
     head = load_head(subdivided_profile(levels, folder / f"human_sub{levels}"))
     if head.calibration_path is None:
         raise FileNotFoundError("the copied human profile has no calibration file")
     cal = load_calibration(head.calibration_path)
+    forget_shared_gates()  # level 0 is the built-in mesh, whose slit gate an earlier model may have built
     t0 = time.perf_counter()
     face = FaceModel(head)
     t1 = time.perf_counter()

@@ -157,6 +157,12 @@ _GATES: dict[tuple[str, float, float], SlitGate] = {}
 _GATES_MAX = 8
 
 
+def forget_shared_gates() -> None:
+    """Drop every shared ``SlitGate``: the next ``FaceModel`` of any mesh builds its own (a cold build, as
+    ``servoface bench scale`` times it)."""
+    _GATES.clear()
+
+
 def slit_gate(
     rest_mm: FloatArray, faces: NDArray[np.integer], reach_mm: float = SLIT_REACH_MM, coupling: float = SLIT_COUPLING
 ) -> SlitGate:

@@ -19,7 +19,7 @@ from servoface.sim.heads import load_head
 from servoface.sim.muscles.eyelid import EyelidMuscle
 from servoface.sim.muscles.field import MuscleField, _insertion_mm
 from servoface.sim.muscles.near import NearVertices
-from servoface.sim.muscles.slit import SlitGate, row_groups
+from servoface.sim.muscles.slit import SlitGate, forget_shared_gates, row_groups, slit_gate
 from servoface.sim.muscles.sphincter import SphincterMuscle
 
 # --- the reference: the build as it was, straightforward -------------------------------------------------
@@ -101,8 +101,10 @@ def _check_model(model: FaceModel) -> None:
         _, inverse, counts = np.unique(np.round(rest, 6), axis=0, return_inverse=True, return_counts=True)
         assert np.array_equal(gate.representative, inverse.ravel())
         assert np.array_equal(gate.on_slit, counts[inverse.ravel()] > 1)
-    muscles = [as_model_muscle(m) for m in (model.head.muscles.values() if isinstance(model.head.muscles, dict)
-                                            else model.head.muscles)]
+    muscles = [
+        as_model_muscle(m)
+        for m in (model.head.muscles.values() if isinstance(model.head.muscles, dict) else model.head.muscles)
+    ]
     assert _same_csr(model.field.linear_matrix, _reference_linear_matrix(muscles, rest, gate))
     anchors = np.array([a.vertex for a in model.anchor_actuators], dtype=np.int64)
     radii = [a.radius_mm for a in model.anchor_actuators]
@@ -198,3 +200,15 @@ def test_linear_fields_from_the_tree_equal_the_whole_skin_fields() -> None:
     ]
     field = MuscleField(muscles, rest)
     assert _same_csr(field.linear_matrix, _reference_linear_matrix(list(muscles), rest, None))
+
+
+def test_forgetting_the_shared_gates_makes_the_next_build_cold() -> None:
+    """`bench scale` times a cold build: after ``forget_shared_gates`` the same mesh gets a new gate."""
+    head = load_head("human")
+    rest, faces = head.skin.vertices_mm, head.skin.faces
+    first = slit_gate(rest, faces)
+    assert slit_gate(rest, faces) is first  # shared while remembered
+    forget_shared_gates()
+    again = slit_gate(rest, faces)
+    assert again is not first
+    assert np.array_equal(again.representative, first.representative)
