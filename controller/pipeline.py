@@ -338,8 +338,11 @@ class Pipeline:
         `PACE_MAX_SHARE` of it. The gate then checks it with its whole per-frame caps, as the speculative
         check during the last wait did, so that verdict is used instead of a second check, and the goals
         reach the wire a period apart. A caller stepping faster than the rate is not held (its caps
-        shrink with the time instead), nor one without a driver or with `pace_writes` off."""
+        shrink with the time instead, and a late frame of it is not held either: its speculations were
+        planned for its own short intervals, `_plans_s`), nor one without a driver or with `pace_writes` off."""
         if self.driver is None or self.last_write_s is None or not self.per_time_caps or not self.pace_writes:
+            return
+        if self._short_run >= 2:
             return
         if self.clock is not time.monotonic:  # a test's manual clock does not move while we sleep: its
             return  # caller owns time, and the per-time caps apply to whatever it passes
