@@ -80,6 +80,26 @@ class CurveBank:
         t = self.check_targets(targets)
         return np.clip(round_ticks(self.forward(t)), self.min_tick, self.max_tick)
 
+    def to_ticks_row(self, targets: FloatArray) -> IntArray:
+        """`to_ticks` of one (S,) float row, as (S,): a control frame's path. The same elementwise
+        arithmetic (knot count, gathers, Horner, rounding, clip) without the (k, S) broadcasting, and the
+        same error for the first bad column."""
+        t = targets
+        bad = ~(np.isfinite(t) & (t >= self._accept_lo) & (t <= self._accept_hi))
+        if bad.any():
+            col = int(np.argmax(bad))
+            s = self.servos[col]
+            raise TargetOutOfRangeError(s.role, float(t[col]), s.min_target, s.max_target, s.unit)
+        return np.clip(round_ticks(self.forward_row(t)), self.min_tick, self.max_tick)
+
+    def forward_row(self, targets: FloatArray) -> FloatArray:
+        """`forward` of one (S,) row, as (S,) float ticks (the same elementwise arithmetic)."""
+        t = targets
+        idx = (t[:, None] >= self._knots).sum(axis=-1)
+        c = self._coef[self._cols, idx]
+        dx = t - self._base[self._cols, idx]
+        return np.asarray(c[:, 0] + dx * (c[:, 1] + dx * (c[:, 2] + dx * c[:, 3])), dtype=np.float64)
+
     def to_targets(self, ticks: ArrayLike, *, clip: bool = False) -> FloatArray:
         """(k, S) ticks -> (k, S) targets; refuses non-finite and (unless ``clip``) out-of-limit ticks."""
         k = np.asarray(ticks, dtype=np.float64)

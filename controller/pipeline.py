@@ -9,6 +9,7 @@ frame whose input is invalid raises before anything is computed or sent.
 from __future__ import annotations
 
 import time
+from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -17,18 +18,22 @@ import numpy as np
 from servoface.calibration import HeadCalibration
 from servoface.controller.errors import FrameError
 from servoface.controller.frame import AUFrame
-from servoface.controller.pipeline_ahead import Ahead
+from servoface.controller.pipeline_ahead import Ahead, Speculation
 from servoface.controller.telemetry import StrainedHealth
 from servoface.hardware.driver import Driver
 from servoface.hardware.snapshot import ChainSnapshot
 from servoface.sim.errors import SimError
 from servoface.sim.face_model import FaceModel
-from servoface.sim.gate import GateConfig, ServoHealth, TwinGate, Verdict
+from servoface.sim.gate import GateConfig, ServoHealth, TwinGate
 from servoface.sim.head import Head
 
 PACE_MAX_SHARE = 0.25  # a frame at most this share of a period early waits for the period (see step)
-PLAN_MARGIN = 1.03  # a caller faster than the rate: the next write is planned this much after the last interval
-PLAN_WAIT_MAX_S = 0.5e-3  # at most this long a spin for the planned write time (see `_planned_verdict`)
+PLAN_HISTORY = 16  # a caller faster than the rate: its next check is planned from this many last elapsed times:
+PLAN_SHORT_OF = 4  # the shortest of the last 4 (a clean accept holds for any longer time, `Speculation.holds_for`)
+PLAN_LONG_QUANTILE = 0.8  # and this quantile of them (a clip, used when the step waits for it: `_reach_plan`)
+PLAN_SNAP_S = 0.1e-3  # a long plan this little short of the last check's elapsed time is moved to it (`_plans_s`)
+PLAN_WAIT_MAX_S = 1.5e-3  # at most this long a spin for a planned elapsed time (`_reach_plan`; a clip check ~2-3 ms)
+KEY_SLACK_S = 20e-6  # a check this much after a speculation's plan compares rate keys (later: caps have grown)
 
 
 @dataclass(frozen=True)
@@ -111,6 +116,9 @@ class Pipeline:
         self.last_write_s: float | None = None  # clock() when the last goals went on the wire
         self._interval_s: float | None = None  # between the last two writes (plans the speculation)
         self._short_run = 0  # writes in a row that came well within a period of the one before
+        self._checked_s: float | None = None  # the elapsed time the last check was made for
+        self._last_clipped = False  # the last frame's verdict was not a clean accept (see `_plans_s`)
+        self._elapsed_s: deque[float] = deque(maxlen=PLAN_HISTORY)  # the last checks' elapsed times (`_plans_s`)
         self.per_time_caps = True  # False: the gate's per-frame caps only (deterministic replays in tests)
         self._index = 0
         self._ahead: Ahead | None = None  # the next frame, computed during this one's wait (step(next_frame=))
@@ -226,23 +234,32 @@ class Pipeline:
             else self.clock() - self.last_write_s
         )  # since the last goals went on the wire: the gate's caps hold per second, not per call
         # a speculative verdict is used when its inputs are exactly this check's: the same AUs, last command,
-        # health and gate memory (`Ahead.verdict_for`), and rate caps that this elapsed time makes exactly the
-        # ones it was checked with (`TwinGate.rate_key`: per-frame caps, or a planned interval's)
+        # health and gate memory (`Ahead.matches`), and either it is a clean accept checked for a planned
+        # elapsed time this one reaches (`Speculation.holds_for`) or this elapsed time makes exactly the rate
+        # caps it was checked with (`TwinGate.rate_key`: per-frame caps, or a planned interval's)
         spec = None
-        if ahead is not None:
-            spec = ahead.verdict_for(self.last_goals_tick, health, self.gate.step_state())
-            if spec is not None:
-                elapsed_s = self._reach_plan(ahead, elapsed_s)
-                if self.gate.rate_key(self.last_goals_tick, health, elapsed_s) != ahead.rate_key:
-                    spec = None
+        if elapsed_s is not None:
+            self._elapsed_s.append(elapsed_s)
+        if ahead is not None and ahead.matches(self.last_goals_tick, health, self.gate.step_state()):
+            for s in ahead.speculations:
+                elapsed_s = self._reach_plan(s.plan_s, elapsed_s)
+                if s.holds_for(elapsed_s):
+                    spec = s
+                    break
+                near = elapsed_s is None or s.plan_s is None or elapsed_s <= s.plan_s + KEY_SLACK_S
+                if near and self.gate.rate_key(self.last_goals_tick, health, elapsed_s) == s.rate_key:
+                    spec = s
+                    break
+        self._checked_s = elapsed_s  # (after any wait for a plan; see `_plans_s`)
         if spec is not None and ahead is not None:
-            verdict = spec
-            self.gate.remember_check(spec, self.last_goals_tick, health, elapsed_s)  # as the check would
+            verdict = spec.verdict
+            self.gate.remember_check(verdict, self.last_goals_tick, health, elapsed_s)  # as the check would
             timings["ahead_ms"] = sum(ahead.timings_ms.values())
         else:
             verdict = self.gate.check(requested, self.last_goals_tick, health, elapsed_s=elapsed_s)
             timings["gate_ms"] = (time.perf_counter() - t2) * 1e3
         t3 = time.perf_counter()
+        self._last_clipped = verdict.kind != "accept" or any(f.check != "health" for f in verdict.findings)
         sent = dict(verdict.goals_tick)
         written = 0
         if self.driver is not None:
@@ -321,8 +338,11 @@ class Pipeline:
         `PACE_MAX_SHARE` of it. The gate then checks it with its whole per-frame caps, as the speculative
         check during the last wait did, so that verdict is used instead of a second check, and the goals
         reach the wire a period apart. A caller stepping faster than the rate is not held (its caps
-        shrink with the time instead), nor one without a driver or with `pace_writes` off."""
+        shrink with the time instead, and a late frame of it is not held either: its speculations were
+        planned for its own short intervals, `_plans_s`), nor one without a driver or with `pace_writes` off."""
         if self.driver is None or self.last_write_s is None or not self.per_time_caps or not self.pace_writes:
+            return
+        if self._short_run >= 2:
             return
         if self.clock is not time.monotonic:  # a test's manual clock does not move while we sleep: its
             return  # caller owns time, and the per-time caps apply to whatever it passes
@@ -349,39 +369,57 @@ class Pipeline:
             targets, clamped, reasons, requested = self._solve(aus, solved)
         except Exception:  # noqa: BLE001 - re-raised by the step of that frame, where it belongs
             return None
-        if not self.speculate_gate:  # the solve only; the step checks (`Ahead.verdict_for` gives None)
-            return Ahead(aus, targets, clamped, tuple(reasons), requested, solved, None, dict(sent),
-                         None if health is None else dict(health), None, b"")  # fmt: skip
+        if not self.speculate_gate:  # the solve only; the step checks (`Ahead.matches` is False)
+            return Ahead(aus, targets, clamped, tuple(reasons), requested, solved, dict(sent),
+                         None if health is None else dict(health), None)  # fmt: skip
         t2 = time.perf_counter()
         gate = self.gate
         before = gate.step_state()
-        plan_s = self._plan_s()
-        verdict: Verdict | None
-        try:
-            key = gate.rate_key(sent, health, plan_s)
-            verdict = gate.check(requested, sent, health, elapsed_s=plan_s)
-        except Exception:  # noqa: BLE001 - the step checks afresh (and raises there)
-            key, verdict = b"", None
-        gate.restore_step_state(before)  # never left in a speculative state
+        specs: list[Speculation] = []
+        for plan_s in self._plans_s():
+            try:
+                key = gate.rate_key(sent, health, plan_s)
+                verdict = gate.check(requested, sent, health, elapsed_s=plan_s)
+            except Exception:  # noqa: BLE001 - the step checks afresh (and raises there)
+                specs.clear()
+                break
+            finally:
+                gate.restore_step_state(before)  # never left in a speculative state
+            specs.append(Speculation(verdict, key, plan_s))
+            if specs[-1].clean_accept():  # good for any later time: no later plan needed
+                break
         timings = {**solved, "gate_ms": (time.perf_counter() - t2) * 1e3}
-        return Ahead(aus, targets, clamped, tuple(reasons), requested, timings, verdict, dict(sent),
-                     None if health is None else dict(health), before, key, plan_s)  # fmt: skip
+        return Ahead(aus, targets, clamped, tuple(reasons), requested, timings, dict(sent),
+                     None if health is None else dict(health), before, tuple(specs))  # fmt: skip
 
-    def _plan_s(self) -> float | None:
-        """The elapsed time the speculative check of the next frame assumes: None (a whole period, the
-        per-frame caps) for a paced caller; for one stepping faster than the rate (frames back to back, the
-        last two intervals well under a period), the last interval times `PLAN_MARGIN`."""
+    def _plans_s(self) -> tuple[float | None, ...]:
+        """The elapsed times the speculative checks of the next frame assume, in order: (None,) (a whole
+        period, the per-frame caps) for a paced caller; for one stepping faster than the rate (frames back to
+        back, the last two intervals well under a period), the shortest elapsed time of the last
+        `PLAN_HISTORY` checks — the next check most likely comes at least that late, and a clean accept
+        checked for it holds for any later time (`Speculation.holds_for`) — then, for a frame that does not
+        accept cleanly there, the longest of them (at most `PLAN_WAIT_MAX_S` later): a step that comes before
+        it waits for it (`_reach_plan`), so that its caps are the planned ones."""
         interval = self._interval_s
-        if not self.per_time_caps or interval is None or self._short_run < 2:  # (one short: a paced loop's
-            return None  # catch-up after a late frame, its next frame comes a period later)
-        plan = interval * PLAN_MARGIN
-        return plan if plan < self.gate.frame_period_s * (1.0 - PACE_MAX_SHARE) else None
+        if not self.per_time_caps or interval is None or self._short_run < 2 or not self._elapsed_s:
+            return (None,)  # (one short: a paced loop's catch-up after a late frame, its next comes a period later)
+        recent = sorted(self._elapsed_s)
+        short_s = min(list(self._elapsed_s)[-PLAN_SHORT_OF:])
+        if short_s >= self.gate.frame_period_s * (1.0 - PACE_MAX_SHARE):
+            return (None,)
+        long_s = min(recent[int(PLAN_LONG_QUANTILE * (len(recent) - 1))], short_s + PLAN_WAIT_MAX_S)
+        last_s = self._checked_s  # the last check's elapsed time (its f_last): a plan a hair short of it
+        if last_s is not None and long_s < last_s < long_s + PLAN_SNAP_S:  # would scale the last step by just
+            long_s = last_s  # under 1 (truncated a tick lower) and a wait a hair longer to 1: planned at it
+        if long_s <= short_s:
+            return (short_s,)
+        return (long_s,) if self._last_clipped else (short_s, long_s)
 
-    def _reach_plan(self, ahead: Ahead, elapsed_s: float | None) -> float | None:
-        """A speculation checked for a planned elapsed time (`_plan_s`): a frame a little early spins to the
-        planned write time (at most `PLAN_WAIT_MAX_S`, real clock only), so that its caps can be the planned
-        ones (`TwinGate.rate_key` decides). Returns the elapsed time now."""
-        plan_s, last_write_s = ahead.plan_s, self.last_write_s
+    def _reach_plan(self, plan_s: float | None, elapsed_s: float | None) -> float | None:
+        """A speculation checked for a planned elapsed time (`_plans_s`): a frame a little early spins to the
+        planned time (at most `PLAN_WAIT_MAX_S`, real clock only), so that its caps can be the planned
+        ones. Returns the elapsed time now."""
+        last_write_s = self.last_write_s
         if plan_s is None or elapsed_s is None or last_write_s is None:
             return elapsed_s
         if elapsed_s < plan_s and plan_s - elapsed_s <= PLAN_WAIT_MAX_S and self.clock is time.monotonic:

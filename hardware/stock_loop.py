@@ -2,7 +2,8 @@
 
 Per cycle it does what the SDK's own sync read/write example does: ``GroupSyncWrite.addParam`` for every
 servo, ``txPacket``, ``clearParam``; ``GroupSyncRead.txRxPacket``; ``isAvailable`` + ``getData`` for every
-servo. The SDK objects are built once. The port is the one `DynamixelBus` opens (its `sdk_handlers`: the
+servo. The SDK objects are built once, the packet handler too (the SDK's own, not the bus's table-CRC one).
+The port is the one `DynamixelBus` opens (its `sdk_handlers`: the
 same in-process chain connection, reply window and GIL-yielding empty read), so a comparison measures what
 runs above the port. dynamixel_sdk is reached through `servoface.hardware.dynamixel_bus` (the one module
 that imports it).
@@ -36,7 +37,8 @@ class StockSdkLoop:
         """``fast``: read with ``GroupSyncRead.fastSyncRead`` (Fast Sync Read) instead of ``txRxPacket``."""
         if not isinstance(bus, DynamixelBus):
             raise HardwareConfigError(f"the stock SDK loop needs a DynamixelBus (an SDK port), got {bus!r}")
-        self.port, self.packet = bus.sdk_handlers()
+        self.port, _ = bus.sdk_handlers()
+        self.packet: Any = sdk.PacketHandler(2.0)  # the stock SDK's own (the bus's checksums faster)
         self.fast = fast
         self.write_ids = list(write_ids)
         self.read_ids = list(read_ids if read_ids is not None else write_ids)

@@ -142,6 +142,7 @@ class FaceModel:
                 )
         self._joint_cols = [np.array([j_index[j] for j in a.joints]) for a in self.joint_actuators]
         self._anchor_vertex = np.array([a.vertex for a in self.anchor_actuators], dtype=np.int64)
+        self._anchors_kept: tuple[tuple[bytes, bytes], list[float]] | None = None  # see actuator_targets
         lines = np.array([a.line for a in self.anchor_actuators], dtype=np.float64).reshape(-1, 3)
         norms = np.linalg.norm(lines, axis=1)
         self._anchor_line = lines / np.where(norms > 0, norms, 1.0)[:, None]
@@ -259,27 +260,48 @@ class FaceModel:
     def actuator_targets(self, aus: Mapping[str, float]) -> dict[str, float]:
         """``solve(aus).actuator_targets`` (validated the same way) without posing the skin: only the anchor
         vertices' offsets are computed (`MuscleField.offsets_at`), the rest of the arithmetic is `solve`'s.
-        A head with a direct table falls back to `solve` when a frame uses it."""
+        The anchors' pulls are kept for the last contractions (and joints, with eyelids): a frame that moves
+        only joints (gaze, idle, a blink on a lid joint) does not evaluate the skin again. A head with a
+        direct table falls back to `solve` when a frame uses it."""
         split = self.mapping.split(aus)
         if self.direct is not None and split.any():
             return dict(self.solve_detailed(aus).pose.actuator_targets)
         contractions, joint_delta = self.mapping.evaluate_split(split)
         joint = np.clip(self._neutral + joint_delta, self._lower, self._upper)
-        joint_deg = dict(zip(self.joint_names, joint.tolist(), strict=True)) if self.field.eyelids else None
-        return self._targets(joint, self.field.offsets_at(contractions, self._anchor_vertex, joint_deg))
+        lids = bool(self.field.eyelids)
+        key = (contractions.tobytes(), joint.tobytes() if lids else b"")  # bytes: equal means identical
+        kept = self._anchors_kept
+        if kept is not None and kept[0] == key:
+            anchors = kept[1]
+        else:
+            joint_deg = dict(zip(self.joint_names, joint.tolist(), strict=True)) if lids else None
+            anchors = self._anchor_values(self.field.offsets_at(contractions, self._anchor_vertex, joint_deg))
+            self._anchors_kept = (key, anchors)
+        return dict(zip(self._target_plan[6], self._joint_values(joint) + anchors, strict=True))
 
     def _targets(self, joint: FloatArray, anchor_offsets: FloatArray) -> dict[str, float]:
         """Actuator targets from the joints (J,) and the anchor vertices' skin offsets (A, 3): a joint
         actuator's joints' mean, an anchor's pull along its line, each clamped to the actuator's range."""
-        first, multi, j_lo, j_hi, a_lo, a_hi, roles = self._target_plan
+        roles = self._target_plan[6]
+        return dict(zip(roles, self._joint_values(joint) + self._anchor_values(anchor_offsets), strict=True))
+
+    def _joint_values(self, joint: FloatArray) -> list[float]:
+        """The joint actuators' targets (`_targets`' first part): each one's joints' mean, clamped."""
+        first, multi, j_lo, j_hi = self._target_plan[:4]
         values = joint[first]  # a mean of one joint is that joint
         for k, cols in multi:
             values[k] = joint[cols].mean()
-        out = np.minimum(np.maximum(values, j_lo), j_hi).tolist()
-        if self.anchor_actuators:
-            pulls = np.einsum("ak,ak->a", anchor_offsets, self._anchor_line)
-            out += np.minimum(np.maximum(pulls, a_lo), a_hi).tolist()
-        return dict(zip(roles, out, strict=True))
+        out: list[float] = np.minimum(np.maximum(values, j_lo), j_hi).tolist()
+        return out
+
+    def _anchor_values(self, anchor_offsets: FloatArray) -> list[float]:
+        """The anchor actuators' targets (`_targets`' second part): each pull along its line, clamped."""
+        if not self.anchor_actuators:
+            return []
+        a_lo, a_hi = self._target_plan[4:6]
+        pulls = np.einsum("ak,ak->a", anchor_offsets, self._anchor_line)
+        out: list[float] = np.minimum(np.maximum(pulls, a_lo), a_hi).tolist()
+        return out
 
     @cached_property
     def _target_plan(self) -> tuple[Any, ...]:

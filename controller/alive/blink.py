@@ -82,7 +82,13 @@ class BlinkLayer:
         if self.face_type not in BLINK_AU:
             raise TimelineError(f"blink: face type must be 'human' or 'dog', got {self.face_type!r}")
         self._rng = np.random.default_rng(self.seed)
+        self._below_aus = frozenset(LID_AUS[self.face_type])
         self._next_s = self.config.first_after_s + self._interval()
+
+    @property
+    def below_aus(self) -> frozenset[str]:
+        """The AUs of the blend below that `sample` reads (`suppressed`): the timeline blends only those."""
+        return self._below_aus
 
     @property
     def au(self) -> str:

@@ -57,13 +57,15 @@ def angles_to_aus(
     hr = head_roll_deg / cfg.neck_limit_roll_deg
     ey = eye_yaw_deg / cfg.eye_limit_yaw_deg
     ep = eye_pitch_deg / cfg.eye_limit_pitch_deg
-    if face_type == "human":
+    if face_type == "human":  # each pair as `_split` gives it, in this order
         out: dict[str, float] = {}
-        out |= _split(hy, "AU51", "AU52")
-        out |= _split(hp, "AU53", "AU54")
-        out |= _split(hr, "AU55", "AU56")
-        out |= _split(ey, "AU61", "AU62")
-        out |= _split(ep, "AU63", "AU64")
+        for value, pos, neg in ((hy, "AU51", "AU52"), (hp, "AU53", "AU54"), (hr, "AU55", "AU56"),
+                                (ey, "AU61", "AU62"), (ep, "AU63", "AU64")):  # fmt: skip
+            v = max(-1.0, min(1.0, value))
+            if v >= 0:
+                out[pos], out[neg] = v, 0.0
+            else:
+                out[pos], out[neg] = 0.0, -v
         return out
     if face_type == "dog":
         return {
@@ -94,6 +96,9 @@ class GazeLayer:
         self._starts: list[float] = []
         self._solutions: list[GazePose] = []
         self._initial: list[GazePose] = []  # the pose each shift starts from
+        # shift index -> its settled AUs (both minimum-jerk moves at their end: the same every frame), for
+        # the config they were computed with; cleared whenever a shift is scheduled
+        self._settled: dict[int, tuple[GazeConfig, dict[str, float]]] = {}
 
     @property
     def shifts(self) -> tuple[GazeShift, ...]:
@@ -113,6 +118,7 @@ class GazeLayer:
             raise TimelineError(f"look_at_mm: expected [x, y, z] in mm, got {target_mm!r}")
         solution = GazePose() if target is None else solve_look_at(np.array(target), self.config)
         index = bisect.bisect_right(self._starts, float(at_s))
+        self._settled.clear()
         self._shifts.insert(index, GazeShift(float(at_s), target))
         self._starts.insert(index, float(at_s))
         self._solutions.insert(index, solution)
@@ -149,7 +155,17 @@ class GazeLayer:
         i = bisect.bisect_right(self._starts, t_s) - 1
         if i < 0:
             return {}
-        p = self._pose(i, t_s)
+        cfg = self.config
+        local = t_s - self._shifts[i].at_s
+        if local / cfg.head_move_s >= 1.0 and local / cfg.saccade_s >= 1.0:  # both easings clamp to 1: settled
+            done = self._settled.get(i)
+            if done is None or done[0] is not cfg:
+                done = (cfg, self._aus(self._pose(i, t_s)))
+                self._settled[i] = done
+            return dict(done[1])
+        return self._aus(self._pose(i, t_s))
+
+    def _aus(self, p: GazePose) -> dict[str, float]:
         return angles_to_aus(
             self.face_type, self.config, p.head_yaw_deg, p.head_pitch_deg, p.eye_yaw_deg, p.eye_pitch_deg
         )

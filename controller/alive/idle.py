@@ -76,8 +76,10 @@ class IdleLayer:
         period = self.config.head_period_s if name.startswith("head") else self.config.eye_period_s
         x = max(0.0, t_s) / period
         k = int(math.floor(x))
-        c0, c1, c2, c3 = (self._knot(name, k + j) for j in range(4))
-        return _bspline(c0, c1, c2, c3, x - k)
+        knots = self._knots[name]
+        if len(knots) <= k + 3:
+            self._knot(name, k + 3)  # (every channel grows in lockstep: the same draws as knot by knot)
+        return _bspline(knots[k], knots[k + 1], knots[k + 2], knots[k + 3], x - k)
 
     def gain(self, t_s: float) -> float:
         if self.busy is None:

@@ -96,9 +96,67 @@ class BlendPolicy:
         return (1, order)
 
     def blend(
+        self,
+        contributions: Sequence[tuple[str, Mapping[str, float]]],
+        lo: float = -1.0,
+        hi: float = 1.0,
+        only: frozenset[str] | None = None,
+    ) -> dict[str, float]:
+        """Blend ``[(track_name, aus), ...]`` (in layer order) into one pose clamped to [lo, hi].
+
+        ``only``: just these AUs of that pose (and both AUs of an antagonist pair with one in it), for a
+        layer that reads only them of the blend below it. `blend_plain` is the straightforward form; this
+        one keeps the priority order per sequence of track names and does the same arithmetic in the same
+        order."""
+        if len(contributions) > 1:
+            names = tuple([name for name, _ in contributions])
+            orders: dict[tuple[str, ...], list[int]] = self.__dict__.setdefault("_order_cache", {})
+            order = orders.get(names)
+            if order is None:
+                order = sorted(range(len(names)), key=lambda i: self.rank(names[i], i))  # stable, as plain
+                if len(orders) >= 256:  # (callers with ever new track names: keep it bounded)
+                    orders.clear()
+                orders[names] = order
+            ranked = [contributions[i][1] for i in order]
+        else:
+            ranked = [aus for _, aus in contributions]
+        cache: dict[str, BlendRule] = self.__dict__.setdefault("_rule_cache", {})
+        if only is not None:
+            wanted = self._with_antagonists(only)
+            ranked = [{au: v for au, v in aus.items() if au in wanted} for aus in ranked]
+        if not ranked:
+            return {}
+        for au in ranked[0]:  # every name through rule_for once (it parses, and raises for a bad one)
+            if au not in cache:
+                self.rule_for(au)
+        out: dict[str, float] = dict(ranked[0])  # the highest-priority values: each AU's first
+        for aus in ranked[1:]:
+            for au, value in aus.items():
+                rule = cache.get(au) or self.rule_for(au)  # (every name through rule_for once: it parses)
+                if au not in out:  # the first (highest-priority) value of an AU
+                    out[au] = value
+                elif rule is BlendRule.SUM:
+                    out[au] += value
+                elif rule is BlendRule.MAX and abs(value) > abs(out[au]):
+                    out[au] = value
+        for pos, neg in self.antagonists:
+            if pos in out and neg in out:
+                net = out[pos] - out[neg]
+                out[pos], out[neg] = max(net, 0.0), max(-net, 0.0)
+        return {au: v if lo <= v <= hi else min(hi, max(lo, v)) for au, v in out.items()}
+
+    def _with_antagonists(self, only: frozenset[str]) -> frozenset[str]:
+        cache: dict[frozenset[str], frozenset[str]] = self.__dict__.setdefault("_only_cache", {})
+        wanted = cache.get(only)
+        if wanted is None:
+            extra = {au for pair in self.antagonists if only & set(pair) for au in pair}
+            wanted = cache[only] = only | extra
+        return wanted
+
+    def blend_plain(
         self, contributions: Sequence[tuple[str, Mapping[str, float]]], lo: float = -1.0, hi: float = 1.0
     ) -> dict[str, float]:
-        """Blend ``[(track_name, aus), ...]`` (in layer order) into one pose clamped to [lo, hi]."""
+        """`blend` the straightforward way (tests compare the two)."""
         if len(contributions) > 1:
             ranked = [
                 aus

@@ -10,7 +10,8 @@ is face, gesture, speech, head, gaze, then whatever alive layers the caller adds
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+import bisect
+from collections.abc import Iterable, Iterator, Mapping
 from typing import Protocol
 
 from servoface.controller.au_names import intensity_range
@@ -28,7 +29,9 @@ class Layer(Protocol):
     """Anything that yields AUs for a time, given the blend of the layers below it.
 
     A layer that ignores ``below`` may say so with a class attribute ``uses_below = False``; the timeline
-    then skips blending before calling it (an optimisation only; it is handed a stale mapping).
+    then skips blending before calling it (an optimisation only; it is handed a stale mapping). One that
+    reads only some AUs of it may name them in ``below_aus`` (a frozenset): it is then handed those of the
+    blend (`BlendPolicy.blend(only=)`), and must read no others.
     """
 
     def sample(self, t_s: float, below: Pose) -> Mapping[str, float]: ...
@@ -50,7 +53,8 @@ class Timeline:
         self.blend = blend or BlendPolicy.for_face(face_type)
         self._initial = self.validator.pose(initial_pose or {}, where="initial_pose")
         self._layers: dict[str, Layer] = {}
-        self._tracks: tuple[int, list[Track]] = (0, [])  # the layers that are tracks (`is_playing`)
+        # when any track plays, merged (`is_playing`), for the layer count and `Track.changes` it was built at
+        self._playing: tuple[tuple[int, int], list[float], list[float]] = ((-1, -1), [], [])
         self._range = intensity_range(face_type)
 
     # -- building ---------------------------------------------------------------------------------
@@ -104,7 +108,8 @@ class Timeline:
         lo, hi = self._range
         for name, layer in self._layers.items():
             if not fresh and getattr(layer, "uses_below", True):
-                below, fresh = self.blend.blend(contributions, lo, hi), True
+                only = getattr(layer, "below_aus", None)  # a layer that reads just these AUs of `below`
+                below, fresh = self.blend.blend(contributions, lo, hi, only), only is None
             aus = layer.sample(t_s, below)
             if aus:
                 contributions.append((name, aus))
@@ -134,7 +139,29 @@ class Timeline:
         return max((layer.end_s for layer in self._layers.values() if isinstance(layer, Track)), default=0.0)
 
     def is_playing(self, t_s: float) -> bool:
-        """True while any track has a clip running at ``t_s``."""
-        if self._tracks[0] != len(self._layers):  # layers are only ever added: recount when one was
-            self._tracks = (len(self._layers), [x for x in self._layers.values() if isinstance(x, Track)])
-        return any(track.is_playing(t_s) for track in self._tracks[1])
+        """True while any track has a clip running at ``t_s`` (`is_playing_plain`, from the union of the
+        tracks' playing spans, rebuilt when a track changes)."""
+        key = (len(self._layers), Track.changes)  # layers are only ever added; any track's change counts
+        if key != self._playing[0]:
+            tracks = [x for x in self._layers.values() if isinstance(x, Track)]
+            self._playing = (key, *_union(span for track in tracks for span in track.playing_spans()))
+        _, starts, stops = self._playing
+        j = bisect.bisect_right(starts, t_s) - 1
+        return j >= 0 and t_s < stops[j]
+
+    def is_playing_plain(self, t_s: float) -> bool:
+        """`is_playing` track by track (the straightforward form; tests compare the two)."""
+        return any(layer.is_playing(t_s) for layer in self._layers.values() if isinstance(layer, Track))
+
+
+def _union(spans: Iterable[tuple[float, float]]) -> tuple[list[float], list[float]]:
+    """Half-open spans merged into disjoint ones in time order: (starts, stops)."""
+    starts: list[float] = []
+    stops: list[float] = []
+    for start, stop in sorted(spans):
+        if stops and start <= stops[-1]:
+            stops[-1] = max(stops[-1], stop)
+        else:
+            starts.append(start)
+            stops.append(stop)
+    return starts, stops

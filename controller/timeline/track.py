@@ -11,6 +11,7 @@ import bisect
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import ClassVar
 
 from servoface.controller.errors import TimelineError
 from servoface.controller.timeline.clip import Clip, Pose
@@ -33,6 +34,7 @@ class Track:
     """Placed clips on one named track (e.g. "face", "gesture", "speech")."""
 
     uses_below = False
+    changes: ClassVar[int] = 0  # counts every track's changes (add, clear): what `Timeline.is_playing` keys on
 
     def __init__(self, name: str, initial_pose: Pose | None = None) -> None:
         self.name = name
@@ -54,12 +56,14 @@ class Track:
         self._items.insert(index, placed)
         self._starts.insert(index, placed.start_s)
         self._recompute(index)
+        Track.changes += 1
         return placed
 
     def clear(self) -> None:
         self._items.clear()
         self._starts.clear()
         self._froms.clear()
+        Track.changes += 1
 
     def _recompute(self, first: int) -> None:
         del self._froms[first:]
@@ -94,6 +98,16 @@ class Track:
     def is_playing(self, t_s: float) -> bool:
         i = self.active_index(t_s)
         return i is not None and t_s < self._items[i].end_s
+
+    def playing_spans(self) -> list[tuple[float, float]]:
+        """The times `is_playing` is true, as half-open spans ``[start, stop)`` in time order: clip i is in
+        charge from its start to the next clip's start, and plays until its end."""
+        spans = []
+        for i, item in enumerate(self._items):
+            stop = item.end_s if i + 1 == len(self._items) else min(item.end_s, self._starts[i + 1])
+            if stop > item.start_s:
+                spans.append((item.start_s, stop))
+        return spans
 
     @property
     def end_s(self) -> float:

@@ -5,10 +5,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from servoface.hardware.emulator.answers import Outcome, Reply, answers, error_byte, servos_with
-from servoface.hardware.emulator.crc import crc16
-from servoface.hardware.emulator.packet import BROADCAST_ID, HEADER, Instruction, stuff
+from servoface.hardware.emulator.answers import Outcome, Reply, answers
+from servoface.hardware.emulator.crc import crc16, crc16_even, crc16_own_tail
+from servoface.hardware.emulator.packet import ALERT_BIT, BROADCAST_ID, HEADER, Instruction, stuff
 from servoface.hardware.emulator.servo import EmulatedServo
+
+
+def needs_stuffing(logical: bytes) -> bool:
+    """Whether the combined reply's body (``55`` then ``logical`` less its CRC) holds ``FF FF FD``: the same
+    as ``b"\\xff\\xff\\xfd" in bytes((0x55,)) + logical[:-2]`` (0x55 cannot start it), without the copies."""
+    return logical.find(b"\xff\xff\xfd", 0, len(logical) - 2) >= 0
 
 
 def _fast_read(
@@ -17,8 +23,9 @@ def _fast_read(
     """One combined packet: ``FF FF FD 00 FE LEN 55`` then per device ``ERR ID data CRC``; each block's CRC is
     the running CRC of the packet so far, so the last one is the packet CRC (reference sheet §5)."""
     blocks: list[tuple[EmulatedServo | None, bytes]] = []
+    get = by_id.get  # `servos_with` and `error_byte`, inlined: once per servo per read
     for sid, addr, length in requests:
-        servos = servos_with(by_id, sid)
+        servos = get(sid)
         if not servos:
             blocks.append((None, bytes(length + 2)))
             continue
@@ -26,7 +33,7 @@ def _fast_read(
         err, data = servo.read_bytes(addr, length)
         if len(data) < length:
             data = data + bytes(length - len(data))
-        blocks.append((servo, bytes((error_byte(servo, err), servo.id)) + data))
+        blocks.append((servo, bytes((err | (ALERT_BIT if servo.hardware_error else 0), servo.id)) + data))
     lead = blocks[0][0] if blocks else None
     if lead is None or not answers(lead, inst):
         return
@@ -34,13 +41,12 @@ def _fast_read(
     head = HEADER + bytes((BROADCAST_ID, length_field & 0xFF, length_field >> 8, 0x55))
     parts: list[tuple[EmulatedServo | None, bytes]] = []
     crc = crc16(head)
-    for owner, block in blocks:
-        crc = crc16(block, crc)
-        tail = bytes((crc & 0xFF, crc >> 8))
-        crc = crc16(tail, crc)
-        parts.append((owner, block + tail))
+    for owner, block in blocks:  # crc16 of the block, then of its own CRC's two bytes (crc.py: same values)
+        crc = crc16_even(block, crc) if not len(block) & 1 else crc16(block, crc)
+        parts.append((owner, block + bytes((crc & 0xFF, crc >> 8))))
+        crc = crc16_own_tail(crc)
     logical = b"".join(p for _, p in parts)
-    if b"\xff\xff\xfd" in bytes((0x55,)) + logical[:-2]:
+    if needs_stuffing(logical):
         # rare: the body needs byte stuffing; send it as one stuffed packet (the SDK does not unstuff it)
         body = stuff(bytes((0x55,)) + logical[:-2])
         packet = HEADER + bytes((BROADCAST_ID, (len(body) + 2) & 0xFF, (len(body) + 2) >> 8)) + body

@@ -66,3 +66,62 @@ def test_batch_refusals_name_the_servo(calibration: HeadCalibration) -> None:
         bank.to_targets(goals)
     clipped = bank.to_targets(goals, clip=True)[1, calibration.roles.index("lip_pucker")]
     assert clipped == pytest.approx(calibration["lip_pucker"].to_target(calibration["lip_pucker"].max_tick))
+
+
+def _rows(bank: CurveBank, rng: np.random.Generator, n: int) -> np.ndarray:
+    """Rows of targets: inside the range, on the curves' knots exactly, at the range ends, and a few just
+    outside what is accepted (or non-finite)."""
+    lo, hi = bank._accept_lo, bank._accept_hi
+    rows = lo + rng.uniform(0.0, 1.0, (n, len(lo))) * (hi - lo)
+    knots = [k[np.isfinite(k)] for k in bank._knots]
+    for row in rows:
+        for j in np.flatnonzero(rng.random(len(lo)) < 0.3):
+            pick = rng.integers(4)
+            if pick == 0 and knots[j].size:
+                row[j] = float(rng.choice(knots[j]))
+            elif pick == 1:
+                row[j] = float(rng.choice([lo[j], hi[j], bank.min_target[j], bank.max_target[j]]))
+            elif pick == 2 and rng.random() < 0.1:
+                row[j] = float(rng.choice([np.nextafter(hi[j], np.inf), np.nextafter(lo[j], -np.inf), np.nan]))
+    return rows
+
+
+@pytest.mark.parametrize("head_name", ["human", "dog"])
+def test_to_ticks_row_is_to_ticks_of_that_row(head_name: str) -> None:
+    from servoface.controller.face import head_calibration
+    from servoface.sim.heads import load_head
+
+    cal = head_calibration(load_head(head_name))
+    bank = CurveBank(cal.servos)
+    rng = np.random.default_rng(21)
+    errors = 0
+    for row in _rows(bank, rng, 600):
+        finite = np.where(np.isfinite(row), row, 0.0)
+        assert np.array_equal(bank.forward_row(finite), bank.forward(finite[None, :])[0])  # bit for bit
+        try:
+            want: object = bank.to_ticks(row[None, :])[0]
+        except TargetOutOfRangeError as err:
+            want = (type(err), str(err))
+        try:
+            got: object = bank.to_ticks_row(row.copy())
+        except TargetOutOfRangeError as err:
+            got = (type(err), str(err))
+        if isinstance(want, tuple):
+            errors += 1
+            assert got == want
+        else:
+            assert isinstance(got, np.ndarray) and got.dtype == np.int64 and np.array_equal(got, want)
+    assert errors > 10
+    roles = list(cal.roles)
+    for row in _rows(bank, rng, 300):
+        some = rng.permutation(len(roles))[: int(rng.integers(1, len(roles) + 1))]
+        cols = cal.columns([roles[i] for i in some])
+        try:
+            want = cal.column_goals_plain(cols, row[some])
+        except TargetOutOfRangeError as err:
+            want = str(err)
+        try:
+            got = cal.column_goals(cols, row[some])
+        except TargetOutOfRangeError as err:
+            got = str(err)
+        assert got == want if isinstance(want, str) else np.array_equal(got, want)  # type: ignore[arg-type]

@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 from servoface.hardware.bus import open_bus
-from servoface.hardware.dynamixel_bus import DynamixelBus, sdk
+from servoface.hardware.dynamixel_bus import DynamixelBus, TableCrcPacketHandler, sdk
 from servoface.hardware.emulator import ServoChain
 from servoface.hardware.registers import Register
 
@@ -97,3 +97,85 @@ def test_sync_read_sends_the_group_helpers_bytes_and_reads_the_same_values(seed:
                     assert got[sid][r] == int.from_bytes(raw.to_bytes(r.size, "little"), "little", signed=r.signed)
     finally:
         bus.close()
+
+
+def _combined(rng: random.Random, ids: list[int], length: int) -> bytes:
+    """A combined Fast Sync Read reply's parameters: usually well formed, sometimes not (ids out of place or
+    wrong, truncated), with random error bytes (Alert bits)."""
+    blocks = [bytes((rng.choice((0, 0, 0x80, 0x81)), sid)) + rng.randbytes(length + 2) for sid in ids]
+    kind = rng.random()
+    if kind < 0.15:
+        rng.shuffle(blocks)
+    elif kind < 0.3:
+        k = rng.randrange(len(blocks))
+        blocks[k] = blocks[k][:1] + bytes((rng.randrange(256),)) + blocks[k][2:]
+    raw = b"".join(blocks)
+    if rng.random() < 0.2:
+        raw = raw[: rng.randrange(len(raw) + 1)]
+    return raw
+
+
+def _blocks_parse(bus: DynamixelBus) -> Any:
+    """The parse before the one-pass path: the blocks dict, then the per-field values."""
+
+    def parse(raw: bytes, ids: list[int], length: int, fields: Any, what: str) -> Any:
+        return bus._values(bus._fast_blocks(raw, ids, length, what), ids, length, fields, what)
+
+    return parse
+
+
+def _outcome(bus: DynamixelBus, parse: Any, raw: bytes, ids: list[int], length: int, fields: Any) -> tuple[Any, ...]:
+    try:
+        result: Any = parse(raw, ids, length, fields, "read")
+    except Exception as err:  # noqa: BLE001 - the error is part of what must be equal
+        result = (type(err), str(err))
+    stats = bus.stats
+    return result, stats.alerts, stats.corrupt, stats.transactions, set(bus.alerts)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_fast_read_one_pass_parse_equals_the_blocks_parse(seed: int) -> None:
+    """`DynamixelBus._fast_values` (one pass for the position read) gives what the blocks dict then the
+    per-field values gave: the same values, exceptions, counters and alerts, on random combined replies."""
+    rng = random.Random(seed)
+    buses = [open_bus("emulator", chain=ServoChain.create(ids=IDS, wire_time=False)) for _ in range(2)]
+    fast, plain = buses
+    assert isinstance(fast, DynamixelBus) and isinstance(plain, DynamixelBus)
+    try:
+        for _ in range(400):
+            registers = rng.choice(READS[:1] * 3 + READS[1:])
+            start = min(r.address for r in registers)
+            length = max(r.address + r.size for r in registers) - start
+            fields = tuple((r, r.address - start, r.address - start + r.size, r.signed) for r in registers)
+            ids = rng.sample(IDS, rng.randint(1, len(IDS)))
+            raw = _combined(rng, ids, length)
+            got = _outcome(fast, fast._fast_values, raw, ids, length, fields)
+            want = _outcome(plain, _blocks_parse(plain), raw, ids, length, fields)
+            assert got == want, (registers, ids, raw.hex())
+    finally:
+        for bus in buses:
+            bus.close()
+
+
+def _sdk_crc(handler: Any, crc: int, data: Any, size: int) -> Any:
+    try:
+        return handler.updateCRC(crc, data, size)
+    except Exception as err:  # noqa: BLE001 - the error is part of what must be equal
+        return type(err)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_table_crc_packet_handler_equals_the_sdk_crc(seed: int) -> None:
+    """The bus's packet handler (`TableCrcPacketHandler.updateCRC`) returns what the SDK's byte loop does, on
+    random packets as the SDK passes them (lists, bytes), any size argument, start value and odd values."""
+    rng = random.Random(seed)
+    ours, stock = TableCrcPacketHandler(), sdk.PacketHandler(2.0)
+    for _ in range(3000):
+        data: Any = [rng.randrange(256) for _ in range(rng.randrange(0, 120))]
+        if rng.random() < 0.05 and data:
+            data[rng.randrange(len(data))] = rng.choice((256, 511, -1))  # the SDK masks; bytes() cannot
+        if rng.random() < 0.3:
+            data = bytes(x & 0xFF for x in data)
+        size = rng.choice((len(data), len(data) - 2, rng.randrange(-2, len(data) + 3)))
+        crc = rng.choice((0, 0, rng.randrange(0x10000), rng.randrange(0x10000, 0x30000)))
+        assert _sdk_crc(ours, crc, data, size) == _sdk_crc(stock, crc, data, size), (crc, size, data)

@@ -113,3 +113,61 @@ def test_channel_values_with_known_names_kept_is_the_checked_path() -> None:
         assert got == want, aus
         differ += got[0] != "ok"
     assert 100 < differ < 500  # both accepted and refused frames
+
+
+def _walk(model: FaceModel, rng: np.random.Generator, steps: int) -> list[dict[str, float]]:
+    """AU frames in which one AU changes at a time, often one that only turns joints (gaze, head)."""
+    names = sorted(model.au_names)
+    joint_only = [n for n in names if not model.mapping.evaluate(_one(model, n))[0].any()]
+    assert joint_only
+    aus: dict[str, float] = {}
+    frames = []
+    for _ in range(steps):
+        name = str(rng.choice(joint_only if rng.random() < 0.6 else names))
+        lo, hi = model.au_range(name)
+        aus = {**aus, name: float(rng.uniform(lo, hi))}
+        if rng.random() < 0.05:
+            aus = {}
+        frames.append(aus)
+    return frames
+
+
+def _one(model: FaceModel, name: str) -> dict[str, float]:
+    lo, hi = model.au_range(name)
+    return {name: hi if hi > 0 else lo}
+
+
+@pytest.mark.parametrize("head_name", ["human", "dog"])
+def test_kept_anchor_pulls_give_the_solved_targets_along_a_walk(head_name: str) -> None:
+    model = FaceModel(load_head(head_name))
+    rng = np.random.default_rng(6)
+    kept = 0
+    for aus in _walk(model, rng, 400):
+        before = model._anchors_kept
+        fast = model.actuator_targets(aus)
+        kept += model._anchors_kept is before and before is not None
+        slow = dict(model.solve(aus).actuator_targets)
+        assert list(fast.items()) == list(slow.items())
+    assert kept > 100  # the kept pulls were used (frames that moved joints only)
+
+
+class _LidField:
+    """A head's field as if it had eyelids: its anchor offsets then depend on the joints too."""
+
+    def __init__(self, field: MuscleField) -> None:
+        self.field = field
+        self.eyelids = [("lid",)]
+
+    def offsets_at(self, c: np.ndarray, vertices: np.ndarray, joint_deg: dict[str, float] | None) -> np.ndarray:
+        assert joint_deg is not None
+        return self.field.offsets_at(c, vertices) + 0.01 * sum(joint_deg.values())
+
+
+def test_kept_anchor_pulls_with_eyelids_are_kept_per_joints_too() -> None:
+    model = FaceModel(load_head("human"))
+    model.field = _LidField(model.field)  # type: ignore[assignment]
+    rng = np.random.default_rng(7)
+    for aus in _walk(model, rng, 300):
+        fast = model.actuator_targets(aus)
+        model._anchors_kept = None  # the straightforward path: nothing kept
+        assert list(fast.items()) == list(model.actuator_targets(aus).items())

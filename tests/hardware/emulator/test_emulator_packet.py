@@ -6,7 +6,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from servoface.hardware.emulator import PacketError, build_instruction, build_status, parse_packet
-from servoface.hardware.emulator.crc import crc16, crc16_bitwise
+from servoface.hardware.emulator.crc import crc16, crc16_bitwise, crc16_even, crc16_own_tail
+from servoface.hardware.emulator.fast_read import needs_stuffing
 from servoface.hardware.emulator.packet import PacketReceiver, stuff, unstuff
 
 # (bytes after FF FF FD 00, expected CRC_L CRC_H) - the 15 examples of the e-manual (reference sheet §1)
@@ -51,6 +52,20 @@ def test_builder_reproduces_emanual_packet(body: str, crc: str) -> None:
 @given(st.binary(max_size=300), st.integers(0, 0xFFFF))
 def test_table_crc_equals_bitwise_crc(data: bytes, start: int) -> None:
     assert crc16(data, start) == crc16_bitwise(data, start)
+
+
+@given(st.binary(max_size=40), st.integers(0, 0xFFFF))
+def test_fast_read_block_crc_equals_bitwise_crc(data: bytes, start: int) -> None:
+    """The Fast Sync Read reply's per-block steps (`crc16_even`, `crc16_own_tail`) equal the textbook CRC."""
+    even = data[: len(data) & ~1]
+    assert crc16_even(even, start) == crc16_bitwise(even, start)
+    assert crc16_own_tail(start) == crc16_bitwise(bytes((start & 0xFF, start >> 8)), start)
+
+
+@given(st.lists(st.sampled_from([b"\xff", b"\xfd", b"\x55", b"\x00", b"\xff\xff\xfd"]), max_size=12))
+def test_fast_read_stuffing_check_equals_the_copying_check(pieces: list[bytes]) -> None:
+    logical = b"".join(pieces)
+    assert needs_stuffing(logical) == (b"\xff\xff\xfd" in bytes((0x55,)) + logical[:-2])
 
 
 def test_stuffing_inserts_fd_after_header_pattern() -> None:
