@@ -32,7 +32,7 @@ from servoface.sim.gate.health import HealthPolicy, ServoHealth, derate
 from servoface.sim.gate.skin_proof import proven_static
 from servoface.sim.gate.skin_source import face_model_source, falloff_source
 from servoface.sim.gate.skin_static import build_static
-from servoface.sim.gate.strain import SkinTwin, StrainLimits, strain_findings
+from servoface.sim.gate.strain import FlipProbe, SkinTwin, StrainLimits, flip_probe, probe_dots, strain_findings
 from servoface.sim.gate.tss_build import TssParams, default_cache_dir
 from servoface.sim.gate.twin import TwinPoser
 from servoface.sim.gate.verdict import Finding, Verdict
@@ -144,6 +144,8 @@ class TwinGate:
         self._last_step: IntArray = np.zeros(self.table.n, dtype=np.int64)
         self._last_fraction = 1.0  # share of a frame period the previous check's step was allowed (per_time)
         self._memo: tuple[bytes, list[Finding]] = (b"", [])  # (command bytes, its state findings)
+        # triangles a skin-first clip search probes first (`_skin_ok`): costs only, never answers
+        self._flip_probe: FlipProbe | None = None
 
     # ---- set-up ---------------------------------------------------------------------------------------
     def _build_skin(self, face_model: Any) -> SkinTwin:
@@ -249,7 +251,11 @@ class TwinGate:
         return out
 
     def _last_ok(
-        self, goals: IntArray, suspects: tuple[int, ...] = (), known: dict[bytes, bool] | None = None
+        self,
+        goals: IntArray,
+        suspects: tuple[int, ...] = (),
+        known: dict[bytes, bool] | None = None,
+        skin_first: bool = False,
     ) -> int | None:
         """Index of the last of (k, n) candidates passing every state check, or None. Coupling is checked
         for all at once (cheap); collisions, then strain, one candidate at a time from the end, stopping at
@@ -257,10 +263,11 @@ class TwinGate:
         (a contact found by the exact test fails the candidate whatever the broad phase says). ``known``:
         answers of commands already checked in this search (command bytes -> passed), used instead of
         checking them again and filled with the new ones (the state checks are pure functions of the command,
-        so the index returned is the same)."""
+        so the index returned is the same). ``skin_first``: the request failed on the skin and not by
+        contact, so the skin is measured before the contact tests (a candidate passes only if both do, so the
+        order changes no answer, only what a failing candidate costs)."""
         targets, angles, world, pulls = self._pose_arrays(goals)
         coupling_ok = np.flatnonzero(self.coupling.ok(self._shares(targets)))
-        s = self.config.strain
         col = self.collisions
         memo: dict[bytes, bool] = {} if known is None else known
         for k in (int(i) for i in coupling_ok[::-1]):
@@ -272,20 +279,40 @@ class TwinGate:
                     return k
                 continue
             memo[key] = False
-            # contact first (broad phase, exact test on flagged pairs): where candidates fail it is mostly
-            # by contact, and that is cheaper than the skin; a pass needs both, so the order changes nothing
+            # contact first (broad phase, exact test on flagged pairs) unless the request failed on the skin
+            # alone: where candidates fail it is mostly on what the request failed on, and a pass needs both
+            if skin_first and not self._skin_ok(goals[k], world[k], pulls[k], probe=True):
+                continue
             if any(col._collide(col.specs[p], world[k]) for p in suspects):
                 continue
             flags = col.broad.flag(world[k], angles[k])  # one pose: the flat broad phase (fastest for one)
             if any(col._collide(col.specs[p], world[k]) for p in np.flatnonzero(flags) if p not in suspects):
                 continue
-            offsets = self.skin_source.offsets_rows(pulls[k], self.skin.fast_vertices)
-            stretch, comp, flips = self.skin.measure_one(world[k], offsets, self._static(goals[k]))
-            if stretch <= s.max_stretch and comp >= s.min_compression and flips <= s.max_flipped:
+            if skin_first or self._skin_ok(goals[k], world[k], pulls[k]):
                 memo[key] = True
                 self._memo = (key, [])
                 return k
         return None
+
+    def _skin_ok(self, goal: IntArray, world: FloatArray, pulls: FloatArray, probe: bool = False) -> bool:
+        """The strain and flip limits hold for one candidate ((n,) goal, its (J, 4, 4) pose and pulls).
+
+        ``probe``: first count the flips among the triangles the last candidate that failed on flips had
+        flipped (`strain.probe_dots`: the same numbers as the whole measure, on a few triangles): more of
+        them flipped than the limit allows fails the candidate as the whole measure would (its count can
+        only be larger), at a fraction of its cost. Which triangles are probed changes no answer."""
+        s = self.config.strain
+        offsets = self.skin_source.offsets_rows(pulls, self.skin.fast_vertices)
+        static = self._static(goal)
+        if probe and self._flip_probe is not None and self._flip_probe.subset == self.skin.subset:
+            dots = probe_dots(self.skin, world, offsets, self._flip_probe)
+            if int(np.count_nonzero(dots <= 0.0)) + self.skin.const_flips + static[2] > s.max_flipped:
+                return False
+        stretch, comp, flips, flipped = self.skin.measure_one_faces(world, offsets, static)
+        if probe and flips > s.max_flipped:  # probe these triangles on the next candidates
+            faces = np.flatnonzero(flipped)
+            self._flip_probe = flip_probe(self.skin, faces) if len(faces) else None
+        return stretch <= s.max_stretch and comp >= s.min_compression and flips <= s.max_flipped
 
     # ---- public ---------------------------------------------------------------------------------------
     def check(
@@ -325,8 +352,16 @@ class TwinGate:
             return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last)
         hit = {f.parts for f in hard if f.check == "collision"}
         suspects = tuple(p for p, spec in enumerate(self.collisions.specs) if (spec.a, spec.b) in hit)
+        skin_first = not hit and any(f.check in ("strain", "flip") for f in hard)
         best, frac = self._scale_back(
-            req, last, last_step, table, skip_full=bool(hard), suspects=suspects, rate_last=rate_last
+            req,
+            last,
+            last_step,
+            table,
+            skip_full=bool(hard),
+            suspects=suspects,
+            rate_last=rate_last,
+            skin_first=skin_first,
         )
         if best is not None and np.array_equal(best, last) and np.array_equal(clamped, last):
             # the per-servo clamp itself is the last command and passed every check (e.g. a servo held at
@@ -347,9 +382,11 @@ class TwinGate:
         skip_full: bool = False,
         suspects: tuple[int, ...] = (),
         rate_last: IntArray | None = None,
+        skin_first: bool = False,
     ) -> tuple[IntArray | None, float]:
         """The largest step fraction whose clamped command passes every check (batched bisection).
         ``skip_full``: ``req`` itself failed a state check, so its clamp is not re-checked if equal.
+        ``skin_first``: measure each candidate's skin before its contact tests (`_last_ok`).
         ``rate_last``: where the rate caps measure the step from (default ``last``; see `limits.per_time`)."""
         step = req - last
         base = last if rate_last is None else rate_last
@@ -363,13 +400,13 @@ class TwinGate:
         cand_1 = lim.clamp(req, base, last_step, table)
         if skip_full and np.array_equal(cand_1, req):
             known[cand_1.tobytes()] = False  # the request itself failed a state check
-        elif self._last_ok(cand_1[None, :], suspects, known) == 0:
+        elif self._last_ok(cand_1[None, :], suspects, known, skin_first) == 0:
             return cand_1, 1.0
         for _ in range(max(1, self.config.bisection_rounds)):
             fracs = lo + (hi - lo) * np.arange(1, 9) / 8.0
             raw = last + np.trunc(fracs[:, None] * step[None, :]).astype(np.int64)
             cands = lim.clamp(raw, base, last_step, table)
-            found = self._last_ok(cands, suspects, known)
+            found = self._last_ok(cands, suspects, known, skin_first)
             if found is None:
                 hi = fracs[0]
                 continue

@@ -104,7 +104,8 @@ class SkinTwin:
 
     def _fast_subset(self, edges: NDArray[np.bool_], faces: NDArray[np.bool_]) -> None:
         """The active edges and faces `measure_one` measures (all of them, or the pull-driven ones), and
-        the vertices they touch (`fast_vertices`)."""
+        the vertices they touch (`fast_vertices`). Each call is a new `subset` (a `FlipProbe` is of one)."""
+        self.subset = getattr(self, "subset", 0) + 1
         sel = np.unique(np.concatenate([self._edges[edges].ravel(), self._faces[faces].ravel()]))
         remap = np.full(len(self._v), -1, dtype=np.int64)
         remap[sel] = np.arange(len(sel))
@@ -156,6 +157,16 @@ class SkinTwin:
             np.asarray(lo, dtype=np.float64),
             np.asarray(flips, dtype=np.int64),
         )
+
+    @property
+    def const_flips(self) -> int:
+        """Flips `measure_one` adds to those it counts (the unmeasured skin's)."""
+        return int(self._const_flips)
+
+    @property
+    def n_measured_faces(self) -> int:
+        """Triangles `measure_one` measures (the indices a `FlipProbe` takes)."""
+        return len(self._f0)
 
     @property
     def active_vertices(self) -> NDArray[np.int64]:
@@ -224,26 +235,21 @@ class SkinTwin:
     def measure_one(
         self, world: FloatArray, offsets: FloatArray, static: tuple[float, float, int] = (0.0, np.inf, 0)
     ) -> tuple[float, float, int]:
+        """`measure_one_faces` without the flipped triangles."""
+        stretch, comp, flips, _ = self.measure_one_faces(world, offsets, static)
+        return stretch, comp, flips
+
+    def measure_one_faces(
+        self, world: FloatArray, offsets: FloatArray, static: tuple[float, float, int] = (0.0, np.inf, 0)
+    ) -> tuple[float, float, int, NDArray[np.bool_]]:
         """`measure` for one frame: (J, 4, 4) transforms and the offsets of the active vertices only
         (`fast_vertices`, (nv, 3)). Same quantities as `measure` (float32 from the transforms on, in
-        place, each corner gathered once): about half its cost per frame."""
+        place, each corner gathered once): about half its cost per frame. Also which measured triangles
+        flipped ((nf,) mask, in the order `FlipProbe` indexes them)."""
         mats = self._mats(world).astype(np.float32)  # (u, 12)
         m = mats.T @ self._fw_t32  # (12, nv)
         o = offsets.T.astype(np.float32)
-        rv = self._frest_vt32
-        x, y, z = rv[0] + o[0], rv[1] + o[1], rv[2] + o[2]
-        px = m[0] * x
-        px += m[1] * y
-        px += m[2] * z
-        px += m[3]
-        py = m[4] * x
-        py += m[5] * y
-        py += m[6] * z
-        py += m[7]
-        pz = m[8] * x
-        pz += m[9] * y
-        pz += m[10] * z
-        pz += m[11]
+        px, py, pz = _pose(m, self._frest_vt32, o)
         e0, e1 = self._e0, self._e1
         dx, dy, dz = px.take(e0), py.take(e0), pz.take(e0)
         dx -= px.take(e1)
@@ -291,7 +297,89 @@ class SkinTwin:
         lo2 = min(float(dx.min()), static[1]) if dx.size else static[1]
         stretch = max(float(np.sqrt(hi2)), self._const_max)
         comp = min(float(np.sqrt(lo2)), self._const_min)
-        return stretch, comp, int(np.count_nonzero(cx <= 0.0)) + self._const_flips + static[2]
+        flipped = cx <= 0.0
+        return stretch, comp, int(np.count_nonzero(flipped)) + self._const_flips + static[2], flipped
+
+
+@dataclass(frozen=True)
+class FlipProbe:
+    """Some of the triangles `SkinTwin.measure_one` measures (``faces``: indices into them), with the
+    vertices they need (``verts``: indices into `fast_vertices`) and each corner's place among those."""
+
+    subset: int  # `SkinTwin.subset` it was made for
+    faces: NDArray[np.int64]
+    verts: NDArray[np.int64]
+    corners: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]
+    normals: NDArray[np.float32]  # (3, p) rest normals of the triangles
+    rest32: NDArray[np.float32]  # (3, q) rest x, y, z of the vertices
+
+
+def flip_probe(skin: SkinTwin, faces: NDArray[np.int64]) -> FlipProbe:
+    """The probe of these measured triangles (indices into the faces `measure_one` measures)."""
+    f = np.asarray(faces, dtype=np.int64)
+    corners = np.stack([skin._f0[f], skin._f1[f], skin._f2[f]])
+    verts, inv = np.unique(corners, return_inverse=True)
+    inv = inv.reshape(corners.shape)
+    normals = np.ascontiguousarray(skin._fn32[:, f])
+    rest = np.ascontiguousarray(skin._frest_vt32[:, verts])
+    return FlipProbe(skin.subset, f, verts, (inv[0], inv[1], inv[2]), normals, rest)
+
+
+def probe_dots(skin: SkinTwin, world: FloatArray, offsets: FloatArray, probe: FlipProbe) -> NDArray[np.float32]:
+    """Posed normal . carried rest normal of the probe's triangles, the same numbers `measure_one` computes
+    for them (the same float32 products in the same order, elementwise on the probe's vertices and
+    triangles, x / y / z stacked as rows; the two blend products are the whole ones, gathered), so a
+    triangle flips here exactly when it flips there."""
+    if probe.subset != skin.subset:
+        raise GateConfigError("flip probe made for another measured subset of the skin")
+    mats = skin._mats(world).astype(np.float32)
+    m = (mats.T @ skin._fw_t32).take(probe.verts, axis=1).reshape(3, 4, -1)  # [coordinate, column, vertex]
+    v = probe.rest32 + offsets.take(probe.verts, axis=0).T.astype(np.float32)
+    p = m[:, 0] * v[0]
+    p += m[:, 1] * v[1]
+    p += m[:, 2] * v[2]
+    p += m[:, 3]  # posed x, y, z rows
+    r = (mats.T @ skin._ffw_t32).take(probe.faces, axis=1).reshape(3, 4, -1)
+    n = probe.normals
+    e = r[:, 0] * n[0]
+    e += r[:, 1] * n[1]
+    e += r[:, 2] * n[2]  # carried rest normal rows
+    f0, f1, f2 = probe.corners
+    a = p.take(f0, axis=1)
+    u = p.take(f1, axis=1)
+    u -= a
+    w = p.take(f2, axis=1)
+    w -= a
+    c = u[_NEXT] * w[_AFTER]
+    c -= u[_AFTER] * w[_NEXT]  # posed normal (u x w) rows
+    c *= e
+    out = c[0] + c[1]
+    out += c[2]
+    return np.asarray(out, dtype=np.float32)
+
+
+_NEXT = np.array([1, 2, 0])
+_AFTER = np.array([2, 0, 1])
+
+
+def _pose(
+    m: NDArray[np.float32], rv: NDArray[np.float32], o: NDArray[np.float32]
+) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
+    """Posed x, y, z (float32) of vertices from their (12, nv) blended transforms, rest (3, nv) and offsets."""
+    x, y, z = rv[0] + o[0], rv[1] + o[1], rv[2] + o[2]
+    px = m[0] * x
+    px += m[1] * y
+    px += m[2] * z
+    px += m[3]
+    py = m[4] * x
+    py += m[5] * y
+    py += m[6] * z
+    py += m[7]
+    pz = m[8] * x
+    pz += m[9] * y
+    pz += m[10] * z
+    pz += m[11]
+    return px, py, pz
 
 
 def strain_findings(stretch: float, compression: float, flipped: int, limits: StrainLimits) -> list[Finding]:

@@ -1,8 +1,9 @@
-"""The clip search's reuse of known answers (`TwinGate._scale_back` passes the answers of the commands it has
-checked to `_last_ok`, so a round's top candidate, which is always one already checked, and truncation repeats
-are not checked again) gives the same verdicts, goals, fractions and findings as the plain search (a copy of
-the search before the reuse, kept here) on random walks of both built-in heads, small steps and oversized
-ones that get clipped."""
+"""The clip search's shortcuts give the same verdicts, goals, fractions, findings and memory as the plain
+search (a copy of the search before them, kept here) on random walks of both built-in heads, small steps and
+oversized ones that get clipped: the reuse of known answers (`TwinGate._scale_back` passes the answers of the
+commands it has checked to `_last_ok`, so a round's top candidate, which is always one already checked, and
+truncation repeats are not checked again), and the skin measured first where the request failed on the skin
+and not by contact (``skin_first``)."""
 
 from __future__ import annotations
 
@@ -44,8 +45,9 @@ def _plain_scale_back(
     skip_full: bool = False,
     suspects: tuple[int, ...] = (),
     rate_last: Any = None,
+    skin_first: bool = False,
 ) -> tuple[Any, float]:
-    """`TwinGate._scale_back` before the reuse."""
+    """`TwinGate._scale_back` before the reuse and the skin-first order (``skin_first`` is ignored)."""
     step = req - last
     base = last if rate_last is None else rate_last
     lo, hi = 0.0, 1.0
@@ -84,15 +86,23 @@ def _verdict_tuple(v: Any) -> tuple[Any, ...]:
     return (v.kind, v.goals_tick, v.step_fraction, tuple((f.check, f.message, f.parts) for f in v.findings))
 
 
-@pytest.mark.parametrize("scale", [0.25, 3.0])
-def test_clip_search_reuse_matches_the_plain_search(gate: TwinGate, scale: float) -> None:
-    rng = np.random.default_rng(11)
+@pytest.mark.parametrize(("scale", "seed", "frames"), [(0.25, 11, 120), (3.0, 11, 60), (0.25, 0, 400)])
+def test_clip_search_reuse_matches_the_plain_search(gate: TwinGate, scale: float, seed: int, frames: int) -> None:
+    rng = np.random.default_rng(seed)
     t = gate.table
     last = t.neutral_tick.copy()
     gate.reset()
     plain = types.MethodType(_plain_scale_back, gate)
     kinds: dict[str, int] = {}
-    for _ in range(120 if scale < 1 else 60):
+    skin_first = 0
+    real = gate._scale_back
+
+    def counted(*args: Any, **kwargs: Any) -> Any:
+        nonlocal skin_first
+        skin_first += int(bool(kwargs.get("skin_first")))
+        return real(*args, **kwargs)
+
+    for _ in range(frames):
         req = np.clip(last + rng.uniform(-1, 1, t.n) * t.max_step_tick * scale, t.min_tick, t.max_tick)
         goals = dict(zip(t.ids, req.astype(np.int64).tolist(), strict=True))
         prev = dict(zip(t.ids, last.tolist(), strict=True))
@@ -105,10 +115,44 @@ def test_clip_search_reuse_matches_the_plain_search(gate: TwinGate, scale: float
         want_memory, want_memo = gate.step_state(), gate._memo
         gate.restore_step_state(memory)
         gate._memo = memo
-        got = gate.check(goals, prev)
+        gate._scale_back = counted  # type: ignore[method-assign]
+        try:
+            got = gate.check(goals, prev)
+        finally:
+            del gate._scale_back
         assert _verdict_tuple(got) == _verdict_tuple(want)
         assert gate.step_state().same(want_memory)
         assert gate._memo[0] == want_memo[0]
         kinds[got.kind] = kinds.get(got.kind, 0) + 1
         last = np.array([got.goals_tick[i] for i in t.ids], dtype=np.int64)
     assert kinds.get("clip", 0) >= 3  # the walks exercise the search
+    if seed == 0 and gate.head.name == "human":
+        assert skin_first >= 5  # the human's long small-step walk clips on skin flips: the skin-first order runs
+
+
+def test_skin_first_order_matches_the_plain_candidate_check(gate: TwinGate) -> None:
+    """`_last_ok` with the skin measured first gives the index the plain check gives, on the bisection
+    candidates between random commands (anywhere in the limits and near neutral: candidates that fail by
+    contact, on the skin, both, or pass), with and without the pairs the far end collides on as suspects."""
+    t = gate.table
+    rng = np.random.default_rng(23)
+    wide = rng.integers(t.min_tick, t.max_tick + 1, size=(40, t.n))
+    span = (t.max_tick - t.min_tick) * rng.uniform(0.05, 0.4, size=(40, 1))
+    near = np.clip(t.neutral_tick + rng.uniform(-1, 1, (40, t.n)) * span, t.min_tick, t.max_tick).astype(np.int64)
+    cmds = np.vstack([wide, near]).astype(np.int64)
+    seen = {"contact": 0, "skin": 0, "found": 0}
+    fracs = np.arange(1, 9) / 8.0
+    for a, b in zip(cmds[:-1], cmds[1:], strict=True):
+        cands = (a + np.trunc(fracs[:, None] * (b - a)[None, :])).astype(np.int64)
+        hard = gate._hard_findings(b)
+        seen["contact"] += any(f.check == "collision" for f in hard)
+        seen["skin"] += any(f.check in ("strain", "flip") for f in hard)
+        hit = {f.parts for f in hard if f.check == "collision"}
+        suspects = tuple(p for p, s in enumerate(gate.collisions.specs) if (s.a, s.b) in hit)
+        for sus in ((), suspects):
+            want = _plain_last_ok(gate, cands, sus)
+            assert gate._last_ok(cands, sus, None, skin_first=True) == want
+            assert gate._last_ok(cands, sus, {}, skin_first=False) == want
+            seen["found"] += want is not None
+    # (random commands collide on the dog and strain the human's skin; both find passing candidates)
+    assert seen["contact"] + seen["skin"] >= 30 and seen["found"] >= 30, seen
