@@ -1,5 +1,6 @@
 """CRC-16 of Dynamixel Protocol 2.0: polynomial 0x8005, initial 0, not reflected, no final XOR (the bus's
-SDK packet handler and the emulator both use it).
+SDK packet handler's; the emulator keeps its own copy, `servoface.hardware.emulator.crc`, so that the side
+that checks the SDK's packets shares no code with the side that sends them).
 
 The hot path folds two bytes per step with a 65 536-entry table (a 16-bit CRC's state is fully replaced
 after 16 input bits, so ``crc' = T16[crc ^ word]``); ``crc16_bitwise`` is the textbook reference the
