@@ -74,18 +74,3 @@ def crc16(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
     if n & 1:
         crc = ((crc << 8) & 0xFFFF) ^ _T8[(crc >> 8) ^ data[n - 1]]
     return crc
-
-
-def crc16_even(data: bytes, crc: int = 0) -> int:
-    """`crc16` of ``data`` of even length, continuing from ``crc`` (a short block: no slicing, no length
-    tests; a Fast Sync Read reply's per-servo block)."""
-    t16 = _T16
-    for (w,) in _WORDS.iter_unpack(data):
-        crc = t16[crc ^ w]
-    return crc
-
-
-def crc16_own_tail(crc: int) -> int:
-    """``crc16(bytes((crc & 0xFF, crc >> 8)), crc)``: the CRC after a packet's own CRC field (low byte
-    first), one table step (the two bytes are one big-endian word ``lo << 8 | hi``)."""
-    return _T16[crc ^ ((crc & 0xFF) << 8 | crc >> 8)]
