@@ -336,26 +336,29 @@ class TwinGate:
         None: one frame period (the per-frame caps)."""
         # a plain map (the usual frame) is copied as is: the same items as the dict rebuilt from its ticks
         last = self._plain(last_goals_tick)
+        plain_last = last is not None
         if last is None:
             last, bad_last = self._vector_checked(last_goals_tick, None, "last_goals_tick")
             if bad_last:
                 raise GateInputError("; ".join(f.message for f in bad_last))
-            hold = dict(zip(self.table.ids, last.tolist(), strict=True))
-        else:
-            hold = dict(last_goals_tick)
         table, health_findings = derate(self.table, health, self.config.health)
-        table, rate_last, last_step, fraction = self._rate_inputs(last, table, elapsed_s)
-        if fraction is not None:  # (a check without elapsed_s leaves the fraction alone)
-            self._last_fraction = fraction
+        last_fraction = self._last_fraction  # the caps of this check follow the previous check's fraction
+        if elapsed_s is not None:  # (a check without elapsed_s leaves the fraction alone)
+            self._last_fraction = lim.time_fraction(elapsed_s, self.frame_period_s)
         req = self._plain(goals_tick)
         if req is None:
             req, bad = self._vector_checked(goals_tick, last, "goals_tick")
             requested = dict(zip(self.table.ids, req.tolist(), strict=True))
-            if bad:
-                verdict = Verdict("reject", hold, tuple(health_findings + bad), 0.0, requested)
-                return self._remember(verdict, last, last)
         else:
-            requested = dict(goals_tick)
+            bad, requested = [], dict(goals_tick)
+        hold = dict(last_goals_tick) if plain_last else dict(zip(self.table.ids, last.tolist(), strict=True))
+        if bad:
+            return self._remember(Verdict("reject", hold, tuple(health_findings + bad), 0.0, requested), last, last)
+        if _same_ticks(req, last) and self._at_rest_ok(req, table):
+            # the servos sit at the request (the usual held frame): a zero step passes any rate caps (their
+            # interval always holds 0), so only the position limits and the state checks could fire
+            return self._remember(Verdict("accept", requested, tuple(health_findings), 1.0, requested), last, req)
+        table, rate_last, last_step = self._rate_inputs(last, table, elapsed_s, last_fraction)
         findings = health_findings + lim.findings(req, rate_last, last_step, table)
         key = req.tobytes()
         if self._memo[0] != key:  # state checks depend on the command only: a held command is not redone
@@ -462,7 +465,7 @@ class TwinGate:
         if bad_last:
             raise GateInputError("; ".join(f.message for f in bad_last))
         table, _ = derate(self.table, health, self.config.health)
-        caps, rate_last, last_step, _ = self._rate_inputs(last, table, elapsed_s)
+        caps, rate_last, last_step = self._rate_inputs(last, table, elapsed_s, self._last_fraction)
         parts = [getattr(caps, f.name) for f in fields(caps)] + [rate_last, last_step]  # every cap array
         return b"|".join(
             b"-" if a is None else np.asarray(a, dtype=np.int64).tobytes()
@@ -482,27 +485,34 @@ class TwinGate:
         last, bad_last = self._vector(last_goals_tick, None, "last_goals_tick")
         if bad_last:
             raise GateInputError("; ".join(f.message for f in bad_last))
-        table, _ = derate(self.table, health, self.config.health)
-        _, _, _, fraction = self._rate_inputs(last, table, elapsed_s)
-        if fraction is not None:
-            self._last_fraction = fraction
+        derate(self.table, health, self.config.health)  # (raises as the check would for unknown servos)
+        if elapsed_s is not None:
+            self._last_fraction = lim.time_fraction(elapsed_s, self.frame_period_s)
         self._remember(verdict, last)
 
     def _rate_inputs(
-        self, last: IntArray, table: lim.ServoTable, elapsed_s: float | None
-    ) -> tuple[lim.ServoTable, IntArray, IntArray, float | None]:
-        """(caps, the step's origin, the previous step, the fraction to note) for a check after ``last`` from
-        this memory: the per-frame caps and None without ``elapsed_s``, else `limits.per_time`'s."""
+        self, last: IntArray, table: lim.ServoTable, elapsed_s: float | None, last_fraction: float
+    ) -> tuple[lim.ServoTable, IntArray, IntArray]:
+        """(caps, the step's origin, the previous step) for a check after ``last`` from this memory (the
+        previous check's fraction ``last_fraction``): the per-frame caps without ``elapsed_s``, else
+        `limits.per_time`'s (the fraction to note is `limits.time_fraction`)."""
         last_step = (
             self._last_step
             if self._last_sent is not None and _same_ticks(self._last_sent, last)
             else np.zeros(self.table.n, dtype=np.int64)
         )
         if elapsed_s is None:
-            return table, last, last_step, None
-        period_s = self.frame_period_s
-        caps, scaled_last, fraction = lim.per_time(table, last_step, elapsed_s, period_s, self._last_fraction)
-        return caps, last, scaled_last, fraction
+            return table, last, last_step
+        caps, scaled_last, _ = lim.per_time(table, last_step, elapsed_s, self.frame_period_s, last_fraction)
+        return caps, last, scaled_last
+
+    def _at_rest_ok(self, goal: IntArray, table: lim.ServoTable) -> bool:
+        """Whether a command equal to the last one passes: inside the position limits and every state
+        check (the memo of the last command's state checks, filled if it is another command)."""
+        key = goal.tobytes()
+        if self._memo[0] != key:
+            self._memo = (key, self._hard_findings(goal))
+        return not self._memo[1] and bool(((goal >= table.min_tick) & (goal <= table.max_tick)).all())
 
     def reset(self) -> None:
         """Forget the previous step (the next check assumes the servos start from rest)."""

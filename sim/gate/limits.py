@@ -99,10 +99,7 @@ def per_time(
     acceleration per second), and the previous step is taken at the same speed over the shorter time (never
     scaled up), so frames sent back to back cannot add up to more than either cap per second.
     Returns (table, last_step, f)."""
-    if not np.isfinite(elapsed_s) or elapsed_s <= 0:
-        f = 0.0
-    else:
-        f = min(1.0, float(elapsed_s) / frame_period_s)
+    f = time_fraction(elapsed_s, frame_period_s)
     if f >= 1.0 and last_fraction >= 1.0:
         return table, last_step, 1.0
     step = np.floor(table.max_step_tick * f).astype(np.int64)
@@ -113,6 +110,13 @@ def per_time(
     scaled = object.__new__(ServoTable)
     scaled.__dict__.update(table.__dict__, max_step_tick=step, max_speedup_tick=speedup)
     return scaled, scaled_last, f
+
+
+def time_fraction(elapsed_s: float, frame_period_s: float) -> float:
+    """`per_time`'s ``f``: ``min(1, elapsed / period)``, 0 for a non-finite or non-positive elapsed time."""
+    if not np.isfinite(elapsed_s) or elapsed_s <= 0:
+        return 0.0
+    return min(1.0, float(elapsed_s) / frame_period_s)
 
 
 def step_bounds(last_step: IntArray, table: ServoTable) -> tuple[IntArray, IntArray]:

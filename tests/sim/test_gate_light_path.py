@@ -200,9 +200,56 @@ def test_memory_compares_ticks_by_value(gate: TwinGate) -> None:
     step = np.ones(t.n, dtype=np.int64)
     for dtype in (np.int64, np.int32):
         gate.restore_step_state(GateMemory(last.astype(dtype), step, 1.0))
-        _, _, last_step, _ = gate._rate_inputs(last, t, None)
+        _, _, last_step = gate._rate_inputs(last, t, None, 1.0)
         assert np.array_equal(last_step, step)
         gate.restore_step_state(GateMemory((last + 1).astype(dtype), step, 1.0))
-        _, _, last_step, _ = gate._rate_inputs(last, t, None)
+        _, _, last_step = gate._rate_inputs(last, t, None, 1.0)
         assert not last_step.any()
     gate.reset()
+
+
+def test_a_command_at_rest_gives_the_full_checks_verdict(gate: TwinGate) -> None:
+    """A request equal to the last command (the servos sit at it) is accepted on its position limits and
+    state checks alone: the same verdicts and memories as the full check (rate caps, clamp, scale-back) on
+    walks that hold often, with health narrowing the limits under a held servo, per-time caps down to 0,
+    and held commands anywhere in the range (colliding, strained or outside narrowed limits)."""
+    from servoface.calibration.fileformat import load_calibration
+
+    class Straight(TwinGate):
+        def _at_rest_ok(self, goal: np.ndarray, table: lim.ServoTable) -> bool:
+            return False
+
+    head = gate.head
+    assert head.calibration_path is not None
+    straight = Straight(head, load_calibration(head.calibration_path), gate.frame_period_s)
+    t = gate.table
+    rng = np.random.default_rng(29)
+    last = t.neutral_tick.copy()
+    gate.reset()
+    held = kinds_at_rest = 0
+    seen = set()
+    for k in range(240):
+        r = rng.random()
+        if r < 0.45:
+            req = last.copy()
+        elif r < 0.55:
+            req = last = rng.integers(t.min_tick, t.max_tick + 1).astype(np.int64)  # at rest anywhere
+        else:
+            size = t.max_step_tick * float(rng.choice([0.3, 1.0, 3.0]))
+            req = np.clip(last + rng.uniform(-1, 1, t.n) * size, t.min_tick, t.max_tick).astype(np.int64)
+        goals = dict(zip(t.ids, req.tolist(), strict=True))
+        prev = dict(zip(t.ids, last.tolist(), strict=True))
+        kw: dict[str, Any] = {}
+        if rng.random() < 0.7:
+            kw["elapsed_s"] = gate.frame_period_s * float(rng.choice([0.0, 0.5, 0.95, 1.0, 1.3]))
+        if rng.random() < 0.25:
+            kw["health"] = {int(i): ServoHealth(79.5, 80.0, 0.1) for i in rng.choice(t.ids, size=4, replace=False)}
+        v, w = gate.check(goals, prev, **kw), straight.check(goals, prev, **kw)
+        assert v == w, k
+        assert gate.step_state().same(straight.step_state()), k
+        if np.array_equal(req, last):
+            held += 1
+            kinds_at_rest += v.kind != "accept"
+            seen.add(v.kind)
+        last = np.array([v.goals_tick[i] for i in t.ids])
+    assert held > 80 and kinds_at_rest > 3 and "accept" in seen
