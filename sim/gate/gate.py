@@ -178,12 +178,19 @@ class TwinGate:
     def _vector(self, goals: Mapping[Any, Any], base: IntArray | None, what: str) -> tuple[IntArray, list[Finding]]:
         """(n,) ticks in table order from a goal map (``base`` fills servos it leaves out), and the input
         findings. A map of every servo, in table order, of plain ints in range takes a fast path (the
-        usual frame): the same array, no findings."""
-        if len(goals) == self.table.n and tuple(goals) == self.table.ids and all(type(k) is int for k in goals):
-            values = list(goals.values())
-            if all(type(v) is int for v in values) and -_BIG < min(values) and max(values) < _BIG:
-                return np.array(values, dtype=np.int64), []
-        return self._vector_checked(goals, base, what)
+        usual frame, `_plain`): the same array, no findings."""
+        fast = self._plain(goals)
+        return (fast, []) if fast is not None else self._vector_checked(goals, base, what)
+
+    def _plain(self, goals: Mapping[Any, Any]) -> IntArray | None:
+        """The (n,) ticks of a map of every servo in table order whose keys and values are all plain ints
+        (not bools, not numpy ints), the values in range; None for any other map (`_vector_checked`)."""
+        if len(goals) != self.table.n or tuple(goals) != self.table.ids or set(map(type, goals)) != _INT:
+            return None
+        values = list(goals.values())
+        if set(map(type, values)) == _INT and -_BIG < min(values) and max(values) < _BIG:
+            return np.array(values, dtype=np.int64)
+        return None
 
     def _vector_checked(
         self, goals: Mapping[Any, Any], base: IntArray | None, what: str
@@ -327,18 +334,31 @@ class TwinGate:
         ``elapsed_s``: time since ``last_goals_tick`` went on the wire; when shorter than a frame period the
         rate caps shrink with it (`limits.per_time`), so the caps hold per second whatever the call pattern.
         None: one frame period (the per-frame caps)."""
-        last, bad_last = self._vector(last_goals_tick, None, "last_goals_tick")
-        if bad_last:
-            raise GateInputError("; ".join(f.message for f in bad_last))
-        hold = dict(zip(self.table.ids, last.tolist(), strict=True))
+        # a plain map (the usual frame) is copied as is: the same items as the dict rebuilt from its ticks
+        last = self._plain(last_goals_tick)
+        plain_last = last is not None
+        if last is None:
+            last, bad_last = self._vector_checked(last_goals_tick, None, "last_goals_tick")
+            if bad_last:
+                raise GateInputError("; ".join(f.message for f in bad_last))
         table, health_findings = derate(self.table, health, self.config.health)
-        table, rate_last, last_step, fraction = self._rate_inputs(last, table, elapsed_s)
-        if fraction is not None:  # (a check without elapsed_s leaves the fraction alone)
-            self._last_fraction = fraction
-        req, bad = self._vector(goals_tick, last, "goals_tick")
-        requested = dict(zip(self.table.ids, req.tolist(), strict=True))
+        last_fraction = self._last_fraction  # the caps of this check follow the previous check's fraction
+        if elapsed_s is not None:  # (a check without elapsed_s leaves the fraction alone)
+            self._last_fraction = lim.time_fraction(elapsed_s, self.frame_period_s)
+        req = self._plain(goals_tick)
+        if req is None:
+            req, bad = self._vector_checked(goals_tick, last, "goals_tick")
+            requested = dict(zip(self.table.ids, req.tolist(), strict=True))
+        else:
+            bad, requested = [], dict(goals_tick)
+        hold = dict(last_goals_tick) if plain_last else dict(zip(self.table.ids, last.tolist(), strict=True))
         if bad:
-            return self._remember(Verdict("reject", hold, tuple(health_findings + bad), 0.0, requested), last)
+            return self._remember(Verdict("reject", hold, tuple(health_findings + bad), 0.0, requested), last, last)
+        if _same_ticks(req, last) and self._at_rest_ok(req, table):
+            # the servos sit at the request (the usual held frame): a zero step passes any rate caps (their
+            # interval always holds 0), so only the position limits and the state checks could fire
+            return self._remember(Verdict("accept", requested, tuple(health_findings), 1.0, requested), last, req)
+        table, rate_last, last_step = self._rate_inputs(last, table, elapsed_s, last_fraction)
         findings = health_findings + lim.findings(req, rate_last, last_step, table)
         key = req.tobytes()
         if self._memo[0] != key:  # state checks depend on the command only: a held command is not redone
@@ -346,10 +366,10 @@ class TwinGate:
         hard = list(self._memo[1])
         findings += hard
         if len(findings) == len(health_findings):
-            return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last)
+            return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last, req)
         clamped = lim.clamp(req, rate_last, last_step, table)
         if not hard and np.array_equal(clamped, req):  # only health notes fired
-            return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last)
+            return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last, req)
         hit = {f.parts for f in hard if f.check == "collision"}
         suspects = tuple(p for p, spec in enumerate(self.collisions.specs) if (spec.a, spec.b) in hit)
         skin_first = not hit and any(f.check in ("strain", "flip") for f in hard)
@@ -366,12 +386,12 @@ class TwinGate:
         if best is not None and np.array_equal(best, last) and np.array_equal(clamped, last):
             # the per-servo clamp itself is the last command and passed every check (e.g. a servo held at
             # its narrowed limit while the others have arrived): a clip at the limits, not a refusal
-            return self._remember(Verdict("clip", hold, tuple(findings), 1.0, requested), last)
+            return self._remember(Verdict("clip", hold, tuple(findings), 1.0, requested), last, last)
         if best is None or np.array_equal(best, last):
             findings.append(Finding("hold", "no safe command found between the last one and the request: holding"))
-            return self._remember(Verdict("reject", hold, tuple(findings), 0.0, requested), last)
+            return self._remember(Verdict("reject", hold, tuple(findings), 0.0, requested), last, last)
         goals = dict(zip(self.table.ids, best.tolist(), strict=True))
-        return self._remember(Verdict("clip", goals, tuple(findings), frac, requested), last)
+        return self._remember(Verdict("clip", goals, tuple(findings), frac, requested), last, best)
 
     def _scale_back(
         self,
@@ -445,7 +465,7 @@ class TwinGate:
         if bad_last:
             raise GateInputError("; ".join(f.message for f in bad_last))
         table, _ = derate(self.table, health, self.config.health)
-        caps, rate_last, last_step, _ = self._rate_inputs(last, table, elapsed_s)
+        caps, rate_last, last_step = self._rate_inputs(last, table, elapsed_s, self._last_fraction)
         parts = [getattr(caps, f.name) for f in fields(caps)] + [rate_last, last_step]  # every cap array
         return b"|".join(
             b"-" if a is None else np.asarray(a, dtype=np.int64).tobytes()
@@ -465,35 +485,46 @@ class TwinGate:
         last, bad_last = self._vector(last_goals_tick, None, "last_goals_tick")
         if bad_last:
             raise GateInputError("; ".join(f.message for f in bad_last))
-        table, _ = derate(self.table, health, self.config.health)
-        _, _, _, fraction = self._rate_inputs(last, table, elapsed_s)
-        if fraction is not None:
-            self._last_fraction = fraction
+        derate(self.table, health, self.config.health)  # (raises as the check would for unknown servos)
+        if elapsed_s is not None:
+            self._last_fraction = lim.time_fraction(elapsed_s, self.frame_period_s)
         self._remember(verdict, last)
 
     def _rate_inputs(
-        self, last: IntArray, table: lim.ServoTable, elapsed_s: float | None
-    ) -> tuple[lim.ServoTable, IntArray, IntArray, float | None]:
-        """(caps, the step's origin, the previous step, the fraction to note) for a check after ``last`` from
-        this memory: the per-frame caps and None without ``elapsed_s``, else `limits.per_time`'s."""
+        self, last: IntArray, table: lim.ServoTable, elapsed_s: float | None, last_fraction: float
+    ) -> tuple[lim.ServoTable, IntArray, IntArray]:
+        """(caps, the step's origin, the previous step) for a check after ``last`` from this memory (the
+        previous check's fraction ``last_fraction``): the per-frame caps without ``elapsed_s``, else
+        `limits.per_time`'s (the fraction to note is `limits.time_fraction`)."""
         last_step = (
             self._last_step
-            if self._last_sent is not None and np.array_equal(self._last_sent, last)
+            if self._last_sent is not None and _same_ticks(self._last_sent, last)
             else np.zeros(self.table.n, dtype=np.int64)
         )
         if elapsed_s is None:
-            return table, last, last_step, None
-        period_s = self.frame_period_s
-        caps, scaled_last, fraction = lim.per_time(table, last_step, elapsed_s, period_s, self._last_fraction)
-        return caps, last, scaled_last, fraction
+            return table, last, last_step
+        caps, scaled_last, _ = lim.per_time(table, last_step, elapsed_s, self.frame_period_s, last_fraction)
+        return caps, last, scaled_last
+
+    def _at_rest_ok(self, goal: IntArray, table: lim.ServoTable) -> bool:
+        """Whether a command equal to the last one passes: inside the position limits and every state
+        check (the memo of the last command's state checks, filled if it is another command)."""
+        key = goal.tobytes()
+        if self._memo[0] != key:
+            self._memo = (key, self._hard_findings(goal))
+        return not self._memo[1] and bool(((goal >= table.min_tick) & (goal <= table.max_tick)).all())
 
     def reset(self) -> None:
         """Forget the previous step (the next check assumes the servos start from rest)."""
         self._last_sent = None
         self._last_step = np.zeros(self.table.n, dtype=np.int64)
 
-    def _remember(self, verdict: Verdict, last: IntArray) -> Verdict:
-        sent = np.array([verdict.goals_tick[sid] for sid in self.table.ids], dtype=np.int64)
+    def _remember(self, verdict: Verdict, last: IntArray, sent: IntArray | None = None) -> Verdict:
+        """Note what ``verdict`` sends; ``sent``: its goals as (n,) ticks already (the same numbers)."""
+        if sent is None:
+            sent = np.array([verdict.goals_tick[sid] for sid in self.table.ids], dtype=np.int64)
+        else:
+            sent = np.array(sent, dtype=np.int64)  # a copy: the caller's array stays its own
         self._last_step = sent - last
         self._last_sent = sent
         return verdict
@@ -556,6 +587,14 @@ class TwinGate:
 
 
 _BIG = 2**62  # plain ints inside this fit int64 (outside, the checked path raises as it always did)
+_INT = {int}
+
+
+def _same_ticks(a: IntArray, b: IntArray) -> bool:
+    """`np.array_equal` for tick arrays, by their bytes when dtype and shape agree (then the same answer)."""
+    if a.dtype == b.dtype and a.shape == b.shape:
+        return a.tobytes() == b.tobytes()
+    return bool(np.array_equal(a, b))
 
 
 def _is_int(value: Any) -> bool:

@@ -8,7 +8,6 @@ the servo's own controller stops at its goal, and refusing to slow down would ov
 
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -100,29 +99,35 @@ def per_time(
     acceleration per second), and the previous step is taken at the same speed over the shorter time (never
     scaled up), so frames sent back to back cannot add up to more than either cap per second.
     Returns (table, last_step, f)."""
-    if not np.isfinite(elapsed_s) or elapsed_s <= 0:
-        f = 0.0
-    else:
-        f = min(1.0, float(elapsed_s) / frame_period_s)
+    f = time_fraction(elapsed_s, frame_period_s)
     if f >= 1.0 and last_fraction >= 1.0:
         return table, last_step, 1.0
     step = np.floor(table.max_step_tick * f).astype(np.int64)
     speedup = np.floor(table.max_speedup_tick * f * f).astype(np.int64)
     ratio = min(1.0, f / last_fraction) if last_fraction > 0 else 0.0
     scaled_last = np.trunc(last_step * ratio).astype(np.int64)
-    scaled = copy.copy(table)  # caps below 1 tick are legal here (0 = hold): bypass the per-frame check
-    object.__setattr__(scaled, "max_step_tick", step)
-    object.__setattr__(scaled, "max_speedup_tick", speedup)
+    # caps below 1 tick are legal here (0 = hold): bypass the per-frame check (what copy.copy does, directly)
+    scaled = object.__new__(ServoTable)
+    scaled.__dict__.update(table.__dict__, max_step_tick=step, max_speedup_tick=speedup)
     return scaled, scaled_last, f
 
 
+def time_fraction(elapsed_s: float, frame_period_s: float) -> float:
+    """`per_time`'s ``f``: ``min(1, elapsed / period)``, 0 for a non-finite or non-positive elapsed time."""
+    if not np.isfinite(elapsed_s) or elapsed_s <= 0:
+        return 0.0
+    return min(1.0, float(elapsed_s) / frame_period_s)
+
+
 def step_bounds(last_step: IntArray, table: ServoTable) -> tuple[IntArray, IntArray]:
-    """Allowed step interval [lo, hi] per servo (arrays broadcast like ``last_step``); always contains 0."""
-    up = np.where(last_step > 0, last_step + table.max_speedup_tick, table.max_speedup_tick)
-    down = np.where(last_step < 0, last_step - table.max_speedup_tick, -table.max_speedup_tick)
-    hi = np.minimum(up, table.max_step_tick)
-    lo = np.maximum(down, -table.max_step_tick)
-    return lo.astype(np.int64), hi.astype(np.int64)
+    """Allowed step interval [lo, hi] per servo (arrays broadcast like ``last_step``); always contains 0.
+
+    In integers ``where(s > 0, s + a, a)`` is ``max(s, 0) + a`` and ``where(s < 0, s - a, -a)`` is
+    ``min(s, 0) - a``."""
+    a, cap = table.max_speedup_tick, table.max_step_tick
+    hi = np.minimum(np.maximum(last_step, 0) + a, cap)
+    lo = np.maximum(np.minimum(last_step, 0) - a, -cap)
+    return lo.astype(np.int64, copy=False), hi.astype(np.int64, copy=False)
 
 
 def rate_ok(
@@ -155,8 +160,10 @@ def findings(goals: IntArray, last: IntArray, last_step: IntArray, table: ServoT
     out: list[Finding] = []
     step = goals - last
     lo, hi = step_bounds(last_step, table)
+    # |step| > max_step_tick needs no test of its own: it is outside [lo, hi] (-max_step <= lo, hi <= max_step)
     bad = (goals < table.min_tick) | (goals > table.max_tick) | (step < lo) | (step > hi)
-    bad |= np.abs(step) > table.max_step_tick
+    if not bad.any():
+        return out
     for i in np.flatnonzero(bad).tolist():
         sid, role, g = table.ids[i], table.roles[i], int(goals[i])
         if g < table.min_tick[i] or g > table.max_tick[i]:

@@ -41,6 +41,11 @@ class SkinSource:
     movable: BoolArray  # (n,)
     field_rows: Callable[[FloatArray, NDArray[np.int64]], FloatArray] | None = None  # field(c)[rows], cheaper
     _rows: dict[int, tuple[NDArray[np.int64], Any, FloatArray]] = dc_field(default_factory=dict)
+    # `offsets_rows`' last answer per row set: (rows, clipped pulls, contractions, offsets); not copied by
+    # dataclasses.replace (init=False), so a replaced source starts without it
+    _last: dict[int, tuple[NDArray[np.int64], bytes, bytes, FloatArray]] = dc_field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
 
     def offsets(self, pulls_mm: FloatArray) -> FloatArray:
         """(n, 3) skin offsets for one pull vector (A,), clamped to the actuator ranges first."""
@@ -51,7 +56,11 @@ class SkinSource:
         return self.base + self.field(c) + (self.bumps @ (p - self.unit_pull @ c)).reshape(-1, 3)
 
     def offsets_rows(self, pulls_mm: FloatArray, rows: NDArray[np.int64]) -> FloatArray:
-        """(len(rows), 3) offsets of some vertices only (the strain check's active set)."""
+        """(len(rows), 3) offsets of some vertices only (the strain check's active set).
+
+        They are a function of the clipped pulls and the contractions fitted to them: when both are the
+        last call's for these rows (a frame whose pulls did not move), that call's offsets are returned
+        again (a copy) instead of recomputed."""
         key = id(rows)
         cached = self._rows.get(key)
         if cached is None or cached[0] is not rows:
@@ -62,9 +71,20 @@ class SkinSource:
             self._rows[key] = cached
         _, bumps, base = cached
         p = np.clip(pulls_mm, self.lower_mm, self.upper_mm)
-        if self.contract is None or self.field is None:
+        c = None if self.contract is None or self.field is None else self.contract(p)
+        p_key, c_key = p.tobytes(), b"" if c is None else c.tobytes()
+        last = self._last.get(key)
+        if last is not None and last[0] is rows and last[1] == p_key and last[2] == c_key:
+            return last[3].copy()
+        out = self._offsets_rows(p, c, rows, bumps, base)
+        self._last[key] = (rows, p_key, c_key, out.copy())
+        return out
+
+    def _offsets_rows(
+        self, p: FloatArray, c: FloatArray | None, rows: NDArray[np.int64], bumps: Any, base: FloatArray
+    ) -> FloatArray:
+        if c is None or self.field is None:
             return np.asarray(base + (bumps @ p).reshape(-1, 3), dtype=np.float64)
-        c = self.contract(p)
         fit = np.asarray(bumps @ (p - self.unit_pull @ c), dtype=np.float64).reshape(-1, 3)
         if self.field_rows is not None:
             return base + self.field_rows(c, rows) + fit

@@ -155,3 +155,36 @@ def test_one_pose_broad_phase_equals_the_plain_gathers(gate: TwinGate) -> None:
         if broad.n_tests:
             want[broad._nonempty] = np.logical_or.reduceat(d2 <= broad.thr2, broad._starts)
         assert np.array_equal(broad._overlaps_flat(world), want)
+
+
+def test_offsets_rows_reuse_equals_computing_afresh(gate: TwinGate) -> None:
+    """`SkinSource.offsets_rows` gives its last answer again only for the same clipped pulls and fitted
+    contractions on the same rows: on a sequence with held, returned-to, clipped-alike and new pulls over
+    two row sets, every answer equals a source without that memory (a replaced copy each call), and a
+    caller changing a returned array changes no later answer."""
+    src = gate.skin_source
+    rows_a = gate.skin.fast_vertices
+    rows_b = np.ascontiguousarray(rows_a[::3])
+    rng = np.random.default_rng(19)
+    span = src.upper_mm - src.lower_mm
+    seen: list[np.ndarray] = []
+    reused = 0
+    for k in range(120):
+        r = rng.random()
+        if seen and r < 0.3:
+            p = seen[-1].copy()  # held
+        elif len(seen) > 2 and r < 0.45:
+            p = seen[int(rng.integers(0, len(seen)))].copy()  # back to an older one
+        elif seen and r < 0.55:
+            p = seen[-1] + np.where(rng.random(len(span)) < 0.5, 50.0, 0.0) * span  # differs only beyond the clip
+        else:
+            p = rng.uniform(src.lower_mm - 0.1 * span, src.upper_mm + 0.1 * span)
+        seen.append(p)
+        rows = rows_a if k % 5 else rows_b
+        before = src._last.get(id(rows))
+        got = src.offsets_rows(p, rows)
+        reused += before is not None and before is src._last.get(id(rows))  # kept: the memory answered
+        fresh = dataclasses.replace(src, _rows={}).offsets_rows(p, rows)
+        assert got.tobytes() == fresh.tobytes(), k
+        got += 1.0  # the caller's copy
+    assert reused > 20
