@@ -97,7 +97,11 @@ def _cpu_figure(quick: bool, fast: bool) -> Figure:
 
             def stock_window() -> None:
                 goals = dict(face.pipeline.last_goals_tick)  # the head holds where the pipeline left it
-                FixedRateLoop(lambda _: stock.cycle(goals), RATE_HZ).run(duration_s=window_s)
+
+                def one_cycle(_: object) -> None:
+                    stock.cycle(goals)
+
+                FixedRateLoop(one_cycle, RATE_HZ).run(duration_s=window_s)
 
             ours: list[float] = []
             theirs: list[float] = []
