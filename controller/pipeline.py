@@ -21,7 +21,7 @@ from servoface.controller.frame import AUFrame
 from servoface.controller.pipeline_ahead import Ahead, Speculation
 from servoface.controller.telemetry import StrainedHealth
 from servoface.hardware.driver import Driver
-from servoface.hardware.snapshot import ChainSnapshot
+from servoface.hardware.snapshot import ChainSnapshot, peek_state
 from servoface.sim.errors import SimError
 from servoface.sim.face_model import FaceModel
 from servoface.sim.gate import GateConfig, ServoHealth, TwinGate
@@ -434,12 +434,14 @@ class Pipeline:
         back-off eases its goal. The next frame is then rate-checked from there, not from a goal the servo
         never got (which would let the gate pass a jump far beyond its step cap)."""
         changed: dict[int, int] = {}
+        servos, last = snapshot.servos, self.last_goals_tick
         for sid in self._ids:
-            state = snapshot.servos.get(sid)
-            if state is None or not state.torque_on or state.goal_tick is None:
+            peeked = peek_state(servos, sid)  # torque and goal only: no state built
+            if peeked is None or not peeked[0].torque_on or peeked[1] is None:
                 continue
-            if int(state.goal_tick) != self.last_goals_tick.get(sid):
-                changed[sid] = int(state.goal_tick)
+            goal_tick = int(peeked[1])
+            if goal_tick != last.get(sid):
+                changed[sid] = goal_tick
         if changed:
             self.last_goals_tick = {**self.last_goals_tick, **changed}
             self.gate.reset()  # its step memory no longer matches the wire: start from rest

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from servoface.hardware.snapshot import ChainSnapshot, FaultKind, ServoState
+from servoface.hardware.snapshot import ChainSnapshot, FaultKind, ServoState, peek_state
 from servoface.sim.gate import HealthPolicy, ServoHealth
 
 _HOT = {FaultKind.OVERHEATING, FaultKind.THERMAL_DERATE, FaultKind.THERMAL_TORQUE_OFF}
@@ -62,9 +62,15 @@ class StrainedHealth:
             self._policy = policy
         limits, ids, records = temperature_limits_c, self.ids, self._records
         out: dict[int, ServoHealth] = {}
-        for state in snapshot:
-            sid = state.servo_id
-            if sid not in ids or state.temperature_c is None:
+        servos = snapshot.servos
+        for sid in servos:
+            if sid not in ids:
+                continue
+            peeked = peek_state(servos, sid)  # health is made of slow fields only: no state built
+            if peeked is None:
+                continue
+            state = peeked[0]
+            if state.temperature_c is None:
                 continue
             limit_c = limits.get(sid)
             if limit_c is None:

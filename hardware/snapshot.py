@@ -115,6 +115,14 @@ class LazyServoStates(Mapping[int, ServoState]):
             self._items[servo_id] = item
         return item  # type: ignore[return-value]
 
+    def peek(self, servo_id: int) -> tuple[ServoState, Any]:
+        """(a state with this servo's fields except the four a capture holds, its ``goal_tick``) without
+        building its state: the capture's last state, or the state itself. KeyError for an unknown id."""
+        item = self._items[servo_id]
+        if type(item) is tuple:
+            return item[0], item[3]
+        return item, item.goal_tick  # type: ignore[union-attr]
+
     def __iter__(self) -> Iterator[int]:
         return iter(self._items)
 
@@ -126,6 +134,20 @@ class LazyServoStates(Mapping[int, ServoState]):
 
     def __repr__(self) -> str:
         return f"{{{', '.join(f'{k!r}: {v!r}' for k, v in self.items())}}}"
+
+
+def peek_state(servos: Mapping[int, ServoState], servo_id: int) -> tuple[ServoState, Any] | None:
+    """(a state whose fields are this servo's except ``position_tick``, ``position_t_s``, ``goal_tick`` and
+    ``stale``, its ``goal_tick``), or None for an id not in ``servos``. For a snapshot of the driver's
+    (`LazyServoStates`) the state is not built (a per-frame reader of slow fields and goals, e.g. health,
+    pays for no state); any other mapping gives the state itself."""
+    if type(servos) is LazyServoStates:
+        try:
+            return servos.peek(servo_id)
+        except KeyError:
+            return None
+    state = servos.get(servo_id)
+    return None if state is None else (state, state.goal_tick)
 
 
 @dataclass(frozen=True)

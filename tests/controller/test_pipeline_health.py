@@ -156,3 +156,29 @@ def test_speculation_for_a_planned_interval_gives_the_plain_steps(faces: tuple[F
     assert 60 < used < len(frames) - 10  # used on most frames, checked afresh on the others
     assert longer > 30  # mostly for an interval longer than the planned one (clean accepts)
     assert [g[1:] for g in plain.chain.goal_writes()] == [g[1:] for g in ahead.chain.goal_writes()]
+
+
+def test_strained_health_of_the_drivers_own_snapshots_equals_the_full_health_cut(faces: tuple[Face, Face]) -> None:
+    """On the driver's lazy snapshots (states not built: `peek_state`), with the emulated servos heating up
+    and pushing against obstacles, StrainedHealth is the strained part of `gate_health` of the built states."""
+    face, _ = faces
+    p = face.pipeline
+    policy = p.gate.config.health
+    strained = StrainedHealth(p._ids)
+    rng = np.random.default_rng(5)
+    ids = sorted(p._ids)
+    seen = 0
+    for step in range(240):
+        if step % 60 == 0:  # (temperatures are read round-robin: a servo's every few dozen cycles)
+            for sid in rng.choice(ids, size=8, replace=False).tolist():
+                limit = p.temperature_limits_c.get(sid, 70.0)
+                face.chain.servo(sid).temperature_c = float(limit - rng.choice([1, 3, 8, 30]))
+        if step % 25 == 0:
+            obstacle = face.chain.servo(int(rng.choice(ids)))
+            obstacle.set_obstacle(None if rng.random() < 0.3 else float(rng.integers(1500, 2500)))
+        snap = _snapshot(face)
+        got = strained(snap, p.temperature_limits_c, policy)  # peeks first: no state built yet
+        full = gate_health(snap, p.temperature_limits_c, p._ids)
+        assert got == {sid: h for sid, h in full.items() if h.strained(policy.hot_margin_c, policy.load_limit)}
+        seen += bool(got)
+    assert seen > 50  # strained servos were there to be found

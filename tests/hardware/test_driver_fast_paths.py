@@ -28,7 +28,7 @@ from servoface.hardware.goal_check import check_goals
 from servoface.hardware.registers import HardwareErrorBits, Register, model_by_name, span
 from servoface.hardware.servo_config import ServoSpec
 from servoface.hardware.servo_record import ServoRecord
-from servoface.hardware.snapshot import ChainSnapshot, FaultKind, LazyServoStates, build_state
+from servoface.hardware.snapshot import ChainSnapshot, FaultKind, LazyServoStates, ServoState, build_state, peek_state
 
 from tests.hardware.driver_helpers import DT_S, LIMITS, make_driver
 
@@ -340,3 +340,49 @@ def test_bus_stats_copy_equals_the_dataclass_built_copy(seed: int) -> None:
         assert got == want  # a copy, not a view
         with pytest.raises(dataclasses.FrozenInstanceError):
             got.timeouts = 0  # type: ignore[misc]
+
+
+_SLOW_FIELDS = tuple(
+    f.name
+    for f in dataclasses.fields(ServoState)
+    if f.name not in ("position_tick", "position_t_s", "goal_tick", "stale")
+)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_peeking_a_lazy_snapshot_gives_the_built_states_slow_fields_and_goal(seed: int) -> None:
+    """`peek_state` on the driver's snapshots (captures and states alike, peeked before or after the states
+    are built, and on earlier snapshots after the records moved on) equals the states' own fields."""
+    rng = random.Random(seed)
+    chain, driver = make_driver(ids=(1, 2, 3))
+    kept: list[ChainSnapshot] = []
+    captures = 0
+    for step in range(150):
+        goals = {sid: rng.randint(1500, 2500) for sid in (1, 2, 3) if rng.random() < 0.7}
+        if step % 40 == 20:
+            chain.servo(rng.choice((1, 2, 3))).temperature_c = rng.choice([40.0, 66.0])
+        snap = driver.cycle(goals)
+        chain.advance(DT_S)
+        captures += sum(type(item) is tuple for item in snap.servos._items.values())  # type: ignore[attr-defined]
+        if rng.random() < 0.3:
+            kept.append(snap)
+            continue
+        for sid in (1, 2, 3):
+            if rng.random() < 0.3:
+                snap.servos[sid]  # built first, then peeked
+            _same_as_built(snap, sid)
+        assert peek_state(snap.servos, 9) is None
+    assert captures > 100  # most servos were captures, not states
+    for snap in kept:  # peeked after later cycles moved the records on
+        for sid in (1, 2, 3):
+            _same_as_built(snap, sid)
+
+
+def _same_as_built(snap: ChainSnapshot, sid: int) -> None:
+    peeked = peek_state(snap.servos, sid)
+    assert peeked is not None
+    state = snap.servos[sid]
+    assert peeked[1] == state.goal_tick
+    assert all(getattr(peeked[0], name) == getattr(state, name) for name in _SLOW_FIELDS)
+    plain = peek_state(dict(snap.servos), sid)  # any other mapping: the state itself
+    assert plain is not None and plain[0] is state and plain[1] == state.goal_tick
