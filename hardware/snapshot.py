@@ -119,9 +119,9 @@ class LazyServoStates(Mapping[int, ServoState]):
         """(a state with this servo's fields except the four a capture holds, its ``goal_tick``) without
         building its state: the capture's last state, or the state itself. KeyError for an unknown id."""
         item = self._items[servo_id]
-        if type(item) is tuple:
+        if isinstance(item, tuple):
             return item[0], item[3]
-        return item, item.goal_tick  # type: ignore[union-attr]
+        return item, item.goal_tick
 
     def __iter__(self) -> Iterator[int]:
         return iter(self._items)
