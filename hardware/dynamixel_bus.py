@@ -33,6 +33,7 @@ from servoface.hardware.errors import (
 from servoface.hardware.latency import read_latency_timer, sdk_latency_ms, warn_if_high
 from servoface.hardware.port_lock import PortLock
 from servoface.hardware.registers import STATUS_ALERT_BIT, STATUS_ERROR_NAMES, Register, slice_value, span
+from servoface.hardware.stuffing import add_stuffing_is_identity, remove_stuffing_is_identity
 
 SDK_BAUDS = (
     9600,
@@ -63,6 +64,7 @@ MAX_WINDOW_EXTENSION_MS = 100.0
 MAX_STRAY_PACKETS = 8  # late status packets of other ids skipped before a Fast Sync Read's combined reply
 _PKT_ID = sdk.protocol2_packet_handler.PKT_ID
 _PKT_PARAMETER0 = sdk.protocol2_packet_handler.PKT_PARAMETER0
+_TXPACKET_MAX_LEN = sdk.protocol2_packet_handler.TXPACKET_MAX_LEN
 
 
 class TableCrcPacketHandler(sdk.Protocol2PacketHandler):  # type: ignore[misc]
@@ -78,6 +80,19 @@ class TableCrcPacketHandler(sdk.Protocol2PacketHandler):  # type: ignore[misc]
             except (TypeError, ValueError):
                 pass
         return int(super().updateCRC(crc_accum, data_blk_ptr, data_blk_size))
+
+    def addStuffing(self, packet: Any) -> Any:  # noqa: N802 - SDK name
+        """The SDK's, but a packet with no ``FF FF FD`` to stuff (nearly every one) is checked by one
+        ``bytes.find`` and returned as it is, as the SDK's loop would leave it (`servoface.hardware.stuffing`)."""
+        if add_stuffing_is_identity(packet, _TXPACKET_MAX_LEN):
+            return packet
+        return super().addStuffing(packet)
+
+    def removeStuffing(self, packet: Any) -> Any:  # noqa: N802 - SDK name
+        """The SDK's, but a status packet with no ``FF FF FD FD`` is returned as it is, as its loop would."""
+        if remove_stuffing_is_identity(packet):
+            return packet
+        return super().removeStuffing(packet)
 
 
 class ChainLike(Protocol):
