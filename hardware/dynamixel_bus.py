@@ -11,6 +11,7 @@ latency timer, see `servoface.hardware.latency`), so two buses in one process do
 
 from __future__ import annotations
 
+import os
 import select
 import threading
 import time
@@ -19,6 +20,7 @@ from types import TracebackType
 from typing import Any, Protocol
 
 import dynamixel_sdk as sdk
+import serial
 from servoface.hardware.bus import BusStats, PingReply, check_ids
 from servoface.hardware.crc16 import crc16
 from servoface.hardware.errors import (
@@ -65,6 +67,12 @@ MAX_STRAY_PACKETS = 8  # late status packets of other ids skipped before a Fast 
 _PKT_ID = sdk.protocol2_packet_handler.PKT_ID
 _PKT_PARAMETER0 = sdk.protocol2_packet_handler.PKT_PARAMETER0
 _TXPACKET_MAX_LEN = sdk.protocol2_packet_handler.TXPACKET_MAX_LEN
+try:
+    from serial.serialposix import Serial as _posix_serial
+
+    _PosixSerial: type | None = _posix_serial
+except ImportError:  # not posix: pyserial's own read (see _WindowedPort._read_some)
+    _PosixSerial = None
 
 
 class TableCrcPacketHandler(sdk.Protocol2PacketHandler):  # type: ignore[misc]
@@ -139,7 +147,7 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
         if len(ahead) >= length:
             self._rx_ahead = ahead[length:]
             return ahead[:length]
-        got: bytes = self.ser.read(max(length - len(ahead), READ_AHEAD_BYTES))
+        got = self._read_some(max(length - len(ahead), READ_AHEAD_BYTES))
         data = ahead + got if ahead else got
         self._rx_ahead = data[length:]
         data = data[:length]
@@ -152,6 +160,39 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
             elif threading.active_count() > 1:
                 time.sleep(0)
         return data
+
+    _raw_read: bool = False  # self.ser is pyserial's own posix Serial: read its fd directly (see _read_some)
+
+    def _read_some(self, size: int) -> bytes:
+        """``self.ser.read(size)`` on a port opened with ``timeout=0`` (as the SDK opens it), for pyserial's
+        posix ``Serial`` by ``os.read`` on its fd first, instead of pyserial's ``select`` (timeout 0) then
+        ``os.read``: a read that gets bytes costs one system call instead of two. The same bytes (one read
+        of what has arrived) and the same errors: a read of 0 bytes is either nothing waiting (pyserial's
+        raw mode, VMIN = VTIME = 0) or the far end gone, told apart by pyserial's own ``select`` — readable
+        and still 0 bytes is pyserial's "device reports readiness" ``SerialException``; an OSError is its
+        ``read failed`` one; EAGAIN / EINTR nothing; a closed port pyserial's own ``PortNotOpenError``. Not
+        taken: pyserial's ``cancel_read`` pipe, which nothing here uses (tests/hardware/test_bus_fast_read.py)."""
+        ser = self.ser
+        if not (self._raw_read and ser.is_open):
+            got: bytes = ser.read(size)
+            return got
+        fd = ser.fd
+        try:
+            got = os.read(fd, size)
+            if not got:  # nothing waiting (VMIN = VTIME = 0 reads 0 bytes, not EAGAIN) or the far end gone:
+                if not select.select([fd], [], [], 0)[0]:  # pyserial's own test, only when nothing came
+                    return b""
+                got = os.read(fd, size)  # readable: what arrived in between, or nothing (hung up)
+        except (BlockingIOError, InterruptedError):
+            return b""  # pyserial ignores EAGAIN / EINTR (and returns what it has: nothing)
+        except OSError as err:
+            raise serial.SerialException(f"read failed: {err}") from err
+        if not got:
+            raise serial.SerialException(
+                "device reports readiness to read but returned no data "
+                "(device disconnected or multiple access on port?)"
+            )
+        return got
 
     def _fileno(self) -> int | None:
         """The serial object's file descriptor (None for an in-process chain), looked up once per open."""
@@ -167,7 +208,12 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
     def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 (SDK name)
         self._fd = -2
         self._rx_ahead = b""
+        self._raw_read = False
         ok: bool = super().setupPort(cflag_baud)
+        ser: Any = self.ser  # the SDK's serial.Serial(..., timeout=0), its read not replaced
+        self._raw_read = bool(
+            ok and type(ser) is _PosixSerial and "read" not in vars(ser) and ser.timeout == 0 and ser.is_open
+        )
         return ok
 
     def clearPort(self) -> None:  # noqa: N802 (SDK name)
@@ -177,6 +223,8 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
 
     def closePort(self) -> None:  # noqa: N802 (SDK name)
         self._rx_ahead = b""
+        self._raw_read = False
+        self._fd = -2
         super().closePort()
 
     def getBytesAvailable(self) -> int:  # noqa: N802 (SDK name)
