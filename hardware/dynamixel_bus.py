@@ -211,9 +211,8 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
         self._raw_read = False
         ok: bool = super().setupPort(cflag_baud)
         ser: Any = self.ser  # the SDK's serial.Serial(..., timeout=0), its read not replaced
-        self._raw_read = bool(
-            ok and type(ser) is _PosixSerial and "read" not in vars(ser) and ser.timeout == 0 and ser.is_open
-        )
+        posix = _PosixSerial is not None and type(ser) is _PosixSerial
+        self._raw_read = bool(ok and posix and "read" not in vars(ser) and ser.timeout == 0 and ser.is_open)
         return ok
 
     def clearPort(self) -> None:  # noqa: N802 (SDK name)
