@@ -71,7 +71,7 @@ try:
     from serial.serialposix import Serial as _posix_serial
 
     _PosixSerial: type | None = _posix_serial
-except ImportError:  # not posix: pyserial's own read (see _WindowedPort._read_some)
+except ImportError:  # not posix: pyserial's own read (see _WindowedPort._read_raw)
     _PosixSerial = None
 
 
@@ -140,18 +140,30 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
         asks for a header, then the rest, per packet: two or more reads per status packet, ~10 us of
         pyserial each); the bytes and their order are the same. And an empty read does not spin blindly
         (the SDK waits for replies in a busy loop): until the instruction has left and ``length`` bytes
-        could have come back, sleep (frees the core); after that, yield the GIL only when other threads
-        run (an in-process pty server, the caller's own threads: the busy loop would starve them for the
-        5 ms switch interval per turn). ``sleep(0)`` on every empty read cost ~0.1 ms each under load."""
+        could have come back, sleep (frees the core); after that, a port with a file descriptor blocks in
+        ``select`` until bytes come (pyserial's own port: until the end of the reply window, `_raw_read`;
+        another: 1 ms at most); an in-process chain yields the GIL only when other threads run (an
+        in-process pty server, the caller's own threads: the busy loop would starve them for the 5 ms
+        switch interval per turn). ``sleep(0)`` on every empty read cost ~0.1 ms each under load."""
         ahead = self._rx_ahead
         if len(ahead) >= length:
             self._rx_ahead = ahead[length:]
             return ahead[:length]
-        got = self._read_some(max(length - len(ahead), READ_AHEAD_BYTES))
+        size = max(length - len(ahead), READ_AHEAD_BYTES)
+        ser = self.ser
+        if self._raw_read and ser.is_open:
+            if not ahead:
+                got = self._read_raw(ser.fd, size, self._wait_s(length))
+                if not got:  # waited; what came meanwhile is in _rx_ahead, for the next read
+                    return got
+            else:
+                got = self._read_raw(ser.fd, size, 0.0)
+        else:
+            got = ser.read(size)
         data = ahead + got if ahead else got
         self._rx_ahead = data[length:]
         data = data[:length]
-        if not data:
+        if not data and not (self._raw_read and ser.is_open):
             wait_s = self.tx_done_s + length * self.tx_time_per_byte * 1e-3 - time.monotonic()
             if wait_s > NAP_MIN_S:
                 time.sleep(wait_s - NAP_MARGIN_S)
@@ -161,33 +173,47 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
                 time.sleep(0)
         return data
 
-    _raw_read: bool = False  # self.ser is pyserial's own posix Serial: read its fd directly (see _read_some)
+    _raw_read: bool = False  # self.ser is pyserial's own posix Serial: read its fd directly (see _read_raw)
 
-    def _read_some(self, size: int) -> bytes:
-        """``self.ser.read(size)`` on a port opened with ``timeout=0`` (as the SDK opens it), for pyserial's
-        posix ``Serial`` by ``os.read`` on its fd first, instead of pyserial's ``select`` (timeout 0) then
-        ``os.read``: a read that gets bytes costs one system call instead of two. The same bytes (one read
-        of what has arrived) and the same errors: a read of 0 bytes is either nothing waiting (pyserial's
-        raw mode, VMIN = VTIME = 0) or the far end gone, told apart by pyserial's own ``select`` — readable
-        and still 0 bytes is pyserial's "device reports readiness" ``SerialException``; an OSError is its
-        ``read failed`` one; EAGAIN / EINTR nothing; a closed port pyserial's own ``PortNotOpenError``. Not
-        taken: pyserial's ``cancel_read`` pipe, which nothing here uses (tests/hardware/test_bus_fast_read.py)."""
-        ser = self.ser
-        if not (self._raw_read and ser.is_open):
-            got: bytes = ser.read(size)
-            return got
-        fd = ser.fd
+    def _wait_s(self, length: int) -> float:
+        """How long an empty read of ``length`` bytes waits for bytes: until they could have come back
+        (the instruction out, ``length`` bytes in: no reply can be sooner) less the wake-up margin; once
+        they could, until the end of the reply window (a reply wakes it the moment it arrives), at
+        least ``POLL_SLICE_S`` (how long the window end may be overrun, as before: ``isPacketTimeout``
+        keeps it open while bytes are waiting)."""
+        now = time.monotonic()
+        nap_s = self.tx_done_s + length * self.tx_time_per_byte * 1e-3 - now
+        if nap_s > NAP_MIN_S:
+            return nap_s - NAP_MARGIN_S
+        window_s = float(self.packet_start_time + self.packet_timeout) * 1e-3 - now
+        return window_s if window_s > POLL_SLICE_S else POLL_SLICE_S
+
+    def _read_raw(self, fd: int, size: int, wait_s: float) -> bytes:
+        """pyserial's ``read(size)`` (the SDK opens the port with ``timeout=0``), then, if it got nothing,
+        the empty read's wait, in ``os.read`` / ``select`` on the port's fd instead of pyserial's
+        ``select`` (timeout 0) then ``os.read`` and a separate wait: a read that gets bytes is one system
+        call, an empty one and its wait two. The same bytes (one read of what has arrived) and the same
+        errors: a read of 0 bytes is nothing waiting (pyserial's raw mode, VMIN = VTIME = 0) or the far end
+        gone, told apart by ``select`` as pyserial does — readable and still 0 bytes is pyserial's "device
+        reports readiness" ``SerialException``; an OSError is its ``read failed`` one; EAGAIN / EINTR
+        nothing. Bytes that arrive during the wait are kept for the next read (`_rx_ahead`) and this one
+        returns nothing, as the SDK's read before the wait did: its ``rxPacket`` checks the reply window
+        between the two as before. Not taken: pyserial's ``cancel_read`` pipe, which nothing here uses
+        (tests/hardware/test_bus_fast_read.py)."""
+        hung_up = False
         try:
             got = os.read(fd, size)
-            if not got:  # nothing waiting (VMIN = VTIME = 0 reads 0 bytes, not EAGAIN) or the far end gone:
-                if not select.select([fd], [], [], 0)[0]:  # pyserial's own test, only when nothing came
-                    return b""
-                got = os.read(fd, size)  # readable: what arrived in between, or nothing (hung up)
+            if not got:
+                if select.select([fd], [], [], wait_s)[0]:
+                    got = os.read(fd, size)  # what arrived since the first read, or nothing (hung up)
+                    hung_up = not got
+                    if got and wait_s > 0.0:  # arrived during the wait: the next read's
+                        self._rx_ahead, got = got, b""
         except (BlockingIOError, InterruptedError):
             return b""  # pyserial ignores EAGAIN / EINTR (and returns what it has: nothing)
         except OSError as err:
             raise serial.SerialException(f"read failed: {err}") from err
-        if not got:
+        if hung_up:
             raise serial.SerialException(
                 "device reports readiness to read but returned no data "
                 "(device disconnected or multiple access on port?)"

@@ -9,6 +9,7 @@ import errno
 import os
 import random
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -16,7 +17,7 @@ from typing import Any
 import pytest
 from servoface.hardware.bus import open_bus
 from servoface.hardware.driver import Driver
-from servoface.hardware.dynamixel_bus import DynamixelBus, _WindowedPort
+from servoface.hardware.dynamixel_bus import DynamixelBus, TableCrcPacketHandler, _WindowedPort, sdk
 from servoface.hardware.emulator import ServoChain
 from servoface.hardware.registers import Register
 from servoface.hardware.servo_config import ServoSpec
@@ -46,7 +47,7 @@ class _Pty:
 
     def read(self, size: int) -> tuple[str, Any]:
         try:
-            return "ok", self.port._read_some(size)
+            return "ok", self.port.readPort(size)
         except Exception as err:
             return type(err).__name__, str(err)
 
@@ -220,3 +221,42 @@ def _disconnect(raw: bool, stage: str) -> list[tuple[str, str, Any]]:
 def test_a_vanished_pty_is_the_same_disconnect(stage: str) -> None:
     theirs, ours = _disconnect(False, stage), _disconnect(True, stage)
     assert ours == theirs
+
+
+def _later(p: _Pty, data: bytes, after_s: float) -> threading.Thread:
+    t = threading.Thread(target=lambda: (time.sleep(after_s), os.write(p.master, data)))
+    t.start()
+    return t
+
+
+def test_bytes_that_come_during_the_wait_are_the_next_reads(ptys: tuple[_Pty, _Pty]) -> None:
+    """An empty read waits (until the reply window ends) and wakes when bytes come: it returns nothing, as
+    pyserial's read before the wait did, and the next read gets them — the SDK checks its window in between."""
+    reads: list[list[bytes]] = []
+    for p in ptys:
+        p.port.setPacketTimeoutMillis(5000.0)
+        t = _later(p, b"\xff\xff\xfd\x00\x07", 0.02)
+        got = [p.port.readPort(11)]
+        while not got[-1]:
+            got.append(p.port.readPort(11))
+        t.join()
+        reads.append(got)
+    theirs, ours = reads
+    assert ours == [b"", b"\xff\xff\xfd\x00\x07"]  # one wait, woken by the bytes
+    assert theirs[-1] == ours[-1] and not any(theirs[:-1])
+
+
+@pytest.mark.parametrize("arrives", [None, b"\xff\xff\xfd\x00\x01\x03\x00\x55\x00"])
+def test_the_sdk_reply_window_ends_as_before(ptys: tuple[_Pty, _Pty], arrives: bytes | None) -> None:
+    """The SDK's rxPacket on either port: nothing (timeout) or a truncated packet (corrupt) in its window."""
+    packet = TableCrcPacketHandler()
+    results = []
+    for p in ptys:
+        p.port.setPacketTimeout(11)
+        t = _later(p, arrives, 0.002) if arrives else None
+        rx, comm = packet.rxPacket(p.port, False)
+        if t is not None:
+            t.join()
+        results.append((list(rx), comm))
+    assert results[0] == results[1]
+    assert results[1][1] == (sdk.COMM_RX_TIMEOUT if arrives is None else sdk.COMM_RX_CORRUPT)
