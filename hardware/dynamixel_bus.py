@@ -182,10 +182,10 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
         least ``POLL_SLICE_S`` (how long the window end may be overrun, as before: ``isPacketTimeout``
         keeps it open while bytes are waiting)."""
         now = time.monotonic()
-        nap_s = self.tx_done_s + length * self.tx_time_per_byte * 1e-3 - now
+        nap_s: float = self.tx_done_s + length * self.tx_time_per_byte * 1e-3 - now
         if nap_s > NAP_MIN_S:
             return nap_s - NAP_MARGIN_S
-        window_s = float(self.packet_start_time + self.packet_timeout) * 1e-3 - now
+        window_s: float = (self.packet_start_time + self.packet_timeout) * 1e-3 - now
         return window_s if window_s > POLL_SLICE_S else POLL_SLICE_S
 
     def _read_raw(self, fd: int, size: int, wait_s: float) -> bytes:
