@@ -67,6 +67,12 @@ MAX_STRAY_PACKETS = 8  # late status packets of other ids skipped before a Fast 
 _PKT_ID = sdk.protocol2_packet_handler.PKT_ID
 _PKT_PARAMETER0 = sdk.protocol2_packet_handler.PKT_PARAMETER0
 _TXPACKET_MAX_LEN = sdk.protocol2_packet_handler.TXPACKET_MAX_LEN
+try:  # pyserial's tcflush (the SDK's clearPort before every instruction) on a vanished device or pty
+    import termios  # raises termios.error (EIO), which is no OSError: a disconnect all the same
+
+    _PORT_ERRORS: tuple[type[Exception], ...] = (OSError, termios.error)
+except ImportError:
+    _PORT_ERRORS = (OSError,)
 try:
     from serial.serialposix import Serial as _posix_serial
 
@@ -443,7 +449,7 @@ class DynamixelBus:
             raise BusClosedError(f"bus on {self.port_name} is not open")
         try:
             return fn(*args)
-        except OSError as err:  # pyserial's SerialException is an OSError
+        except _PORT_ERRORS as err:  # pyserial's SerialException is an OSError; termios.error is not
             self._port.is_using = False
             raise BusDisconnectedError(f"port {self.port_name} failed: {err}") from err
         except (IndexError, TypeError) as err:  # the SDK indexing a short/odd reply

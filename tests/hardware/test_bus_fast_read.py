@@ -260,3 +260,14 @@ def test_the_sdk_reply_window_ends_as_before(ptys: tuple[_Pty, _Pty], arrives: b
         results.append((list(rx), comm))
     assert results[0] == results[1]
     assert results[1][1] == (sdk.COMM_RX_TIMEOUT if arrives is None else sdk.COMM_RX_CORRUPT)
+
+
+def test_a_vanished_pty_is_a_disconnect_for_the_driver() -> None:
+    """The SDK's clearPort (pyserial's tcflush) on a vanished pty raises termios.error, no OSError: it is a
+    `BusDisconnectedError` as pyserial's read errors are, so the driver reacts as to an unplugged adapter
+    (everything missing, DISCONNECTED) instead of raising it, then "port in use" on every later cycle."""
+    before, _, during = (_disconnect(True, stage) for stage in ("before", "during", "driver"))
+    assert before[0][0] == "BusDisconnectedError" and "Input/output error" in before[0][1]
+    assert all(kind == "ok" for kind, _, _ in during)
+    connected, missing, kinds = during[0][2]
+    assert connected is False and all(missing) and "DISCONNECTED" in kinds
