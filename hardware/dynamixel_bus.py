@@ -11,6 +11,7 @@ latency timer, see `servoface.hardware.latency`), so two buses in one process do
 
 from __future__ import annotations
 
+import os
 import select
 import threading
 import time
@@ -19,6 +20,7 @@ from types import TracebackType
 from typing import Any, Protocol
 
 import dynamixel_sdk as sdk
+import serial
 from servoface.hardware.bus import BusStats, PingReply, check_ids
 from servoface.hardware.crc16 import crc16
 from servoface.hardware.errors import (
@@ -33,6 +35,7 @@ from servoface.hardware.errors import (
 from servoface.hardware.latency import read_latency_timer, sdk_latency_ms, warn_if_high
 from servoface.hardware.port_lock import PortLock
 from servoface.hardware.registers import STATUS_ALERT_BIT, STATUS_ERROR_NAMES, Register, slice_value, span
+from servoface.hardware.stuffing import add_stuffing_is_identity, remove_stuffing_is_identity
 
 SDK_BAUDS = (
     9600,
@@ -63,6 +66,19 @@ MAX_WINDOW_EXTENSION_MS = 100.0
 MAX_STRAY_PACKETS = 8  # late status packets of other ids skipped before a Fast Sync Read's combined reply
 _PKT_ID = sdk.protocol2_packet_handler.PKT_ID
 _PKT_PARAMETER0 = sdk.protocol2_packet_handler.PKT_PARAMETER0
+_TXPACKET_MAX_LEN = sdk.protocol2_packet_handler.TXPACKET_MAX_LEN
+try:  # pyserial's tcflush (the SDK's clearPort before every instruction) on a vanished device or pty
+    import termios  # raises termios.error (EIO), which is no OSError: a disconnect all the same
+
+    _PORT_ERRORS: tuple[type[Exception], ...] = (OSError, termios.error)
+except ImportError:
+    _PORT_ERRORS = (OSError,)
+try:
+    from serial.serialposix import Serial as _posix_serial
+
+    _PosixSerial: type | None = _posix_serial
+except ImportError:  # not posix: pyserial's own read (see _WindowedPort._read_raw)
+    _PosixSerial = None
 
 
 class TableCrcPacketHandler(sdk.Protocol2PacketHandler):  # type: ignore[misc]
@@ -78,6 +94,19 @@ class TableCrcPacketHandler(sdk.Protocol2PacketHandler):  # type: ignore[misc]
             except (TypeError, ValueError):
                 pass
         return int(super().updateCRC(crc_accum, data_blk_ptr, data_blk_size))
+
+    def addStuffing(self, packet: Any) -> Any:  # noqa: N802 - SDK name
+        """The SDK's, but a packet with no ``FF FF FD`` to stuff (nearly every one) is checked by one
+        ``bytes.find`` and returned as it is, as the SDK's loop would leave it (`servoface.hardware.stuffing`)."""
+        if add_stuffing_is_identity(packet, _TXPACKET_MAX_LEN):
+            return packet
+        return super().addStuffing(packet)
+
+    def removeStuffing(self, packet: Any) -> Any:  # noqa: N802 - SDK name
+        """The SDK's, but a status packet with no ``FF FF FD FD`` is returned as it is, as its loop would."""
+        if remove_stuffing_is_identity(packet):
+            return packet
+        return super().removeStuffing(packet)
 
 
 class ChainLike(Protocol):
@@ -117,18 +146,30 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
         asks for a header, then the rest, per packet: two or more reads per status packet, ~10 us of
         pyserial each); the bytes and their order are the same. And an empty read does not spin blindly
         (the SDK waits for replies in a busy loop): until the instruction has left and ``length`` bytes
-        could have come back, sleep (frees the core); after that, yield the GIL only when other threads
-        run (an in-process pty server, the caller's own threads: the busy loop would starve them for the
-        5 ms switch interval per turn). ``sleep(0)`` on every empty read cost ~0.1 ms each under load."""
+        could have come back, sleep (frees the core); after that, a port with a file descriptor blocks in
+        ``select`` until bytes come (pyserial's own port: until the end of the reply window, `_raw_read`;
+        another: 1 ms at most); an in-process chain yields the GIL only when other threads run (an
+        in-process pty server, the caller's own threads: the busy loop would starve them for the 5 ms
+        switch interval per turn). ``sleep(0)`` on every empty read cost ~0.1 ms each under load."""
         ahead = self._rx_ahead
         if len(ahead) >= length:
             self._rx_ahead = ahead[length:]
             return ahead[:length]
-        got: bytes = self.ser.read(max(length - len(ahead), READ_AHEAD_BYTES))
+        size = max(length - len(ahead), READ_AHEAD_BYTES)
+        ser = self.ser
+        if self._raw_read and ser.is_open:
+            if not ahead:
+                got = self._read_raw(ser.fd, size, self._wait_s(length))
+                if not got:  # waited; what came meanwhile is in _rx_ahead, for the next read
+                    return got
+            else:
+                got = self._read_raw(ser.fd, size, 0.0)
+        else:
+            got = ser.read(size)
         data = ahead + got if ahead else got
         self._rx_ahead = data[length:]
         data = data[:length]
-        if not data:
+        if not data and not (self._raw_read and ser.is_open):
             wait_s = self.tx_done_s + length * self.tx_time_per_byte * 1e-3 - time.monotonic()
             if wait_s > NAP_MIN_S:
                 time.sleep(wait_s - NAP_MARGIN_S)
@@ -137,6 +178,53 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
             elif threading.active_count() > 1:
                 time.sleep(0)
         return data
+
+    _raw_read: bool = False  # self.ser is pyserial's own posix Serial: read its fd directly (see _read_raw)
+
+    def _wait_s(self, length: int) -> float:
+        """How long an empty read of ``length`` bytes waits for bytes: until they could have come back
+        (the instruction out, ``length`` bytes in: no reply can be sooner) less the wake-up margin; once
+        they could, until the end of the reply window (a reply wakes it the moment it arrives), at
+        least ``POLL_SLICE_S`` (how long the window end may be overrun, as before: ``isPacketTimeout``
+        keeps it open while bytes are waiting)."""
+        now = time.monotonic()
+        nap_s: float = self.tx_done_s + length * self.tx_time_per_byte * 1e-3 - now
+        if nap_s > NAP_MIN_S:
+            return nap_s - NAP_MARGIN_S
+        window_s: float = (self.packet_start_time + self.packet_timeout) * 1e-3 - now
+        return window_s if window_s > POLL_SLICE_S else POLL_SLICE_S
+
+    def _read_raw(self, fd: int, size: int, wait_s: float) -> bytes:
+        """pyserial's ``read(size)`` (the SDK opens the port with ``timeout=0``), then, if it got nothing,
+        the empty read's wait, in ``os.read`` / ``select`` on the port's fd instead of pyserial's
+        ``select`` (timeout 0) then ``os.read`` and a separate wait: a read that gets bytes is one system
+        call, an empty one and its wait two. The same bytes (one read of what has arrived) and the same
+        errors: a read of 0 bytes is nothing waiting (pyserial's raw mode, VMIN = VTIME = 0) or the far end
+        gone, told apart by ``select`` as pyserial does — readable and still 0 bytes is pyserial's "device
+        reports readiness" ``SerialException``; an OSError is its ``read failed`` one; EAGAIN / EINTR
+        nothing. Bytes that arrive during the wait are kept for the next read (`_rx_ahead`) and this one
+        returns nothing, as the SDK's read before the wait did: its ``rxPacket`` checks the reply window
+        between the two as before. Not taken: pyserial's ``cancel_read`` pipe, which nothing here uses
+        (tests/hardware/test_bus_fast_read.py)."""
+        hung_up = False
+        try:
+            got = os.read(fd, size)
+            if not got:
+                if select.select([fd], [], [], wait_s)[0]:
+                    got = os.read(fd, size)  # what arrived since the first read, or nothing (hung up)
+                    hung_up = not got
+                    if got and wait_s > 0.0:  # arrived during the wait: the next read's
+                        self._rx_ahead, got = got, b""
+        except (BlockingIOError, InterruptedError):
+            return b""  # pyserial ignores EAGAIN / EINTR (and returns what it has: nothing)
+        except OSError as err:
+            raise serial.SerialException(f"read failed: {err}") from err
+        if hung_up:
+            raise serial.SerialException(
+                "device reports readiness to read but returned no data "
+                "(device disconnected or multiple access on port?)"
+            )
+        return got
 
     def _fileno(self) -> int | None:
         """The serial object's file descriptor (None for an in-process chain), looked up once per open."""
@@ -152,7 +240,11 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
     def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802 (SDK name)
         self._fd = -2
         self._rx_ahead = b""
+        self._raw_read = False
         ok: bool = super().setupPort(cflag_baud)
+        ser: Any = self.ser  # the SDK's serial.Serial(..., timeout=0), its read not replaced
+        posix = _PosixSerial is not None and type(ser) is _PosixSerial
+        self._raw_read = bool(ok and posix and "read" not in vars(ser) and ser.timeout == 0 and ser.is_open)
         return ok
 
     def clearPort(self) -> None:  # noqa: N802 (SDK name)
@@ -162,6 +254,8 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
 
     def closePort(self) -> None:  # noqa: N802 (SDK name)
         self._rx_ahead = b""
+        self._raw_read = False
+        self._fd = -2
         super().closePort()
 
     def getBytesAvailable(self) -> int:  # noqa: N802 (SDK name)
@@ -355,7 +449,7 @@ class DynamixelBus:
             raise BusClosedError(f"bus on {self.port_name} is not open")
         try:
             return fn(*args)
-        except OSError as err:  # pyserial's SerialException is an OSError
+        except _PORT_ERRORS as err:  # pyserial's SerialException is an OSError; termios.error is not
             self._port.is_using = False
             raise BusDisconnectedError(f"port {self.port_name} failed: {err}") from err
         except (IndexError, TypeError) as err:  # the SDK indexing a short/odd reply
