@@ -246,7 +246,8 @@ class TwinGate:
             return out
         active = self.skin.fast_vertices
         offsets = self.skin_source.offsets_rows(pulls[0], active)
-        stretch, comp, flips = self.skin.measure_one(world[0], offsets, self._static(goal))
+        key = self.skin_source.rows_key(active)
+        stretch, comp, flips = self.skin.measure_one(world[0], offsets, self._static(goal), key)
         out += strain_findings(stretch, comp, flips, self.config.strain)
         if out and stop_early:
             return out
@@ -315,7 +316,8 @@ class TwinGate:
             dots = probe_dots(self.skin, world, offsets, self._flip_probe)
             if int(np.count_nonzero(dots <= 0.0)) + self.skin.const_flips + static[2] > s.max_flipped:
                 return False
-        stretch, comp, flips, flipped = self.skin.measure_one_faces(world, offsets, static)
+        key = self.skin_source.rows_key(self.skin.fast_vertices)
+        stretch, comp, flips, flipped = self.skin.measure_one_faces(world, offsets, static, key)
         if probe and flips > s.max_flipped:  # probe these triangles on the next candidates
             faces = np.flatnonzero(flipped)
             self._flip_probe = flip_probe(self.skin, faces) if len(faces) else None

@@ -80,6 +80,12 @@ class SkinSource:
         self._last[key] = (rows, p_key, c_key, out.copy())
         return out
 
+    def rows_key(self, rows: NDArray[np.int64]) -> bytes | None:
+        """What the last `offsets_rows` answer for ``rows`` was computed from (clipped pulls and fitted
+        contractions): equal keys mean equal offsets. None before any."""
+        last = self._last.get(id(rows))
+        return None if last is None or last[0] is not rows else last[1] + b"|" + last[2]
+
     def _offsets_rows(
         self, p: FloatArray, c: FloatArray | None, rows: NDArray[np.int64], bumps: Any, base: FloatArray
     ) -> FloatArray:

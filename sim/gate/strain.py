@@ -17,6 +17,7 @@ from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.verdict import Finding
 
 FloatArray = NDArray[np.float64]
+_Measured = tuple[float, float, int, NDArray[np.bool_]]  # `SkinTwin.measure_one_faces`' answer
 
 
 @dataclass(frozen=True)
@@ -101,6 +102,9 @@ class SkinTwin:
         self.n_active_edges = int(act_e.sum())
         self.n_active_faces = int(act_f.sum())
         self._fast_subset(np.ones(len(self._edges), dtype=bool), np.ones(len(self._faces), dtype=bool))
+        self._joints_used = [int(u) for u in self._used if u < self.weights.shape[1] - 1]  # the base slot left out
+        # `measure_one_faces`' last keyed answer: ((joints, offsets key, static, subset), answer)
+        self._last_one: tuple[tuple[bytes, bytes, tuple[float, float, int], int], _Measured] | None = None
 
     def _fast_subset(self, edges: NDArray[np.bool_], faces: NDArray[np.bool_]) -> None:
         """The active edges and faces `measure_one` measures (all of them, or the pull-driven ones), and
@@ -233,19 +237,48 @@ class SkinTwin:
         return stretch, comp, flipped.sum(axis=-1) + self._const_flips
 
     def measure_one(
-        self, world: FloatArray, offsets: FloatArray, static: tuple[float, float, int] = (0.0, np.inf, 0)
+        self,
+        world: FloatArray,
+        offsets: FloatArray,
+        static: tuple[float, float, int] = (0.0, np.inf, 0),
+        offsets_key: bytes | None = None,
     ) -> tuple[float, float, int]:
         """`measure_one_faces` without the flipped triangles."""
-        stretch, comp, flips, _ = self.measure_one_faces(world, offsets, static)
+        stretch, comp, flips, _ = self.measure_one_faces(world, offsets, static, offsets_key)
         return stretch, comp, flips
 
     def measure_one_faces(
-        self, world: FloatArray, offsets: FloatArray, static: tuple[float, float, int] = (0.0, np.inf, 0)
+        self,
+        world: FloatArray,
+        offsets: FloatArray,
+        static: tuple[float, float, int] = (0.0, np.inf, 0),
+        offsets_key: bytes | None = None,
     ) -> tuple[float, float, int, NDArray[np.bool_]]:
         """`measure` for one frame: (J, 4, 4) transforms and the offsets of the active vertices only
         (`fast_vertices`, (nv, 3)). Same quantities as `measure` (float32 from the transforms on, in
         place, each corner gathered once): about half its cost per frame. Also which measured triangles
-        flipped ((nf,) mask, in the order `FlipProbe` indexes them)."""
+        flipped ((nf,) mask, in the order `FlipProbe` indexes them).
+
+        ``offsets_key``: the caller's name for these offsets (equal keys for equal offsets, e.g.
+        `SkinSource.rows_key`): with it, the last answer is returned again for the same key, the same
+        transforms of the skinning joints and the same ``static`` (the numbers depend on nothing else)."""
+        key = None
+        if offsets_key is not None:
+            used = world[self._joints_used]
+            joints = used.dtype.str.encode() + str(used.shape).encode() + used.tobytes()
+            key = (joints, offsets_key, static, self.subset)
+            last = self._last_one
+            if last is not None and last[0] == key:
+                stretch, comp, flips, flipped = last[1]
+                return stretch, comp, flips, flipped.copy()  # a copy: the kept mask stays as computed
+        out = self._measure_one_faces(world, offsets, static)
+        if key is not None:
+            self._last_one = (key, (out[0], out[1], out[2], out[3].copy()))
+        return out
+
+    def _measure_one_faces(
+        self, world: FloatArray, offsets: FloatArray, static: tuple[float, float, int]
+    ) -> tuple[float, float, int, NDArray[np.bool_]]:
         mats = self._mats(world).astype(np.float32)  # (u, 12)
         m = mats.T @ self._fw_t32  # (12, nv)
         o = offsets.T.astype(np.float32)
