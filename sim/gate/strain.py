@@ -103,8 +103,8 @@ class SkinTwin:
         self.n_active_faces = int(act_f.sum())
         self._fast_subset(np.ones(len(self._edges), dtype=bool), np.ones(len(self._faces), dtype=bool))
         self._joints_used = [int(u) for u in self._used if u < self.weights.shape[1] - 1]  # the base slot left out
-        # `measure_one_faces`' last keyed answer: ((joints, offsets key, static, subset), answer)
-        self._last_one: tuple[tuple[bytes, bytes, tuple[float, float, int], int], _Measured] | None = None
+        # `measure_one_faces`' last keyed answer: (offsets key, static, subset, skinning joints' transforms, answer)
+        self._last_one: tuple[bytes, tuple[float, float, int], int, FloatArray, _Measured] | None = None
 
     def _fast_subset(self, edges: NDArray[np.bool_], faces: NDArray[np.bool_]) -> None:
         """The active edges and faces `measure_one` measures (all of them, or the pull-driven ones), and
@@ -244,7 +244,7 @@ class SkinTwin:
         offsets_key: bytes | None = None,
     ) -> tuple[float, float, int]:
         """`measure_one_faces` without the flipped triangles."""
-        stretch, comp, flips, _ = self.measure_one_faces(world, offsets, static, offsets_key)
+        stretch, comp, flips, _ = self._measured(world, offsets, static, offsets_key)
         return stretch, comp, flips
 
     def measure_one_faces(
@@ -262,18 +262,25 @@ class SkinTwin:
         ``offsets_key``: the caller's name for these offsets (equal keys for equal offsets, e.g.
         `SkinSource.rows_key`): with it, the last answer is returned again for the same key, the same
         transforms of the skinning joints and the same ``static`` (the numbers depend on nothing else)."""
-        key = None
-        if offsets_key is not None:
-            used = world[self._joints_used]
-            joints = used.dtype.str.encode() + str(used.shape).encode() + used.tobytes()
-            key = (joints, offsets_key, static, self.subset)
-            last = self._last_one
-            if last is not None and last[0] == key:
-                stretch, comp, flips, flipped = last[1]
-                return stretch, comp, flips, flipped.copy()  # a copy: the kept mask stays as computed
+        stretch, comp, flips, flipped = self._measured(world, offsets, static, offsets_key)
+        # with a key the mask is also the one kept: the caller gets a copy, so it cannot change a later answer
+        return stretch, comp, flips, (flipped if offsets_key is None else flipped.copy())
+
+    def _measured(
+        self, world: FloatArray, offsets: FloatArray, static: tuple[float, float, int], offsets_key: bytes | None
+    ) -> _Measured:
+        """`_measure_one_faces`, or its last keyed answer again (see `measure_one_faces`): the cheap parts of
+        the key are compared first, the skinning joints' transforms (dtype, shape, bytes) only when they agree."""
+        if offsets_key is None:
+            return self._measure_one_faces(world, offsets, static)
+        used = world[self._joints_used]  # a copy (integer index): the caller's later changes do not reach it
+        last = self._last_one
+        if last is not None and last[0] == offsets_key and last[1] == static and last[2] == self.subset:
+            kept = last[3]
+            if kept.dtype == used.dtype and kept.shape == used.shape and kept.tobytes() == used.tobytes():
+                return last[4]
         out = self._measure_one_faces(world, offsets, static)
-        if key is not None:
-            self._last_one = (key, (out[0], out[1], out[2], out[3].copy()))
+        self._last_one = (offsets_key, static, self.subset, used, out)
         return out
 
     def _measure_one_faces(

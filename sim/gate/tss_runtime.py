@@ -235,11 +235,16 @@ class TssBroadPhase:
         out = np.zeros((*lead, self.n_pairs), dtype=bool)
         if not len(self._always_idx):
             return out
-        eye = np.broadcast_to(np.eye(4), (*lead, 1, 4, 4))
-        full = np.concatenate([world, eye], axis=-3)
+        if lead:
+            eye = np.broadcast_to(np.eye(4), (*lead, 1, 4, 4))
+            full = np.concatenate([world, eye], axis=-3)
+        else:  # one pose: the base's identity appended as is (no broadcast view)
+            full = np.concatenate([world, _EYE1], axis=-3)
         ca = np.einsum("...bij,bj->...bi", full[..., self._ball_slot_a, :3, :], self._ball_a)
         cb = np.einsum("...bij,bj->...bi", full[..., self._ball_slot_b, :3, :], self._ball_b)
-        meet = np.linalg.norm(ca - cb, axis=-1) <= self._ball_reach
+        d = ca - cb
+        # |d| as np.linalg.norm computes it for real arrays (sqrt of the sum of squares), without its checks
+        meet = np.sqrt(np.add.reduce(d * d, axis=-1)) <= self._ball_reach
         cl = self.clearance
         if cl is not None and angles_deg is not None and self._cl_pairs:
             if lead:
@@ -251,6 +256,10 @@ class TssBroadPhase:
                         meet[r] = False
         out[..., self._always_idx] = meet
         return out
+
+
+_EYE1 = np.eye(4)[None]  # the head base's transform, appended to one pose's (J, 4, 4)
+_EYE1.flags.writeable = False
 
 
 def _ball(spheres: SphereSet) -> tuple[FloatArray, float]:
