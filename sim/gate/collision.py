@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from servoface.sim.gate.axial import AXIAL_VERSION, AxialSet, AxialTable, build_axial, cached_axial
 from servoface.sim.gate.clearance import (
     CLEARANCE_VERSION,
     Clearance,
@@ -120,6 +121,7 @@ class PartCollisions:
                 )
             )
         self.exact = ExactCollider(meshes)
+        self._meshes = meshes
         self._last_exact: dict[tuple[str, str, float], tuple[bytes, bool]] = {}
         keep = []
         for spec, b in zip(self.specs, built, strict=True):
@@ -136,7 +138,8 @@ class PartCollisions:
         self.built = [b for b, k in zip(built, keep, strict=True) if k]
         self.always = [b.table.exact_only or b.table.n_tests > params.max_table_tests for b in self.built]
         self.clearance = self._clearance_tables(parts, meshes) if clearance else ClearanceSet([], [])
-        self.broad = TssBroadPhase(tree, self.part_joint, self.built, self.always, self.clearance)
+        self.axial = self._axial_tables(parts) if clearance else AxialSet([], [])
+        self.broad = TssBroadPhase(tree, self.part_joint, self.built, self.always, self.clearance, self.axial)
         self.pairs_active = [
             s for s, b in zip(self.specs, self.built, strict=True) if b.table.n_tests > 0 or b.table.exact_only
         ]
@@ -156,6 +159,37 @@ class PartCollisions:
                 index.append(p)
                 tables.append(got)
         return ClearanceSet(index, tables)
+
+    def _axial_tables(self, parts: dict[str, Any]) -> AxialSet:
+        """Distance tables (`axial`) for the pairs the broad phase can flag whose relative joints turn about
+        one line (the lid pairs), unless a clearance table already proves them apart."""
+        proven = {int(p) for p, ok in zip(self.clearance.pair_index, self.clearance.proven, strict=True) if ok}
+        index, tables = [], []
+        for p, (spec, b, always) in enumerate(zip(self.specs, self.built, self.always, strict=True)):
+            if p in proven or not (always or b.table.n_tests > 0):
+                continue
+            path = None
+            if self._cache_dir is not None:
+                name = f"{self._head_name}-{spec.a}-{spec.b}-{b.table.key}-{AXIAL_VERSION}.npz"
+                path = self._cache_dir / name
+            got = cached_axial(path, functools.partial(self._build_axial, parts, spec))
+            if got is not None:
+                index.append(p)
+                tables.append(got)
+        return AxialSet(index, tables)
+
+    def _build_axial(self, parts: dict[str, Any], spec: PairSpec) -> AxialTable | None:
+        ja, jb = parts[spec.a].joint, parts[spec.b].joint
+        na, nb = f"{spec.a}@{spec.tolerance_mm}", f"{spec.b}@{spec.tolerance_mm}"
+        return build_axial(
+            self.tree,
+            ja,
+            jb,
+            relative_joints(self.tree, ja, jb),
+            self._meshes[na],
+            self._meshes[nb],
+            functools.partial(self.exact.distance, na, nb),
+        )
 
     def _build_clearance(
         self, parts: dict[str, Any], meshes: dict[str, Any], spec: PairSpec, b: BuiltPair

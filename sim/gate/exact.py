@@ -58,6 +58,13 @@ class ExactCollider:
         result = self._fcl.CollisionResult()
         return bool(self._fcl.collide(oa, ob, self._request, result) > 0)
 
+    def distance(self, a: str, b: str, transform_a: FloatArray, transform_b: FloatArray) -> float:
+        """fcl's exact distance (mm) between the meshes of ``a`` and ``b`` under the given transforms
+        (0 or less when they intersect)."""
+        oa = self._place(a, transform_a)
+        ob = self._place(b, transform_b)
+        return float(self._fcl.distance(oa, ob, self._fcl.DistanceRequest(), self._fcl.DistanceResult()))
+
     def colliding(
         self, pairs: Sequence[tuple[str, str]], transforms: Mapping[str, FloatArray]
     ) -> list[tuple[str, str]]:

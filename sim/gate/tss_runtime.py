@@ -11,6 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
+from servoface.sim.gate.axial import AxialSet
 from servoface.sim.gate.clearance import ClearanceSet
 from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.spheres import SphereSet
@@ -30,12 +31,16 @@ class TssBroadPhase:
         pairs: Sequence[BuiltPair],
         always: Sequence[bool] | None = None,
         clearance: ClearanceSet | None = None,
+        axial: AxialSet | None = None,
     ) -> None:
         """``always[p]``: pair p skips the sphere tests and always goes to the exact test (tables too
         large to pay off, e.g. a part on the head base against one behind three neck joints) when the
         parts' bounding balls meet — unless ``clearance`` (tables for some of those pairs) proves the pose
-        clear."""
+        clear. ``axial``: distance tables for pairs turning about one line; where one proves the pose apart
+        the pair is not flagged, whatever the spheres or balls say (inside its grid only)."""
         self.pairs = tuple(pairs)
+        self.axial = axial if axial is not None and len(axial) else None
+        self._ax_pairs = [(int(p), t) for t, p in enumerate(self.axial.pair_index)] if self.axial is not None else []
         self.clearance = clearance if clearance is not None and len(clearance) else None
         self.always = np.zeros(len(self.pairs), dtype=bool) if always is None else np.array(always, dtype=bool)
         n_joints = len(tree.names)
@@ -226,7 +231,17 @@ class TssBroadPhase:
     def flag(self, world: FloatArray, angles_deg: FloatArray) -> BoolArray:
         """Pairs that need the exact test: overlapping tabulated spheres, joints outside the swept box, or
         (untabulated pairs) meeting bounding balls — fcl's own BVH then settles those in microseconds."""
-        return self.overlaps(world) | self.out_of_box(angles_deg) | self.balls_meet(world, angles_deg)
+        out = self.overlaps(world) | self.out_of_box(angles_deg) | self.balls_meet(world, angles_deg)
+        ax = self.axial
+        if ax is not None:
+            if world.shape[:-3]:
+                out[..., ax.pair_index] &= ~ax.clear(angles_deg)
+            elif out[ax.pair_index].any():
+                q = angles_deg.tolist()
+                for p, t in self._ax_pairs:
+                    if out[p] and ax.clear_one(t, q):
+                        out[p] = False
+        return out
 
     def balls_meet(self, world: FloatArray, angles_deg: FloatArray | None = None) -> BoolArray:
         """(..., n_pairs) True for exact-only pairs whose bounding balls overlap (False elsewhere); with
