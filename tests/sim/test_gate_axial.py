@@ -187,3 +187,31 @@ def test_axial_lookup_bounds_the_offset_from_the_nearest_node() -> None:
     assert clear(10.0, 0.0) and clear(12.0, 2.0)  # on node 10: slack 0.5 > 0
     assert not clear(20.0, 0.0)  # slack 0 at the last node
     assert not clear(-1.0, 0.0) and not clear(21.0, 0.0) and not clear(0.0, 1.0)  # outside the grid
+
+
+def test_axial_table_where_the_pair_does_touch(human_pair: tuple[TwinGate, TwinGate]) -> None:
+    """The lower lid grown about the eye centre until the shells cross: the table must leave the poses in
+    contact to the exact test (and still clear the ones with the lids apart)."""
+    import trimesh
+    from servoface.sim.gate.exact import ExactCollider
+
+    new, _ = human_pair
+    tree, col = new.tree, new.collisions
+    upper, lower = (col._meshes[f"{n}_lid_l@0.0"] for n in ("upper", "lower"))
+    c = tree.pivot_mm[tree.index["upper_lid_l"]]
+    grown = trimesh.Trimesh(c + (np.asarray(lower.vertices) - c) * 1.03, np.asarray(lower.faces), process=False)
+    exact = ExactCollider({"u": upper, "l": grown})
+    rel = relative_joints(tree, "upper_lid_l", "lower_lid_l")
+    table = build_axial(
+        tree, "upper_lid_l", "lower_lid_l", rel, upper, grown, lambda a, b: exact.distance("u", "l", a, b)
+    )
+    assert table is not None
+    ax = AxialSet([0], [table])
+    q = _random_poses(new, 300, seed=21)
+    world = tree.world(q)
+    ju, jl = tree.index["upper_lid_l"], tree.index["lower_lid_l"]
+    hit = np.array([exact.collide("u", "l", w[ju], w[jl]) for w in world])
+    cleared = ax.clear(q)[:, 0]
+    assert hit.sum() > 20 and cleared.sum() > 20, (hit.sum(), cleared.sum())
+    assert not np.any(cleared & hit), "cleared a pose in contact"
+    assert np.array_equal(cleared, [ax.clear_one(0, p.tolist()) for p in q])
