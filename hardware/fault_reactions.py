@@ -78,8 +78,22 @@ class FaultReactions:
 
     # -- telemetry handlers -------------------------------------------------------------------------
     def on_status(self, rec: ServoRecord, torque_enable: int, hw_error: int, now: float) -> None:
-        """Torque Enable + Hardware Error Status (the Alert bit's detail)."""
-        bits = HardwareErrorBits(hw_error & 0x3D)
+        """Torque Enable + Hardware Error Status (the Alert bit's detail).
+
+        The usual read (the error bits as last read) takes a path without IntFlag arithmetic: no new bits,
+        so only the torque handling below runs (tests/hardware/test_on_status_fast.py checks it against the
+        full path on random sequences)."""
+        masked = hw_error & 0x3D
+        old = rec.hardware_error
+        if masked == old and type(old) is HardwareErrorBits:  # unchanged: ``new`` would be empty
+            if masked:
+                rec.torque_on = bool(torque_enable)
+                if rec.torque_on:  # not in the shutdown mask: we still take torque off
+                    self._torque_off(rec)
+            elif not torque_enable and rec.torque_on and rec.in_service:
+                self._on_reset(rec, now)
+            return
+        bits = HardwareErrorBits(masked)
         new = bits & ~rec.hardware_error
         rec.hardware_error = bits
         if bits:
@@ -122,14 +136,17 @@ class FaultReactions:
                 f"{bits!r}: torque off, latched until Driver.clear_fault({rec.servo_id})",
             )
         if not bits and not torque_enable and rec.torque_on and rec.in_service:
-            # torque dropped without an error bit: the servo was reset (brown-out, power cycle)
-            rec.torque_on = False
-            rec.recover_at_s = now
-            self.emit(
-                rec.servo_id,
-                FaultKind.RECONNECTED,
-                "servo reset (torque found off): re-configure, re-pin goal",
-            )
+            self._on_reset(rec, now)
+
+    def _on_reset(self, rec: ServoRecord, now: float) -> None:
+        """Torque dropped without an error bit: the servo was reset (brown-out, power cycle)."""
+        rec.torque_on = False
+        rec.recover_at_s = now
+        self.emit(
+            rec.servo_id,
+            FaultKind.RECONNECTED,
+            "servo reset (torque found off): re-configure, re-pin goal",
+        )
 
     def on_thermal(self, rec: ServoRecord, voltage_raw: int, temperature_c: int, now: float) -> None:
         policy = self.policy
