@@ -225,17 +225,23 @@ class ChainReads:
         self._mark_results(ids, got, now)
 
     def _apply_group(self, group: TelemetryGroup, got: Mapping[int, Mapping[Register, int]], now: float) -> None:
-        """A slow group's fresh values into the records and the fault reactions."""
-        for sid, values in got.items():
-            rec = self._records[sid]
-            if group.name == "status":
-                self._reactions.on_status(
-                    rec, values[Register.TORQUE_ENABLE], values[Register.HARDWARE_ERROR_STATUS], now
-                )
-            elif group.name == "motion":
+        """A slow group's fresh values into the records and the fault reactions (the group's branch chosen
+        once, not per servo)."""
+        records, reactions = self._records, self._reactions
+        if group.name == "status":
+            on_status, torque, error = reactions.on_status, Register.TORQUE_ENABLE, Register.HARDWARE_ERROR_STATUS
+            for sid, values in got.items():
+                on_status(records[sid], values[torque], values[error], now)
+        elif group.name == "motion":
+            for sid, values in got.items():
+                rec = records[sid]
                 rec.apply_motion(values, now)
-                self._reactions.on_motion(rec)
-            else:
-                self._reactions.on_thermal(
-                    rec, values[Register.PRESENT_INPUT_VOLTAGE], values[Register.PRESENT_TEMPERATURE], now
-                )
+                reactions.on_motion(rec)
+        else:
+            on_thermal, voltage, temperature = (
+                reactions.on_thermal,
+                Register.PRESENT_INPUT_VOLTAGE,
+                Register.PRESENT_TEMPERATURE,
+            )
+            for sid, values in got.items():
+                on_thermal(records[sid], values[voltage], values[temperature], now)

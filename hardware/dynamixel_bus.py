@@ -631,6 +631,7 @@ class DynamixelBus:
         out: dict[int, dict[Register, int]] = {}
         from_bytes = int.from_bytes
         one = fields[0] if len(fields) == 1 else None  # the per-cycle position read: one field
+        two = fields if len(fields) == 2 else None  # the status and thermal groups: two (unrolled below)
         for sid in ids:
             raw, err = blocks.get(sid, (b"", 0))
             if len(raw) < length:
@@ -641,6 +642,12 @@ class DynamixelBus:
                 self.alerts.add(sid)
             if one is not None:
                 out[sid] = {one[0]: from_bytes(raw[one[1] : one[2]], "little", signed=one[3])}
+            elif two is not None:
+                (r0, a0, b0, s0), (r1, a1, b1, s1) = two
+                out[sid] = {
+                    r0: from_bytes(raw[a0:b0], "little", signed=s0),
+                    r1: from_bytes(raw[a1:b1], "little", signed=s1),
+                }
             else:
                 out[sid] = {r: from_bytes(raw[a:b], "little", signed=sg) for r, a, b, sg in fields}
         return out
