@@ -71,3 +71,48 @@ def test_strained_health_with_kept_states_and_changing_limits_is_the_plain_one(f
         assert strained(snap, limits, policy) == expected
         nonempty += bool(expected)
     assert kept_frames > 300 and limit_moves > 40 and nonempty > 200
+
+
+def _clamp_plain(p: object, targets: dict[str, float]) -> tuple[np.ndarray, list[str]]:
+    """`Pipeline._clamp_array` the straightforward way (np.clip, reasons always built)."""
+    servos, lo, hi = p._servos, p._lo, p._hi  # type: ignore[attr-defined]
+    values = np.array([float(targets.get(s.role, n)) for s, n in zip(servos, p._neutral, strict=True)])  # type: ignore[attr-defined]
+    clamped = np.clip(values, lo, hi)
+    off = np.abs(values - clamped) > p._clamp_tol  # type: ignore[attr-defined]
+    reasons = [
+        f"[target] {servos[i].role}: {values[i]:.2f} {servos[i].unit} outside the calibrated {lo[i]:.2f}.."
+        f"{hi[i]:.2f}, clamped"
+        for i in np.flatnonzero(off).tolist()
+    ]
+    return clamped, reasons
+
+
+def test_clamping_targets_is_np_clip_with_the_same_reasons(faces: tuple[Face, Face]) -> None:
+    face, _ = faces
+    p = face.pipeline
+    rng = np.random.default_rng(5)
+    clipped = clean = 0
+    for _ in range(400):
+        targets: dict[str, float] = {}
+        inside = rng.random() < 0.3  # a frame whose targets all lie in range (the common case)
+        for s, lo, hi in zip(p._servos, p._lo, p._hi, strict=True):
+            r = rng.random()
+            if r < 0.1:
+                continue  # missing: the neutral
+            span = hi - lo
+            if r < 0.7 or inside:
+                targets[s.role] = float(rng.uniform(lo, hi))
+            elif r < 0.8:
+                targets[s.role] = float(
+                    rng.choice([lo, hi]) + rng.choice([-1, 1]) * rng.choice([0.0, 1e-9, 1e-3]) * span
+                )
+            else:
+                targets[s.role] = float(rng.uniform(lo - span, hi + span))
+        got, reasons = p._clamp_array(targets)
+        want, want_reasons = _clamp_plain(p, targets)
+        assert got.tobytes() == want.tobytes() and reasons == want_reasons
+        clipped += bool(reasons)
+        clean += not reasons
+    with pytest.raises(Exception, match="non-finite"):
+        p._clamp_array({p._servos[0].role: float("nan")})
+    assert clipped > 100 and clean > 20
