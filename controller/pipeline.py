@@ -181,12 +181,15 @@ class Pipeline:
 
     def _clamp_array(self, targets: Mapping[str, float]) -> tuple[np.ndarray, list[str]]:
         """`clamp_targets` as an array in head role order (the frame path: no dict until the trace)."""
-        values = np.array([float(targets.get(r, n)) for r, n in zip(self._roles, self._neutral, strict=True)])
-        if not np.all(np.isfinite(values)):
+        get = targets.get
+        values = np.array([float(get(r, n)) for r, n in zip(self._roles, self._neutral, strict=True)])
+        if not np.isfinite(values).all():
             bad = [s.role for s, v in zip(self._servos, values, strict=True) if not np.isfinite(v)]
             raise FrameError(f"muscle model produced non-finite targets for {bad}")
-        clamped = np.clip(values, self._lo, self._hi)
+        clamped = np.minimum(np.maximum(values, self._lo), self._hi)  # np.clip's arithmetic, without its wrappers
         off = np.abs(values - clamped) > self._clamp_tol
+        if not off.any():
+            return clamped, []
         reasons = [
             f"[target] {s.role}: {values[i]:.2f} {s.unit} outside the calibrated {self._lo[i]:.2f}.."
             f"{self._hi[i]:.2f}, clamped"

@@ -47,11 +47,13 @@ class StrainedHealth:
     others), so the verdict for the strained subset is the verdict for the whole (tested on random
     telemetry). The subset is mostly empty, so it stays equal from frame to frame while the load readings
     move, and a speculative verdict computed with it stays usable (`pipeline_ahead`). A servo's record is
-    rebuilt only when what it is made of changed (temperature, load, faults, derated, limit)."""
+    rebuilt only when what it is made of changed (temperature, load, faults, derated, limit); the same state
+    object as the last frame's (the driver keeps it while only position and goal move) is not even compared."""
 
     def __init__(self, ids: frozenset[int]) -> None:
         self.ids = ids
-        self._records: dict[int, tuple[tuple[object, ...], ServoHealth | None]] = {}
+        # per servo: (the state last seen, its limit, what its record is made of, the record if strained)
+        self._records: dict[int, tuple[ServoState, float, tuple[object, ...], ServoHealth | None]] = {}
         self._policy: HealthPolicy | None = None
 
     def __call__(
@@ -75,12 +77,23 @@ class StrainedHealth:
             limit_c = limits.get(sid)
             if limit_c is None:
                 continue
-            key = (state.temperature_c, state.load_fraction, state.faults, state.derated, limit_c)
             kept = records.get(sid)
-            if kept is None or kept[0] != key:
+            if kept is not None and kept[0] is state and kept[1] == limit_c:  # the same (frozen) state as last
+                if kept[3] is not None:  # time: its slow fields did not change, nor did the verdict
+                    out[sid] = kept[3]
+                continue
+            key = (state.temperature_c, state.load_fraction, state.faults, state.derated, limit_c)
+            if kept is None or kept[2] != key:
                 health = _servo_health(state, limit_c)
-                kept = (key, health if health.strained(policy.hot_margin_c, policy.load_limit) else None)
-                records[sid] = kept
-            if kept[1] is not None:
-                out[sid] = kept[1]
+                kept = (
+                    state,
+                    limit_c,
+                    key,
+                    health if health.strained(policy.hot_margin_c, policy.load_limit) else None,
+                )
+            else:
+                kept = (state, limit_c, key, kept[3])
+            records[sid] = kept
+            if kept[3] is not None:
+                out[sid] = kept[3]
         return out

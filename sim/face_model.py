@@ -267,7 +267,7 @@ class FaceModel:
         if self.direct is not None and split.any():
             return dict(self.solve_detailed(aus).pose.actuator_targets)
         contractions, joint_delta = self.mapping.evaluate_split(split)
-        joint = np.clip(self._neutral + joint_delta, self._lower, self._upper)
+        joint = np.minimum(np.maximum(self._neutral + joint_delta, self._lower), self._upper)  # (np.clip's sums)
         lids = bool(self.field.eyelids)
         key = (contractions.tobytes(), joint.tobytes() if lids else b"")  # bytes: equal means identical
         kept = self._anchors_kept
