@@ -16,6 +16,7 @@ from servoface.hardware.snapshot import FaultEvent, FaultKind
 
 Emit = Callable[[int | None, FaultKind, str], None]
 _LATCHING = HardwareErrorBits.MOTOR_ENCODER | HardwareErrorBits.ELECTRICAL_SHOCK
+_NO_BITS = HardwareErrorBits(0)
 TIME_BASED_DERATE_MS = 1000
 
 
@@ -80,26 +81,28 @@ class FaultReactions:
     def on_status(self, rec: ServoRecord, torque_enable: int, hw_error: int, now: float) -> None:
         """Torque Enable + Hardware Error Status (the Alert bit's detail).
 
-        The usual read (the error bits as last read) takes a path without IntFlag arithmetic: no new bits,
-        so only the torque handling below runs (tests/hardware/test_on_status_fast.py checks it against the
-        full path on random sequences)."""
+        The usual read (the error bits as last read) builds no IntFlag: no new bits, so only the torque
+        handling runs (tests/hardware/test_on_status_fast.py checks it against the former single path on
+        random sequences)."""
         masked = hw_error & 0x3D
         old = rec.hardware_error
-        if masked == old and type(old) is HardwareErrorBits:  # unchanged: ``new`` would be empty
-            if masked:
-                rec.torque_on = bool(torque_enable)
-                if rec.torque_on:  # not in the shutdown mask: we still take torque off
-                    self._torque_off(rec)
-            elif not torque_enable and rec.torque_on and rec.in_service:
-                self._on_reset(rec, now)
-            return
-        bits = HardwareErrorBits(masked)
-        new = bits & ~rec.hardware_error
+        if masked == old and type(old) is HardwareErrorBits:  # unchanged: nothing new, no IntFlag to build
+            bits, new = old, _NO_BITS
+        else:
+            bits = HardwareErrorBits(masked)
+            new = bits & ~old
         rec.hardware_error = bits
-        if bits:
+        if masked:
             rec.torque_on = bool(torque_enable)
             if rec.torque_on:  # not in the shutdown mask: we still take torque off
                 self._torque_off(rec)
+        if new:
+            self._on_new_bits(rec, new, bits, now)
+        if not masked and not torque_enable and rec.torque_on and rec.in_service:
+            self._on_reset(rec, now)
+
+    def _on_new_bits(self, rec: ServoRecord, new: HardwareErrorBits, bits: HardwareErrorBits, now: float) -> None:
+        """The reactions to error bits that were not set at the last read."""
         if new & HardwareErrorBits.OVERLOAD:
             rec.faults.add(FaultKind.OVERLOAD)
             self.schedule_reboot(rec, now, now + self.policy.overload_cooldown_s, FaultKind.OVERLOAD)
@@ -135,8 +138,6 @@ class FaultReactions:
                 FaultKind.HARDWARE_ERROR,
                 f"{bits!r}: torque off, latched until Driver.clear_fault({rec.servo_id})",
             )
-        if not bits and not torque_enable and rec.torque_on and rec.in_service:
-            self._on_reset(rec, now)
 
     def _on_reset(self, rec: ServoRecord, now: float) -> None:
         """Torque dropped without an error bit: the servo was reset (brown-out, power cycle)."""

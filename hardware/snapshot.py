@@ -141,13 +141,11 @@ def peek_state(servos: Mapping[int, ServoState], servo_id: int) -> tuple[ServoSt
     ``stale``, its ``goal_tick``), or None for an id not in ``servos``. For a snapshot of the driver's
     (`LazyServoStates`) the state is not built (a per-frame reader of slow fields and goals, e.g. health,
     pays for no state); any other mapping gives the state itself."""
-    if type(servos) is LazyServoStates:  # `LazyServoStates.peek`, inlined (per servo per frame, twice)
-        item = servos._items.get(servo_id)  # values are states or captures, never None
-        if item is None:
+    if type(servos) is LazyServoStates:
+        try:
+            return servos.peek(servo_id)
+        except KeyError:
             return None
-        if isinstance(item, tuple):  # a capture
-            return item[0], item[3]
-        return item, item.goal_tick
     state = servos.get(servo_id)
     return None if state is None else (state, state.goal_tick)
 
