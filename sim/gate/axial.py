@@ -17,16 +17,15 @@ depends on s alone (otherwise no table).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from servoface.sim.gate.errors import TssCacheError
 from servoface.sim.gate.fk import JointTree
-from servoface.sim.gate.tss_cache import atomic_savez
+from servoface.sim.gate.table_cache import cached_table
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -139,41 +138,32 @@ def build_axial(
     return AxialTable(np.array(rel, dtype=np.int64), coef, s_lo, step, arm, slack)
 
 
+def _axial_from_npz(z: Mapping[str, Any]) -> AxialTable:
+    return AxialTable(
+        z["joints"].astype(np.int64),
+        z["coef"],
+        float(z["lower"]),
+        float(z["step"]),
+        float(z["arm"]),
+        z["slack"],
+    )
+
+
+def _axial_npz_fields(table: AxialTable) -> dict[str, Any]:
+    return {
+        "joints": table.joints,
+        "coef": table.coef,
+        "lower": table.lower_deg,
+        "step": table.step_deg,
+        "arm": table.arm_mm,
+        "slack": table.slack_mm,
+    }
+
+
 def cached_axial(path: Path | None, build: Callable[[], AxialTable | None]) -> AxialTable | None:
     """The table from ``path`` (named by the pair's TSS key and AXIAL_VERSION) or built and saved; a file
     that says "no table" is kept too. ``path`` None: build only."""
-    if path is not None and path.exists():
-        try:
-            with np.load(path) as z:
-                if not bool(z["present"]):
-                    return None
-                return AxialTable(
-                    z["joints"].astype(np.int64),
-                    z["coef"],
-                    float(z["lower"]),
-                    float(z["step"]),
-                    float(z["arm"]),
-                    z["slack"],
-                )
-        except (OSError, KeyError, ValueError) as err:
-            raise TssCacheError(f"axial cache file {path} is unreadable ({err}); delete it to rebuild") from err
-    got = build()
-    if path is None:
-        return got
-    if got is None:
-        atomic_savez(path, present=False)
-    else:
-        atomic_savez(
-            path,
-            present=True,
-            joints=got.joints,
-            coef=got.coef,
-            lower=got.lower_deg,
-            step=got.step_deg,
-            arm=got.arm_mm,
-            slack=got.slack_mm,
-        )
-    return got
+    return cached_table(path, build, kind="axial", load=_axial_from_npz, fields=_axial_npz_fields)
 
 
 class AxialSet:

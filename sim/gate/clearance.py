@@ -14,19 +14,18 @@ the grid's box) the exact test runs as before, so the gate's verdicts do not cha
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from servoface.sim.gate.errors import TssCacheError
 from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.proofs import common_centre
 from servoface.sim.gate.spheres import SphereSet
+from servoface.sim.gate.table_cache import cached_table
 from servoface.sim.gate.tss_build import lever_arm_mm, relative_joints
-from servoface.sim.gate.tss_cache import atomic_savez
 from servoface.sim.gate.tss_sweep import grid_angles
 
 FloatArray = NDArray[np.float64]
@@ -151,47 +150,38 @@ def _surface_gap_lower_mm(kd: Any, spheres: SphereSet, points: FloatArray) -> Fl
     return np.asarray(near, dtype=np.float64)
 
 
+def _clearance_from_npz(z: Mapping[str, Any]) -> Clearance:
+    return Clearance(
+        str(z["ball_part"]),
+        z["centre"],
+        float(z["radius"]),
+        z["joints"].astype(np.int64),
+        z["lower"],
+        z["step"],
+        z["counts"].astype(np.int64),
+        z["arm"],
+        z["slack"],
+    )
+
+
+def _clearance_npz_fields(table: Clearance) -> dict[str, Any]:
+    return {
+        "ball_part": table.ball_part,
+        "centre": table.centre_mm,
+        "radius": table.radius_mm,
+        "joints": table.joints,
+        "lower": table.lower_deg,
+        "step": table.step_deg,
+        "counts": table.counts,
+        "arm": table.arm_mm,
+        "slack": table.slack_mm,
+    }
+
+
 def cached_clearance(path: Path | None, build: Callable[[], Clearance | None]) -> Clearance | None:
     """The table from ``path`` (named by the pair's TSS key and CLEARANCE_VERSION) or built and saved;
     a file that says "no table" is kept too. ``path`` None: build only."""
-    if path is not None and path.exists():
-        try:
-            with np.load(path) as z:
-                if not bool(z["present"]):
-                    return None
-                return Clearance(
-                    str(z["ball_part"]),
-                    z["centre"],
-                    float(z["radius"]),
-                    z["joints"].astype(np.int64),
-                    z["lower"],
-                    z["step"],
-                    z["counts"].astype(np.int64),
-                    z["arm"],
-                    z["slack"],
-                )
-        except (OSError, KeyError, ValueError) as err:
-            raise TssCacheError(f"clearance cache file {path} is unreadable ({err}); delete it to rebuild") from err
-    got = build()
-    if path is None:
-        return got
-    if got is None:
-        atomic_savez(path, present=False)
-    else:
-        atomic_savez(
-            path,
-            present=True,
-            ball_part=got.ball_part,
-            centre=got.centre_mm,
-            radius=got.radius_mm,
-            joints=got.joints,
-            lower=got.lower_deg,
-            step=got.step_deg,
-            counts=got.counts,
-            arm=got.arm_mm,
-            slack=got.slack_mm,
-        )
-    return got
+    return cached_table(path, build, kind="clearance", load=_clearance_from_npz, fields=_clearance_npz_fields)
 
 
 class ClearanceSet:
