@@ -31,25 +31,34 @@ _STUFF_TRIPLE = b"\xff\xff\xfd"
 _STUFFED_QUAD = b"\xff\xff\xfd\xfd"
 
 
-def add_stuffing_is_identity(packet: Sequence[Any], tx_max_len: int) -> bool:
-    """True when the SDK's ``addStuffing(packet)`` would change nothing in ``packet`` and return it."""
+def _packet_span(packet: Sequence[Any]) -> tuple[bytes, int] | None:
+    """``(bytes(packet), 7 + L)`` when the list holds every byte its length counts and ``L >= 2``; None when
+    it does not or ``bytes()`` refuses an element (the cases both checks leave to the SDK)."""
     try:
         raw = bytes(packet)
     except (TypeError, ValueError):
-        return False
+        return None
     if len(raw) < _INST:
-        return False
+        return None
     total = _INST + (raw[_LEN_L] | raw[_LEN_H] << 8)
-    return _INST + 2 <= total <= len(raw) and total <= tx_max_len and raw.find(_STUFF_TRIPLE, _LEN_L, total - 2) < 0
+    if not _INST + 2 <= total <= len(raw):
+        return None
+    return raw, total
+
+
+def add_stuffing_is_identity(packet: Sequence[Any], tx_max_len: int) -> bool:
+    """True when the SDK's ``addStuffing(packet)`` would change nothing in ``packet`` and return it."""
+    span = _packet_span(packet)
+    if span is None:
+        return False
+    raw, total = span
+    return total <= tx_max_len and raw.find(_STUFF_TRIPLE, _LEN_L, total - 2) < 0
 
 
 def remove_stuffing_is_identity(packet: Sequence[Any]) -> bool:
     """True when the SDK's ``removeStuffing(packet)`` would change nothing in ``packet`` and return it."""
-    try:
-        raw = bytes(packet)
-    except (TypeError, ValueError):
+    span = _packet_span(packet)
+    if span is None:
         return False
-    if len(raw) < _INST:
-        return False
-    total = _INST + (raw[_LEN_L] | raw[_LEN_H] << 8)
-    return _INST + 2 <= total <= len(raw) and raw.find(_STUFFED_QUAD, _LEN_L, total - 1) < 0
+    raw, total = span
+    return raw.find(_STUFFED_QUAD, _LEN_L, total - 1) < 0
