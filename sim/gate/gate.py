@@ -505,7 +505,7 @@ class TwinGate:
         )
         if elapsed_s is None:
             return table, last, last_step
-        caps, scaled_last, _ = lim.per_time(table, last_step, elapsed_s, self.frame_period_s, last_fraction)
+        caps, scaled_last = lim.per_time(table, last_step, elapsed_s, self.frame_period_s, last_fraction)
         return caps, last, scaled_last
 
     def _at_rest_ok(self, goal: IntArray, table: lim.ServoTable) -> bool:

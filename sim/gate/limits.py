@@ -92,16 +92,16 @@ def rate_caps_tick(
 
 def per_time(
     table: ServoTable, last_step: IntArray, elapsed_s: float, frame_period_s: float, last_fraction: float
-) -> tuple[ServoTable, IntArray, float]:
+) -> tuple[ServoTable, IntArray]:
     """Rate caps for a frame that follows the last one on the wire after ``elapsed_s`` (caps are per
     ``frame_period_s``): with ``f = min(1, elapsed / period)`` the step cap shrinks to ``f`` of its own (speed
     per second), the speed-up cap to ``f²`` (the step's rate may grow by ``f`` of the per-frame speed-up:
     acceleration per second), and the previous step is taken at the same speed over the shorter time (never
     scaled up), so frames sent back to back cannot add up to more than either cap per second.
-    Returns (table, last_step, f)."""
+    Returns (table, last_step); the gate notes ``f`` for the next check from `time_fraction`."""
     f = time_fraction(elapsed_s, frame_period_s)
     if f >= 1.0 and last_fraction >= 1.0:
-        return table, last_step, 1.0
+        return table, last_step
     step = np.floor(table.max_step_tick * f).astype(np.int64)
     speedup = np.floor(table.max_speedup_tick * f * f).astype(np.int64)
     ratio = min(1.0, f / last_fraction) if last_fraction > 0 else 0.0
@@ -109,7 +109,7 @@ def per_time(
     # caps below 1 tick are legal here (0 = hold): bypass the per-frame check (what copy.copy does, directly)
     scaled = object.__new__(ServoTable)
     scaled.__dict__.update(table.__dict__, max_step_tick=step, max_speedup_tick=speedup)
-    return scaled, scaled_last, f
+    return scaled, scaled_last
 
 
 def time_fraction(elapsed_s: float, frame_period_s: float) -> float:

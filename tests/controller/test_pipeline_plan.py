@@ -35,7 +35,7 @@ def _ahead(verdict: Verdict, plan_s: float | None) -> Speculation:
 def _lo_step(gate: TwinGate, health: dict[int, ServoHealth], memory: GateMemory, elapsed_s: float) -> np.ndarray:
     """The lowest step each servo may take after ``elapsed_s`` (as the gate's rate checks bound it)."""
     table, _ = derate(gate.table, health, gate.config.health)
-    caps, last_step, _ = lim.per_time(table, memory.last_step, elapsed_s, gate.frame_period_s, memory.last_fraction)
+    caps, last_step = lim.per_time(table, memory.last_step, elapsed_s, gate.frame_period_s, memory.last_fraction)
     return lim.step_bounds(last_step, caps)[0]
 
 
