@@ -1,14 +1,19 @@
 """Shared set-up for the tests that compare an optimised pipeline path with the straightforward one: two
-emulated human heads stepped side by side, and random AU frames to step them with."""
+emulated human heads stepped side by side, random AU frames to step them with, and random telemetry."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterator
 from contextlib import contextmanager
 
 import numpy as np
 from servoface.controller.face import Face
 from servoface.controller.pipeline import Pipeline
+from servoface.hardware.snapshot import FaultKind, ServoState
+
+FAULTS = [frozenset(), frozenset({FaultKind.OVERLOAD}), frozenset({FaultKind.THERMAL_DERATE}),
+          frozenset({FaultKind.VOLTAGE_LOW})]  # fmt: skip
 
 
 def au_names(pipeline: Pipeline) -> list[str]:
@@ -49,3 +54,15 @@ def face_pair() -> Iterator[tuple[Face, Face]]:
     finally:
         a.close(ease_s=0.0)
         b.close(ease_s=0.0)
+
+
+def changed_state(state: ServoState, limit_c: float, rng: np.random.Generator) -> ServoState:
+    """``state`` with new slow fields: temperature near or under ``limit_c``, load anywhere (each None now and
+    then), a fault or none (`FAULTS`), derated or not."""
+    return dataclasses.replace(
+        state,
+        temperature_c=None if rng.random() < 0.05 else int(limit_c - rng.choice([1, 3, 8, 20, 30])),
+        load_fraction=None if rng.random() < 0.05 else float(rng.choice([-1, 1]) * rng.random() ** 0.3),
+        faults=FAULTS[int(rng.integers(len(FAULTS)))],
+        derated=bool(rng.random() < 0.1),
+    )

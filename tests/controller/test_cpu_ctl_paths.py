@@ -16,8 +16,7 @@ from servoface.controller.face import Face
 from servoface.controller.telemetry import StrainedHealth, gate_health
 from servoface.hardware.snapshot import ChainSnapshot
 
-from tests.controller.pipeline_pairs import face_pair
-from tests.controller.test_pipeline_health import FAULTS
+from tests.controller.pipeline_pairs import changed_state, face_pair
 
 
 @pytest.fixture
@@ -36,14 +35,7 @@ def _step_telemetry(snap: ChainSnapshot, limits: dict[int, float], rng: np.rando
         if r < 0.75:
             servos[sid] = dataclasses.replace(state)  # equal, not the same object
             continue
-        limit = limits.get(sid, 70.0)
-        servos[sid] = dataclasses.replace(
-            state,
-            temperature_c=None if rng.random() < 0.05 else int(limit - rng.choice([1, 3, 8, 20, 30])),
-            load_fraction=None if rng.random() < 0.05 else float(rng.choice([-1, 1]) * rng.random() ** 0.3),
-            faults=FAULTS[int(rng.integers(len(FAULTS)))],
-            derated=bool(rng.random() < 0.1),
-        )
+        servos[sid] = changed_state(state, limits.get(sid, 70.0), rng)
     return dataclasses.replace(snap, servos=servos)
 
 

@@ -11,12 +11,9 @@ import numpy as np
 import pytest
 from servoface.controller.face import Face
 from servoface.controller.telemetry import StrainedHealth, gate_health
-from servoface.hardware.snapshot import ChainSnapshot, FaultKind
+from servoface.hardware.snapshot import ChainSnapshot
 
-from tests.controller.pipeline_pairs import au_names, face_pair, random_frames
-
-FAULTS = [frozenset(), frozenset({FaultKind.OVERLOAD}), frozenset({FaultKind.THERMAL_DERATE}),
-          frozenset({FaultKind.VOLTAGE_LOW})]  # fmt: skip
+from tests.controller.pipeline_pairs import au_names, changed_state, face_pair, random_frames
 
 
 @pytest.fixture
@@ -35,15 +32,7 @@ def _random_telemetry(snap: ChainSnapshot, limits: dict[int, float], rng: np.ran
     """Some servos changed: temperature near or under its limit, load anywhere, a fault or none, derated."""
     servos = dict(snap.servos)
     for sid in rng.choice(sorted(servos), size=int(rng.integers(1, 6)), replace=False):
-        state = servos[int(sid)]
-        limit = limits.get(int(sid), 70.0)
-        servos[int(sid)] = dataclasses.replace(
-            state,
-            temperature_c=None if rng.random() < 0.05 else int(limit - rng.choice([1, 3, 8, 20, 30])),
-            load_fraction=None if rng.random() < 0.05 else float(rng.choice([-1, 1]) * rng.random() ** 0.3),
-            faults=FAULTS[int(rng.integers(len(FAULTS)))],
-            derated=bool(rng.random() < 0.1),
-        )
+        servos[int(sid)] = changed_state(servos[int(sid)], limits.get(int(sid), 70.0), rng)
     return dataclasses.replace(snap, servos=servos)
 
 
