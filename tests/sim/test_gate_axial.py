@@ -8,35 +8,21 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from servoface.sim.gate import GateConfig, TwinGate
+from servoface.sim.gate import TwinGate
 from servoface.sim.gate.axial import AxialSet, AxialTable, build_axial, cached_axial
 from servoface.sim.gate.tss_build import relative_joints
 
-
-def _gate(name: str, clearance: bool) -> TwinGate:
-    from servoface.calibration.fileformat import load_calibration
-    from servoface.sim.heads import load_head
-
-    head = load_head(name)
-    assert head.calibration_path is not None
-    return TwinGate(head, load_calibration(head.calibration_path), 1 / 60, GateConfig(clearance=clearance))
+from tests.sim.gate_setup import random_poses, table_pair
 
 
 @pytest.fixture(scope="module")
 def human_pair() -> tuple[TwinGate, TwinGate]:
-    return _gate("human", True), _gate("human", False)
+    return table_pair("human")
 
 
 def _tables(gate: TwinGate) -> dict[frozenset[str], int]:
     col = gate.collisions
     return {frozenset((col.specs[p].a, col.specs[p].b)): t for t, p in enumerate(col.axial.pair_index)}
-
-
-def _random_poses(gate: TwinGate, n: int, seed: int) -> np.ndarray:
-    tree = gate.tree
-    rng = np.random.default_rng(seed)
-    span = tree.upper_deg - tree.lower_deg
-    return rng.uniform(tree.lower_deg - 0.05 * span, tree.upper_deg + 0.05 * span, size=(n, len(tree.names)))
 
 
 def test_human_lid_pairs_get_axial_tables(human_pair: tuple[TwinGate, TwinGate]) -> None:
@@ -52,7 +38,7 @@ def test_human_lid_pairs_get_axial_tables(human_pair: tuple[TwinGate, TwinGate])
 def test_axial_clear_never_contradicts_the_exact_test(human_pair: tuple[TwinGate, TwinGate]) -> None:
     new, old = human_pair
     col = new.collisions
-    q = _random_poses(new, 400, seed=11)
+    q = random_poses(new, 400, seed=11)
     # half the poses with the lids closing onto each other (the closest the shells come)
     names = _tables(new)
     lids = [(new.tree.index[f"upper_lid_{s}"], new.tree.index[f"lower_lid_{s}"]) for s in ("l", "r")]
@@ -93,7 +79,7 @@ def test_axial_bound_holds_between_nodes(human_pair: tuple[TwinGate, TwinGate]) 
                 np.broadcast_to(np.eye(4), (*world.shape[:-3], 4, 4)) if j is None else world[..., tree.index[j], :, :]
             )
 
-        q = _random_poses(new, 40, seed=14 + t)
+        q = random_poses(new, 40, seed=14 + t)
         s = q[:, table.joints] @ table.coef
         alone = np.zeros_like(q)
         alone[:, table.joints[0]] = s * table.coef[0]
@@ -207,7 +193,7 @@ def test_axial_table_where_the_pair_does_touch(human_pair: tuple[TwinGate, TwinG
     )
     assert table is not None
     ax = AxialSet([0], [table])
-    q = _random_poses(new, 300, seed=21)
+    q = random_poses(new, 300, seed=21)
     world = tree.world(q)
     ju, jl = tree.index["upper_lid_l"], tree.index["lower_lid_l"]
     hit = np.array([exact.collide("u", "l", w[ju], w[jl]) for w in world])

@@ -7,22 +7,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from servoface.sim.gate import GateConfig, TwinGate
+from servoface.sim.gate import TwinGate
 from servoface.sim.gate.clearance import cached_clearance
 
-
-def _gate(name: str, clearance: bool) -> TwinGate:
-    from servoface.calibration.fileformat import load_calibration
-    from servoface.sim.heads import load_head
-
-    head = load_head(name)
-    assert head.calibration_path is not None
-    return TwinGate(head, load_calibration(head.calibration_path), 1 / 60, GateConfig(clearance=clearance))
+from tests.sim.gate_setup import random_poses, table_pair
 
 
 @pytest.fixture(scope="module")
 def dog_pair() -> tuple[TwinGate, TwinGate]:
-    return _gate("dog", True), _gate("dog", False)
+    return table_pair("dog")
 
 
 def _names(gate: TwinGate) -> dict[frozenset[str], int]:
@@ -41,17 +34,10 @@ def test_dog_always_overlapping_pairs_get_clearance_tables(dog_pair: tuple[TwinG
     assert len(old.collisions.clearance) == 0
 
 
-def _random_poses(gate: TwinGate, n: int, seed: int) -> np.ndarray:
-    tree = gate.tree
-    rng = np.random.default_rng(seed)
-    span = tree.upper_deg - tree.lower_deg
-    return rng.uniform(tree.lower_deg - 0.05 * span, tree.upper_deg + 0.05 * span, size=(n, len(tree.names)))
-
-
 def test_clear_never_contradicts_the_exact_test(dog_pair: tuple[TwinGate, TwinGate]) -> None:
     new, old = dog_pair
     col = new.collisions
-    q = _random_poses(new, 400, seed=5)
+    q = random_poses(new, 400, seed=5)
     world = new.tree.world(q)
     fresh, plain = col.broad.flag(world, q), old.collisions.broad.flag(world, q)
     assert not np.any(fresh & ~plain), "the clearance path flagged a pair the plain path did not"

@@ -14,19 +14,14 @@ from servoface.sim.gate import limits as lim
 from servoface.sim.gate.health import ServoHealth
 from servoface.sim.gate.verdict import Finding
 
+from tests.sim.gate_setup import builtin_gate
 
-def _gate(name: str) -> TwinGate:
-    from servoface.calibration.fileformat import load_calibration
-    from servoface.sim.heads import load_head
-
-    head = load_head(name)
-    assert head.calibration_path is not None
-    return TwinGate(head, load_calibration(head.calibration_path), 1 / 50)
+FRAME_PERIOD_S = 1 / 50
 
 
 @pytest.fixture(scope="module", params=["human", "dog"])
 def gate(request: pytest.FixtureRequest) -> TwinGate:
-    return _gate(request.param)
+    return builtin_gate(request.param, FRAME_PERIOD_S)
 
 
 def _plain_step_bounds(last_step: np.ndarray, table: lim.ServoTable) -> tuple[np.ndarray, np.ndarray]:
@@ -164,7 +159,7 @@ def test_plain_goal_maps_give_the_checked_paths_verdicts(gate: TwinGate) -> None
     """Two gates walk the same commands, one given plain int maps (the fast path), one the same goals as
     maps the fast path refuses: equal verdicts and memories every frame, with per-time caps, health and
     partial maps in the mix."""
-    other = _gate(gate.head.name)
+    other = builtin_gate(gate.head.name, FRAME_PERIOD_S)
     t = gate.table
     rng = np.random.default_rng(23)
     last = t.neutral_tick.copy()

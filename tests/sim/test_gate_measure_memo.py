@@ -15,19 +15,14 @@ import pytest
 from servoface.sim.gate import TwinGate
 from servoface.sim.gate.strain import SkinTwin
 
+from tests.sim.gate_setup import builtin_gate
 
-def _gate(name: str) -> TwinGate:
-    from servoface.calibration.fileformat import load_calibration
-    from servoface.sim.heads import load_head
-
-    head = load_head(name)
-    assert head.calibration_path is not None
-    return TwinGate(head, load_calibration(head.calibration_path), 1 / 50)
+FRAME_PERIOD_S = 1 / 50
 
 
 @pytest.fixture(scope="module", params=["human", "dog"])
 def gate(request: pytest.FixtureRequest) -> TwinGate:
-    return _gate(request.param)
+    return builtin_gate(request.param, FRAME_PERIOD_S)
 
 
 def _walk(gate: TwinGate, n: int, seed: int) -> list[np.ndarray]:
@@ -142,7 +137,7 @@ def _verdict(v: Any) -> tuple[Any, ...]:
 def test_gate_verdicts_equal_a_gate_that_always_measures(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
     """Walks of small, clipped, joint-only and pull-only requests from the last verdict: the same verdicts
     and memory as a gate whose skin is never given a key."""
-    memo, plain = _gate(name), _gate(name)
+    memo, plain = builtin_gate(name, FRAME_PERIOD_S), builtin_gate(name, FRAME_PERIOD_S)
     skin = plain.skin
 
     def unkeyed(world: Any, offsets: Any, static: Any = (0.0, np.inf, 0), key: Any = None) -> Any:
