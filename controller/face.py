@@ -47,7 +47,7 @@ from servoface.controller.service.commands import check_point_mm
 from servoface.controller.trace_ring import TraceRing
 from servoface.controller.values import as_finite, check_seconds, printable_repr
 from servoface.hardware.bus import ServoBus
-from servoface.hardware.driver import Driver
+from servoface.hardware.driver import Driver, FastSyncRead
 from servoface.hardware.errors import HardwareError
 from servoface.hardware.fault_policy import FaultPolicy
 from servoface.sim.head import Head
@@ -189,7 +189,7 @@ class Face:
         wire_time: bool = True,
         rate_hz: float = 50.0,
         calibration: HeadCalibration | str | Path | None = None,
-        fast_sync_read: bool = False,
+        fast_sync_read: FastSyncRead = "auto",
         policy: FaultPolicy | None = None,
     ) -> Face:
         """Open ``head`` (built-in name, profile folder, or a loaded Head) on ``port`` or on the emulator.

@@ -15,6 +15,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import Literal
 
 from servoface.hardware.bus import ServoBus
 from servoface.hardware.driver_reads import MOTION, READ_FAILURES, STATUS, THERMAL, ChainReads, TelemetryGroup
@@ -40,13 +41,18 @@ CONFIGURE_QUIET_S = (0.2, 0.8)  # after a failed configure try, wait this long f
 # late reply): 3 tries span over a second, so a busy host or emulator does not fail an open; a servo really
 # missing costs that second once, at start-up
 TORQUE_OFF_QUIET_S = (0.03, 0.12, 0.3)  # after a failed torque-off, wait this long for quiet (per pass)
+FastSyncRead = Literal[True, False, "auto"]  # `Driver`'s ``fast_sync_read``
 
 
 class Driver(ChainReads):
     """Drives a configured chain. Not thread-safe by design: the thread that first uses it owns it.
 
     ``clock``: seconds, monotonic (tests may pass the emulator's clock). ``fast_sync_read``: read positions
-    with Fast Sync Read (one combined reply; firmware support needed).
+    with Fast Sync Read (one combined status packet instead of one per servo; firmware support needed):
+    ``"auto"`` (default) probes once, at the end of :meth:`configure` (or at the first cycle if the chain
+    was not configured), and uses it if every servo answers (`fast_read_info` says which and why); ``True``
+    / ``False`` force it. Either way a chain on which it later fails while single reads work falls back to
+    plain Sync Read (with an event).
     """
 
     def __init__(
@@ -56,11 +62,19 @@ class Driver(ChainReads):
         *,
         policy: FaultPolicy | None = None,
         clock: Callable[[], float] = time.monotonic,
-        fast_sync_read: bool = False,
+        fast_sync_read: FastSyncRead = "auto",
     ) -> None:
+        if not (fast_sync_read is True or fast_sync_read is False or fast_sync_read == "auto"):
+            raise HardwareConfigError(f"fast_sync_read={fast_sync_read!r}: expected True, False or 'auto'")
         self.bus = bus
         self.policy = policy or FaultPolicy()
-        self.fast_sync_read = fast_sync_read
+        self.fast_sync_read = fast_sync_read is True
+        self._fast_probe_pending = fast_sync_read == "auto"
+        self.fast_read_info = (
+            "auto: not probed yet (at the end of configure, or the first cycle)"
+            if self._fast_probe_pending
+            else f"forced: fast_sync_read={fast_sync_read}"
+        )
         self._clock = clock
         self._records: dict[int, ServoRecord] = {
             s.servo_id: ServoRecord(
@@ -178,6 +192,8 @@ class Driver(ChainReads):
                 if not allow_missing:
                     raise
                 self._mark_missing(rec, self._clock(), "did not answer during configure")
+        if self._fast_probe_pending and self._connected:
+            self._probe_fast_read(self._clock())
         return reports
 
     def _configure_retried(self, rec: ServoRecord) -> ConfigReport:
@@ -488,6 +504,8 @@ class Driver(ChainReads):
             if not self._connected:
                 self._try_reopen(now)
             if self._connected:
+                if self._fast_probe_pending:  # "auto" on a chain not configured by this driver
+                    self._probe_fast_read(now)
                 self._feed_watchdog(now)
                 self._write_goals(goals)
                 self._start_positions(now)

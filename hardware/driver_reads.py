@@ -7,7 +7,13 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from servoface.hardware.bus import ServoBus
-from servoface.hardware.errors import BusCorruptError, BusTimeoutError, ServoStatusError
+from servoface.hardware.errors import (
+    BusCorruptError,
+    BusDisconnectedError,
+    BusError,
+    BusTimeoutError,
+    ServoStatusError,
+)
 from servoface.hardware.fault_policy import FaultPolicy
 from servoface.hardware.fault_reactions import FaultReactions
 from servoface.hardware.registers import Register, span
@@ -21,6 +27,7 @@ STATUS = (Register.TORQUE_ENABLE, Register.HARDWARE_ERROR_STATUS)  # 64..70
 READ_FAILURES = (BusTimeoutError, BusCorruptError, ServoStatusError)
 FOLDABLE = ("motion", "thermal")  # groups whose block adjoins Present Position: read with it (see _position_block)
 FAST_READ_GIVE_UP = 3  # cycles of "fast read fails, single reads work" before falling back to Sync Read
+PROBE_QUIET_S = 0.05  # after a failed Fast Sync Read probe, let the line be this quiet (a partial reply's tail)
 
 
 @dataclass
@@ -39,7 +46,9 @@ class ChainReads:
 
     bus: ServoBus
     policy: FaultPolicy
-    fast_sync_read: bool
+    fast_sync_read: bool  # positions are read with Fast Sync Read (resolved: see `_probe_fast_read`)
+    fast_read_info: str  # which read the positions use, and why (the probe's or the fallback's news)
+    _fast_probe_pending: bool  # ``fast_sync_read="auto"`` not yet decided by a probe
     _records: dict[int, ServoRecord]
     _groups: list[TelemetryGroup]
     _reactions: FaultReactions
@@ -170,11 +179,53 @@ class ChainReads:
         if len(got) < len(ids):  # the silent ones (`got` holds only ids asked for)
             self._mark_results([sid for sid in ids if sid not in got], got, now)
 
+    def _probe_fast_read(self, now: float) -> None:
+        """``fast_sync_read="auto"``: one Fast Sync Read of Present Position from every readable servo. A
+        valid combined reply with every id: positions are read fast from now on; anything else (no reply,
+        a corrupt or short one, a servo missing from it: firmware without the instruction) leaves plain
+        Sync Read, with an event that says why. A read, so safe; never raises for a chain without support
+        (a failed port is the caller's, as in any read). With no servo to ask, it waits for the next call."""
+        ids = self._readable(now)
+        if not ids:
+            return
+        self._fast_probe_pending = False
+        try:
+            got = self.bus.sync_read(ids, POSITION, fast=True)
+        except BusDisconnectedError:
+            self._fast_probe_pending = True
+            raise
+        except BusError as err:
+            self._fast_probe_failed(ids, err)
+            return
+        if set(got) != set(ids):  # the bus checks this already; a reply without every id is no support
+            self._fast_probe_failed(ids, BusCorruptError(f"fast sync read probe: ids {sorted(got)} answered", ids))
+            return
+        self.fast_sync_read = True
+        self.fast_read_info = f"auto: servos {ids} answered a Fast Sync Read probe: positions read with Fast Sync Read"
+
+    def _fast_probe_failed(self, ids: list[int], err: BusError) -> None:
+        self.fast_sync_read = False
+        self.fast_read_info = (
+            f"auto: the Fast Sync Read probe of servos {ids} failed ({err}): positions read with plain Sync Read"
+        )
+        self._emit(
+            None,
+            FaultKind.TIMEOUT if isinstance(err, BusTimeoutError) else FaultKind.CORRUPT,
+            f"Fast Sync Read probe failed ({err}; firmware without it?): positions read with plain Sync Read",
+        )
+        drain = getattr(self.bus, "drain", None)  # a partial combined reply's tail must not meet the next read
+        if drain is not None:
+            drain(quiet_s=PROBE_QUIET_S, max_s=max(0.3, 2 * PROBE_QUIET_S))
+
     def _check_fast_read_support(self, only_fast_failed: bool) -> None:
         """Fast Sync Read failing while every single read works means the firmware lacks it: fall back."""
         self._fast_failures = self._fast_failures + 1 if only_fast_failed else 0
         if self._fast_failures >= FAST_READ_GIVE_UP:
             self.fast_sync_read = False
+            self.fast_read_info = (
+                f"Fast Sync Read failed {self._fast_failures} cycles running while single reads worked: "
+                "positions read with plain Sync Read"
+            )
             self._emit(
                 None,
                 FaultKind.CORRUPT,

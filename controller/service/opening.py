@@ -19,7 +19,7 @@ from servoface.controller.errors import ControllerError
 from servoface.controller.head_servos import servo_specs, temperature_limits_c
 from servoface.controller.pipeline import Pipeline
 from servoface.hardware.bus import ServoBus, open_bus
-from servoface.hardware.driver import Driver
+from servoface.hardware.driver import Driver, FastSyncRead
 from servoface.hardware.fault_policy import FaultPolicy
 from servoface.sim.head import Head
 from servoface.sim.heads import load_head
@@ -65,7 +65,7 @@ def open_head(
     wire_time: bool = True,
     rate_hz: float = 50.0,
     calibration: HeadCalibration | str | Path | None = None,
-    fast_sync_read: bool = False,
+    fast_sync_read: FastSyncRead = "auto",
     policy: FaultPolicy | None = None,
 ) -> OpenedHead:
     """Open ``head`` on ``port`` or on the emulator: servos configured from the profile and calibration

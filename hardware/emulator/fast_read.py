@@ -7,6 +7,7 @@ from collections.abc import Sequence
 
 from servoface.hardware.emulator.answers import Outcome, Reply, answers
 from servoface.hardware.emulator.crc import crc16, crc16_even, crc16_own_tail
+from servoface.hardware.emulator.models import FAST_READ_MIN_FIRMWARE
 from servoface.hardware.emulator.packet import ALERT_BIT, BROADCAST_ID, HEADER, Instruction, stuff
 from servoface.hardware.emulator.servo import EmulatedServo
 
@@ -21,12 +22,14 @@ def _fast_read(
     out: Outcome, requests: list[tuple[int, int, int]], by_id: dict[int, list[EmulatedServo]], inst: int
 ) -> None:
     """One combined packet: ``FF FF FD 00 FE LEN 55`` then per device ``ERR ID data CRC``; each block's CRC is
-    the running CRC of the packet so far, so the last one is the packet CRC (reference sheet §5)."""
+    the running CRC of the packet so far, so the last one is the packet CRC (reference sheet §5). A servo
+    whose firmware predates the instruction (`FAST_READ_MIN_FIRMWARE`) ignores it, like an absent one: its
+    block never appears (the first one silent: no packet at all)."""
     blocks: list[tuple[EmulatedServo | None, bytes]] = []
     get = by_id.get  # `servos_with` and `error_byte`, inlined: once per servo per read
     for sid, addr, length in requests:
         servos = get(sid)
-        if not servos:
+        if not servos or servos[0].firmware_version < FAST_READ_MIN_FIRMWARE:
             blocks.append((None, bytes(length + 2)))
             continue
         servo = servos[0]

@@ -33,6 +33,15 @@ HW_ENCODER = 0x08
 HW_ELECTRICAL_SHOCK = 0x10
 HW_OVERLOAD = 0x20
 
+# Fast Sync Read (0x8A) / Fast Bulk Read (0x9A) came with a firmware update: older X-series firmware does not
+# know the instruction and, as for any unknown broadcast instruction, stays silent. The threshold is the
+# XL330's "v46+" (pollen-robotics/rustypot PR #122, "Add dynamixel fast sync read": "may need a firmware
+# update (XL330: v46+)"); MX(2.0) firmware never answers it (ROBOTIS forum, "No response to fast sync read
+# command with Dynamixel MX28-AR": "the DYNAMIXEL MX series (2.0 Firmware) does not function the Fast Sync /
+# Bulk read / write instruction (DYNAMIXEL X Series only)"). The e-manual's own statement of the version
+# was not in the reference corpus. Every stock model here ships at or above it (XL330 52, the others 46).
+FAST_READ_MIN_FIRMWARE = 46
+
 
 @dataclass(frozen=True)
 class ModelSpec:

@@ -31,6 +31,7 @@ from servoface.hardware.emulator.servo_motion import (
 )
 
 _F = TypeVar("_F", bound=Callable[..., Any])
+A_FIRMWARE = 6
 A_PROTOCOL = 13
 A_STARTUP = 60
 A_BACKUP_READY = 147
@@ -85,6 +86,9 @@ class EmulatedServo(ServoMotion):
         self.on_change: Callable[[EmulatedServo], None] | None = None  # chain hook: id/baud/silence changed
         self.mem = bytearray()
         self.backup: bytes | None = None  # Control Table Backup (0x20): the image RAM Restore brings back
+        # Firmware Version (6): the model's unless a test gives this servo another (``set_firmware``); it
+        # decides whether Fast Sync / Bulk Read are answered (`FAST_READ_MIN_FIRMWARE`)
+        self.firmware_version = spec.firmware_version
         self._init_motion(spec, clock, realism)
         self._indirect = IndirectMap(spec.table)
         self._indirect_lo = self._indirect.data_lo
@@ -192,6 +196,15 @@ class EmulatedServo(ServoMotion):
         self._apply(reg.address, reg.encode(int(value)))
 
     @_locked
+    def set_firmware(self, version: int) -> None:
+        """Test hook: this servo runs firmware ``version`` (Firmware Version, 6, reads it; below
+        `FAST_READ_MIN_FIRMWARE` it does not answer Fast Sync / Bulk Read). Kept across reboots and resets."""
+        if not 0 <= int(version) <= 255:
+            raise EmulatorConfigError(f"firmware version {version}: expected 0..255")
+        self.firmware_version = int(version)
+        self.mem[A_FIRMWARE] = self.firmware_version
+
+    @_locked
     def move_by_hand(self, present_tick: float) -> None:
         """Turn the horn by hand to where Present Position reads ``present_tick`` (only with torque off)."""
         self.advance()
@@ -222,6 +235,7 @@ class EmulatedServo(ServoMotion):
         image = self.table.defaults_image()
         if keep is not None:
             image[:EEPROM_END] = keep[:EEPROM_END]
+        image[A_FIRMWARE] = self.firmware_version
         self.mem = image
         self.registered = None
         self._watchdog_tripped = False

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from servoface.hardware.bus import open_bus
-from servoface.hardware.driver import Driver
+from servoface.hardware.driver import Driver, FastSyncRead
 from servoface.hardware.emulator import ServoChain
 from servoface.hardware.fault_policy import FaultPolicy
 from servoface.hardware.servo_config import ServoSpec
@@ -15,7 +15,12 @@ DT_S = 0.01
 
 
 def make_driver(
-    ids: Sequence[int] = (1, 2, 3, 4), policy: FaultPolicy | None = None, torque: bool = True, **spec_kw: int
+    ids: Sequence[int] = (1, 2, 3, 4),
+    policy: FaultPolicy | None = None,
+    torque: bool = True,
+    *,
+    fast_sync_read: FastSyncRead = "auto",
+    **spec_kw: int,
 ) -> tuple[ServoChain, Driver]:
     chain = ServoChain.create(ids=list(ids), model="XL330-M288", baud=1_000_000, wire_time=False, clock="manual")
     bus = open_bus("emulator", chain=chain)
@@ -30,7 +35,7 @@ def make_driver(
         )
         for i in ids
     ]
-    driver = Driver(bus, specs, policy=policy, clock=chain.clock)
+    driver = Driver(bus, specs, policy=policy, clock=chain.clock, fast_sync_read=fast_sync_read)
     driver.configure()
     if torque:
         driver.torque_on()

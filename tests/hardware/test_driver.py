@@ -14,7 +14,7 @@ from servoface.hardware.servo_config import ServoSpec, configure_servo
 
 from tests.hardware.driver_helpers import assert_goals_within_limits, make_driver, run
 
-SYNC_WRITE, SYNC_READ, WRITE = 0x83, 0x82, 0x03
+SYNC_WRITE, SYNC_READ, WRITE, FAST_SYNC_READ = 0x83, 0x82, 0x03, 0x8A
 
 
 def test_configure_writes_eeprom_with_torque_off_and_verifies() -> None:
@@ -120,11 +120,14 @@ def test_snapshot_is_frozen() -> None:
     assert driver.snapshot() is snap
 
 
-def test_slow_telemetry_is_round_robin_and_keeps_cycles_short() -> None:
-    chain, driver = make_driver()
-    n_before = len(chain.instructions(SYNC_READ))
+@pytest.mark.parametrize("fast", ["auto", False])  # auto: Fast Sync Read on this chain (0x8A), else 0x82
+def test_slow_telemetry_is_round_robin_and_keeps_cycles_short(fast: bool | str) -> None:
+    chain, driver = make_driver(fast_sync_read=fast)  # type: ignore[arg-type]
+    read = FAST_SYNC_READ if driver.fast_sync_read else SYNC_READ
+    assert driver.fast_sync_read == (fast == "auto")
+    n_before = len(chain.instructions(read))
     snaps = run(chain, driver, {}, seconds=2.0)
-    reads = chain.instructions(SYNC_READ)[n_before:]
+    reads = chain.instructions(read)[n_before:]
     by_cycle: dict[float, list[tuple[int, int]]] = {}
     for e in reads:  # (start address, end address) of each Sync Read's block
         start = e.params[0] | e.params[1] << 8
@@ -212,8 +215,9 @@ def test_driver_thread_reports_errors_to_callers() -> None:
 
 
 def test_fast_sync_read_falls_back_when_the_firmware_lacks_it(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The emulator answers Fast Sync Read on any firmware, so an old firmware's silence is imitated at the
-    bus: every Fast Sync Read fails as on such a chain, while everything else goes over the emulated wire."""
+    """A chain that stops answering Fast Sync Read after the start-up probe (forced on here), imitated at the
+    bus: every Fast Sync Read fails, while everything else goes over the emulated wire. (A servo whose
+    firmware lacks it from the start: tests/hardware/test_fast_read_auto.py.)"""
     from servoface.hardware.errors import BusTimeoutError
 
     chain, driver = make_driver()
