@@ -3,8 +3,10 @@ SDK packet handler's; the emulator keeps its own copy, `servoface.hardware.emula
 that checks the SDK's packets shares no code with the side that sends them).
 
 The hot path folds two bytes per step with a 65 536-entry table (a 16-bit CRC's state is fully replaced
-after 16 input bits, so ``crc' = T16[crc ^ word]``); ``crc16_bitwise`` is the textbook reference the
-tests compare against.
+after 16 input bits, so ``crc' = T16[crc ^ word]``), kept as an ``array("H")``: 128 KB of plain 16-bit
+values instead of a list's 512 KB of pointers to ~64 000 int objects. A 50 Hz loop sleeps between frames
+and finds its caches cold: a 164-byte Sync Write's CRC took ~96 us with the list, ~55 us with the array
+(~9 / ~8 us warm). ``crc16_bitwise`` is the textbook reference the tests compare against.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ def _byte_table() -> list[int]:
 _T8: list[int] = _byte_table()
 
 
-def _word_table() -> list[int]:
+def _word_table() -> array[int]:
     # crc16 of the two bytes (hi, lo) from state 0 == T8[T8[hi] >> 8 ^ lo] ^ (T8[hi] << 8 & 0xFFFF)
     t8 = _T8
     table = [0] * 65536
@@ -44,10 +46,10 @@ def _word_table() -> list[int]:
         base = hi << 8
         for lo in range(256):
             table[base | lo] = shifted ^ t8[top ^ lo]
-    return table
+    return array("H", table)
 
 
-_T16: list[int] = _word_table()
+_T16: array[int] = _word_table()
 _SWAP = sys.byteorder == "little"
 
 
