@@ -34,6 +34,7 @@ from servoface.hardware.errors import (
 )
 from servoface.hardware.latency import read_latency_timer, sdk_latency_ms, warn_if_high
 from servoface.hardware.port_lock import PortLock
+from servoface.hardware.raw_write import write_raw
 from servoface.hardware.registers import STATUS_ALERT_BIT, STATUS_ERROR_NAMES, Register, slice_value, span
 from servoface.hardware.stuffing import add_stuffing_is_identity, remove_stuffing_is_identity
 
@@ -135,6 +136,8 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
         before, so a reader may sleep until then instead of spinning."""
         now = time.monotonic()
         self.tx_done_s = max(now, self.tx_done_s) + len(packet) * self.tx_time_per_byte * 1e-3
+        if self._raw_write and self.ser.is_open:  # pyserial's own posix port: one os.write (`write_raw`)
+            return write_raw(self.ser, packet)
         written: int = self.ser.write(packet)
         return written
 
@@ -180,6 +183,7 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
         return data
 
     _raw_read: bool = False  # self.ser is pyserial's own posix Serial: read its fd directly (see _read_raw)
+    _raw_write: bool = False  # ... and its write not replaced either: write its fd directly (`write_raw`)
 
     def _wait_s(self, length: int) -> float:
         """How long an empty read of ``length`` bytes waits for bytes: until they could have come back
@@ -241,10 +245,12 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
         self._fd = -2
         self._rx_ahead = b""
         self._raw_read = False
+        self._raw_write = False
         ok: bool = super().setupPort(cflag_baud)
         ser: Any = self.ser  # the SDK's serial.Serial(..., timeout=0), its read not replaced
         posix = _PosixSerial is not None and type(ser) is _PosixSerial
         self._raw_read = bool(ok and posix and "read" not in vars(ser) and ser.timeout == 0 and ser.is_open)
+        self._raw_write = bool(self._raw_read and "write" not in vars(ser) and ser.write_timeout is None)
         return ok
 
     def clearPort(self) -> None:  # noqa: N802 (SDK name)
@@ -255,6 +261,7 @@ class _WindowedPort(sdk.PortHandler):  # type: ignore[misc]
     def closePort(self) -> None:  # noqa: N802 (SDK name)
         self._rx_ahead = b""
         self._raw_read = False
+        self._raw_write = False
         self._fd = -2
         super().closePort()
 

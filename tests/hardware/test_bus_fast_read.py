@@ -35,7 +35,7 @@ class _Pty:
         assert self.port.openPort()
         os.close(slave)
         if not raw:
-            self.port._raw_read = False  # pyserial's own read, the reference
+            self.port._raw_read = self.port._raw_write = False  # pyserial's own read and write, the reference
 
     def feed(self, data: bytes) -> None:
         """Write ``data`` at the far end and wait until all of it can be read (a pty hands it over later)."""
@@ -70,8 +70,9 @@ def ptys() -> Iterator[tuple[_Pty, _Pty]]:
 
 
 def test_a_pyserial_port_is_read_raw(ptys: tuple[_Pty, _Pty]) -> None:
-    """The point of it (and that the reference really is pyserial's read)."""
+    """The point of it (and that the reference really is pyserial's read and write)."""
     assert ptys[1].port._raw_read and not ptys[0].port._raw_read
+    assert ptys[1].port._raw_write and not ptys[0].port._raw_write
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -149,9 +150,9 @@ def _bus_on_pty(raw: bool) -> tuple[ServoChain, DynamixelBus]:
     chain = ServoChain.create(ids=IDS, model="XL330-M288", baud=1_000_000, wire_time=True)
     bus = open_bus("dynamixel", port=chain.serve_pty(), baud=1_000_000, warn_latency=False)
     assert isinstance(bus, DynamixelBus)
-    assert bus._port._raw_read
+    assert bus._port._raw_read and bus._port._raw_write
     if not raw:
-        bus._port._raw_read = False
+        bus._port._raw_read = bus._port._raw_write = False  # pyserial's own read and write
     return chain, bus
 
 
