@@ -13,9 +13,11 @@ from __future__ import annotations
 
 import os
 import select
+import struct
 import threading
 import time
 from collections.abc import Iterable, Mapping, Sequence
+from itertools import chain as chain_iterables
 from types import TracebackType
 from typing import Any, Protocol
 
@@ -543,21 +545,27 @@ class DynamixelBus:
 
         The parameters (``id data...`` per servo, in ``values`` order: what ``GroupSyncWrite.makeParam``
         builds) go to the SDK's own ``syncWriteTxOnly``, which frames, stuffs, checksums and sends them;
-        the per-frame goal write skips the group object and its per-servo ``addParam`` (same bytes:
-        tests/hardware/test_bus_sdk_paths.py)."""
+        the per-frame goal write skips the group object and its per-servo ``addParam``, and packs the
+        parameters of a frame of plain in-range ints in one ``struct`` call (the SDK copies them into its
+        packet list as ints either way; same bytes: tests/hardware/test_bus_sdk_paths.py)."""
         ids = self._ids(values)
         if not ids:
             return
         size, signed = register.size, register.signed
         lo, hi = register.value_range
-        param: list[int] = []
-        for sid in ids:  # encode all before sending any
-            value = values[sid]
-            param.append(sid)
-            if type(value) is int and lo <= value <= hi:  # fast path for the per-frame goal write
-                param += value.to_bytes(size, "little", signed=signed)
-            else:
-                param += register.encode(value)  # checks and raises with the register's message
+        vals = [values[sid] for sid in ids]
+        pack = _pairs_struct(len(ids), size, signed)
+        param: bytes | list[int]
+        if pack is not None and all(type(v) is int for v in vals) and lo <= min(vals) and max(vals) <= hi:
+            param = pack.pack(*chain_iterables.from_iterable(zip(ids, vals, strict=True)))  # one C call
+        else:
+            param = []
+            for sid, value in zip(ids, vals, strict=True):  # encode all before sending any
+                param.append(sid)
+                if type(value) is int and lo <= value <= hi:
+                    param += value.to_bytes(size, "little", signed=signed)
+                else:
+                    param += register.encode(value)  # checks and raises with the register's message
         comm = self._call(self._packet.syncWriteTxOnly, self._port, register.address, size, param, len(param))
         self.stats.bytes_written += 14 + len(param)
         self._check(comm, 0, f"sync write {register.name}", ids)
@@ -796,6 +804,22 @@ class DynamixelBus:
             return
         comm = self._call(group.txPacket)
         self._check(comm, 0, "bulk write", ids)
+
+
+_PAIR_CODES = {(1, False): "B", (1, True): "b", (2, False): "H", (2, True): "h", (4, False): "I", (4, True): "i"}
+_PAIR_STRUCTS: dict[tuple[int, int, bool], struct.Struct] = {}
+
+
+def _pairs_struct(n: int, size: int, signed: bool) -> struct.Struct | None:
+    """``<`` then ``n`` times (id byte, value of ``size`` bytes, little-endian): a Sync Write's parameters."""
+    key = (n, size, signed)
+    packer = _PAIR_STRUCTS.get(key)
+    if packer is None:
+        code = _PAIR_CODES.get((size, signed))
+        if code is None:
+            return None
+        packer = _PAIR_STRUCTS[key] = struct.Struct("<" + ("B" + code) * n)
+    return packer
 
 
 def _open_hint(err: BaseException) -> str:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import random
 from typing import Any
 
+import numpy as np
 import pytest
 from servoface.hardware.bus import open_bus
 from servoface.hardware.dynamixel_bus import DynamixelBus, TableCrcPacketHandler, sdk
@@ -65,6 +66,55 @@ def test_sync_write_sends_the_group_helpers_bytes(seed: int) -> None:
             assert group.txPacket() == sdk.COMM_SUCCESS
             assert ours == seen.pop(), (register, values)
         assert not seen
+    finally:
+        bus.close()
+
+
+def _previous_sync_write_param(register: Register, values: dict[int, Any]) -> list[int]:
+    """The parameters as `DynamixelBus.sync_write` built them before its packed path (kept as the reference)."""
+    lo, hi = register.value_range
+    param: list[int] = []
+    for sid, value in values.items():
+        param.append(sid)
+        if type(value) is int and lo <= value <= hi:
+            param += value.to_bytes(register.size, "little", signed=register.signed)
+        else:
+            param += register.encode(value)
+    return param
+
+
+def _odd_value(rng: random.Random, register: Register) -> Any:
+    lo, hi = register.value_range
+    return rng.choice((lo - 1, hi + 1, True, False, 1.0, 2.5, float("nan"), "7", None, np.int64(rng.randint(lo, hi))))
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_sync_write_odd_values_give_the_previous_bytes_or_error(seed: int) -> None:
+    """Frames with values that are not plain in-range ints (bools, floats, numpy ints, out of range, junk)
+    take the per-value path: the same bytes on the wire, or the same error with nothing sent."""
+    rng = random.Random(seed)
+    chain = ServoChain.create(ids=IDS, wire_time=False)
+    seen = _raw_log(chain)
+    bus = open_bus("emulator", chain=chain)
+    port, packet = bus.sdk_handlers()  # type: ignore[attr-defined]
+    try:
+        for _ in range(300):
+            register = rng.choice(WRITABLE)
+            ids = rng.sample(IDS, rng.randint(1, len(IDS)))
+            values = {sid: _value(rng, register) if rng.random() < 0.8 else _odd_value(rng, register) for sid in ids}
+            try:
+                expected: Any = _previous_sync_write_param(register, values)
+            except Exception as err:
+                expected = (type(err), str(err))
+            try:
+                bus.sync_write(register, values)
+            except Exception as err:
+                assert (type(err), str(err)) == expected and not seen
+                continue
+            ours = seen.pop()
+            assert isinstance(expected, list) and not seen
+            assert packet.syncWriteTxOnly(port, register.address, register.size, expected, len(expected)) == 0
+            assert ours == seen.pop(), (register, values)
     finally:
         bus.close()
 
