@@ -494,18 +494,21 @@ class Driver(ChainReads):
         if self._cycle_now is not None:
             raise DriverThreadError("Driver.cycle_start called twice without cycle_finish in between")
         goals = self.validate_goals(goals_tick)
+        self._cycle_events = []
+        if self._fast_probe_pending and self._connected:  # "auto" on a chain this driver did not configure:
+            try:  # probed before the cycle's clock reading, so a slow (failed) probe counts as a pause for
+                self._probe_fast_read(self._clock())  # the Bus Watchdog (`_feed_watchdog` re-arms it)
+            except BusDisconnectedError as err:
+                self._on_disconnect(err)
         now = self._clock()
         self._idle_s = now - self._last_end_s
         self._patient = self._idle_s > self._busy_s  # a paced caller: spend least CPU, not least latency
-        self._cycle_events = []
         self._cycle_now = now
         self._position_ids = None
         try:
             if not self._connected:
                 self._try_reopen(now)
             if self._connected:
-                if self._fast_probe_pending:  # "auto" on a chain not configured by this driver
-                    self._probe_fast_read(now)
                 self._feed_watchdog(now)
                 self._write_goals(goals)
                 self._start_positions(now)

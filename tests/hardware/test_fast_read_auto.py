@@ -6,6 +6,8 @@ corrupted, leaves plain Sync Read, with an event and `Driver.fast_read_info`, ne
 
 from __future__ import annotations
 
+import time
+
 import pytest
 from servoface.hardware.bus import open_bus
 from servoface.hardware.driver import Driver, FastSyncRead
@@ -139,3 +141,23 @@ def test_firmware_is_kept_across_reboot_and_factory_reset() -> None:
     servo.factory_reset(0x02)
     assert servo.read_register("Firmware Version") == FAST_READ_MIN_FIRMWARE - 1
     assert chain.servo(1).read_register("Firmware Version") == chain.servo(1).spec.firmware_version
+
+
+def test_a_failed_probe_at_the_first_cycle_does_not_leave_a_tripped_watchdog() -> None:
+    """Torque on (Bus Watchdog armed, 0.1 s) before the first cycle of a driver that did not configure the
+    chain, real clock: the failed probe (reply window, then a quiet line) is a pause like any other, so the
+    cycle clears and re-arms the watchdog before its goals; they are obeyed."""
+    chain = ServoChain.create(ids=list(IDS), model="XL330-M288", baud=1_000_000, wire_time=False)
+    chain.servo(1).set_firmware(FAST_READ_MIN_FIRMWARE - 1)  # the first one silent: the probe times out
+    try:
+        driver = _driver(chain, configure=False)
+        driver.torque_on()
+        deadline = time.monotonic() + 5.0
+        snap = driver.cycle(GOALS)
+        assert not driver.fast_sync_read and driver.watchdog_rearms >= 1
+        while time.monotonic() < deadline and {sid: snap[sid].position_tick for sid in IDS} != GOALS:
+            time.sleep(0.01)
+            snap = driver.cycle(GOALS)
+        assert {sid: snap[sid].position_tick for sid in IDS} == GOALS
+    finally:
+        chain.close()
