@@ -30,9 +30,9 @@ from servoface.sim.gate.errors import GateConfigError, GateInputError
 from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.health import HealthPolicy, ServoHealth, derate
 from servoface.sim.gate.skin_proof import proven_static
-from servoface.sim.gate.skin_source import face_model_source, falloff_source
+from servoface.sim.gate.skin_source import RowsPart, face_model_source, falloff_source
 from servoface.sim.gate.skin_static import build_static
-from servoface.sim.gate.strain import FlipProbe, SkinTwin, StrainLimits, flip_probe, probe_dots, strain_findings
+from servoface.sim.gate.strain import FlipProbe, SkinTwin, StrainLimits, flip_probe, probe_dots_at, strain_findings
 from servoface.sim.gate.tss_build import TssParams, default_cache_dir
 from servoface.sim.gate.twin import TwinPoser
 from servoface.sim.gate.verdict import Finding, Verdict
@@ -145,7 +145,8 @@ class TwinGate:
         self._last_fraction = 1.0  # share of a frame period the previous check's step was allowed (per_time)
         self._memo: tuple[bytes, list[Finding]] = (b"", [])  # (command bytes, its state findings)
         # triangles a skin-first clip search probes first (`_skin_ok`): costs only, never answers
-        self._flip_probe: FlipProbe | None = None
+        # (the probe, its vertices' rows prepared for `SkinSource.offsets_part`)
+        self._flip_probe: tuple[FlipProbe, RowsPart] | None = None
 
     # ---- set-up ---------------------------------------------------------------------------------------
     def _build_skin(self, face_model: Any) -> SkinTwin:
@@ -310,17 +311,21 @@ class TwinGate:
         them flipped than the limit allows fails the candidate as the whole measure would (its count can
         only be larger), at a fraction of its cost. Which triangles are probed changes no answer."""
         s = self.config.strain
-        offsets = self.skin_source.offsets_rows(pulls, self.skin.fast_vertices)
         static = self._static(goal)
-        if probe and self._flip_probe is not None and self._flip_probe.subset == self.skin.subset:
-            dots = probe_dots(self.skin, world, offsets, self._flip_probe)
+        if probe and self._flip_probe is not None and self._flip_probe[0].subset == self.skin.subset:
+            flip, part = self._flip_probe  # the probe's vertices' offsets only: the same numbers, gathered
+            dots = probe_dots_at(self.skin, world, self.skin_source.offsets_part(pulls, part), flip)
             if int(np.count_nonzero(dots <= 0.0)) + self.skin.const_flips + static[2] > s.max_flipped:
                 return False
+        offsets = self.skin_source.offsets_rows(pulls, self.skin.fast_vertices)
         key = self.skin_source.rows_key(self.skin.fast_vertices)
         stretch, comp, flips, flipped = self.skin.measure_one_faces(world, offsets, static, key)
         if probe and flips > s.max_flipped:  # probe these triangles on the next candidates
             faces = np.flatnonzero(flipped)
-            self._flip_probe = flip_probe(self.skin, faces) if len(faces) else None
+            self._flip_probe = None
+            if len(faces):
+                made = flip_probe(self.skin, faces)
+                self._flip_probe = (made, self.skin_source.rows_part(self.skin.fast_vertices[made.verts]))
         return stretch <= s.max_stretch and comp >= s.min_compression and flips <= s.max_flipped
 
     # ---- public ---------------------------------------------------------------------------------------

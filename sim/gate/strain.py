@@ -370,11 +370,18 @@ def probe_dots(skin: SkinTwin, world: FloatArray, offsets: FloatArray, probe: Fl
     for them (the same float32 products in the same order, elementwise on the probe's vertices and
     triangles, x / y / z stacked as rows; the two blend products are the whole ones, gathered), so a
     triangle flips here exactly when it flips there."""
+    return probe_dots_at(skin, world, offsets.take(probe.verts, axis=0), probe)
+
+
+def probe_dots_at(
+    skin: SkinTwin, world: FloatArray, probe_offsets: FloatArray, probe: FlipProbe
+) -> NDArray[np.float32]:
+    """`probe_dots` from the offsets of the probe's vertices only ((len(probe.verts), 3), in its order)."""
     if probe.subset != skin.subset:
         raise GateConfigError("flip probe made for another measured subset of the skin")
     mats = skin._mats(world).astype(np.float32)
     m = (mats.T @ skin._fw_t32).take(probe.verts, axis=1).reshape(3, 4, -1)  # [coordinate, column, vertex]
-    v = probe.rest32 + offsets.take(probe.verts, axis=0).T.astype(np.float32)
+    v = probe.rest32 + probe_offsets.T.astype(np.float32)
     p = m[:, 0] * v[0]
     p += m[:, 1] * v[1]
     p += m[:, 2] * v[2]
