@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 from servoface.sim.gate import limits as lim
 from servoface.sim.gate.collision import PairSpec, PartCollisions, auto_pairs
-from servoface.sim.gate.coupling import CouplingCheck, CouplingLimit, limits_from_head, travel_share
+from servoface.sim.gate.coupling import CouplingCheck, CouplingLimit, limits_from_head, scaled_share, travel_scales
 from servoface.sim.gate.errors import GateConfigError, GateInputError
 from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.health import HealthPolicy, ServoHealth, derate
@@ -127,6 +127,7 @@ class TwinGate:
             speedup,
         )
         self._index = self.table.index()
+        self._travel = travel_scales(self.poser.target_lower, self.poser.target_upper, self.poser.target_neutral)
         rules = cfg.coupling if cfg.coupling is not None else tuple(limits_from_head(head))
         self.coupling = CouplingCheck(rules, self.poser.roles)
         self.skin = self._build_skin(face_model)
@@ -226,14 +227,15 @@ class TwinGate:
     # ---- the twin -------------------------------------------------------------------------------------
     def _pose_arrays(self, goals: IntArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """(targets (k, n), angles (k, J), world (k, J, 4, 4), pulls (k, a)) for (k, n) goals."""
+        if len(goals) == 1:  # one command (the frame's request, a clip's clamped request): flat arrays
+            target, angle, pull = self.poser.pose_one(goals[0])
+            return target[None], angle[None], self.tree.world_one(angle)[None], pull[None]
         targets = self.poser.targets(goals)
         angles = self.poser.joint_angles(targets)
-        world = self.tree.world_one(angles[0])[None] if len(angles) == 1 else self.tree.world(angles)
-        return targets, angles, world, self.poser.pulls(targets)
+        return targets, angles, self.tree.world(angles), self.poser.pulls(targets)
 
     def _shares(self, targets: FloatArray) -> FloatArray:
-        p = self.poser
-        return travel_share(targets, p.target_lower, p.target_upper, p.target_neutral)
+        return scaled_share(targets, self.poser.target_neutral, *self._travel)
 
     def _static(self, goal: IntArray) -> tuple[float, float, int]:
         """The tabulated joint-only skin strain for one command (neutral values when not tabulated)."""
