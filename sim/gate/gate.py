@@ -141,6 +141,9 @@ class TwinGate:
         cache = (cfg.cache_dir or default_cache_dir()) if cfg.use_cache else None
         pairs = list(cfg.collision_pairs) if cfg.collision_pairs is not None else auto_pairs(head, self.tree)
         self.collisions = PartCollisions(head, self.tree, pairs, cfg.tss, cache, clearance=cfg.clearance)
+        self._pair_index: dict[tuple[str, str], list[int]] = {}  # (part a, part b) -> indices of their specs
+        for p, spec in enumerate(self.collisions.specs):
+            self._pair_index.setdefault((spec.a, spec.b), []).append(p)
         self._last_sent: IntArray | None = None
         self._last_step: IntArray = np.zeros(self.table.n, dtype=np.int64)
         self._last_fraction = 1.0  # share of a frame period the previous check's step was allowed (per_time)
@@ -380,7 +383,7 @@ class TwinGate:
         if not hard and np.array_equal(clamped, req):  # only health notes fired
             return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last, req)
         hit = {f.parts for f in hard if f.check == "collision"}
-        suspects = tuple(p for p, spec in enumerate(self.collisions.specs) if (spec.a, spec.b) in hit)
+        suspects = tuple(sorted(p for parts in hit for p in self._pair_index.get(parts, ())))  # in spec order
         skin_first = not hit and any(f.check in ("strain", "flip") for f in hard)
         best, frac = self._scale_back(
             req,
