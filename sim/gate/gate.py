@@ -141,7 +141,7 @@ class TwinGate:
         cache = (cfg.cache_dir or default_cache_dir()) if cfg.use_cache else None
         pairs = list(cfg.collision_pairs) if cfg.collision_pairs is not None else auto_pairs(head, self.tree)
         self.collisions = PartCollisions(head, self.tree, pairs, cfg.tss, cache, clearance=cfg.clearance)
-        self._pair_index: dict[tuple[str, str], list[int]] = {}  # (part a, part b) -> indices of their specs
+        self._pair_index: dict[tuple[str, ...], list[int]] = {}  # (part a, part b) -> indices of their specs
         for p, spec in enumerate(self.collisions.specs):
             self._pair_index.setdefault((spec.a, spec.b), []).append(p)
         self._last_sent: IntArray | None = None
