@@ -51,6 +51,7 @@ class SkinTwin:
         np.add.at(self.weights.T, np.array(slot), weights.T)
         used = np.nonzero(self.weights.any(axis=0))[0]
         self._used = used
+        self._no_base = bool(len(used)) and int(used[-1]) < len(tree.names)  # the base slot (last) not used
         self._w_used = self.weights[:, used]
         e = np.sort(np.concatenate([self.faces[:, [0, 1]], self.faces[:, [1, 2]], self.faces[:, [2, 0]]]), axis=1)
         self.edges = np.unique(e, axis=0)
@@ -188,6 +189,8 @@ class SkinTwin:
 
     def _mats(self, world: FloatArray) -> FloatArray:
         """(..., u, 12) the used joints' (3, 4) transforms, head base last."""
+        if world.ndim == 3 and self._no_base:  # one pose skinned to joints only: gathered as they are
+            return world[self._used, :3, :].reshape(len(self._used), 12)
         lead = world.shape[:-3]
         eye = np.broadcast_to(np.eye(4), (*lead, 1, 4, 4))
         mats = np.concatenate([world, eye], axis=-3)[..., self._used, :3, :]

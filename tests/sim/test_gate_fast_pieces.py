@@ -214,3 +214,17 @@ def test_one_command_pose_equals_the_batch_path(gate: TwinGate) -> None:
         one = gate._pose_arrays(goal[None, :])
         for got, want in zip(one, batch, strict=True):
             assert got.shape[0] == 1 and np.array_equal(got[0], want[k])
+
+
+def test_one_pose_skinning_transforms_equal_the_batched_gather(gate: TwinGate) -> None:
+    """`SkinTwin._mats` of one pose (gathered from the joints' transforms when the head base carries no
+    skin) equals the batched gather with the base's identity appended, bit for bit, on random poses."""
+    skin = gate.skin
+    rng = np.random.default_rng(23)
+    tree = gate.tree
+    q = rng.uniform(tree.lower_deg - 5, tree.upper_deg + 5, size=(100, len(tree.names)))
+    world = tree.world(q)
+    for k in range(len(q)):
+        full = np.concatenate([world[k], np.eye(4)[None]], axis=0)[skin._used, :3, :].reshape(len(skin._used), 12)
+        assert np.array_equal(skin._mats(world[k]), full)
+        assert np.array_equal(skin._mats(world[k][None])[0], full)
