@@ -255,20 +255,29 @@ def _field_part(field: Any) -> Callable[[NDArray[np.int64]], Callable[[FloatArra
         matrix = field.linear_matrix[flat]
         where = np.full(field.n_vertices, -1, dtype=np.int64)
         where[rows] = np.arange(len(rows))
-        caps = []
+        caps: list[tuple[int, Any, NDArray[np.int64] | None, NDArray[np.int64]]] = []
         for col, sph in field.sphincters:
             pos = where[sph.index]
             inside = np.flatnonzero(pos >= 0)
-            caps.append((int(col), sph, inside, pos[inside]))
+            # flat (x, y, z) indices: a sphincter's rows are added with one take and one put on the flat
+            # arrays (the same sums as `out[pos] += disp[inside]`, ~3x cheaper); all of it inside: no gather
+            whole = len(inside) == len(pos)
+            caps.append((int(col), sph, None if whole else _xyz(inside), _xyz(pos[inside])))
         n = len(rows)
 
         def of(c: FloatArray) -> FloatArray:
-            out = np.asarray(matrix @ c, dtype=np.float64).reshape(n, 3)
-            for col, sph, inside, pos in caps:
+            out = np.asarray(matrix @ c, dtype=np.float64)  # (3n,): x, y, z per row
+            for col, sph, inside3, pos3 in caps:
                 if c[col] != 0.0:
-                    out[pos] += sph.displacement(float(c[col]))[inside]
-            return out
+                    disp = np.asarray(sph.displacement(float(c[col]))).reshape(-1)
+                    out.put(pos3, out.take(pos3) + (disp if inside3 is None else disp.take(inside3)))
+            return out.reshape(n, 3)
 
         return of
 
     return prepare
+
+
+def _xyz(rows: NDArray[np.int64]) -> NDArray[np.int64]:
+    """Flat indices of the x, y, z entries of these rows of an (n, 3) array."""
+    return np.asarray((3 * rows[:, None] + np.arange(3)[None, :]).ravel(), dtype=np.int64)
