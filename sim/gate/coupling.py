@@ -36,8 +36,16 @@ class CouplingLimit:
 
 def travel_share(targets: FloatArray, lower: FloatArray, upper: FloatArray, neutral: FloatArray) -> FloatArray:
     """Signed share of travel per actuator; ``targets`` (..., n), the bounds (n,)."""
-    up = np.where(upper > neutral, upper - neutral, 1.0)
-    down = np.where(neutral > lower, neutral - lower, 1.0)
+    return scaled_share(targets, neutral, *travel_scales(lower, upper, neutral))
+
+
+def travel_scales(lower: FloatArray, upper: FloatArray, neutral: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """(travel up, travel down) from neutral per actuator (1 where there is none): `travel_share`'s divisors."""
+    return np.where(upper > neutral, upper - neutral, 1.0), np.where(neutral > lower, neutral - lower, 1.0)
+
+
+def scaled_share(targets: FloatArray, neutral: FloatArray, up: FloatArray, down: FloatArray) -> FloatArray:
+    """`travel_share` with its divisors (`travel_scales`) computed once."""
     d = targets - neutral
     return np.where(d >= 0, d / up, d / down)
 

@@ -25,14 +25,14 @@ import numpy as np
 from numpy.typing import NDArray
 from servoface.sim.gate import limits as lim
 from servoface.sim.gate.collision import PairSpec, PartCollisions, auto_pairs
-from servoface.sim.gate.coupling import CouplingCheck, CouplingLimit, limits_from_head, travel_share
+from servoface.sim.gate.coupling import CouplingCheck, CouplingLimit, limits_from_head, scaled_share, travel_scales
 from servoface.sim.gate.errors import GateConfigError, GateInputError
 from servoface.sim.gate.fk import JointTree
 from servoface.sim.gate.health import HealthPolicy, ServoHealth, derate
 from servoface.sim.gate.skin_proof import proven_static
-from servoface.sim.gate.skin_source import face_model_source, falloff_source
+from servoface.sim.gate.skin_source import RowsPart, face_model_source, falloff_source
 from servoface.sim.gate.skin_static import build_static
-from servoface.sim.gate.strain import FlipProbe, SkinTwin, StrainLimits, flip_probe, probe_dots, strain_findings
+from servoface.sim.gate.strain import FlipProbe, SkinTwin, StrainLimits, flip_probe, probe_dots_at, strain_findings
 from servoface.sim.gate.tss_build import TssParams, default_cache_dir
 from servoface.sim.gate.twin import TwinPoser
 from servoface.sim.gate.verdict import Finding, Verdict
@@ -127,6 +127,7 @@ class TwinGate:
             speedup,
         )
         self._index = self.table.index()
+        self._travel = travel_scales(self.poser.target_lower, self.poser.target_upper, self.poser.target_neutral)
         rules = cfg.coupling if cfg.coupling is not None else tuple(limits_from_head(head))
         self.coupling = CouplingCheck(rules, self.poser.roles)
         self.skin = self._build_skin(face_model)
@@ -140,12 +141,16 @@ class TwinGate:
         cache = (cfg.cache_dir or default_cache_dir()) if cfg.use_cache else None
         pairs = list(cfg.collision_pairs) if cfg.collision_pairs is not None else auto_pairs(head, self.tree)
         self.collisions = PartCollisions(head, self.tree, pairs, cfg.tss, cache, clearance=cfg.clearance)
+        self._pair_index: dict[tuple[str, ...], list[int]] = {}  # (part a, part b) -> indices of their specs
+        for p, spec in enumerate(self.collisions.specs):
+            self._pair_index.setdefault((spec.a, spec.b), []).append(p)
         self._last_sent: IntArray | None = None
         self._last_step: IntArray = np.zeros(self.table.n, dtype=np.int64)
         self._last_fraction = 1.0  # share of a frame period the previous check's step was allowed (per_time)
         self._memo: tuple[bytes, list[Finding]] = (b"", [])  # (command bytes, its state findings)
         # triangles a skin-first clip search probes first (`_skin_ok`): costs only, never answers
-        self._flip_probe: FlipProbe | None = None
+        # (the probe, its vertices' rows prepared for `SkinSource.offsets_part`)
+        self._flip_probe: tuple[FlipProbe, RowsPart] | None = None
 
     # ---- set-up ---------------------------------------------------------------------------------------
     def _build_skin(self, face_model: Any) -> SkinTwin:
@@ -225,14 +230,15 @@ class TwinGate:
     # ---- the twin -------------------------------------------------------------------------------------
     def _pose_arrays(self, goals: IntArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """(targets (k, n), angles (k, J), world (k, J, 4, 4), pulls (k, a)) for (k, n) goals."""
+        if len(goals) == 1:  # one command (the frame's request, a clip's clamped request): flat arrays
+            target, angle, pull = self.poser.pose_one(goals[0])
+            return target[None], angle[None], self.tree.world_one(angle)[None], pull[None]
         targets = self.poser.targets(goals)
         angles = self.poser.joint_angles(targets)
-        world = self.tree.world_one(angles[0])[None] if len(angles) == 1 else self.tree.world(angles)
-        return targets, angles, world, self.poser.pulls(targets)
+        return targets, angles, self.tree.world(angles), self.poser.pulls(targets)
 
     def _shares(self, targets: FloatArray) -> FloatArray:
-        p = self.poser
-        return travel_share(targets, p.target_lower, p.target_upper, p.target_neutral)
+        return scaled_share(targets, self.poser.target_neutral, *self._travel)
 
     def _static(self, goal: IntArray) -> tuple[float, float, int]:
         """The tabulated joint-only skin strain for one command (neutral values when not tabulated)."""
@@ -310,17 +316,21 @@ class TwinGate:
         them flipped than the limit allows fails the candidate as the whole measure would (its count can
         only be larger), at a fraction of its cost. Which triangles are probed changes no answer."""
         s = self.config.strain
-        offsets = self.skin_source.offsets_rows(pulls, self.skin.fast_vertices)
         static = self._static(goal)
-        if probe and self._flip_probe is not None and self._flip_probe.subset == self.skin.subset:
-            dots = probe_dots(self.skin, world, offsets, self._flip_probe)
+        if probe and self._flip_probe is not None and self._flip_probe[0].subset == self.skin.subset:
+            flip, part = self._flip_probe  # the probe's vertices' offsets only: the same numbers, gathered
+            dots = probe_dots_at(self.skin, world, self.skin_source.offsets_part(pulls, part), flip)
             if int(np.count_nonzero(dots <= 0.0)) + self.skin.const_flips + static[2] > s.max_flipped:
                 return False
+        offsets = self.skin_source.offsets_rows(pulls, self.skin.fast_vertices)
         key = self.skin_source.rows_key(self.skin.fast_vertices)
         stretch, comp, flips, flipped = self.skin.measure_one_faces(world, offsets, static, key)
         if probe and flips > s.max_flipped:  # probe these triangles on the next candidates
             faces = np.flatnonzero(flipped)
-            self._flip_probe = flip_probe(self.skin, faces) if len(faces) else None
+            self._flip_probe = None
+            if len(faces):
+                made = flip_probe(self.skin, faces)
+                self._flip_probe = (made, self.skin_source.rows_part(self.skin.fast_vertices[made.verts]))
         return stretch <= s.max_stretch and comp >= s.min_compression and flips <= s.max_flipped
 
     # ---- public ---------------------------------------------------------------------------------------
@@ -373,7 +383,7 @@ class TwinGate:
         if not hard and np.array_equal(clamped, req):  # only health notes fired
             return self._remember(Verdict("accept", requested, tuple(findings), 1.0, requested), last, req)
         hit = {f.parts for f in hard if f.check == "collision"}
-        suspects = tuple(p for p, spec in enumerate(self.collisions.specs) if (spec.a, spec.b) in hit)
+        suspects = tuple(sorted(p for parts in hit for p in self._pair_index.get(parts, ())))  # in spec order
         skin_first = not hit and any(f.check in ("strain", "flip") for f in hard)
         best, frac = self._scale_back(
             req,

@@ -8,6 +8,7 @@ the servo's own controller stops at its goal, and refusing to slow down would ov
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -114,7 +115,7 @@ def per_time(
 
 def time_fraction(elapsed_s: float, frame_period_s: float) -> float:
     """`per_time`'s ``f``: ``min(1, elapsed / period)``, 0 for a non-finite or non-positive elapsed time."""
-    if not np.isfinite(elapsed_s) or elapsed_s <= 0:
+    if not math.isfinite(elapsed_s) or elapsed_s <= 0:
         return 0.0
     return min(1.0, float(elapsed_s) / frame_period_s)
 

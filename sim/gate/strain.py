@@ -51,6 +51,7 @@ class SkinTwin:
         np.add.at(self.weights.T, np.array(slot), weights.T)
         used = np.nonzero(self.weights.any(axis=0))[0]
         self._used = used
+        self._no_base = bool(len(used)) and int(used[-1]) < len(tree.names)  # the base slot (last) not used
         self._w_used = self.weights[:, used]
         e = np.sort(np.concatenate([self.faces[:, [0, 1]], self.faces[:, [1, 2]], self.faces[:, [2, 0]]]), axis=1)
         self.edges = np.unique(e, axis=0)
@@ -188,6 +189,8 @@ class SkinTwin:
 
     def _mats(self, world: FloatArray) -> FloatArray:
         """(..., u, 12) the used joints' (3, 4) transforms, head base last."""
+        if world.ndim == 3 and self._no_base:  # one pose skinned to joints only: gathered as they are
+            return world[self._used, :3, :].reshape(len(self._used), 12)
         lead = world.shape[:-3]
         eye = np.broadcast_to(np.eye(4), (*lead, 1, 4, 4))
         mats = np.concatenate([world, eye], axis=-3)[..., self._used, :3, :]
@@ -370,11 +373,18 @@ def probe_dots(skin: SkinTwin, world: FloatArray, offsets: FloatArray, probe: Fl
     for them (the same float32 products in the same order, elementwise on the probe's vertices and
     triangles, x / y / z stacked as rows; the two blend products are the whole ones, gathered), so a
     triangle flips here exactly when it flips there."""
+    return probe_dots_at(skin, world, offsets.take(probe.verts, axis=0), probe)
+
+
+def probe_dots_at(
+    skin: SkinTwin, world: FloatArray, probe_offsets: FloatArray, probe: FlipProbe
+) -> NDArray[np.float32]:
+    """`probe_dots` from the offsets of the probe's vertices only ((len(probe.verts), 3), in its order)."""
     if probe.subset != skin.subset:
         raise GateConfigError("flip probe made for another measured subset of the skin")
     mats = skin._mats(world).astype(np.float32)
     m = (mats.T @ skin._fw_t32).take(probe.verts, axis=1).reshape(3, 4, -1)  # [coordinate, column, vertex]
-    v = probe.rest32 + offsets.take(probe.verts, axis=0).T.astype(np.float32)
+    v = probe.rest32 + probe_offsets.T.astype(np.float32)
     p = m[:, 0] * v[0]
     p += m[:, 1] * v[1]
     p += m[:, 2] * v[2]

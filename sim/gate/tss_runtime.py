@@ -7,6 +7,7 @@ k commands is the same calls with a leading axis.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -179,7 +180,7 @@ class TssBroadPhase:
 
     def overlaps(self, world: FloatArray) -> BoolArray:
         """(..., n_pairs) True where some tabulated sphere pair overlaps; ``world`` (..., J, 4, 4)."""
-        if int(np.prod(world.shape[:-3], dtype=np.int64)) <= 4:
+        if math.prod(world.shape[:-3]) <= 4:  # (plain ints: numpy's prod cost more than the test)
             return self._overlaps_flat(world)
         return self._overlaps_per_pair(world)
 

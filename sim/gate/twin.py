@@ -75,6 +75,8 @@ class TwinPoser:
         full = np.asarray(self.calibration.goals_to_targets_array(table, clip=True), dtype=np.float64)
         self._lut = full[np.arange(len(grid)), cols]
         self._coupled = np.array([s.coupling is not None for s in servos], dtype=bool)
+        self._any_coupled = bool(self._coupled.any())
+        self._lut_shift = self._lut_offset - self.min_tick
 
     def targets(self, ticks: IntArray) -> FloatArray:
         """(k, n) actuator targets (deg / mm) for (k, n) ticks (clipped into the tick limits)."""
@@ -85,6 +87,19 @@ class TwinPoser:
             full = self.calibration.goals_to_targets_array(t, clip=True)
             out[:, self._coupled] = np.asarray(full, dtype=np.float64)[:, self._coupled]
         return np.asarray(out, dtype=np.float64)
+
+    def pose_one(self, ticks: IntArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """(targets (n,), joint angles (J,), pulls (a,)) of one (n,) command: `targets`, `joint_angles` and
+        `pulls` of a batch of one, the same numbers (the same gather, assignments and clip) on flat arrays
+        with fewer numpy calls; a head with coupled servos takes the batch path."""
+        if self._any_coupled:
+            targets = self.targets(ticks[None, :])
+            return targets[0], self.joint_angles(targets)[0], self.pulls(targets)[0]
+        k = np.clip(ticks, self.min_tick, self.max_tick) + self._lut_shift  # (k - min) + offset: exact integers
+        targets = self._lut.take(k)
+        q = self.tree.neutral_deg.copy()
+        q[self._joint_idx] = targets.take(self._joint_col)
+        return targets, np.clip(q, self.tree.lower_deg, self.tree.upper_deg), targets.take(self.anchor_cols)
 
     def joint_angles(self, targets: FloatArray) -> FloatArray:
         """(k, J) joint angles: driven joints from their servo's target, the rest at neutral, all clamped to

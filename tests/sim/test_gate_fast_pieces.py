@@ -188,3 +188,43 @@ def test_offsets_rows_reuse_equals_computing_afresh(gate: TwinGate) -> None:
         assert got.tobytes() == fresh.tobytes(), k
         got += 1.0  # the caller's copy
     assert reused > 20
+
+
+def test_one_command_pose_equals_the_batch_path(gate: TwinGate) -> None:
+    """`TwinPoser.pose_one` (targets, joint angles, pulls of one command) and the gate's shares with their
+    divisors kept equal the batch path's (`targets`, `joint_angles`, `pulls`, `coupling.travel_share`) bit for
+    bit, on random commands inside and beyond the tick limits; `_pose_arrays` of one row equals its rows of
+    a batch."""
+    from servoface.sim.gate.coupling import travel_share
+
+    p = gate.poser
+    t = gate.table
+    rng = np.random.default_rng(17)
+    span = t.max_tick - t.min_tick
+    goals = rng.integers(t.min_tick - span // 10, t.max_tick + span // 10 + 1, size=(300, t.n)).astype(np.int64)
+    batch = gate._pose_arrays(goals)
+    for k, goal in enumerate(goals):
+        target, angle, pull = p.pose_one(goal)
+        targets = p.targets(goal[None, :])
+        assert np.array_equal(target, targets[0])
+        assert np.array_equal(angle, p.joint_angles(targets)[0])
+        assert np.array_equal(pull, p.pulls(targets)[0])
+        shares = travel_share(targets, p.target_lower, p.target_upper, p.target_neutral)
+        assert np.array_equal(gate._shares(targets), shares)
+        one = gate._pose_arrays(goal[None, :])
+        for got, want in zip(one, batch, strict=True):
+            assert got.shape[0] == 1 and np.array_equal(got[0], want[k])
+
+
+def test_one_pose_skinning_transforms_equal_the_batched_gather(gate: TwinGate) -> None:
+    """`SkinTwin._mats` of one pose (gathered from the joints' transforms when the head base carries no
+    skin) equals the batched gather with the base's identity appended, bit for bit, on random poses."""
+    skin = gate.skin
+    rng = np.random.default_rng(23)
+    tree = gate.tree
+    q = rng.uniform(tree.lower_deg - 5, tree.upper_deg + 5, size=(100, len(tree.names)))
+    world = tree.world(q)
+    for k in range(len(q)):
+        full = np.concatenate([world[k], np.eye(4)[None]], axis=0)[skin._used, :3, :].reshape(len(skin._used), 12)
+        assert np.array_equal(skin._mats(world[k]), full)
+        assert np.array_equal(skin._mats(world[k][None])[0], full)

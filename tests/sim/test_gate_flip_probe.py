@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from servoface.sim.gate import GateConfig, TwinGate
 from servoface.sim.gate.errors import GateConfigError
-from servoface.sim.gate.strain import FlipProbe, SkinTwin, flip_probe, probe_dots
+from servoface.sim.gate.strain import FlipProbe, SkinTwin, flip_probe, probe_dots, probe_dots_at
 
 
 def _plain_dots(skin: SkinTwin, world: np.ndarray, offsets: np.ndarray, probe: FlipProbe) -> np.ndarray:
@@ -78,3 +78,28 @@ def test_probe_of_another_subset_is_refused(gate: TwinGate) -> None:
     offsets = gate.skin_source.offsets_rows(pulls[0], gate.skin.fast_vertices)
     with pytest.raises(GateConfigError):
         probe_dots(gate.skin, world[0], offsets, stale)
+
+
+def test_probe_offsets_of_a_few_rows_equal_the_whole_rows_gathered(gate: TwinGate) -> None:
+    """`SkinSource.offsets_part` (the probe's vertices only) equals `offsets_rows` of every measured vertex
+    gathered at those rows, bit for bit, on random pulls (inside and beyond the actuator ranges) and random
+    row subsets; so `probe_dots_at` on them equals `probe_dots` on the whole offsets."""
+    src = gate.skin_source
+    skin = gate.skin
+    fast = skin.fast_vertices
+    rng = np.random.default_rng(41)
+    span = src.upper_mm - src.lower_mm
+    for trial in range(60):
+        pick = np.sort(rng.choice(len(fast), size=int(rng.integers(1, 200)), replace=False))
+        part = src.rows_part(fast[pick])
+        p = rng.uniform(src.lower_mm - 0.1 * span, src.upper_mm + 0.1 * span)
+        if trial % 3 == 0:  # some pulls at the neutral / a bound exactly (contractions at their bounds)
+            p = np.where(rng.random(len(p)) < 0.5, src.lower_mm, p)
+        few = src.offsets_part(p, part)
+        whole = src.offsets_rows(p, fast)
+        assert np.array_equal(few.view(np.uint64), whole[pick].view(np.uint64))
+        faces = np.sort(rng.choice(skin.n_measured_faces, size=int(rng.integers(1, 30)), replace=False))
+        probe = flip_probe(skin, faces)
+        _, _, world, _ = gate._pose_arrays(gate.table.neutral_tick[None, :] + rng.integers(-40, 41, gate.table.n))
+        at = probe_dots_at(skin, world[0], src.offsets_part(p, src.rows_part(fast[probe.verts])), probe)
+        assert np.array_equal(at.view(np.uint32), probe_dots(skin, world[0], whole, probe).view(np.uint32))
