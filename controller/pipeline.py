@@ -183,12 +183,12 @@ class Pipeline:
         """`clamp_targets` as an array in head role order (the frame path: no dict until the trace)."""
         get = targets.get
         values = np.array([float(get(r, n)) for r, n in zip(self._roles, self._neutral, strict=True)])
-        if not np.isfinite(values).all():
+        if not np.logical_and.reduce(np.isfinite(values)):  # (ufunc reductions: no `all` / `any` wrappers)
             bad = [s.role for s, v in zip(self._servos, values, strict=True) if not np.isfinite(v)]
             raise FrameError(f"muscle model produced non-finite targets for {bad}")
         clamped = np.minimum(np.maximum(values, self._lo), self._hi)  # np.clip's arithmetic, without its wrappers
         off = np.abs(values - clamped) > self._clamp_tol
-        if not off.any():
+        if not np.logical_or.reduce(off):
             return clamped, []
         reasons = [
             f"[target] {s.role}: {values[i]:.2f} {s.unit} outside the calibrated {self._lo[i]:.2f}.."
