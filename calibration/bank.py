@@ -85,17 +85,18 @@ class CurveBank:
         arithmetic (knot count, gathers, Horner, rounding, clip) without the (k, S) broadcasting, and the
         same error for the first bad column."""
         t = targets
-        bad = ~(np.isfinite(t) & (t >= self._accept_lo) & (t <= self._accept_hi))
-        if bad.any():
-            col = int(np.argmax(bad))
+        ok = np.isfinite(t) & (t >= self._accept_lo) & (t <= self._accept_hi)
+        if not np.logical_and.reduce(ok):  # (ufuncs called directly: no `any` / `clip` / `sum` wrappers)
+            col = int(np.argmin(ok))  # the first bad column
             s = self.servos[col]
             raise TargetOutOfRangeError(s.role, float(t[col]), s.min_target, s.max_target, s.unit)
-        return np.clip(round_ticks(self.forward_row(t)), self.min_tick, self.max_tick)
+        ticks: IntArray = np.minimum(np.maximum(round_ticks(self.forward_row(t)), self.min_tick), self.max_tick)
+        return ticks  # (np.clip of integers is this minimum of the maximum)
 
     def forward_row(self, targets: FloatArray) -> FloatArray:
         """`forward` of one (S,) row, as (S,) float ticks (the same elementwise arithmetic)."""
         t = targets
-        idx = (t[:, None] >= self._knots).sum(axis=-1)
+        idx = np.add.reduce(t[:, None] >= self._knots, axis=-1)  # (the knot count, as `sum` gives it)
         c = self._coef[self._cols, idx]
         dx = t - self._base[self._cols, idx]
         return np.asarray(c[:, 0] + dx * (c[:, 1] + dx * (c[:, 2] + dx * c[:, 3])), dtype=np.float64)

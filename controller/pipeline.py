@@ -183,12 +183,12 @@ class Pipeline:
         """`clamp_targets` as an array in head role order (the frame path: no dict until the trace)."""
         get = targets.get
         values = np.array([float(get(r, n)) for r, n in zip(self._roles, self._neutral, strict=True)])
-        if not np.isfinite(values).all():
+        if not np.logical_and.reduce(np.isfinite(values)):  # (ufunc reductions: no `all` / `any` wrappers)
             bad = [s.role for s, v in zip(self._servos, values, strict=True) if not np.isfinite(v)]
             raise FrameError(f"muscle model produced non-finite targets for {bad}")
         clamped = np.minimum(np.maximum(values, self._lo), self._hi)  # np.clip's arithmetic, without its wrappers
         off = np.abs(values - clamped) > self._clamp_tol
-        if not off.any():
+        if not np.logical_or.reduce(off):
             return clamped, []
         reasons = [
             f"[target] {s.role}: {values[i]:.2f} {s.unit} outside the calibrated {self._lo[i]:.2f}.."
@@ -243,7 +243,8 @@ class Pipeline:
         spec = None
         if elapsed_s is not None:
             self._elapsed_s.append(elapsed_s)
-        if ahead is not None and ahead.matches(self.last_goals_tick, health, self.gate.step_state()):
+        matches = ahead is not None and bool(ahead.speculations)  # (no speculation: no gate memory to copy)
+        if matches and ahead is not None and ahead.matches(self.last_goals_tick, health, self.gate.step_state()):
             for s in ahead.speculations:
                 elapsed_s = self._reach_plan(s.plan_s, elapsed_s)
                 if s.holds_for(elapsed_s):

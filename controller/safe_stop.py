@@ -28,7 +28,7 @@ from servoface.controller.frame import AUFrame
 from servoface.controller.pipeline import FrameTrace, Pipeline
 from servoface.controller.timeline import min_jerk
 from servoface.hardware.driver import Driver
-from servoface.hardware.snapshot import ChainSnapshot
+from servoface.hardware.snapshot import ChainSnapshot, peek_state
 
 EASE_S = 0.8  # default easing to neutral
 MAX_EASE_S = 2.5  # the easing never takes longer than this (then torque goes off wherever the head is)
@@ -98,9 +98,14 @@ def bus_problem(snapshot: ChainSnapshot | None) -> str | None:
         return None
     if not snapshot.bus_connected:
         return "the port failed (adapter unplugged, emulator gone?)"
-    if snapshot.servos and all(s.missing for s in snapshot.servos.values()):
-        return "no servo answers"
-    return None
+    servos = snapshot.servos
+    if not servos:
+        return None
+    for sid in servos:  # (`peek_state`: a driver's snapshot builds no state for this; every frame)
+        peeked = peek_state(servos, sid)
+        if peeked is None or not peeked[0].missing:
+            return None
+    return "no servo answers"
 
 
 def ease_to_neutral(

@@ -289,8 +289,8 @@ class FaceModel:
         """The joint actuators' targets (`_targets`' first part): each one's joints' mean, clamped."""
         first, multi, j_lo, j_hi = self._target_plan[:4]
         values = joint[first]  # a mean of one joint is that joint
-        for k, cols in multi:
-            values[k] = joint[cols].mean()
+        for k, cols, n in multi:  # `mean`'s sum and division, without its wrappers (n == 0: mean's NaN)
+            values[k] = np.add.reduce(joint[cols]) / n if n else joint[cols].mean()
         out: list[float] = np.minimum(np.maximum(values, j_lo), j_hi).tolist()
         return out
 
@@ -308,7 +308,7 @@ class FaceModel:
         """`_targets`' constants: each joint actuator's first joint column, the actuators with several joints,
         the ranges, and the roles in the targets' order (joint actuators, then anchors)."""
         first = np.array([int(c[0]) if c.size else 0 for c in self._joint_cols], dtype=np.int64)
-        multi = [(k, c) for k, c in enumerate(self._joint_cols) if c.size != 1]
+        multi = [(k, c, int(c.size)) for k, c in enumerate(self._joint_cols) if c.size != 1]
         j_lo = np.array([a.lower_deg for a in self.joint_actuators], dtype=np.float64)
         j_hi = np.array([a.upper_deg for a in self.joint_actuators], dtype=np.float64)
         a_lo = np.array([a.lower_mm for a in self.anchor_actuators], dtype=np.float64)

@@ -127,7 +127,11 @@ class BlinkLayer:
         return self.config.amplitude * shape
 
     def suppressed(self, below: Mapping[str, float]) -> bool:
-        return any(below.get(au, 0.0) >= self.config.suppress_at for au in LID_AUS[self.face_type])
+        at, get = self.config.suppress_at, below.get
+        for au in LID_AUS[self.face_type]:  # (a loop, not `any` over a generator: every frame)
+            if get(au, 0.0) >= at:
+                return True
+        return False
 
     def sample(self, t_s: float, below: Mapping[str, float]) -> dict[str, float]:
         if self.suppressed(below):

@@ -84,8 +84,11 @@ class IdleLayer:
     def gain(self, t_s: float) -> float:
         if self.busy is None:
             return 1.0
-        n = 8
-        quiet = sum(not self.busy(t_s - self.config.fade_s * j / (n - 1)) for j in range(n))
+        n, busy, fade_s = 8, self.busy, self.config.fade_s
+        quiet = 0
+        for j in range(n):  # (a loop, not `sum` over a generator: every frame)
+            if not busy(t_s - fade_s * j / (n - 1)):
+                quiet += 1
         return quiet / n
 
     def sample(self, t_s: float, below: Mapping[str, float] | None = None) -> dict[str, float]:

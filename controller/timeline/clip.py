@@ -90,7 +90,8 @@ class ChannelClip:
             return _value(keys[-1], start)
         a, b = keys[i - 1], keys[i]
         span = b.t_s - a.t_s
-        va, vb = _value(a, start), _value(b, start)
+        va = start if a.value is None else a.value  # (`_value` inline: per AU per frame)
+        vb = start if b.value is None else b.value
         return va + (vb - va) * b.easing((t_s - a.t_s) / span)
 
     def sample(self, t_s: float, from_pose: Pose) -> dict[str, float]:

@@ -164,7 +164,8 @@ class AUMapping:
     def split(self, aus: Mapping[str, float]) -> FloatArray:
         """(2K,) validated channel values split into positive parts and counter magnitudes."""
         x = self.channel_values(aus)
-        return np.concatenate([np.maximum(x, 0.0), np.maximum(-x, 0.0)])
+        out: FloatArray = np.maximum(np.concatenate((x, -x)), 0.0)  # (one maximum over both halves)
+        return out
 
     def evaluate(self, aus: Mapping[str, float]) -> tuple[FloatArray, FloatArray]:
         """(contractions (M,) clamped to the table's range, joint offsets (J,) deg, unclamped)."""

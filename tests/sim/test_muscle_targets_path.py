@@ -171,3 +171,33 @@ def test_kept_anchor_pulls_with_eyelids_are_kept_per_joints_too() -> None:
         fast = model.actuator_targets(aus)
         model._anchors_kept = None  # the straightforward path: nothing kept
         assert list(fast.items()) == list(model.actuator_targets(aus).items())
+
+
+def _bits(x: np.ndarray) -> bytes:
+    return np.asarray(x, dtype=np.float64).tobytes()
+
+
+@pytest.mark.parametrize("head_name", ["human", "dog"])
+def test_split_and_joint_values_are_the_plain_numpy_bit_for_bit(head_name: str) -> None:
+    """`AUMapping.split` (one maximum over both halves) and `FaceModel._joint_values` (`mean`'s sum and
+    division without its wrappers) against the plain numpy forms, bit for bit (signed zeros included)."""
+    model = FaceModel(load_head(head_name))
+    mapping = model.mapping
+    names = sorted(model.au_names)
+    rng = np.random.default_rng(8)
+    for _ in range(300):
+        aus: dict[str, float] = {}
+        for name in rng.choice(names, size=int(rng.integers(0, 8)), replace=False):
+            lo, hi = model.au_range(str(name))
+            aus[str(name)] = float(rng.choice([rng.uniform(lo, hi), lo, hi, 0.0, -0.0 if lo < 0 else 0.0]))
+        x = mapping.channel_values(aus)
+        want = np.concatenate([np.maximum(x, 0.0), np.maximum(-x, 0.0)])
+        assert _bits(mapping.split(aus)) == _bits(want)
+        joint = rng.uniform(-90.0, 90.0, len(model.joint_names)) * (rng.random(len(model.joint_names)) < 0.7)
+        if rng.random() < 0.2:
+            joint = -joint  # (zeros of both signs)
+        first, multi, j_lo, j_hi = model._target_plan[:4]
+        means = joint[first]
+        for k, cols, _n in multi:
+            means[k] = joint[cols].mean()
+        assert multi and _bits(model._joint_values(joint)) == _bits(np.minimum(np.maximum(means, j_lo), j_hi))
