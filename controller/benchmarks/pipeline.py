@@ -89,7 +89,7 @@ def run(quick: bool = False) -> Iterator[Figure]:
     stock_bus = open_bus("dynamixel", port=chain, baud=BAUD)
     t0 = time.perf_counter()
     try:
-        driver = Driver(bus, all_specs)
+        driver = Driver(bus, all_specs, fast_sync_read=False)  # the stock loop's plain Sync Read traffic, like for like
         driver.configure()
         driver.torque_on()
         pipeline = Pipeline(head, cal, driver=driver, rate_hz=RATE_HZ, temperature_limits_c=temperature_limits_c(specs))

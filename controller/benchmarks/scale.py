@@ -136,7 +136,7 @@ def servo_costs(n_servos: int, cycles: int) -> dict[str, float]:
         ids = list(range(1, n_servos + 1))
         for sid in ids:
             bus.write(sid, Register.RETURN_DELAY_TIME, 0)
-        driver = Driver(bus, [ServoSpec(sid, "XL330-M288", return_delay_us=0) for sid in ids])
+        driver = Driver(bus, [ServoSpec(sid, "XL330-M288", return_delay_us=0) for sid in ids], fast_sync_read=False)
         driver.configure()
         driver.torque_on()
         for n in range(10):
