@@ -243,8 +243,12 @@ class Pipeline:
         spec = None
         if elapsed_s is not None:
             self._elapsed_s.append(elapsed_s)
-        matches = ahead is not None and bool(ahead.speculations)  # (no speculation: no gate memory to copy)
-        if matches and ahead is not None and ahead.matches(self.last_goals_tick, health, self.gate.step_state()):
+        # (an Ahead without speculations has nothing to match: no copy of the gate's memory for it)
+        if (
+            ahead is not None
+            and ahead.speculations
+            and ahead.matches(self.last_goals_tick, health, self.gate.step_state())
+        ):
             for s in ahead.speculations:
                 elapsed_s = self._reach_plan(s.plan_s, elapsed_s)
                 if s.holds_for(elapsed_s):
