@@ -76,7 +76,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--state-file",
         type=Path,
         help="on exit, write every servo's final state (torque, goal, present, watchdog, error) and every "
-        "Goal Position / Torque Enable decoded from the wire as JSON here (tests check from this side)",
+        "Goal Position / Torque Enable decoded from the wire, and packets per instruction code, as JSON here "
+        "(tests check from this side)",
     )
 
 
@@ -98,10 +99,19 @@ def chain_state(chain: Any) -> dict[str, Any]:
     return {
         "t_s": chain.time_s,
         "packets_received": len(chain.log),  # every instruction packet the chain ever got (CRC valid)
+        "instruction_counts": _instruction_counts(chain),
         "servos": servos,
         "goal_writes": [[round(t, 6), sid, tick] for t, sid, tick in chain.goal_writes()],
         "torque_writes": [[round(t, 6), sid, v] for t, sid, v in chain.register_writes(64, 1)],
     }
+
+
+def _instruction_counts(chain: Any) -> dict[str, int]:
+    """How many packets of each instruction code (``"0x8A"``: Fast Sync Read) the packet log still holds."""
+    from collections import Counter
+
+    counts = Counter(entry.instruction for entry in chain.log.kept())
+    return {f"0x{code:02X}": n for code, n in sorted(counts.items())}
 
 
 def write_state(chain: Any, path: Path) -> None:

@@ -23,6 +23,26 @@ def add_head_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rate", type=float, default=50.0, help="control rate in Hz (default 50)")
     parser.add_argument("--calibration", type=Path, help="calibration JSON (default: the one the profile names)")
     parser.add_argument("--trace", type=Path, help="write every frame's trace as JSON lines to this file")
+    add_fast_read_argument(parser)
+
+
+FAST_READ_CHOICES = {"auto": "auto", "on": True, "off": False}  # --fast-sync-read -> Driver(fast_sync_read=)
+
+
+def add_fast_read_argument(parser: argparse.ArgumentParser) -> None:
+    """--fast-sync-read auto|on|off: how the driver reads positions (`Driver`'s ``fast_sync_read``)."""
+    parser.add_argument(
+        "--fast-sync-read",
+        choices=tuple(FAST_READ_CHOICES),
+        default="auto",
+        help="read positions with Fast Sync Read: auto (default: probed at start-up, used if every servo "
+        "answers), on (forced), off (plain Sync Read, e.g. firmware without it: no start-up probe)",
+    )
+
+
+def fast_read_value(args: argparse.Namespace) -> Any:
+    """The ``fast_sync_read`` value ``--fast-sync-read`` names ("auto" without the argument)."""
+    return FAST_READ_CHOICES[getattr(args, "fast_sync_read", "auto")]
 
 
 def open_errors() -> tuple[type[BaseException], ...]:
@@ -49,6 +69,7 @@ def open_face(args: argparse.Namespace, head: Head) -> Face:
             baud=args.baud,
             rate_hz=args.rate,
             calibration=args.calibration,
+            fast_sync_read=fast_read_value(args),
         )
     except BusTimeoutError as err:
         if args.port is None:

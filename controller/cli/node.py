@@ -10,6 +10,7 @@ import threading
 import time
 from pathlib import Path
 
+from servoface.controller.cli.head_args import add_fast_read_argument, fast_read_value
 from servoface.controller.cli.network_args import add_network_arguments, open_from_args
 
 HELP = "serve a head on Zenoh (servoface/<site>/<name>/...): commands, AU streams, state, status, presence"
@@ -24,6 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     where.add_argument("--emulate", action="store_true", help="an in-process emulated chain")
     parser.add_argument("--baud", type=int, default=1_000_000, help="bus speed (default 1000000)")
     parser.add_argument("--rate", type=float, default=50.0, help="control rate in Hz (default 50)")
+    add_fast_read_argument(parser)
     parser.add_argument(
         "--hold-on-link-loss",
         action="store_true",
@@ -64,7 +66,14 @@ def run(args: argparse.Namespace) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, on_signal)
     try:
-        opened = open_head(args.head, port=args.port, emulate=args.emulate, baud=args.baud, rate_hz=args.rate)
+        opened = open_head(
+            args.head,
+            port=args.port,
+            emulate=args.emulate,
+            baud=args.baud,
+            rate_hz=args.rate,
+            fast_sync_read=fast_read_value(args),
+        )
     except (ControllerError, SimError, HardwareError, OSError, ValueError) as err:
         session.close()
         print(f"servoface node: {err}", file=sys.stderr)
