@@ -16,6 +16,7 @@ from servoface.controller.face import Face
 from servoface.controller.pipeline import PACE_MAX_SHARE
 from servoface.hardware.snapshot import ChainSnapshot
 from servoface.sim.gate import ServoHealth, Verdict
+from servoface.sim.gate import limits as lim
 
 from tests.controller.pipeline_pairs import au_names, random_frames
 
@@ -88,6 +89,8 @@ def test_caps_are_never_for_more_time_than_passes_before_the_write(face: Face, s
     # rate: not held once it has come short twice in a row)
     arrive = [0.97, 0.9, 0.8, 0.95, 0.5, 0.92, 1.1, 0.9, 0.0, 0.0, 0.0, 0.0, 0.9, 0.85, 0.6, 0.99]
     short_runs: list[int] = []
+    checks: list[list[float | None]] = []
+    used: list[float | None] = []
     for k, aus in enumerate(frames):
         last_write_s = p.last_write_s
         assert last_write_s is not None
@@ -97,18 +100,23 @@ def test_caps_are_never_for_more_time_than_passes_before_the_write(face: Face, s
         short_runs.append(p._short_run)
         n = len(rec.elapsed)
         p.step(aus, next_frame=frames[k + 1] if k + 1 < len(frames) else None)
-        assert len(rec.elapsed) == n + 1  # one check (or one used speculation) a frame
+        checks.append(rec.elapsed[n:])  # one check or used speculation, and one more if `_pay_back` tried
+        assert checks[-1] and len(checks[-1]) <= 2
+        used.append(p._checked_s)  # the elapsed time of the verdict sent (`_pay_back` may discard its check)
+        assert used[-1] in checks[-1]
+        assert p.gate.step_state().last_fraction == lim.time_fraction(used[-1], period_s)  # (its memory)
     assert len(rec.writes) == len(frames)
-    held = 0
+    held = paid = 0
     for k in range(1, len(frames)):
-        elapsed_s = rec.elapsed[k]
+        elapsed_s = used[k]
         assert elapsed_s is not None
         passed_s = rec.writes[k][0] - rec.writes[k - 1][1]  # from the end of one write to the start of the next
-        assert passed_s >= elapsed_s, (k, passed_s, elapsed_s)  # the invariant
-        if elapsed_s == period_s:  # held: checked for exactly a period, sent no earlier
-            held += 1
+        assert passed_s >= elapsed_s, (k, passed_s, checks[k])  # the invariant
+        if period_s in checks[k]:  # held (checked for exactly a period: sent no earlier), or paid back
+            held += elapsed_s == period_s
+            paid += elapsed_s < period_s
             assert short_runs[k] < 2  # a caller faster than the rate is never held
-    assert held >= 10  # (frames that came a little early; a loaded machine may make some of them late)
+    assert held >= 5 and paid >= 1, (held, paid)  # (a loaded machine may make some frames late)
     assert any(e is not None and e < (1.0 - PACE_MAX_SHARE) * period_s for e in rec.elapsed)  # not held
 
 
