@@ -46,7 +46,9 @@ class _Recorder:
         on_wire = [False]
 
         def checking(
-            goals: Mapping[int, int], last: Mapping[int, int], health: Mapping[int, ServoHealth] | None = None,
+            goals: Mapping[int, int],
+            last: Mapping[int, int],
+            health: Mapping[int, ServoHealth] | None = None,
             elapsed_s: float | None = None,
         ) -> Verdict:
             if not on_wire[0]:
@@ -54,7 +56,9 @@ class _Recorder:
             return check(goals, last, health, elapsed_s=elapsed_s)
 
         def remembering(
-            verdict: Verdict, last: Mapping[int, int], health: Mapping[int, ServoHealth] | None = None,
+            verdict: Verdict,
+            last: Mapping[int, int],
+            health: Mapping[int, ServoHealth] | None = None,
             elapsed_s: float | None = None,
         ) -> None:
             self.elapsed.append(elapsed_s)
