@@ -24,10 +24,11 @@ from servoface.hardware.driver import Driver
 from servoface.hardware.snapshot import ChainSnapshot, peek_state
 from servoface.sim.errors import SimError
 from servoface.sim.face_model import FaceModel
-from servoface.sim.gate import GateConfig, ServoHealth, TwinGate
+from servoface.sim.gate import GateConfig, ServoHealth, TwinGate, Verdict
 from servoface.sim.head import Head
 
-PACE_MAX_SHARE = 0.25  # a frame at most this share of a period early waits for the period (see step)
+PACE_MAX_SHARE = 0.25  # a frame at most this share of a period early is held to its slot (`_slot_deficit`)
+PAY_BACK_SHARE = 0.1  # a held frame more than this share early is sent at once if that accepts cleanly (`_pay_back`)
 PLAN_HISTORY = 16  # a caller faster than the rate: its next check is planned from this many last elapsed times:
 PLAN_SHORT_OF = 4  # the shortest of the last 4 (a clean accept holds for any longer time, `Speculation.holds_for`)
 PLAN_LONG_QUANTILE = 0.8  # and this quantile of them (a clip, used when the step waits for it: `_reach_plan`)
@@ -123,7 +124,7 @@ class Pipeline:
         self._index = 0
         self._ahead: Ahead | None = None  # the next frame, computed during this one's wait (step(next_frame=))
         self._solved: tuple[tuple[dict[str, float], int, int], tuple[Any, ...]] | None = None  # see _solve
-        self.pace_writes = True  # wait out a nearly elapsed frame period before the gate (`_wait_out_period`)
+        self.pace_writes = True  # hold a frame a little early to its slot, checked for a whole period (`_slot_deficit`)
         # the next frame's gate check during the wait too (else only its muscle model and calibration): saves
         # wall time, but costs a second check whenever new telemetry or timing voids it (`play_timeline`,
         # paced at the rate with time to spare, turns it off: one check per frame)
@@ -210,9 +211,10 @@ class Pipeline:
         ``next_frame``: the AUs the next call will most likely bring; with a driver, its muscle model,
         calibration and a speculative gate check run while this frame's replies are on the wire, and the next
         step uses them only if they are exactly what it would compute (`servoface.controller.pipeline_ahead`).
-        A frame that comes a little less than a frame period after the last write waits out the period
-        first (`_wait_out_period`: a paced loop's jitter would otherwise shrink the caps and void that
-        speculation); the same AUs as the last frame are not solved again (`_solve`).
+        A frame that comes a little less than a frame period after the last write is checked with the caps of
+        a whole period and sent once the period is over (`_slot_deficit`: a paced loop's jitter would otherwise
+        shrink the caps and void that speculation); the same AUs as the last frame are not solved again
+        (`_solve`).
         """
         timings: dict[str, float] = {}
         t0 = time.perf_counter()
@@ -228,14 +230,17 @@ class Pipeline:
         else:
             targets, clamped, reasons, requested = self._solve(aus, timings)
             clamp_reasons = list(reasons)
-        self._wait_out_period()
+        deficit_s = self._slot_deficit()
+        held = deficit_s is not None
         t2 = time.perf_counter()
         health = self._health()
         elapsed_s = (
             None
             if self.driver is None or self.last_write_s is None or not self.per_time_caps
+            else self.gate.frame_period_s
+            if held
             else self.clock() - self.last_write_s
-        )  # since the last goals went on the wire: the gate's caps hold per second, not per call
+        )  # since the last goals went on the wire (a held frame: when they will): caps hold per second
         # a speculative verdict is used when its inputs are exactly this check's: the same AUs, last command,
         # health and gate memory (`Ahead.matches`), and either it is a clean accept checked for a planned
         # elapsed time this one reaches (`Speculation.holds_for`) or this elapsed time makes exactly the rate
@@ -266,10 +271,20 @@ class Pipeline:
         else:
             verdict = self.gate.check(requested, self.last_goals_tick, health, elapsed_s=elapsed_s)
             timings["gate_ms"] = (time.perf_counter() - t2) * 1e3
-        t3 = time.perf_counter()
-        self._last_clipped = verdict.kind != "accept" or any(f.check != "health" for f in verdict.findings)
+        if deficit_s is not None and deficit_s > PAY_BACK_SHARE * self.gate.frame_period_s and _clean(verdict):
+            t_pay = time.perf_counter()
+            paid = self._pay_back(requested, health)
+            timings["gate_ms" if "gate_ms" in timings else "ahead_ms"] += (time.perf_counter() - t_pay) * 1e3
+            if paid is not None:
+                verdict, elapsed_s = paid
+                held = False
+                self._checked_s = self._elapsed_s[-1] = elapsed_s
+        self._last_clipped = not _clean(verdict)
         sent = dict(verdict.goals_tick)
         written = 0
+        if held:  # checked for a whole period: the goals leave no earlier than that after the last ones
+            self._hold_to_slot()
+        t3 = time.perf_counter()
         if self.driver is not None:
             before = self.driver.bus.stats.bytes_written
             self.driver.cycle_start(sent)
@@ -340,26 +355,57 @@ class Pipeline:
         self._solved = ((dict(aus), id(self.face), id(self.calibration)), result)
         return dict(targets), dict(clamped), result[2], dict(requested)
 
-    def _wait_out_period(self) -> None:
-        """A frame due a little less than one frame period after the last goals went on the wire (a paced
-        loop whose previous frame left late within its slot) waits out the rest of the period — at most
-        `PACE_MAX_SHARE` of it. The gate then checks it with its whole per-frame caps, as the speculative
-        check during the last wait did, so that verdict is used instead of a second check, and the goals
-        reach the wire a period apart. A caller stepping faster than the rate is not held (its caps
-        shrink with the time instead, and a late frame of it is not held either: its speculations were
-        planned for its own short intervals, `_plans_s`), nor one without a driver or with `pace_writes` off."""
+    def _slot_deficit(self) -> float | None:
+        """How early this frame is for its slot, if it is held to it (else None): it comes a little less
+        than one frame period after the last goals went on the wire (a paced loop whose previous frame left
+        late within its slot) — at most `PACE_MAX_SHARE` of a period early. The gate then checks it with the
+        caps of one whole period (as the speculative check during the last wait did, so that verdict is used
+        instead of a second check), and `_hold_to_slot` sends it no earlier than one period after the last
+        write: the check's time is spent inside the period, not added to it, so a paced loop's writes do not
+        drift later by one check a frame. They still drift by what a write takes (the last write's time is
+        taken after it, to be safe), which `_pay_back` returns on a quiet frame. A caller stepping faster
+        than the rate is not held (its caps shrink with the time instead, and a late frame of it is not held
+        either: its speculations were planned for its own short intervals, `_plans_s`), nor one without a
+        driver, with `pace_writes` off, or on a clock that is not the real monotonic one (a test's manual
+        clock does not move while we sleep: its caller owns time)."""
         if self.driver is None or self.last_write_s is None or not self.per_time_caps or not self.pace_writes:
-            return
-        if self._short_run >= 2:
-            return
-        if self.clock is not time.monotonic:  # a test's manual clock does not move while we sleep: its
-            return  # caller owns time, and the per-time caps apply to whatever it passes
+            return None
+        if self._short_run >= 2 or self.clock is not time.monotonic:
+            return None
         period_s = self.gate.frame_period_s
-        for _ in range(4):  # a sleep never ends early on a monotonic clock; re-checked all the same
-            deficit_s = period_s - (self.clock() - self.last_write_s)
-            if deficit_s <= 0 or deficit_s > PACE_MAX_SHARE * period_s:
-                return
-            time.sleep(deficit_s)
+        deficit_s = period_s - (self.clock() - self.last_write_s)
+        return deficit_s if 0 < deficit_s <= PACE_MAX_SHARE * period_s else None
+
+    def _pay_back(
+        self, requested: dict[int, int], health: dict[int, ServoHealth] | None
+    ) -> tuple[Verdict, float] | None:
+        """A held frame more than `PAY_BACK_SHARE` of a period early whose whole-period verdict is a clean
+        accept: checked again for the time that has really passed; if that accepts cleanly too (the same
+        goals), it is sent at once with that verdict and elapsed time, which brings the paced writes back
+        towards the start of their slots on a frame whose caps do not matter. Else None, and the gate's
+        memory is as the whole-period check left it (the frame is held). Without this, the drift ends only
+        when a frame comes more than `PACE_MAX_SHARE` early, and is checked with shrunk caps whatever it
+        asks. (The second check is cheap: the command's state checks are remembered by the gate.)"""
+        last_write_s = self.last_write_s
+        if last_write_s is None:
+            return None
+        state = self.gate.step_state()
+        elapsed_s = self.clock() - last_write_s
+        verdict = self.gate.check(requested, self.last_goals_tick, health, elapsed_s=elapsed_s)
+        if _clean(verdict):
+            return verdict, elapsed_s
+        self.gate.restore_step_state(state)
+        return None
+
+    def _hold_to_slot(self) -> None:
+        """Sleep until one frame period has passed since the last write (a held frame, `_slot_deficit`: its
+        caps were those of a whole period, never more time than really passes before its goals leave)."""
+        last_write_s = self.last_write_s
+        if last_write_s is None:
+            return
+        period_s = self.gate.frame_period_s
+        while (deficit_s := period_s - (self.clock() - last_write_s)) > 0:
+            time.sleep(deficit_s)  # (never ends early on a monotonic clock; re-checked all the same)
 
     def _health(self) -> dict[int, ServoHealth] | None:
         if self.last_snapshot is None:
@@ -462,3 +508,8 @@ class Pipeline:
         self.last_cycle_s = self.last_write_s = self.clock()
         self.gate.reset()  # the servos got a zero step: the next frame starts from rest (accel cap)
         return self.last_snapshot
+
+
+def _clean(verdict: Verdict) -> bool:
+    """A clean accept: no finding but health (every rate check passed, no state check fired)."""
+    return verdict.kind == "accept" and all(f.check == "health" for f in verdict.findings)

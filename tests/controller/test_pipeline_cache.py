@@ -3,9 +3,9 @@
 - `Pipeline._solve` keeps the last muscle model + calibration result: a pipeline with it and one that
   solves every frame afresh, on random AU frames with many repeats, send the same goals with the same
   verdicts (the same bytes reach the emulator);
-- `Pipeline._wait_out_period`: a frame that comes a little less than a frame period after the last write
-  waits out the period, so the speculative verdict computed during the last wait is used (without the
-  wait the step's shorter elapsed time would void it).
+- `Pipeline._slot_deficit`: a frame that comes a little less than a frame period after the last write is
+  checked with the caps of a whole period and held to its slot, so the speculative verdict computed during
+  the last wait is used (checked for the step's shorter elapsed time, it would be void).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from collections.abc import Iterator
 
 import pytest
 from servoface.controller.face import Face
-from servoface.controller.pipeline import PACE_MAX_SHARE, FrameTrace
+from servoface.controller.pipeline import PAY_BACK_SHARE, FrameTrace
 
 from tests.controller.pipeline_pairs import au_names, face_pair, random_frames
 
@@ -68,7 +68,7 @@ def test_cached_solve_still_refuses_bad_aus_before_anything_is_sent(faces: tuple
     assert len(face.chain.goal_writes()) == writes
 
 
-def test_a_frame_just_short_of_a_period_waits_it_out_and_uses_the_speculation(faces: tuple[Face, Face]) -> None:
+def test_a_frame_just_short_of_a_period_is_held_to_its_slot_and_uses_the_speculation(faces: tuple[Face, Face]) -> None:
     face, _ = faces
     p = face.pipeline
     p.per_time_caps = True
@@ -77,11 +77,11 @@ def test_a_frame_just_short_of_a_period_waits_it_out_and_uses_the_speculation(fa
     frames = _frames(names, 30, seed=9)
     used = 0
     for k, aus in enumerate(frames):
-        if p.last_write_s is not None:  # as if this frame came 0.1 period early within a paced loop
-            p.last_write_s = time.monotonic() - (1.0 - 0.4 * PACE_MAX_SHARE) * period_s
+        if p.last_write_s is not None:  # as if this frame came a little early within a paced loop (not so
+            p.last_write_s = time.monotonic() - (1.0 - 0.5 * PAY_BACK_SHARE) * period_s  # early: `_pay_back`)
         t0 = time.monotonic()
         trace = p.step(aus, next_frame=frames[k + 1] if k + 1 < len(frames) else None)
         if k > 0:
-            assert time.monotonic() - t0 >= 0.4 * PACE_MAX_SHARE * period_s * 0.999  # it waited (never less)
+            assert time.monotonic() - t0 >= 0.5 * PAY_BACK_SHARE * period_s * 0.999  # it waited (never less)
         used += "ahead_ms" in trace.timings_ms
     assert used >= len(frames) - 3  # every frame but the first (and any the first speculation missed)
