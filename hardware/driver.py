@@ -18,7 +18,8 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Literal
 
 from servoface.hardware.bus import ServoBus
-from servoface.hardware.driver_reads import MOTION, READ_FAILURES, STATUS, THERMAL, ChainReads, TelemetryGroup
+from servoface.hardware.calm_cycle import CalmCycle, CalmPlan
+from servoface.hardware.driver_reads import MOTION, READ_FAILURES, STATUS, THERMAL, TelemetryGroup
 from servoface.hardware.errors import (
     BusCorruptError,
     BusDisconnectedError,
@@ -35,7 +36,7 @@ from servoface.hardware.goal_check import check_goals
 from servoface.hardware.registers import Register
 from servoface.hardware.servo_config import ConfigReport, ServoSpec, check_specs, configure_servo
 from servoface.hardware.servo_record import ServoRecord
-from servoface.hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind
+from servoface.hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind, ServoState, StateCapture
 
 CONFIGURE_QUIET_S = (0.2, 0.8)  # after a failed configure try, wait this long for quiet (a starved far end, a
 # late reply): 3 tries span over a second, so a busy host or emulator does not fail an open; a servo really
@@ -44,7 +45,7 @@ TORQUE_OFF_QUIET_S = (0.03, 0.12, 0.3)  # after a failed torque-off, wait this l
 FastSyncRead = Literal[True, False, "auto"]  # `Driver`'s ``fast_sync_read``
 
 
-class Driver(ChainReads):
+class Driver(CalmCycle):
     """Drives a configured chain. Not thread-safe by design: the thread that first uses it owns it.
 
     ``clock``: seconds, monotonic (tests may pass the emulator's clock). ``fast_sync_read``: read positions
@@ -119,6 +120,8 @@ class Driver(ChainReads):
         self._busy_s = 0.0  # how long the last cycle took (clock)
         self._patient = False
         self._last_end_s = float("-inf")  # clock at the end of the last cycle
+        self._calm_plan: CalmPlan | None = None
+        self._calm_events = 0
 
     # -- ownership ----------------------------------------------------------------------------------
     def _check_owner(self) -> None:
@@ -505,6 +508,7 @@ class Driver(ChainReads):
         self._patient = self._idle_s > self._busy_s  # a paced caller: spend least CPU, not least latency
         self._cycle_now = now
         self._position_ids = None
+        self._calm_plan = None
         try:
             if not self._connected:
                 self._try_reopen(now)
@@ -512,6 +516,7 @@ class Driver(ChainReads):
                 self._feed_watchdog(now)
                 self._write_goals(goals)
                 self._start_positions(now)
+                self._plan_calm(now)  # while the replies are on the wire
         except BusDisconnectedError as err:
             self._on_disconnect(err)
         except BaseException:
@@ -524,19 +529,25 @@ class Driver(ChainReads):
         now, self._cycle_now = self._cycle_now, None
         if now is None:
             raise DriverThreadError("Driver.cycle_finish called without cycle_start")
+        plan, self._calm_plan = self._calm_plan, None
+        items: dict[int, ServoState | StateCapture] | None = None
         try:
             if self._connected:
-                self._read_positions(now)
-                self._read_slow_group(now)
-                for rec in self._records.values():
-                    if rec.reboot_at_s is not None or rec.recover_at_s is not None:  # else service() has nothing to do
-                        self._reactions.service(rec, now)
-                self._probe_missing(now)
+                if plan is None:
+                    self._read_positions(now)
+                else:
+                    items = self._read_positions_calm(plan, now)  # None: not calm after all (positions applied)
+                if items is None:
+                    self._read_slow_group(now)
+                    for rec in self._records.values():
+                        if rec.reboot_at_s is not None or rec.recover_at_s is not None:  # else nothing to do
+                            self._reactions.service(rec, now)
+                    self._probe_missing(now)
         except BusDisconnectedError as err:
             self._on_disconnect(err)
         self._last_tx_s = now
         self._cycle += 1
-        snapshot = self._freeze(now)
+        snapshot = self._freeze(now) if items is None else self._snapshot(now, items)
         self._last_end_s = self._clock()
         self._busy_s = self._last_end_s - now
         return snapshot
@@ -550,10 +561,15 @@ class Driver(ChainReads):
         return self._last
 
     def _freeze(self, now: float) -> ChainSnapshot:
+        """The cycle's snapshot of every record's `ServoRecord.freeze_lazy` (states built when looked at)."""
+        return self._snapshot(now, {sid: rec.freeze_lazy() for sid, rec in self._records.items()})
+
+    def _snapshot(self, now: float, items: dict[int, ServoState | StateCapture]) -> ChainSnapshot:
+        """The cycle's snapshot of ``items`` (`_freeze`'s, or a calm cycle's captures: `CalmCycle`)."""
         snap = ChainSnapshot.owning(  # the fresh dict is the snapshot's own: no defensive copy
             now,
             self._cycle,
-            {sid: rec.freeze_lazy() for sid, rec in self._records.items()},  # states built when looked at
+            items,
             tuple(self._cycle_events),
             self.bus.stats.copy(),
             self._connected,
