@@ -377,7 +377,41 @@ class Driver(CalmCycle):
         self.bus.write(rec.servo_id, Register.GOAL_POSITION, self._guard(rec, tick))
         rec.goal_tick = tick
 
+    def _goal_frame(self, goals_tick: Mapping[int, int]) -> dict[int, int] | None:
+        """`validate_goals` and `_write_goals`' frame in one pass over the goals, for the usual frame (a dict
+        of plain int ids and ticks, every goal inside its servo's limits): the frame `_write_goals` would
+        send for what `validate_goals` returns. None for any other frame (nothing judged here: the two
+        checks then run as before, so a refusal and its message are theirs). Call it only when nothing can
+        change a record before the write (connected, no Fast Sync Read probe pending)."""
+        if type(goals_tick) is not dict:
+            return None
+        frame: dict[int, int] = {}
+        records = self._records
+        backoff = FaultKind.LOAD_BACKOFF
+        for sid, goal in goals_tick.items():
+            rec = records.get(sid) if type(sid) is int else None
+            if rec is None or type(goal) is not int:
+                return None
+            spec = rec.spec
+            if not spec.min_position_tick <= goal <= spec.max_position_tick:
+                return None  # `validate_goals` refuses the whole frame, naming the servo
+            if (
+                rec.missing
+                or not rec.torque_on
+                or rec.latched
+                or rec.reboot_at_s is not None
+                or rec.recover_at_s is not None
+            ):
+                continue  # not `rec.in_service` (the same test, inlined: once per servo per frame)
+            if rec.faults and backoff in rec.faults and rec.position_tick is not None:
+                goal = eased_goal(goal, rec.position_tick, rec.backoff_scale, *rec.limits_tick)
+                if not spec.min_position_tick <= goal <= spec.max_position_tick:
+                    self._guard(rec, goal)  # the last line of defence before the wire; unreachable by design
+            frame[sid] = goal  # an unchanged goal was checked against these limits just above
+        return frame
+
     def _write_goals(self, goals: Mapping[int, int]) -> None:
+        """The frame of validated ``goals`` (servos in service only, load back-off applied), guarded, sent."""
         frame: dict[int, int] = {}
         records = self._records
         backoff = FaultKind.LOAD_BACKOFF
@@ -397,8 +431,13 @@ class Driver(CalmCycle):
             if not spec.min_position_tick <= goal <= spec.max_position_tick:
                 self._guard(rec, goal)
             frame[sid] = goal
+        self._send_goals(frame)
+
+    def _send_goals(self, frame: dict[int, int]) -> None:
+        """One Sync Write of a built frame (`_write_goals`, `_goal_frame`); the goals noted as written."""
         if frame:
             self.bus.sync_write(Register.GOAL_POSITION, frame)
+            records = self._records
             for sid, tick in frame.items():
                 records[sid].goal_tick = tick
 
@@ -496,7 +535,8 @@ class Driver(CalmCycle):
         self._check_owner()
         if self._cycle_now is not None:
             raise DriverThreadError("Driver.cycle_start called twice without cycle_finish in between")
-        goals = self.validate_goals(goals_tick)
+        frame = self._goal_frame(goals_tick) if self._connected and not self._fast_probe_pending else None
+        goals = self.validate_goals(goals_tick) if frame is None else frame  # raises: nothing sent
         self._cycle_events = []
         if self._fast_probe_pending and self._connected:  # "auto" on a chain this driver did not configure:
             try:  # probed before the cycle's clock reading, so a slow (failed) probe counts as a pause for
@@ -514,7 +554,10 @@ class Driver(CalmCycle):
                 self._try_reopen(now)
             if self._connected:
                 self._feed_watchdog(now)
-                self._write_goals(goals)
+                if frame is None:
+                    self._write_goals(goals)
+                else:
+                    self._send_goals(frame)  # built before the cycle started: nothing since changes a record
                 self._start_positions(now)
                 self._plan_calm(now)  # while the replies are on the wire
         except BusDisconnectedError as err:

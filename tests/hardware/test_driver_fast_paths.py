@@ -170,6 +170,9 @@ class StraightDriver(Driver):
     def validate_goals(self, goals_tick: Mapping[int, int]) -> dict[int, int]:
         return _check_goals_reference(goals_tick, self._specs)
 
+    def _goal_frame(self, goals_tick: Mapping[int, int]) -> dict[int, int] | None:
+        return None  # validated, then filtered and guarded, in two passes
+
     def _plan_calm(self, now: float) -> None:
         self._calm_plan = None  # every cycle the full path
 
