@@ -334,8 +334,11 @@ class Driver(CalmCycle):
     def _feed_watchdog(self, now: float) -> None:
         """After a pause longer than half the watchdog time (a slow frame, a caller that waited between
         motions), the watchdog may have tripped and would refuse every goal: clear and re-arm it first."""
+        last_tx_s = self._last_tx_s  # the time test first: once per cycle, mostly all there is to do
+        if last_tx_s is None or now - last_tx_s <= 0.5 * self.policy.watchdog_s:
+            return
         units = self.policy.watchdog_units
-        if not units or self._last_tx_s is None or now - self._last_tx_s <= 0.5 * self.policy.watchdog_s:
+        if not units:
             return
         ids = [rec.servo_id for rec in self._records.values() if rec.in_service]
         if ids:
