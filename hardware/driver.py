@@ -18,7 +18,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Literal
 
 from servoface.hardware.bus import ServoBus
-from servoface.hardware.calm_cycle import CalmCycle, CalmPlan
+from servoface.hardware.calm_cycle import CalmCycle
 from servoface.hardware.driver_reads import MOTION, READ_FAILURES, STATUS, THERMAL, TelemetryGroup
 from servoface.hardware.errors import (
     BusCorruptError,
@@ -120,7 +120,6 @@ class Driver(CalmCycle):
         self._busy_s = 0.0  # how long the last cycle took (clock)
         self._patient = False
         self._last_end_s = float("-inf")  # clock at the end of the last cycle
-        self._calm_plan: CalmPlan | None = None
         self._calm_events = 0
 
     # -- ownership ----------------------------------------------------------------------------------
@@ -551,7 +550,6 @@ class Driver(CalmCycle):
         self._patient = self._idle_s > self._busy_s  # a paced caller: spend least CPU, not least latency
         self._cycle_now = now
         self._position_ids = None
-        self._calm_plan = None
         try:
             if not self._connected:
                 self._try_reopen(now)
@@ -562,7 +560,6 @@ class Driver(CalmCycle):
                 else:
                     self._send_goals(frame)  # built before the cycle started: nothing since changes a record
                 self._start_positions(now)
-                self._plan_calm(now)  # while the replies are on the wire
         except BusDisconnectedError as err:
             self._on_disconnect(err)
         except BaseException:
@@ -575,10 +572,10 @@ class Driver(CalmCycle):
         now, self._cycle_now = self._cycle_now, None
         if now is None:
             raise DriverThreadError("Driver.cycle_finish called without cycle_start")
-        plan, self._calm_plan = self._calm_plan, None
         items: dict[int, ServoState | StateCapture] | None = None
         try:
             if self._connected:
+                plan = self._plan_calm(now)  # while the position replies are (most likely) still on the wire
                 if plan is None:
                     self._read_positions(now)
                 else:

@@ -37,7 +37,7 @@ class FullPathDriver(Driver):
         return None
 
     def _plan_calm(self, now: float) -> None:
-        self._calm_plan = None
+        return None
 
 
 class CountingDriver(Driver):

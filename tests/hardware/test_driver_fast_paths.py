@@ -174,7 +174,7 @@ class StraightDriver(Driver):
         return None  # validated, then filtered and guarded, in two passes
 
     def _plan_calm(self, now: float) -> None:
-        self._calm_plan = None  # every cycle the full path
+        return None  # every cycle the full path
 
     def _write_goals(self, goals: Mapping[int, int]) -> None:
         frame: dict[int, int] = {}
