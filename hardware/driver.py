@@ -6,7 +6,9 @@ is kept: an alarm is seen the cycle it happens) -> at most one due slow telemetr
 status 10 Hz, motion 10 Hz, thermal 2 Hz while the caller leaves the bus that much idle time; down to
 `FaultPolicy.telemetry_floor_share` of those rates when cycles run back to back) -> fault policy ->
 re-probe of one missing servo -> a frozen `ChainSnapshot`. `cycle_start` / `cycle_finish` split it where
-the position replies are on the wire, so a caller can compute meanwhile (the pipeline's next frame).
+the position replies are on the wire, so a caller can compute meanwhile (the pipeline's next frame). A calm
+cycle (`calm_cycle`) does its per-servo snapshot checks before collecting the replies, so little is left
+between the last reply and the next frame's bytes.
 """
 
 from __future__ import annotations
