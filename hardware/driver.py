@@ -6,7 +6,9 @@ is kept: an alarm is seen the cycle it happens) -> at most one due slow telemetr
 status 10 Hz, motion 10 Hz, thermal 2 Hz while the caller leaves the bus that much idle time; down to
 `FaultPolicy.telemetry_floor_share` of those rates when cycles run back to back) -> fault policy ->
 re-probe of one missing servo -> a frozen `ChainSnapshot`. `cycle_start` / `cycle_finish` split it where
-the position replies are on the wire, so a caller can compute meanwhile (the pipeline's next frame).
+the position replies are on the wire, so a caller can compute meanwhile (the pipeline's next frame). A calm
+cycle (`calm_cycle`) does its per-servo snapshot checks before collecting the replies, so little is left
+between the last reply and the next frame's bytes.
 """
 
 from __future__ import annotations
@@ -18,7 +20,8 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Literal
 
 from servoface.hardware.bus import ServoBus
-from servoface.hardware.driver_reads import MOTION, READ_FAILURES, STATUS, THERMAL, ChainReads, TelemetryGroup
+from servoface.hardware.calm_cycle import CalmCycle
+from servoface.hardware.driver_reads import MOTION, READ_FAILURES, STATUS, THERMAL, TelemetryGroup
 from servoface.hardware.errors import (
     BusCorruptError,
     BusDisconnectedError,
@@ -35,7 +38,7 @@ from servoface.hardware.goal_check import check_goals
 from servoface.hardware.registers import Register
 from servoface.hardware.servo_config import ConfigReport, ServoSpec, check_specs, configure_servo
 from servoface.hardware.servo_record import ServoRecord
-from servoface.hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind
+from servoface.hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind, ServoState, StateCapture
 
 CONFIGURE_QUIET_S = (0.2, 0.8)  # after a failed configure try, wait this long for quiet (a starved far end, a
 # late reply): 3 tries span over a second, so a busy host or emulator does not fail an open; a servo really
@@ -44,7 +47,7 @@ TORQUE_OFF_QUIET_S = (0.03, 0.12, 0.3)  # after a failed torque-off, wait this l
 FastSyncRead = Literal[True, False, "auto"]  # `Driver`'s ``fast_sync_read``
 
 
-class Driver(ChainReads):
+class Driver(CalmCycle):
     """Drives a configured chain. Not thread-safe by design: the thread that first uses it owns it.
 
     ``clock``: seconds, monotonic (tests may pass the emulator's clock). ``fast_sync_read``: read positions
@@ -119,6 +122,7 @@ class Driver(ChainReads):
         self._busy_s = 0.0  # how long the last cycle took (clock)
         self._patient = False
         self._last_end_s = float("-inf")  # clock at the end of the last cycle
+        self._calm_events = 0
 
     # -- ownership ----------------------------------------------------------------------------------
     def _check_owner(self) -> None:
@@ -331,8 +335,11 @@ class Driver(ChainReads):
     def _feed_watchdog(self, now: float) -> None:
         """After a pause longer than half the watchdog time (a slow frame, a caller that waited between
         motions), the watchdog may have tripped and would refuse every goal: clear and re-arm it first."""
+        last_tx_s = self._last_tx_s  # the time test first: once per cycle, mostly all there is to do
+        if last_tx_s is None or now - last_tx_s <= 0.5 * self.policy.watchdog_s:
+            return
         units = self.policy.watchdog_units
-        if not units or self._last_tx_s is None or now - self._last_tx_s <= 0.5 * self.policy.watchdog_s:
+        if not units:
             return
         ids = [rec.servo_id for rec in self._records.values() if rec.in_service]
         if ids:
@@ -374,7 +381,41 @@ class Driver(ChainReads):
         self.bus.write(rec.servo_id, Register.GOAL_POSITION, self._guard(rec, tick))
         rec.goal_tick = tick
 
+    def _goal_frame(self, goals_tick: Mapping[int, int]) -> dict[int, int] | None:
+        """`validate_goals` and `_write_goals`' frame in one pass over the goals, for the usual frame (a dict
+        of plain int ids and ticks, every goal inside its servo's limits): the frame `_write_goals` would
+        send for what `validate_goals` returns. None for any other frame (nothing judged here: the two
+        checks then run as before, so a refusal and its message are theirs). Call it only when nothing can
+        change a record before the write (connected, no Fast Sync Read probe pending)."""
+        if type(goals_tick) is not dict:
+            return None
+        frame: dict[int, int] = {}
+        records = self._records
+        backoff = FaultKind.LOAD_BACKOFF
+        for sid, goal in goals_tick.items():
+            rec = records.get(sid) if type(sid) is int else None
+            if rec is None or type(goal) is not int:
+                return None
+            spec = rec.spec
+            if not spec.min_position_tick <= goal <= spec.max_position_tick:
+                return None  # `validate_goals` refuses the whole frame, naming the servo
+            if (
+                rec.missing
+                or not rec.torque_on
+                or rec.latched
+                or rec.reboot_at_s is not None
+                or rec.recover_at_s is not None
+            ):
+                continue  # not `rec.in_service` (the same test, inlined: once per servo per frame)
+            if rec.faults and backoff in rec.faults and rec.position_tick is not None:
+                goal = eased_goal(goal, rec.position_tick, rec.backoff_scale, *rec.limits_tick)
+                if not spec.min_position_tick <= goal <= spec.max_position_tick:
+                    self._guard(rec, goal)  # the last line of defence before the wire; unreachable by design
+            frame[sid] = goal  # an unchanged goal was checked against these limits just above
+        return frame
+
     def _write_goals(self, goals: Mapping[int, int]) -> None:
+        """The frame of validated ``goals`` (servos in service only, load back-off applied), guarded, sent."""
         frame: dict[int, int] = {}
         records = self._records
         backoff = FaultKind.LOAD_BACKOFF
@@ -394,8 +435,13 @@ class Driver(ChainReads):
             if not spec.min_position_tick <= goal <= spec.max_position_tick:
                 self._guard(rec, goal)
             frame[sid] = goal
+        self._send_goals(frame)
+
+    def _send_goals(self, frame: dict[int, int]) -> None:
+        """One Sync Write of a built frame (`_write_goals`, `_goal_frame`); the goals noted as written."""
         if frame:
             self.bus.sync_write(Register.GOAL_POSITION, frame)
+            records = self._records
             for sid, tick in frame.items():
                 records[sid].goal_tick = tick
 
@@ -493,7 +539,8 @@ class Driver(ChainReads):
         self._check_owner()
         if self._cycle_now is not None:
             raise DriverThreadError("Driver.cycle_start called twice without cycle_finish in between")
-        goals = self.validate_goals(goals_tick)
+        frame = self._goal_frame(goals_tick) if self._connected and not self._fast_probe_pending else None
+        goals = self.validate_goals(goals_tick) if frame is None else frame  # raises: nothing sent
         self._cycle_events = []
         if self._fast_probe_pending and self._connected:  # "auto" on a chain this driver did not configure:
             try:  # probed before the cycle's clock reading, so a slow (failed) probe counts as a pause for
@@ -510,7 +557,10 @@ class Driver(ChainReads):
                 self._try_reopen(now)
             if self._connected:
                 self._feed_watchdog(now)
-                self._write_goals(goals)
+                if frame is None:
+                    self._write_goals(goals)
+                else:
+                    self._send_goals(frame)  # built before the cycle started: nothing since changes a record
                 self._start_positions(now)
         except BusDisconnectedError as err:
             self._on_disconnect(err)
@@ -524,19 +574,25 @@ class Driver(ChainReads):
         now, self._cycle_now = self._cycle_now, None
         if now is None:
             raise DriverThreadError("Driver.cycle_finish called without cycle_start")
+        items: dict[int, ServoState | StateCapture] | None = None
         try:
             if self._connected:
-                self._read_positions(now)
-                self._read_slow_group(now)
-                for rec in self._records.values():
-                    if rec.reboot_at_s is not None or rec.recover_at_s is not None:  # else service() has nothing to do
-                        self._reactions.service(rec, now)
-                self._probe_missing(now)
+                plan = self._plan_calm(now)  # while the position replies are (most likely) still on the wire
+                if plan is None:
+                    self._read_positions(now)
+                else:
+                    items = self._read_positions_calm(plan, now)  # None: not calm after all (positions applied)
+                if items is None:
+                    self._read_slow_group(now)
+                    for rec in self._records.values():
+                        if rec.reboot_at_s is not None or rec.recover_at_s is not None:  # else nothing to do
+                            self._reactions.service(rec, now)
+                    self._probe_missing(now)
         except BusDisconnectedError as err:
             self._on_disconnect(err)
         self._last_tx_s = now
         self._cycle += 1
-        snapshot = self._freeze(now)
+        snapshot = self._freeze(now) if items is None else self._snapshot(now, items)
         self._last_end_s = self._clock()
         self._busy_s = self._last_end_s - now
         return snapshot
@@ -550,10 +606,15 @@ class Driver(ChainReads):
         return self._last
 
     def _freeze(self, now: float) -> ChainSnapshot:
+        """The cycle's snapshot of every record's `ServoRecord.freeze_lazy` (states built when looked at)."""
+        return self._snapshot(now, {sid: rec.freeze_lazy() for sid, rec in self._records.items()})
+
+    def _snapshot(self, now: float, items: dict[int, ServoState | StateCapture]) -> ChainSnapshot:
+        """The cycle's snapshot of ``items`` (`_freeze`'s, or a calm cycle's captures: `CalmCycle`)."""
         snap = ChainSnapshot.owning(  # the fresh dict is the snapshot's own: no defensive copy
             now,
             self._cycle,
-            {sid: rec.freeze_lazy() for sid, rec in self._records.items()},  # states built when looked at
+            items,
             tuple(self._cycle_events),
             self.bus.stats.copy(),
             self._connected,

@@ -149,6 +149,11 @@ class ChainReads:
             self._position_ids = ids
 
     def _read_positions(self, now: float) -> None:
+        self._apply_positions(now, *self._collect_positions(now))
+
+    def _collect_positions(self, now: float) -> tuple[list[int], tuple[Register, ...], dict[int, dict[Register, int]]]:
+        """The position read's replies (of the instruction `_start_positions` sent, else of one sent now):
+        (ids asked, registers read, values of those that answered)."""
         started, self._position_ids = self._position_ids, None
         if started is None:
             ids = self._readable(now)
@@ -159,6 +164,12 @@ class ChainReads:
         got = self._read_group(ids, registers, fast=self.fast_sync_read, started=started is not None)
         if self.fast_sync_read and ids:
             self._check_fast_read_support(self._group_failed and len(got) == len(ids))
+        return ids, registers, got
+
+    def _apply_positions(
+        self, now: float, ids: list[int], registers: tuple[Register, ...], got: dict[int, dict[Register, int]]
+    ) -> None:
+        """The position read's values into the records; a folded group's too; the silent ones marked."""
         records = self._records
         position = Register.PRESENT_POSITION
         for sid, values in got.items():  # `_mark_results` for the servos that answered, in the same pass

@@ -166,6 +166,17 @@ class ServoRecord:
             return last  # frozen: safe to share between snapshots
         return (last, position_tick, position_t_s, goal_tick, stale)
 
+    def calm_base(self, now_s: float) -> ServoState | None:
+        """The state a capture would start from if, before the next freeze at ``now_s``, only the position,
+        its time, goal and stale change (a calm cycle, `calm_cycle`): the last state while the slow key is
+        unchanged and its position time is not ``now_s`` (so `freeze_lazy` would capture, not share it);
+        else None. Checked while the position replies are on the wire, so the freeze after them is a
+        capture per servo with no key to build."""
+        last = self._frozen
+        if last is None or last.__dict__["position_t_s"] == now_s or self._slow_key() != self._frozen_key:
+            return None
+        return last
+
     def freeze_full(self) -> ServoState:
         """The record as a `ServoState`, built field by field (the reference for `freeze`)."""
         current_ma = (

@@ -170,6 +170,12 @@ class StraightDriver(Driver):
     def validate_goals(self, goals_tick: Mapping[int, int]) -> dict[int, int]:
         return _check_goals_reference(goals_tick, self._specs)
 
+    def _goal_frame(self, goals_tick: Mapping[int, int]) -> dict[int, int] | None:
+        return None  # validated, then filtered and guarded, in two passes
+
+    def _plan_calm(self, now: float) -> None:
+        return None  # every cycle the full path
+
     def _write_goals(self, goals: Mapping[int, int]) -> None:
         frame: dict[int, int] = {}
         for sid, goal in goals.items():

@@ -74,13 +74,13 @@ def test_a_cycle_that_fails_to_start_does_not_block_the_next(monkeypatch: pytest
     from servoface.hardware.errors import BusError
 
     chain, driver = make_driver()
-    real = driver._write_goals
+    real = driver._send_goals
 
-    def busy(goals):  # type: ignore[no-untyped-def]
+    def busy(frame):  # type: ignore[no-untyped-def]
         raise BusError("sync write: port in use")
 
-    monkeypatch.setattr(driver, "_write_goals", busy)
+    monkeypatch.setattr(driver, "_send_goals", busy)
     with pytest.raises(BusError):
         driver.cycle_start(GOALS)
-    monkeypatch.setattr(driver, "_write_goals", real)
+    monkeypatch.setattr(driver, "_send_goals", real)
     assert driver.cycle(GOALS)[1].goal_tick == GOALS[1]
