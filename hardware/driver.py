@@ -2,9 +2,12 @@
 
 A cycle: validate goals (refuse the whole frame on any bad goal: nothing sent) -> one Sync Write of Goal
 Position to the servos in service -> one (Fast) Sync Read of Present Position (every reply's Alert bit
-is kept: an alarm is seen the cycle it happens) -> at most one due slow telemetry group (round-robin:
+is kept: an alarm is seen the cycle it happens), through the position sentinel where it verified at
+`configure` (hardware/sentinel.py: the same 4 bytes, from Indirect Data, whose fourth byte shows a reset
+servo the cycle after the reset) -> at most one due slow telemetry group (round-robin:
 status 10 Hz, motion 10 Hz, thermal 2 Hz while the caller leaves the bus that much idle time; down to
-`FaultPolicy.telemetry_floor_share` of those rates when cycles run back to back) -> fault policy ->
+`FaultPolicy.telemetry_floor_share` of those rates when cycles run back to back, the status group not at
+all then if the sentinel is on) -> fault policy ->
 re-probe of one missing servo -> a frozen `ChainSnapshot`. `cycle_start` / `cycle_finish` split it where
 the position replies are on the wire, so a caller can compute meanwhile (the pipeline's next frame). A calm
 cycle (`calm_cycle`) does its per-servo snapshot checks before collecting the replies, so little is left
@@ -21,7 +24,7 @@ from typing import Literal
 
 from servoface.hardware.bus import ServoBus
 from servoface.hardware.calm_cycle import CalmCycle
-from servoface.hardware.driver_reads import MOTION, READ_FAILURES, STATUS, THERMAL, TelemetryGroup
+from servoface.hardware.driver_reads import MOTION, POSITION, READ_FAILURES, STATUS, THERMAL, TelemetryGroup
 from servoface.hardware.errors import (
     BusCorruptError,
     BusDisconnectedError,
@@ -36,6 +39,7 @@ from servoface.hardware.fault_policy import FaultPolicy, ThermalTrend, eased_goa
 from servoface.hardware.fault_reactions import FaultReactions
 from servoface.hardware.goal_check import check_goals
 from servoface.hardware.registers import Register
+from servoface.hardware.sentinel import VIEWS, SentinelMap
 from servoface.hardware.servo_config import ConfigReport, ServoSpec, check_specs, configure_servo
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind, ServoState, StateCapture
@@ -55,7 +59,8 @@ class Driver(CalmCycle):
     ``"auto"`` (default) probes once, at the end of :meth:`configure` (or at the first cycle if the chain
     was not configured), and uses it if every servo answers (`fast_read_info` says which and why); ``True``
     / ``False`` force it. Either way a chain on which it later fails while single reads work falls back to
-    plain Sync Read (with an event).
+    plain Sync Read (with an event). `sentinel_info` says how positions are read (the position sentinel, or
+    directly and why: an event ``SENTINEL`` too).
     """
 
     def __init__(
@@ -123,6 +128,12 @@ class Driver(CalmCycle):
         self._patient = False
         self._last_end_s = float("-inf")  # clock at the end of the last cycle
         self._calm_events = 0
+        self._sentinel = None
+        self._witness: dict[int, int] = {}
+        self._maps: dict[int, SentinelMap] = {}
+        self._block = POSITION
+        self._remap_failed: set[int] = set()
+        self.sentinel_info = "not configured: positions read directly (Present Position, 132)"
 
     # -- ownership ----------------------------------------------------------------------------------
     def _check_owner(self) -> None:
@@ -189,6 +200,7 @@ class Driver(CalmCycle):
         """
         self._check_owner()
         reports = {}
+        self._sentinel, self._maps = None, {}  # decided afresh below (`_decide_sentinel`)
         for rec in self._records.values():
             try:
                 reports[rec.servo_id] = self._configure_retried(rec)
@@ -196,6 +208,7 @@ class Driver(CalmCycle):
                 if not allow_missing:
                     raise
                 self._mark_missing(rec, self._clock(), "did not answer during configure")
+        self._decide_sentinel()
         if self._fast_probe_pending and self._connected:
             self._probe_fast_read(self._clock())
         return reports
@@ -219,7 +232,46 @@ class Driver(CalmCycle):
         rec.current_limit = report.limits[Register.CURRENT_LIMIT] if rec.info.reports_current else None
         if rec.derated:  # configuration wrote the spec's profile; keep the derated one
             self.bus.write(rec.servo_id, Register.PROFILE_VELOCITY, self._reactions.derated_profile_velocity(rec))
+        smap = report.sentinel
+        if smap is not None:
+            self._maps[rec.servo_id] = smap
+            self._witness[rec.servo_id] = smap.witness
+            view = self._sentinel
+            if view is not None and smap.base != view.base:  # a servo replaced, or its firmware changed
+                self._sentinel_off(f"re-configure: {smap.why}")
         return report
+
+    def _decide_sentinel(self) -> None:
+        """After `configure`: positions through the sentinel (hardware/sentinel.py) when every configured
+        servo's map verified at the same Indirect Data address (one Sync Read reads one address from all);
+        else direct reads of Present Position for the chain, with an event that says why. Servos missing
+        now are checked when they are configured (`_configure_one`)."""
+        maps = self._maps
+        refused = [m.why for m in maps.values() if m.base is None]
+        bases = sorted({m.base for m in maps.values() if m.base is not None})
+        if not maps:
+            self.sentinel_info = "no servo configured: positions read directly (Present Position, 132)"
+        elif refused:
+            self._sentinel_off("; ".join(refused))
+        elif len(bases) > 1:
+            self._sentinel_off(f"Indirect Data 1 at {bases} on different servos (one Sync Read reads one address)")
+        else:
+            view = VIEWS[bases[0]]
+            self._sentinel = view
+            self.sentinel_info = (
+                f"positions read through Indirect Data at {view.base} (position + Status Return Level sentinel, "
+                f"verified on servos {sorted(maps)})"
+            )
+
+    def _sentinel_off(self, why: str) -> None:
+        """The chain reads Present Position directly; resets are seen by the status group (floor rate)."""
+        self._sentinel = None
+        self.sentinel_info = f"positions read directly (Present Position, 132): {why}"
+        self._emit(
+            None,
+            FaultKind.SENTINEL,
+            f"{why}: positions read directly; a reset servo is seen by the status read at its floor rate",
+        )
 
     def _pin_and_enable(self, rec: ServoRecord) -> None:
         """Bus Watchdog cleared, Goal Position := Present Position (clamped into the limits), Torque Enable = 1,

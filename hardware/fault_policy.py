@@ -52,6 +52,10 @@ class FaultPolicy:
     # a due group is read when the caller leaves the bus idle at least as long as the group's read takes
     # (a paced loop: nominal rates) and otherwise once this share of its rate is reached (cycles run back to
     # back: the reads would cost the goals' rate). An Alert bit in any reply reads the status group at once.
+    # When positions are read through the position sentinel (hardware/sentinel.py; `Driver.sentinel_info`),
+    # the status group has no floor rate: every cycle's position reply already shows a reset servo (its
+    # Indirect Address map gone), the Alert bit shows a hardware error, and the status group is read at
+    # its nominal rate when the bus is idle, at once when an Alert bit or a reaction asks.
     telemetry_floor_share: float = 0.25
 
     def __post_init__(self) -> None:

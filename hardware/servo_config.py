@@ -25,6 +25,7 @@ from servoface.hardware.registers import (
     model_by_name,
     model_name,
 )
+from servoface.hardware.sentinel import SentinelMap, map_sentinel
 
 POSITION_RANGE_TICK = (0, 4095)
 EXTENDED_RANGE_TICK = (-1_048_575, 1_048_575)
@@ -247,6 +248,7 @@ class ConfigReport:
     firmware_version: int
     written: tuple[str, ...]  # register names written (EEPROM only when they differed)
     limits: Mapping[Register, int]  # limits read back (temperature, voltage, current, position)
+    sentinel: SentinelMap | None = None  # the position sentinel's map (hardware/sentinel.py), as verified
 
 
 _READBACK = (
@@ -287,12 +289,14 @@ def configure_servo(bus: ServoBus, spec: ServoSpec) -> ConfigReport:
     for reg, value in wanted.items():
         if back[reg] != value:
             raise ServoConfigMismatch(spec.servo_id, reg.name, value, back[reg])
+    sentinel = map_sentinel(bus, spec.servo_id, spec.operating_mode)  # RAM: rewritten at every configure
     return ConfigReport(
         spec.servo_id,
         reply.model_number,
         reply.firmware_version,
         tuple(written),
         {r: back[r] for r in _READBACK},
+        sentinel,
     )
 
 
