@@ -11,7 +11,6 @@ import pytest
 from servoface.hardware.bus import open_bus
 from servoface.hardware.driver import Driver
 from servoface.hardware.emulator import ServoChain
-from servoface.hardware.fault_policy import FaultPolicy
 from servoface.hardware.registers import Register
 from servoface.hardware.sentinel import SLOT_TARGETS, split
 from servoface.hardware.servo_config import ServoSpec
@@ -98,19 +97,39 @@ def test_a_reset_servo_is_seen_the_next_cycle_and_brought_back_with_its_map(how:
 
 
 def test_reset_detection_does_not_wait_for_the_status_group() -> None:
-    """Back to back (no idle time): the status group is no longer read at the floor rate, yet a reset
-    servo is seen in the first cycle after it."""
-    chain, driver = make_driver(policy=FaultPolicy(telemetry_floor_share=0.25))
+    """No chain time passes between cycles (the status group is never due again), yet a reset servo is
+    seen in the first cycle after it, by its position reply alone."""
+    chain, driver = make_driver()
     for _ in range(3):
         driver.cycle(GOALS)  # the first reads of every group (due at once)
     reads0 = driver.telemetry_reads["status"]
-    for _ in range(200):  # no chain time passes: the bus is never idle, as back to back on a real wire
-        driver.cycle(GOALS)
     chain.servo(3).reboot(0.0)
     snap = driver.cycle(GOALS)
     assert [e for e in snap.events if e.kind == FaultKind.RECONNECTED and e.servo_id == 3]
-    assert driver.telemetry_reads["status"] - reads0 <= 1
-    assert chain.servo(3).torque_on
+    assert driver.telemetry_reads["status"] == reads0 and chain.servo(3).torque_on
+
+
+def test_back_to_back_the_status_group_has_no_floor_rate_with_the_sentinel_only() -> None:
+    chain, driver = make_driver()
+    driver.cycle(GOALS)
+    status = driver._groups[0]
+    assert status.name == "status"
+    now = chain.time_s + 100.0
+    for g in driver._groups:  # every group far past its floor; the bus never idle (a back-to-back caller)
+        g.due_s, g.cost_s = now - 10.0 * (3.0 if g is status else 1.0), 1.0
+    driver._idle_s = 0.0
+    assert driver._due_group(now) is not status  # the motion / thermal floor still holds
+    for g in driver._groups[1:]:
+        g.due_s = now + 1.0
+    assert driver._due_group(now) is None
+    status.due_s = float("-inf")  # an Alert bit or a reaction asks: read at once
+    assert driver._due_group(now) is status
+    status.due_s = now - 30.0
+    driver._idle_s = 2.0  # the bus idle long enough: nominal rate
+    assert driver._due_group(now) is status
+    driver._idle_s = 0.0
+    driver._sentinel = None  # without the sentinel the floor rate is back
+    assert driver._due_group(now) is status
 
 
 def test_a_torque_off_servo_reset_is_reconfigured_with_torque_left_off() -> None:
