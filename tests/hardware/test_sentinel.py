@@ -12,7 +12,7 @@ from servoface.hardware.bus import open_bus
 from servoface.hardware.driver import Driver
 from servoface.hardware.emulator import ServoChain
 from servoface.hardware.registers import Register
-from servoface.hardware.sentinel import SLOT_TARGETS, split
+from servoface.hardware.sentinel import MAP_VALUE, SLOT_TARGETS, split
 from servoface.hardware.servo_config import ServoSpec
 from servoface.hardware.snapshot import FaultKind
 
@@ -218,3 +218,54 @@ def test_over_a_pty_a_reset_is_seen_and_repaired() -> None:
     finally:
         chain.close()
     assert Register.INDIRECT_208_SENTINEL.address == 208
+
+
+@pytest.mark.parametrize("fast", [False, True])
+def test_another_process_chain_reset_by_a_reboot_on_the_wire_is_seen_and_repaired(fast: bool) -> None:
+    """`servoface emulate` in another process over a pty: a Reboot sent behind the driver's back (as a brown-
+    out would reset the servo) is seen in the next cycle by the position reply alone, and the map is back."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "servoface.controller.cli", "emulate", "--ids", "1-4", "--model", "XL330-M288",
+         "--baud", "1000000"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )  # fmt: skip
+    try:
+        assert proc.stdout is not None
+        path = proc.stdout.readline().strip()
+        assert path.startswith("/"), path
+        bus = open_bus("dynamixel", port=path, baud=1_000_000, warn_latency=False)
+        specs = [ServoSpec(i, "XL330-M288", min_position_tick=1024, max_position_tick=3072) for i in (1, 2, 3, 4)]
+        driver = Driver(bus, specs, fast_sync_read=fast)
+        driver.configure()
+        driver.torque_on()
+        assert driver.sentinel_info.startswith("positions read through Indirect Data at 208")
+        goals = {1: 2000, 2: 2100, 3: 1900, 4: 2050}
+        for _ in range(10):
+            driver.cycle(goals)
+        bus.reboot(3)  # not the driver's: its records still say servo 3 is in service
+        time.sleep(0.05)
+        snap = driver.cycle(goals)
+        news = [e for e in driver.events if e.servo_id == 3 and e.kind == FaultKind.RECONNECTED]
+        assert len(news) == 1 and "position sentinel read 0" in news[0].reaction  # not the status read's
+        assert news[0] in snap.events  # the first cycle after the reset
+        assert bus.read(3, Register.INDIRECT_ADDRESS_1_14) == MAP_VALUE
+        assert bus.read(3, Register.TORQUE_ENABLE) == 1
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline:
+            snap = driver.cycle(goals)
+            if snap.positions_tick() == goals:
+                break
+        assert snap.positions_tick() == goals and not snap[3].stale
+        driver.close(torque_off=True)
+    finally:
+        proc.terminate()
+        try:
+            proc.communicate(timeout=5.0)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.communicate()
