@@ -178,6 +178,17 @@ class TssBroadPhase:
                 out[..., a:b, :] = self.centres_h[a:b] @ np.swapaxes(t, -1, -2)
         return out
 
+    def _centres_records(self, world: FloatArray) -> FloatArray:
+        """(S, 4) `centres` of one pose ((J, 4, 4)) with a zero fourth column (the same products)."""
+        out = np.zeros((len(self.slot), 4))
+        n_joints = world.shape[-3]
+        for slot, a, b in self._groups:
+            if slot == n_joints:
+                out[a:b, :3] = self.centres_h[a:b, :3]
+            else:
+                out[a:b, :3] = self.centres_h[a:b] @ world[slot, :3, :].T
+        return out
+
     def overlaps(self, world: FloatArray) -> BoolArray:
         """(..., n_pairs) True where some tabulated sphere pair overlaps; ``world`` (..., J, 4, 4)."""
         if math.prod(world.shape[:-3]) <= 4:  # (plain ints: numpy's prod cost more than the test)
@@ -190,15 +201,17 @@ class TssBroadPhase:
         out = np.zeros((*lead, self.n_pairs), dtype=bool)
         if not self.n_tests:
             return out
-        c = self.centres(world)
-        if not lead:  # one command: coordinates as separate arrays, element-wise work only
-            cx, cy, cz = np.ascontiguousarray(c.T)
-            ga, gb = self.ga, self.gb  # take: the same gather as cx[ga], cheaper
-            dx = cx.take(ga) - cx.take(gb)
-            dy = cy.take(ga) - cy.take(gb)
-            dz = cz.take(ga) - cz.take(gb)
-            close = dx * dx + dy * dy + dz * dz <= self.thr2
+        if not lead:  # one command: each centre a 32-byte record (x, y, z, 0), gathered whole by `take`
+            d = self._centres_records(world)
+            rec = d.view(_RECORD).reshape(-1)
+            d = rec.take(self.ga).view(np.float64).reshape(-1, 4)
+            d -= rec.take(self.gb).view(np.float64).reshape(-1, 4)
+            d *= d
+            d2 = d[:, 0] + d[:, 1]  # (dx * dx + dy * dy) + dz * dz, as the batch path sums them
+            d2 += d[:, 2]
+            close = d2 <= self.thr2
         else:
+            c = self.centres(world)
             d = c[..., self.ga, :] - c[..., self.gb, :]
             close = np.einsum("...ei,...ei->...e", d, d) <= self.thr2
         if self.n_tests:
@@ -274,6 +287,7 @@ class TssBroadPhase:
         return out
 
 
+_RECORD = np.dtype((np.void, 32))  # one sphere centre: x, y, z, 0 as float64
 _EYE1 = np.eye(4)[None]  # the head base's transform, appended to one pose's (J, 4, 4)
 _EYE1.flags.writeable = False
 
