@@ -33,15 +33,23 @@ class TssBroadPhase:
         always: Sequence[bool] | None = None,
         clearance: ClearanceSet | None = None,
         axial: AxialSet | None = None,
+        distance: ClearanceSet | None = None,
+        proven_pairs: Sequence[int] = (),
     ) -> None:
         """``always[p]``: pair p skips the sphere tests and always goes to the exact test (tables too
         large to pay off, e.g. a part on the head base against one behind three neck joints) when the
         parts' bounding balls meet — unless ``clearance`` (tables for some of those pairs) proves the pose
         clear. ``axial``: distance tables for pairs turning about one line; where one proves the pose apart
-        the pair is not flagged, whatever the spheres or balls say (inside its grid only)."""
+        the pair is not flagged, whatever the spheres or balls say (inside its grid only); ``distance``: the
+        same from distance tables over a pair's relative joints (`joint_tables`). ``proven_pairs``: pairs
+        proven apart inside their joint box (`joint_tables.plane_separated`): flagged only outside it."""
         self.pairs = tuple(pairs)
         self.axial = axial if axial is not None and len(axial) else None
         self._ax_pairs = [(int(p), t) for t, p in enumerate(self.axial.pair_index)] if self.axial is not None else []
+        self.distance = distance if distance is not None and len(distance) else None
+        self._dist_pairs = (
+            [(int(p), t) for t, p in enumerate(self.distance.pair_index)] if self.distance is not None else []
+        )
         self.clearance = clearance if clearance is not None and len(clearance) else None
         self.always = np.zeros(len(self.pairs), dtype=bool) if always is None else np.array(always, dtype=bool)
         n_joints = len(tree.names)
@@ -101,10 +109,10 @@ class TssBroadPhase:
         # exact-only pairs still get a cheap gate: the parts' bounding balls (around all their spheres)
         # pairs a clearance table proves apart inside their box need nothing but the box test; the others
         # with a table are cleared per pose where their balls meet
-        proven = set()
+        proven = {int(p) for p in proven_pairs}
         table_of: dict[int, int] = {}
         if self.clearance is not None:
-            proven = {int(p) for p, ok in zip(self.clearance.pair_index, self.clearance.proven, strict=True) if ok}
+            proven |= {int(p) for p, ok in zip(self.clearance.pair_index, self.clearance.proven, strict=True) if ok}
             table_of = {int(p): t for t, p in enumerate(self.clearance.pair_index) if int(p) not in proven}
         self.proven = np.array([p in proven for p in range(len(self.pairs))], dtype=bool)
         balls = []
@@ -246,15 +254,24 @@ class TssBroadPhase:
         """Pairs that need the exact test: overlapping tabulated spheres, joints outside the swept box, or
         (untabulated pairs) meeting bounding balls — fcl's own BVH then settles those in microseconds."""
         out = self.overlaps(world) | self.out_of_box(angles_deg) | self.balls_meet(world, angles_deg)
-        ax = self.axial
-        if ax is not None:
-            if world.shape[:-3]:
+        ax, dist = self.axial, self.distance
+        if world.shape[:-3]:
+            if ax is not None:
                 out[..., ax.pair_index] &= ~ax.clear(angles_deg)
-            elif out[ax.pair_index].any():
-                q = angles_deg.tolist()
-                for p, t in self._ax_pairs:
-                    if out[p] and ax.clear_one(t, q):
-                        out[p] = False
+            if dist is not None:
+                out[..., dist.pair_index] &= ~dist.clear(angles_deg)
+            return out
+        q: list[float] | None = None
+        if ax is not None and out[ax.pair_index].any():
+            q = angles_deg.tolist()
+            for p, t in self._ax_pairs:
+                if out[p] and ax.clear_one(t, q):
+                    out[p] = False
+        if dist is not None and out[dist.pair_index].any():
+            q = angles_deg.tolist() if q is None else q
+            for p, t in self._dist_pairs:
+                if out[p] and dist.clear_one(t, q):
+                    out[p] = False
         return out
 
     def balls_meet(self, world: FloatArray, angles_deg: FloatArray | None = None) -> BoolArray:
