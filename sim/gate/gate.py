@@ -280,7 +280,13 @@ class TwinGate:
         so the index returned is the same). ``skin_first``: the request failed on the skin and not by
         contact, so the skin is measured before the contact tests (a candidate passes only if both do, so the
         order changes no answer, only what a failing candidate costs)."""
-        targets, angles, world, pulls = self._pose_arrays(goals)
+        # the joint transforms only of the candidates checked (`JointTree.world_one`: the batch's numbers)
+        if len(goals) == 1:  # (`TwinPoser.pose_one`: the batch path's numbers)
+            target, angle, pull = self.poser.pose_one(goals[0])
+            targets, angles, pulls = target[None], angle[None], pull[None]
+        else:
+            targets = self.poser.targets(goals)
+            angles, pulls = self.poser.joint_angles(targets), self.poser.pulls(targets)
         coupling_ok = np.flatnonzero(self.coupling.ok(self._shares(targets)))
         col = self.collisions
         memo: dict[bytes, bool] = {} if known is None else known
@@ -293,16 +299,17 @@ class TwinGate:
                     return k
                 continue
             memo[key] = False
+            world = self.tree.world_one(angles[k])
             # contact first (broad phase, exact test on flagged pairs) unless the request failed on the skin
             # alone: where candidates fail it is mostly on what the request failed on, and a pass needs both
-            if skin_first and not self._skin_ok(goals[k], world[k], pulls[k], probe=True):
+            if skin_first and not self._skin_ok(goals[k], world, pulls[k], probe=True):
                 continue
-            if any(col._collide(col.specs[p], world[k]) for p in suspects):
+            if any(col._collide(col.specs[p], world) for p in suspects):
                 continue
-            flags = col.broad.flag(world[k], angles[k])  # one pose: the flat broad phase (fastest for one)
-            if any(col._collide(col.specs[p], world[k]) for p in np.flatnonzero(flags) if p not in suspects):
+            flags = col.broad.flag(world, angles[k])  # one pose: the flat broad phase (fastest for one)
+            if any(col._collide(col.specs[p], world) for p in np.flatnonzero(flags) if p not in suspects):
                 continue
-            if skin_first or self._skin_ok(goals[k], world[k], pulls[k]):
+            if skin_first or self._skin_ok(goals[k], world, pulls[k]):
                 memo[key] = True
                 self._memo = (key, [])
                 return k
