@@ -57,7 +57,9 @@ class GateConfig:
     tss: TssParams = TssParams()
     cache_dir: Path | None = None  # None = ~/.cache/servoface/tss (SERVOFACE_TSS_CACHE overrides)
     use_cache: bool = True
-    clearance: bool = True  # clearance tables for pairs without a TSS table (False: exact test whenever)
+    # clearance tables for pairs without a TSS table, axial and distance tables and plane proofs for pairs the
+    # TSS keeps flagging (`clearance`, `axial`, `joint_tables`); False: the exact test whenever flagged
+    clearance: bool = True
     bisection_rounds: int = 2  # 8 fractions per round: resolution 1/8**rounds of the step
     skin_proofs: bool = True  # leave out of the strain measure the joint-only skin proven safe (skin_proof)
 
