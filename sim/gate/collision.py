@@ -202,9 +202,12 @@ class PartCollisions:
         ]
 
     def _plane_proofs(self, parts: dict[str, Any]) -> list[tuple[int, str]]:
-        """(pair index, reason) of the pairs kept apart by a plane inside their joint limits (`joint_tables`)."""
+        """(pair index, reason) of the exact-only pairs (no sphere table: their bounding balls decide) kept
+        apart by a plane inside their joint limits (`joint_tables`): the broad phase flags them only outside."""
         out = []
         for p in self._needs_exact():
+            if not self.always[p]:
+                continue
             spec = self.specs[p]
             na, nb = f"{spec.a}@{spec.tolerance_mm}", f"{spec.b}@{spec.tolerance_mm}"
             ja, jb = parts[spec.a].joint, parts[spec.b].joint

@@ -41,8 +41,8 @@ class TssBroadPhase:
         parts' bounding balls meet — unless ``clearance`` (tables for some of those pairs) proves the pose
         clear. ``axial``: distance tables for pairs turning about one line; where one proves the pose apart
         the pair is not flagged, whatever the spheres or balls say (inside its grid only); ``distance``: the
-        same from distance tables over a pair's relative joints (`joint_tables`). ``proven_pairs``: pairs
-        proven apart inside their joint box (`joint_tables.plane_separated`): flagged only outside it."""
+        same from distance tables over a pair's relative joints (`joint_tables`). ``proven_pairs``: exact-only
+        pairs proven apart inside their joint box (`joint_tables.plane_separated`): flagged only outside it."""
         self.pairs = tuple(pairs)
         self.axial = axial if axial is not None and len(axial) else None
         self._ax_pairs = [(int(p), t) for t, p in enumerate(self.axial.pair_index)] if self.axial is not None else []
