@@ -40,18 +40,29 @@ class TssBroadPhase:
         large to pay off, e.g. a part on the head base against one behind three neck joints) when the
         parts' bounding balls meet — unless ``clearance`` (tables for some of those pairs) proves the pose
         clear. ``axial``: distance tables for pairs turning about one line; where one proves the pose apart
-        the pair is not flagged, whatever the spheres or balls say (inside its grid only); ``distance``: the
-        same from distance tables over a pair's relative joints (`joint_tables`). ``proven_pairs``: exact-only
+        the pair is not flagged, whatever the spheres or balls say (inside its grid only). ``distance``: tables
+        over a pair's relative joints (`joint_tables`): a pair with sphere tests gets none, it is flagged
+        wherever its table does not prove the pose apart (outside the grid too); an exact-only pair's met
+        balls are cleared where its table proves the pose apart. ``proven_pairs``: exact-only
         pairs proven apart inside their joint box (`joint_tables.plane_separated`): flagged only outside it."""
         self.pairs = tuple(pairs)
         self.axial = axial if axial is not None and len(axial) else None
         self._ax_pairs = [(int(p), t) for t, p in enumerate(self.axial.pair_index)] if self.axial is not None else []
         self.distance = distance if distance is not None and len(distance) else None
-        self._dist_pairs = (
-            [(int(p), t) for t, p in enumerate(self.distance.pair_index)] if self.distance is not None else []
-        )
         self.clearance = clearance if clearance is not None and len(clearance) else None
         self.always = np.zeros(len(self.pairs), dtype=bool) if always is None else np.array(always, dtype=bool)
+        # a distance table of a pair with sphere tests replaces them: the pair is flagged wherever its table
+        # does not prove the pose apart (outside its grid too); of an exact-only pair, it clears met balls
+        dist_pairs = [(int(p), t) for t, p in enumerate(self.distance.pair_index)] if self.distance is not None else []
+        self._dist_or = [(p, t) for p, t in dist_pairs if not self.always[p]]
+        self._dist_and = [(p, t) for p, t in dist_pairs if self.always[p]]
+        self._dist_or_idx = np.array([p for p, _ in self._dist_or], dtype=np.int64)
+        self._dist_or_t = np.array([t for _, t in self._dist_or], dtype=np.int64)
+        self._dist_and_idx = np.array([p for p, _ in self._dist_and], dtype=np.int64)
+        self._dist_and_t = np.array([t for _, t in self._dist_and], dtype=np.int64)
+        self.table_only = np.zeros(len(self.pairs), dtype=bool)  # no sphere tests: the distance table decides
+        self.table_only[self._dist_or_idx] = True
+        spheres_skipped = self.always | self.table_only
         n_joints = len(tree.names)
         centres: list[FloatArray] = []
         slot: list[int] = []
@@ -62,7 +73,7 @@ class TssBroadPhase:
         offset = 0
         for p, built in enumerate(self.pairs):
             t = built.table
-            if self.always[p]:
+            if spheres_skipped[p]:
                 continue
             ua, inv_a = np.unique(t.ia, return_inverse=True)
             ub, inv_b = np.unique(t.ib, return_inverse=True)
@@ -103,7 +114,9 @@ class TssBroadPhase:
             self._lo[p, idx] = b.table.lower_deg - 1e-9
             self._hi[p, idx] = b.table.upper_deg + 1e-9
         self.n_tests = int(self.ga.shape[0])
-        counts = np.array([0 if self.always[p] else b.table.n_tests for p, b in enumerate(self.pairs)], dtype=np.int64)
+        counts = np.array(
+            [0 if spheres_skipped[p] else b.table.n_tests for p, b in enumerate(self.pairs)], dtype=np.int64
+        )
         self._nonempty = counts > 0
         self._starts = (np.cumsum(counts) - counts)[self._nonempty]
         # exact-only pairs still get a cheap gate: the parts' bounding balls (around all their spheres)
@@ -149,7 +162,7 @@ class TssBroadPhase:
         ] = []
         for p, built in enumerate(self.pairs):
             t = built.table
-            if self.always[p] or t.n_tests == 0:
+            if spheres_skipped[p] or t.n_tests == 0:
                 continue
             ua, inv_a = np.unique(t.ia, return_inverse=True)
             ub, inv_b = np.unique(t.ib, return_inverse=True)
@@ -259,7 +272,9 @@ class TssBroadPhase:
             if ax is not None:
                 out[..., ax.pair_index] &= ~ax.clear(angles_deg)
             if dist is not None:
-                out[..., dist.pair_index] &= ~dist.clear(angles_deg)
+                clear = dist.clear(angles_deg)
+                out[..., self._dist_or_idx] |= ~clear[..., self._dist_or_t]
+                out[..., self._dist_and_idx] &= ~clear[..., self._dist_and_t]
             return out
         q: list[float] | None = None
         if ax is not None and out[ax.pair_index].any():
@@ -267,9 +282,12 @@ class TssBroadPhase:
             for p, t in self._ax_pairs:
                 if out[p] and ax.clear_one(t, q):
                     out[p] = False
-        if dist is not None and out[dist.pair_index].any():
+        if dist is not None:
             q = angles_deg.tolist() if q is None else q
-            for p, t in self._dist_pairs:
+            for p, t in self._dist_or:
+                if not out[p] and not dist.clear_one(t, q):
+                    out[p] = True
+            for p, t in self._dist_and:
                 if out[p] and dist.clear_one(t, q):
                     out[p] = False
         return out

@@ -139,3 +139,29 @@ def test_batched_and_one_pose_flags_agree(dog: TwinGate) -> None:
     one = np.array([dog.collisions.broad.flag(w, a) for w, a in zip(world, q, strict=True)])
     assert np.array_equal(batch, one)
     assert isinstance(dog.collisions.distance, ClearanceSet)
+
+
+def test_tabled_pairs_are_flagged_wherever_their_table_does_not_clear(dog: TwinGate) -> None:
+    """A pair with sphere tests and a distance table keeps no sphere tests: it is flagged exactly where its
+    table does not prove the pose apart (outside the joint box too), so every contact goes to the exact test."""
+    col = dog.collisions
+    broad = col.broad
+    dist = col.distance
+    q = random_poses(dog, 400, seed=43)
+    world = dog.tree.world(q)
+    flags = broad.flag(world, q)
+    clear = dist.clear(q)
+    tabled = [(t, int(p)) for t, p in enumerate(dist.pair_index) if broad.table_only[int(p)]]
+    assert {frozenset((col.specs[p].a, col.specs[p].b)) for _, p in tabled} >= {
+        frozenset(("skull", "ear_l")),
+        frozenset(("skull", "ear_r")),
+    }
+    assert broad.n_tests < sum(b.table.n_tests for b in col.built)  # their sphere tests are gone
+    contacts = 0
+    for t, p in tabled:
+        assert np.array_equal(flags[:, p], ~clear[:, t])
+        for k in range(len(q)):
+            if col._collide(col.specs[p], world[k]):
+                contacts += 1
+                assert flags[k, p]
+    assert contacts > 0
