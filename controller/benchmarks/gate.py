@@ -175,7 +175,8 @@ def _cold_build(name: str) -> Figure:
         better="lower",
         note=f"{len(gate.collisions.specs)} pairs tabulated, {len(gate.collisions.skipped)} proven apart, "
         f"{int(gate.collisions.clearance.proven.sum())} proven apart in their joint box by clearance tables"
-        f" ({len(gate.collisions.clearance)} tables); joint-only skin proven inside the strain limits:"
+        f" ({len(gate.collisions.clearance)} tables), {len(gate.collisions.plane_proven)} by a separating plane;"
+        f" {len(gate.collisions.distance)} distance tables; joint-only skin proven inside the strain limits:"
         f" {gate.skin_proven[0]} edges, {gate.skin_proven[1]} triangles; process CPU {cpu_s:.2f} s;"
         f" cached afterwards; {load_text()}",
     )

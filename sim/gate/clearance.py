@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -184,11 +184,32 @@ def cached_clearance(path: Path | None, build: Callable[[], Clearance | None]) -
     return cached_table(path, build, kind="clearance", load=_clearance_from_npz, fields=_clearance_npz_fields)
 
 
+class GridTable(Protocol):
+    """What `ClearanceSet` reads of a table: a regular grid over some joints, per-node slack (mm) and per
+    joint the mm per rad a pose's offset from its nearest node can eat of it (`Clearance`,
+    `joint_tables.DistanceTable`)."""
+
+    @property
+    def joints(self) -> IntArray: ...
+    @property
+    def lower_deg(self) -> FloatArray: ...
+    @property
+    def step_deg(self) -> FloatArray: ...
+    @property
+    def counts(self) -> IntArray: ...
+    @property
+    def arm_mm(self) -> FloatArray: ...
+    @property
+    def slack_mm(self) -> FloatArray: ...
+    @property
+    def proven_apart(self) -> bool: ...
+
+
 class ClearanceSet:
     """Every clearance table of a head, evaluated together (a handful of numpy calls per batch, a short
     Python loop over the tables whose balls met for one pose)."""
 
-    def __init__(self, pair_index: Sequence[int], tables: Sequence[Clearance]) -> None:
+    def __init__(self, pair_index: Sequence[int], tables: Sequence[GridTable]) -> None:
         self.pair_index = np.array(pair_index, dtype=np.int64)
         self.tables = tuple(tables)
         self.proven = np.array([c.proven_apart for c in self.tables], dtype=bool)

@@ -22,6 +22,8 @@ from servoface.sim.gate.clearance import (
 from servoface.sim.gate.errors import GateConfigError
 from servoface.sim.gate.exact import ExactCollider, eroded
 from servoface.sim.gate.fk import JointTree
+from servoface.sim.gate.joint_tables import DISTANCE_VERSION, build_distance_table, cached_distance, plane_separated
+from servoface.sim.gate.joint_tables import MAX_JOINTS as DISTANCE_MAX_JOINTS
 from servoface.sim.gate.proofs import concentric_separation
 from servoface.sim.gate.spheres import SphereSet
 from servoface.sim.gate.tss_build import BuiltPair, TssParams, build_or_load, relative_joints
@@ -139,7 +141,18 @@ class PartCollisions:
         self.always = [b.table.exact_only or b.table.n_tests > params.max_table_tests for b in self.built]
         self.clearance = self._clearance_tables(parts, meshes) if clearance else ClearanceSet([], [])
         self.axial = self._axial_tables(parts) if clearance else AxialSet([], [])
-        self.broad = TssBroadPhase(tree, self.part_joint, self.built, self.always, self.clearance, self.axial)
+        self.plane_proven: list[tuple[int, str]] = self._plane_proofs(parts) if clearance else []
+        self.distance = self._distance_tables(parts) if clearance else ClearanceSet([], [])
+        self.broad = TssBroadPhase(
+            tree,
+            self.part_joint,
+            self.built,
+            self.always,
+            self.clearance,
+            self.axial,
+            self.distance,
+            [p for p, _ in self.plane_proven],
+        )
         self.pairs_active = [
             s for s, b in zip(self.specs, self.built, strict=True) if b.table.n_tests > 0 or b.table.exact_only
         ]
@@ -177,6 +190,64 @@ class PartCollisions:
                 index.append(p)
                 tables.append(got)
         return AxialSet(index, tables)
+
+    def _needs_exact(self) -> list[int]:
+        """Pairs the broad phase can send to the exact test that no clearance or axial table covers."""
+        covered = {int(p) for p, ok in zip(self.clearance.pair_index, self.clearance.proven, strict=True) if ok}
+        covered |= {int(p) for p in self.axial.pair_index}
+        return [
+            p
+            for p, (b, always) in enumerate(zip(self.built, self.always, strict=True))
+            if p not in covered and (always or b.table.n_tests > 0)
+        ]
+
+    def _plane_proofs(self, parts: dict[str, Any]) -> list[tuple[int, str]]:
+        """(pair index, reason) of the exact-only pairs (no sphere table: their bounding balls decide) kept
+        apart by a plane inside their joint limits (`joint_tables`): the broad phase flags them only outside."""
+        out = []
+        for p in self._needs_exact():
+            if not self.always[p]:
+                continue
+            spec = self.specs[p]
+            na, nb = f"{spec.a}@{spec.tolerance_mm}", f"{spec.b}@{spec.tolerance_mm}"
+            ja, jb = parts[spec.a].joint, parts[spec.b].joint
+            reason = plane_separated(self.tree, ja, jb, self._meshes[na], self._meshes[nb])
+            if reason is not None:
+                out.append((p, reason))
+        return out
+
+    def _distance_tables(self, parts: dict[str, Any]) -> ClearanceSet:
+        """Distance tables (`joint_tables`) for the pairs left to the exact test whose relative joints are few."""
+        proven = {p for p, _ in self.plane_proven}
+        index, tables = [], []
+        for p in self._needs_exact():
+            spec, b = self.specs[p], self.built[p]
+            if p in proven or p in {int(i) for i in self.clearance.pair_index}:
+                continue
+            ja, jb = parts[spec.a].joint, parts[spec.b].joint
+            rel = relative_joints(self.tree, ja, jb)
+            if len(rel) > DISTANCE_MAX_JOINTS:
+                continue
+            path = None
+            if self._cache_dir is not None:
+                name = f"{self._head_name}-{spec.a}-{spec.b}-{b.table.key}-{DISTANCE_VERSION}.npz"
+                path = self._cache_dir / name
+            na, nb = f"{spec.a}@{spec.tolerance_mm}", f"{spec.b}@{spec.tolerance_mm}"
+            build = functools.partial(
+                build_distance_table,
+                self.tree,
+                ja,
+                jb,
+                rel,
+                self._meshes[na],
+                self._meshes[nb],
+                functools.partial(self.exact.distance, na, nb),
+            )
+            got = cached_distance(path, build)
+            if got is not None:
+                index.append(p)
+                tables.append(got)
+        return ClearanceSet(index, tables)
 
     def _build_axial(self, parts: dict[str, Any], spec: PairSpec) -> AxialTable | None:
         ja, jb = parts[spec.a].joint, parts[spec.b].joint

@@ -6,7 +6,7 @@ transform  T_parent @ Trans(p) @ Rot(a, theta) @ Trans(-p)  — the convention o
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
@@ -56,11 +56,19 @@ class JointTree:
         self.upper_deg = np.array([by_name[n].upper_deg for n in self.names], dtype=np.float64)
         self.neutral_deg = np.array([getattr(by_name[n], "neutral_deg", 0.0) for n in self.names], dtype=np.float64)
         self._one: tuple[FloatArray, FloatArray, list[int]] | None = None  # `world_one`'s constants
+        self._parents = [int(p) for p in self.parent_index]
 
     def world_one(self, angles_deg: FloatArray) -> FloatArray:
         """`world` for one pose: angles (J,) deg -> (J, 4, 4), bit for bit the same numbers (the same
         elementwise Rodrigues terms with the constant axis products kept, the same products down the tree)
         without the batch axis' overhead (the gate's per-frame check poses one command)."""
+        loc = self.local_one(angles_deg)
+        out = np.empty_like(loc)
+        self.fill_one(out, loc, range(len(loc)))
+        return out
+
+    def local_one(self, angles_deg: FloatArray) -> FloatArray:
+        """(J, 4, 4) local transforms of one pose, as `world_one` computes them (`fill_one` chains them)."""
         if self._one is None:
             a = self.axis
             k = np.zeros((a.shape[0], 3, 3))
@@ -74,10 +82,20 @@ class JointTree:
         loc[:, :3, :3] = r
         loc[:, :3, 3] = self.pivot_mm - np.einsum("...ij,...j->...i", r, self.pivot_mm)
         loc[:, 3, 3] = 1.0
-        out = np.empty_like(loc)
-        for i, p in enumerate(parents):
+        return loc
+
+    def fill_one(self, out: FloatArray, loc: FloatArray, joints: Iterable[int]) -> None:
+        """Write the world transforms of ``joints`` (indices, each after its parent: ascending order, or a
+        parent already written) into ``out`` from `local_one`'s ``loc``: `world_one`'s products, so a pose
+        filled in parts holds its numbers (a caller that needs a few joints first fills them first)."""
+        parents = self._parents
+        for i in joints:
+            p = parents[i]
             out[i] = loc[i] if p < 0 else out[p] @ loc[i]
-        return out
+
+    def ancestry(self, joints: Iterable[int]) -> list[int]:
+        """The given joints and all their ancestors, ascending (parents first: `fill_one`'s order)."""
+        return sorted({i for j in joints if j >= 0 for i in self.chain(self.names[j])})
 
     def chain(self, name: str | None) -> list[int]:
         """Indices of ``name`` and its ancestors (root last); [] for the head base."""

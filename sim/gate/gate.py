@@ -57,7 +57,9 @@ class GateConfig:
     tss: TssParams = TssParams()
     cache_dir: Path | None = None  # None = ~/.cache/servoface/tss (SERVOFACE_TSS_CACHE overrides)
     use_cache: bool = True
-    clearance: bool = True  # clearance tables for pairs without a TSS table (False: exact test whenever)
+    # clearance tables for pairs without a TSS table, axial and distance tables and plane proofs for pairs the
+    # TSS keeps flagging (`clearance`, `axial`, `joint_tables`); False: the exact test whenever flagged
+    clearance: bool = True
     bisection_rounds: int = 2  # 8 fractions per round: resolution 1/8**rounds of the step
     skin_proofs: bool = True  # leave out of the strain measure the joint-only skin proven safe (skin_proof)
 
@@ -280,9 +282,19 @@ class TwinGate:
         so the index returned is the same). ``skin_first``: the request failed on the skin and not by
         contact, so the skin is measured before the contact tests (a candidate passes only if both do, so the
         order changes no answer, only what a failing candidate costs)."""
-        targets, angles, world, pulls = self._pose_arrays(goals)
+        # the joint transforms only of the candidates checked (`JointTree.world_one`'s: the batch's numbers)
+        if len(goals) == 1:  # (`TwinPoser.pose_one`: the batch path's numbers)
+            target, angle, pull = self.poser.pose_one(goals[0])
+            targets, angles, pulls = target[None], angle[None], pull[None]
+        else:
+            targets = self.poser.targets(goals)
+            angles, pulls = self.poser.joint_angles(targets), self.poser.pulls(targets)
         coupling_ok = np.flatnonzero(self.coupling.ok(self._shares(targets)))
         col = self.collisions
+        tree = self.tree
+        # a candidate's transforms along the suspects' chains first: most fail there, and need no others
+        first = tree.ancestry(self._part_index(name) for p in suspects for name in (col.specs[p].a, col.specs[p].b))
+        rest = [i for i in range(len(tree.names)) if i not in set(first)]
         memo: dict[bytes, bool] = {} if known is None else known
         for k in (int(i) for i in coupling_ok[::-1]):
             key = goals[k].tobytes()
@@ -293,20 +305,32 @@ class TwinGate:
                     return k
                 continue
             memo[key] = False
+            loc = tree.local_one(angles[k])
+            world = np.empty_like(loc)  # filled in two parts: `world_one`'s numbers (`JointTree.fill_one`)
+            tree.fill_one(world, loc, first)
             # contact first (broad phase, exact test on flagged pairs) unless the request failed on the skin
             # alone: where candidates fail it is mostly on what the request failed on, and a pass needs both
-            if skin_first and not self._skin_ok(goals[k], world[k], pulls[k], probe=True):
+            if skin_first:
+                tree.fill_one(world, loc, rest)
+                if not self._skin_ok(goals[k], world, pulls[k], probe=True):
+                    continue
+            if any(col._collide(col.specs[p], world) for p in suspects):
                 continue
-            if any(col._collide(col.specs[p], world[k]) for p in suspects):
+            if not skin_first:
+                tree.fill_one(world, loc, rest)
+            flags = col.broad.flag(world, angles[k])  # one pose: the flat broad phase (fastest for one)
+            if any(col._collide(col.specs[p], world) for p in np.flatnonzero(flags) if p not in suspects):
                 continue
-            flags = col.broad.flag(world[k], angles[k])  # one pose: the flat broad phase (fastest for one)
-            if any(col._collide(col.specs[p], world[k]) for p in np.flatnonzero(flags) if p not in suspects):
-                continue
-            if skin_first or self._skin_ok(goals[k], world[k], pulls[k]):
+            if skin_first or self._skin_ok(goals[k], world, pulls[k]):
                 memo[key] = True
                 self._memo = (key, [])
                 return k
         return None
+
+    def _part_index(self, name: str) -> int:
+        """The tree index of the joint carrying part ``name`` (-1: the head base)."""
+        joint = self.collisions.part_joint[name]
+        return -1 if joint is None else self.tree.index[joint]
 
     def _skin_ok(self, goal: IntArray, world: FloatArray, pulls: FloatArray, probe: bool = False) -> bool:
         """The strain and flip limits hold for one candidate ((n,) goal, its (J, 4, 4) pose and pulls).

@@ -289,20 +289,21 @@ class SkinTwin:
     def _measure_one_faces(
         self, world: FloatArray, offsets: FloatArray, static: tuple[float, float, int]
     ) -> tuple[float, float, int, NDArray[np.bool_]]:
+        """The measure itself. The posed vertices are kept as 16-byte records (x, y, z, 0 in float32) so
+        that each gather (an edge end, a triangle corner) moves a whole vertex in one ``take`` (one index
+        check per vertex instead of one per coordinate); the arithmetic is the same float32 products in the
+        same order (on x, y, z rows copied out of the gathered records), so the numbers are those of one
+        gather per coordinate."""
         mats = self._mats(world).astype(np.float32)  # (u, 12)
         m = mats.T @ self._fw_t32  # (12, nv)
         o = offsets.T.astype(np.float32)
-        px, py, pz = _pose(m, self._frest_vt32, o)
-        e0, e1 = self._e0, self._e1
-        dx, dy, dz = px.take(e0), py.take(e0), pz.take(e0)
-        dx -= px.take(e1)
-        dy -= py.take(e1)
-        dz -= pz.take(e1)
-        dx *= dx
-        dy *= dy
-        dz *= dz
-        dx += dy
-        dx += dz
+        recs = _pose_records(m, self._frest_vt32, o)  # (nv,) 16-byte records
+        d = _gathered(recs, self._e0)
+        d -= _gathered(recs, self._e1)  # edge vectors (x, y, z, 0)
+        d *= d
+        dt = d.T[:3].copy()  # x, y, z rows (contiguous: the sums below run on whole rows)
+        dx = dt[0] + dt[1]
+        dx += dt[2]
         dx *= self._fe_inv  # squared stretch ratio per measured edge
         r = mats.T @ self._ffw_t32  # (12, nf) blended transform per face
         n0, n1, n2 = self._fn32
@@ -315,16 +316,13 @@ class SkinTwin:
         ez = r[8] * n0
         ez += r[9] * n1
         ez += r[10] * n2
-        f0, f1, f2 = self._f0, self._f1, self._f2
-        ax, ay, az = px.take(f0), py.take(f0), pz.take(f0)
-        ux, uy, uz = px.take(f1), py.take(f1), pz.take(f1)
-        ux -= ax
-        uy -= ay
-        uz -= az
-        wx, wy, wz = px.take(f2), py.take(f2), pz.take(f2)
-        wx -= ax
-        wy -= ay
-        wz -= az
+        a = _gathered(recs, self._f0)
+        u = _gathered(recs, self._f1)
+        u -= a
+        w = _gathered(recs, self._f2)
+        w -= a
+        ux, uy, uz = u.T[:3].copy()
+        wx, wy, wz = w.T[:3].copy()
         cx = uy * wz
         cx -= uz * wy
         cx *= ex
@@ -412,24 +410,26 @@ _NEXT = np.array([1, 2, 0])
 _AFTER = np.array([2, 0, 1])
 
 
-def _pose(
-    m: NDArray[np.float32], rv: NDArray[np.float32], o: NDArray[np.float32]
-) -> tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]:
-    """Posed x, y, z (float32) of vertices from their (12, nv) blended transforms, rest (3, nv) and offsets."""
+_RECORD = np.dtype((np.void, 16))  # one posed vertex: x, y, z, 0 as float32
+
+
+def _pose_records(m: NDArray[np.float32], rv: NDArray[np.float32], o: NDArray[np.float32]) -> NDArray[np.void]:
+    """(nv,) 16-byte records (x, y, z, 0 in float32) of the posed vertices from their (12, nv) blended
+    transforms, rest (3, nv) and offsets: per coordinate m0 x + m1 y + m2 z + m3, accumulated in that order."""
     x, y, z = rv[0] + o[0], rv[1] + o[1], rv[2] + o[2]
-    px = m[0] * x
-    px += m[1] * y
-    px += m[2] * z
-    px += m[3]
-    py = m[4] * x
-    py += m[5] * y
-    py += m[6] * z
-    py += m[7]
-    pz = m[8] * x
-    pz += m[9] * y
-    pz += m[10] * z
-    pz += m[11]
-    return px, py, pz
+    out = np.zeros((rv.shape[1], 4), dtype=np.float32)
+    for row in range(3):
+        col = out[:, row]
+        np.multiply(m[4 * row], x, out=col)
+        col += m[4 * row + 1] * y
+        col += m[4 * row + 2] * z
+        col += m[4 * row + 3]
+    return out.view(_RECORD).reshape(-1)
+
+
+def _gathered(records: NDArray[np.void], index: NDArray[np.int64]) -> NDArray[np.float32]:
+    """(len(index), 4) float32: the records at ``index`` (one ``take``), as x, y, z, 0 columns."""
+    return records.take(index).view(np.float32).reshape(-1, 4)
 
 
 def strain_findings(stretch: float, compression: float, flipped: int, limits: StrainLimits) -> list[Finding]:

@@ -33,17 +33,36 @@ class TssBroadPhase:
         always: Sequence[bool] | None = None,
         clearance: ClearanceSet | None = None,
         axial: AxialSet | None = None,
+        distance: ClearanceSet | None = None,
+        proven_pairs: Sequence[int] = (),
     ) -> None:
         """``always[p]``: pair p skips the sphere tests and always goes to the exact test (tables too
         large to pay off, e.g. a part on the head base against one behind three neck joints) when the
         parts' bounding balls meet — unless ``clearance`` (tables for some of those pairs) proves the pose
         clear. ``axial``: distance tables for pairs turning about one line; where one proves the pose apart
-        the pair is not flagged, whatever the spheres or balls say (inside its grid only)."""
+        the pair is not flagged, whatever the spheres or balls say (inside its grid only). ``distance``: tables
+        over a pair's relative joints (`joint_tables`): a pair with sphere tests gets none, it is flagged
+        wherever its table does not prove the pose apart (outside the grid too); an exact-only pair's met
+        balls are cleared where its table proves the pose apart. ``proven_pairs``: exact-only
+        pairs proven apart inside their joint box (`joint_tables.plane_separated`): flagged only outside it."""
         self.pairs = tuple(pairs)
         self.axial = axial if axial is not None and len(axial) else None
         self._ax_pairs = [(int(p), t) for t, p in enumerate(self.axial.pair_index)] if self.axial is not None else []
+        self.distance = distance if distance is not None and len(distance) else None
         self.clearance = clearance if clearance is not None and len(clearance) else None
         self.always = np.zeros(len(self.pairs), dtype=bool) if always is None else np.array(always, dtype=bool)
+        # a distance table of a pair with sphere tests replaces them: the pair is flagged wherever its table
+        # does not prove the pose apart (outside its grid too); of an exact-only pair, it clears met balls
+        dist_pairs = [(int(p), t) for t, p in enumerate(self.distance.pair_index)] if self.distance is not None else []
+        self._dist_or = [(p, t) for p, t in dist_pairs if not self.always[p]]
+        self._dist_and = [(p, t) for p, t in dist_pairs if self.always[p]]
+        self._dist_or_idx = np.array([p for p, _ in self._dist_or], dtype=np.int64)
+        self._dist_or_t = np.array([t for _, t in self._dist_or], dtype=np.int64)
+        self._dist_and_idx = np.array([p for p, _ in self._dist_and], dtype=np.int64)
+        self._dist_and_t = np.array([t for _, t in self._dist_and], dtype=np.int64)
+        self.table_only = np.zeros(len(self.pairs), dtype=bool)  # no sphere tests: the distance table decides
+        self.table_only[self._dist_or_idx] = True
+        spheres_skipped = self.always | self.table_only
         n_joints = len(tree.names)
         centres: list[FloatArray] = []
         slot: list[int] = []
@@ -54,7 +73,7 @@ class TssBroadPhase:
         offset = 0
         for p, built in enumerate(self.pairs):
             t = built.table
-            if self.always[p]:
+            if spheres_skipped[p]:
                 continue
             ua, inv_a = np.unique(t.ia, return_inverse=True)
             ub, inv_b = np.unique(t.ib, return_inverse=True)
@@ -95,16 +114,18 @@ class TssBroadPhase:
             self._lo[p, idx] = b.table.lower_deg - 1e-9
             self._hi[p, idx] = b.table.upper_deg + 1e-9
         self.n_tests = int(self.ga.shape[0])
-        counts = np.array([0 if self.always[p] else b.table.n_tests for p, b in enumerate(self.pairs)], dtype=np.int64)
+        counts = np.array(
+            [0 if spheres_skipped[p] else b.table.n_tests for p, b in enumerate(self.pairs)], dtype=np.int64
+        )
         self._nonempty = counts > 0
         self._starts = (np.cumsum(counts) - counts)[self._nonempty]
         # exact-only pairs still get a cheap gate: the parts' bounding balls (around all their spheres)
         # pairs a clearance table proves apart inside their box need nothing but the box test; the others
         # with a table are cleared per pose where their balls meet
-        proven = set()
+        proven = {int(p) for p in proven_pairs}
         table_of: dict[int, int] = {}
         if self.clearance is not None:
-            proven = {int(p) for p, ok in zip(self.clearance.pair_index, self.clearance.proven, strict=True) if ok}
+            proven |= {int(p) for p, ok in zip(self.clearance.pair_index, self.clearance.proven, strict=True) if ok}
             table_of = {int(p): t for t, p in enumerate(self.clearance.pair_index) if int(p) not in proven}
         self.proven = np.array([p in proven for p in range(len(self.pairs))], dtype=bool)
         balls = []
@@ -141,7 +162,7 @@ class TssBroadPhase:
         ] = []
         for p, built in enumerate(self.pairs):
             t = built.table
-            if self.always[p] or t.n_tests == 0:
+            if spheres_skipped[p] or t.n_tests == 0:
                 continue
             ua, inv_a = np.unique(t.ia, return_inverse=True)
             ub, inv_b = np.unique(t.ib, return_inverse=True)
@@ -178,6 +199,17 @@ class TssBroadPhase:
                 out[..., a:b, :] = self.centres_h[a:b] @ np.swapaxes(t, -1, -2)
         return out
 
+    def _centres_records(self, world: FloatArray) -> FloatArray:
+        """(S, 4) `centres` of one pose ((J, 4, 4)) with a zero fourth column (the same products)."""
+        out = np.zeros((len(self.slot), 4))
+        n_joints = world.shape[-3]
+        for slot, a, b in self._groups:
+            if slot == n_joints:
+                out[a:b, :3] = self.centres_h[a:b, :3]
+            else:
+                out[a:b, :3] = self.centres_h[a:b] @ world[slot, :3, :].T
+        return out
+
     def overlaps(self, world: FloatArray) -> BoolArray:
         """(..., n_pairs) True where some tabulated sphere pair overlaps; ``world`` (..., J, 4, 4)."""
         if math.prod(world.shape[:-3]) <= 4:  # (plain ints: numpy's prod cost more than the test)
@@ -190,15 +222,17 @@ class TssBroadPhase:
         out = np.zeros((*lead, self.n_pairs), dtype=bool)
         if not self.n_tests:
             return out
-        c = self.centres(world)
-        if not lead:  # one command: coordinates as separate arrays, element-wise work only
-            cx, cy, cz = np.ascontiguousarray(c.T)
-            ga, gb = self.ga, self.gb  # take: the same gather as cx[ga], cheaper
-            dx = cx.take(ga) - cx.take(gb)
-            dy = cy.take(ga) - cy.take(gb)
-            dz = cz.take(ga) - cz.take(gb)
-            close = dx * dx + dy * dy + dz * dz <= self.thr2
+        if not lead:  # one command: each centre a 32-byte record (x, y, z, 0), gathered whole by `take`
+            d = self._centres_records(world)
+            rec = d.view(_RECORD).reshape(-1)
+            d = rec.take(self.ga).view(np.float64).reshape(-1, 4)
+            d -= rec.take(self.gb).view(np.float64).reshape(-1, 4)
+            d *= d
+            d2 = d[:, 0] + d[:, 1]  # (dx * dx + dy * dy) + dz * dz, as the batch path sums them
+            d2 += d[:, 2]
+            close = d2 <= self.thr2
         else:
+            c = self.centres(world)
             d = c[..., self.ga, :] - c[..., self.gb, :]
             close = np.einsum("...ei,...ei->...e", d, d) <= self.thr2
         if self.n_tests:
@@ -233,15 +267,29 @@ class TssBroadPhase:
         """Pairs that need the exact test: overlapping tabulated spheres, joints outside the swept box, or
         (untabulated pairs) meeting bounding balls — fcl's own BVH then settles those in microseconds."""
         out = self.overlaps(world) | self.out_of_box(angles_deg) | self.balls_meet(world, angles_deg)
-        ax = self.axial
-        if ax is not None:
-            if world.shape[:-3]:
+        ax, dist = self.axial, self.distance
+        if world.shape[:-3]:
+            if ax is not None:
                 out[..., ax.pair_index] &= ~ax.clear(angles_deg)
-            elif out[ax.pair_index].any():
-                q = angles_deg.tolist()
-                for p, t in self._ax_pairs:
-                    if out[p] and ax.clear_one(t, q):
-                        out[p] = False
+            if dist is not None:
+                clear = dist.clear(angles_deg)
+                out[..., self._dist_or_idx] |= ~clear[..., self._dist_or_t]
+                out[..., self._dist_and_idx] &= ~clear[..., self._dist_and_t]
+            return out
+        q: list[float] | None = None
+        if ax is not None and out[ax.pair_index].any():
+            q = angles_deg.tolist()
+            for p, t in self._ax_pairs:
+                if out[p] and ax.clear_one(t, q):
+                    out[p] = False
+        if dist is not None:
+            q = angles_deg.tolist() if q is None else q
+            for p, t in self._dist_or:
+                if not out[p] and not dist.clear_one(t, q):
+                    out[p] = True
+            for p, t in self._dist_and:
+                if out[p] and dist.clear_one(t, q):
+                    out[p] = False
         return out
 
     def balls_meet(self, world: FloatArray, angles_deg: FloatArray | None = None) -> BoolArray:
@@ -274,6 +322,7 @@ class TssBroadPhase:
         return out
 
 
+_RECORD = np.dtype((np.void, 32))  # one sphere centre: x, y, z, 0 as float64
 _EYE1 = np.eye(4)[None]  # the head base's transform, appended to one pose's (J, 4, 4)
 _EYE1.flags.writeable = False
 

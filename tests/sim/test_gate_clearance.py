@@ -40,7 +40,10 @@ def test_clear_never_contradicts_the_exact_test(dog_pair: tuple[TwinGate, TwinGa
     q = random_poses(new, 400, seed=5)
     world = new.tree.world(q)
     fresh, plain = col.broad.flag(world, q), old.collisions.broad.flag(world, q)
-    assert not np.any(fresh & ~plain), "the clearance path flagged a pair the plain path did not"
+    # (a pair whose distance table replaces its sphere tests is flagged wherever the table does not clear it,
+    # spheres apart or not: test_gate_joint_tables checks those)
+    extra = fresh & ~plain & ~col.broad.table_only
+    assert not np.any(extra), "the clearance path flagged a pair the plain path did not"
     dropped = 0
     for k, p in zip(*np.nonzero(plain & ~fresh), strict=True):
         dropped += 1

@@ -60,6 +60,27 @@ def test_world_one_equals_the_batched_transforms(gate: TwinGate) -> None:
         assert np.array_equal(tree.world_one(q[k]), batched[k])
 
 
+def test_world_filled_in_parts_equals_world_one(gate: TwinGate) -> None:
+    """A pose's transforms filled in two parts (`JointTree.fill_one`: some joints' ancestry first, as the
+    clip search does for the pairs a request collided on, then the rest) equal `world_one`'s and the
+    batch's, bit for bit; the first part alone already holds its joints' numbers."""
+    tree = gate.tree
+    rng = np.random.default_rng(7)
+    span = tree.upper_deg - tree.lower_deg
+    q = rng.uniform(tree.lower_deg - 0.2 * span, tree.upper_deg + 0.2 * span, size=(100, len(tree.names)))
+    batched = tree.world(q)
+    for k in range(len(q)):
+        picked = rng.choice(len(tree.names), size=int(rng.integers(1, 4)), replace=False)
+        first = tree.ancestry(int(j) for j in picked)
+        rest = [i for i in range(len(tree.names)) if i not in set(first)]
+        loc = tree.local_one(q[k])
+        out = np.full_like(loc, np.nan)
+        tree.fill_one(out, loc, first)
+        assert np.array_equal(out[first], batched[k][first])
+        tree.fill_one(out, loc, rest)
+        assert np.array_equal(out, tree.world_one(q[k])) and np.array_equal(out, batched[k])
+
+
 def test_goal_vector_fast_path_equals_the_checked_path(gate: TwinGate) -> None:
     """The fast path of `TwinGate._vector` (every servo, table order, plain ints) gives what the checked
     path gives on random goal maps, well-formed and malformed (bool / numpy / float keys and values, huge
