@@ -191,6 +191,7 @@ class Face:
         calibration: HeadCalibration | str | Path | None = None,
         fast_sync_read: FastSyncRead = "auto",
         policy: FaultPolicy | None = None,
+        position_sentinel: bool = True,
     ) -> Face:
         """Open ``head`` (built-in name, profile folder, or a loaded Head) on ``port`` or on the emulator.
 
@@ -209,6 +210,7 @@ class Face:
             calibration=calibration,
             fast_sync_read=fast_sync_read,
             policy=policy,
+            position_sentinel=position_sentinel,
         )
         return cls(opened.head, opened.pipeline, driver=opened.driver, bus=opened.bus, chain=opened.chain)
 

@@ -15,7 +15,7 @@ field by field, and with a driver that always takes the full path).
 from __future__ import annotations
 
 from servoface.hardware.driver_reads import ChainReads
-from servoface.hardware.sentinel import TICK_MASK, TICK_SIGN
+from servoface.hardware.sentinel import SENTINEL, TICK_MASK, TICK_SIGN
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import FaultEvent, ServoState, StateCapture
 
@@ -60,7 +60,7 @@ class CalmCycle(ChainReads):
             return None
         position = registers[0]
         items: dict[int, ServoState | StateCapture] = {}
-        if self._sentinel is not None:  # through the sentinel: every witness byte first (a reset: full path)
+        if position is SENTINEL:  # through the sentinel: every witness byte first (a reset: the full path)
             witness = self._witness
             if any(values[position] >> 24 != witness.get(sid, -1) for sid, values in got.items()):
                 self._apply_positions(now, ids, registers, got)

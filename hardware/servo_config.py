@@ -248,7 +248,7 @@ class ConfigReport:
     firmware_version: int
     written: tuple[str, ...]  # register names written (EEPROM only when they differed)
     limits: Mapping[Register, int]  # limits read back (temperature, voltage, current, position)
-    sentinel: SentinelMap | None = None  # the position sentinel's map (hardware/sentinel.py), as verified
+    sentinel: SentinelMap | None = None  # the position sentinel's map (hardware/sentinel.py); None: not asked
 
 
 _READBACK = (
@@ -261,8 +261,10 @@ _READBACK = (
 )
 
 
-def configure_servo(bus: ServoBus, spec: ServoSpec) -> ConfigReport:
+def configure_servo(bus: ServoBus, spec: ServoSpec, *, position_sentinel: bool = False) -> ConfigReport:
     """Write ``spec`` to its servo and verify by reading back. Leaves torque OFF (the driver pins goals).
+    ``position_sentinel``: also map and verify the position sentinel (`map_sentinel`; the driver's reads use
+    it); without it no Indirect Address is written.
 
     Raises `ServoConfigMismatch` (wrong model, or a value that does not read back) and the bus errors.
     """
@@ -289,7 +291,7 @@ def configure_servo(bus: ServoBus, spec: ServoSpec) -> ConfigReport:
     for reg, value in wanted.items():
         if back[reg] != value:
             raise ServoConfigMismatch(spec.servo_id, reg.name, value, back[reg])
-    sentinel = map_sentinel(bus, spec.servo_id, spec.operating_mode)  # RAM: rewritten at every configure
+    sentinel = map_sentinel(bus, spec.servo_id, spec.operating_mode) if position_sentinel else None  # RAM
     return ConfigReport(
         spec.servo_id,
         reply.model_number,

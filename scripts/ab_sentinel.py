@@ -15,10 +15,10 @@ for fast in (False, True):
     buses = [open_bus("emulator", chain=chain, baud=baud) for _ in range(3)]
     stock = StockSdkLoop(buses[0], ids, fast=fast)
     drivers = []
-    for b in buses[1:]:
-        d = Driver(b, [ServoSpec(s, "XL330-M288", return_delay_us=0) for s in ids], fast_sync_read=fast)
+    for b, sentinel in zip(buses[1:], (True, False)):  # B: direct reads of 132, the usual status floor
+        d = Driver(b, [ServoSpec(s, "XL330-M288", return_delay_us=0) for s in ids], fast_sync_read=fast,
+                   position_sentinel=sentinel)
         d.configure(); d.torque_on(); drivers.append(d)
-    drivers[1]._sentinel = None  # the B side: direct reads of 132, status floor rate back
     steps = {
         STOCK: lambda n: stock.cycle(2048 + (n & 1)),
         "driver sentinel": lambda n: drivers[0].cycle({s: 2048 + (n & 1) for s in ids}),

@@ -67,6 +67,7 @@ def open_head(
     calibration: HeadCalibration | str | Path | None = None,
     fast_sync_read: FastSyncRead = "auto",
     policy: FaultPolicy | None = None,
+    position_sentinel: bool = True,
 ) -> OpenedHead:
     """Open ``head`` on ``port`` or on the emulator: servos configured from the profile and calibration
     (EEPROM only with torque off, limits written as a hardware backstop), the pipeline and its gate tables
@@ -93,7 +94,7 @@ def open_head(
         bus = open_bus("dynamixel", port=port, baud=baud)
     driver: Driver | None = None
     try:
-        driver = Driver(bus, specs, fast_sync_read=fast_sync_read, policy=policy)
+        driver = Driver(bus, specs, fast_sync_read=fast_sync_read, policy=policy, position_sentinel=position_sentinel)
         driver.configure()
         with stop_signals.interruptible():  # torque is off and the bus idle: a signal aborts at once
             pipeline = Pipeline(  # builds the gate's tables (seconds on a first run) before torque goes on

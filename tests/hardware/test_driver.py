@@ -138,16 +138,14 @@ def test_slow_telemetry_is_round_robin_and_keeps_cycles_short(fast: bool | str) 
     def covering(address: int) -> int:
         return sum(lo <= address < hi for lo, hi in blocks)
 
-    # positions every cycle, through the sentinel's Indirect Data (208 on XL330 firmware 52): 4 bytes, and
-    # motion / thermal may ride in that read as the same block, longer (their mapped bytes follow it)
-    assert driver.sentinel_info.startswith("positions read through Indirect Data at 208")
-    assert covering(208) == len(snaps) and covering(132) == 0
-    assert 2 * 2 - 1 <= covering(144) + covering(219) <= 2 * 2 + 1  # thermal at 2 Hz
-    assert 10 * 2 - 2 <= covering(122) + blocks.count((208, 219)) <= 10 * 2 + 1  # motion at 10 Hz (a folded
-    # thermal read spans the mapped motion bytes too: not counted as one)
+    # positions every cycle: through the sentinel (4 bytes at 224) in a plain cycle; a cycle that folds motion /
+    # thermal in reads the direct block as without the sentinel (122..135 / 132..146)
+    assert driver.sentinel_info.startswith("positions read through Indirect Data at 224")
+    assert covering(224) + covering(132) == len(snaps) and (224, 228) in blocks
+    assert 2 * 2 - 1 <= covering(144) <= 2 * 2 + 1  # thermal at 2 Hz
+    assert 10 * 2 - 2 <= covering(122) <= 10 * 2 + 1  # motion at 10 Hz
     assert 10 * 2 - 2 <= covering(64) <= 10 * 2 + 1  # status at 10 Hz (the bus is idle between cycles)
-    assert (208, 212) in blocks  # the per-cycle read: 4 bytes, as a read of Present Position
-    assert (208, 219) in blocks and (208, 222) in blocks  # folded into the position read's transaction
+    assert (122, 136) in blocks and (132, 147) in blocks  # folded into the position read's transaction
     last = snaps[-1][1]
     assert last.temperature_c == 25 and last.voltage_v == pytest.approx(5.0) and last.current_ma is not None
 

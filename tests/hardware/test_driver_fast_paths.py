@@ -26,7 +26,7 @@ from servoface.hardware.errors import GoalRejectedError
 from servoface.hardware.fault_policy import ThermalTrend, eased_goal
 from servoface.hardware.goal_check import check_goals
 from servoface.hardware.registers import HardwareErrorBits, Register, model_by_name, span
-from servoface.hardware.sentinel import split
+from servoface.hardware.sentinel import SENTINEL, split
 from servoface.hardware.servo_config import ServoSpec
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import ChainSnapshot, FaultKind, LazyServoStates, ServoState, build_state, peek_state
@@ -198,25 +198,20 @@ class StraightDriver(Driver):
             registers = self._position_block(now)
         else:
             ids = started
-            view = self._sentinel
-            base = POSITION if view is None else (view.sentinel,)
-            if self._folded is None:
-                registers = base
-            elif view is None:
-                registers = base + self._folded.registers
+            if self._folded is not None:
+                registers = POSITION + self._folded.registers
             else:
-                registers = base + (view.motion if self._folded.name == "motion" else view.thermal)
+                registers = (SENTINEL,) if self._sentinel else POSITION
         got = self._read_group(ids, registers, fast=self.fast_sync_read, started=started is not None)
         if self.fast_sync_read and ids:
             self._check_fast_read_support(self._group_failed and len(got) == len(ids))
-        view = self._sentinel
         lost: dict[int, int] = {}
         for sid, values in got.items():
             rec = self._records[sid]
-            if view is None:
+            if SENTINEL not in registers:
                 rec.position_tick = values[Register.PRESENT_POSITION]
             else:
-                tick, byte = split(values[view.sentinel])
+                tick, byte = split(values[SENTINEL])
                 if byte != self._witness[sid]:
                     lost[sid] = byte
                     continue
@@ -226,21 +221,10 @@ class StraightDriver(Driver):
         if group is not None and ids:
             self._folded_this_cycle = True
             group.due_s = now + group.period_s
-            extra_bytes = len(ids) * (span(registers)[1] - 4)
+            extra_bytes = len(ids) * (span(registers)[1] - span(POSITION)[1])
             group.cost_s = extra_bytes * 10.0 / max(1, int(getattr(self.bus, "baud", 1_000_000)))
             self.telemetry_reads[group.name] += 1
-            if view is None:
-                self._apply_group(group, got, now)
-            else:
-                self._apply_group(
-                    group,
-                    {
-                        sid: {view.direct[r]: v for r, v in values.items() if r in view.direct}
-                        for sid, values in got.items()
-                        if sid not in lost
-                    },
-                    now,
-                )
+            self._apply_group(group, got, now)
         self._mark_results(ids, got, now)
         for sid, byte in lost.items():
             self._sentinel_lost(self._records[sid], byte, now)
@@ -254,7 +238,12 @@ class StraightDriver(Driver):
             and (
                 g.due_s == float("-inf")
                 or self._idle_s >= g.cost_s
-                or (now >= g.due_s + g.period_s * late and not (g.name == "status" and self._sentinel is not None))
+                or (not (g.name == "status" and self._sentinel) and now >= g.due_s + g.period_s * late)
+                or (
+                    g.name == "status"
+                    and self._sentinel
+                    and now >= g.due_s - g.period_s + self.policy.sentinel_status_floor_s
+                )
             )
         ]
         return min(ready, key=lambda g: g.due_s) if ready else None
