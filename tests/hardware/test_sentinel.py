@@ -143,6 +143,21 @@ def test_only_slots_1_to_4_or_17_to_20_are_written() -> None:
         assert [w for w in written if w[0] == sid] == want, (sid, model)
 
 
+def test_a_reconfigure_with_no_reset_since_writes_no_slot() -> None:
+    """Slots that still hold the map are verified first, unwritten: an XL330 re-configured with no reset since
+    (a recovery, a second `configure`) keeps its slots 1..4 as they were."""
+    models = _head_models("human")
+    fresh = ServoChain.create(ids=models, wire_time=False, clock="manual")
+    chain, driver, goals = _human()
+    run(chain, driver, goals, 0.2)
+    n = len(chain.log.kept())
+    driver.configure()
+    driver.torque_on()
+    assert not _writes_at(chain, 168, 256, n) and driver._sentinel
+    assert _slots(chain, XL330, 1) == _slots(fresh, XL330, 1) and _slots(chain, XL330, 17) == list(SLOT_TARGETS)
+    assert run(chain, driver, goals, 0.5)[-1].positions_tick() == goals
+
+
 @pytest.mark.parametrize(
     ("sid", "how", "fast"),
     [(XL330, "reboot", False), (XL330, "power", True), (XL430, "reboot", True), (XL430, "power", False)],
@@ -383,6 +398,8 @@ def test_data_elsewhere_keeps_direct_reads_with_an_event() -> None:
     assert len(ev) == 1 and ev[0].servo_id is None and "servo 2" in ev[0].reaction
     assert "slots 1..4" in ev[0].reaction and "slots 17..20" in ev[0].reaction
     assert "directly" in driver.sentinel_info
+    fresh = ServoChain.create(ids=[1, 2, 3], model="XL330-M288", wire_time=False, clock="manual")
+    assert [_slots(chain, 2, k, 1) for k in range(1, 21)] == [_slots(fresh, 2, k, 1) for k in range(1, 21)]
     n = len(chain.log.kept())
     snaps = run(chain, driver, {1: 2000, 2: 2500, 3: 1500}, 1.0)
     assert snaps[-1].positions_tick() == {1: 2000, 2: 2500, 3: 1500}
