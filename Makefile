@@ -31,6 +31,7 @@ bench: $(STAMP)
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check controller sim hardware calibration tests
+	$(VENV)/bin/ruff format --check controller sim hardware calibration tests
 	@# mypy reads the four folders as the package they install as (servoface.*) through a tree of links
 	@rm -rf build/typecheck && mkdir -p build/typecheck/servoface
 	@for d in controller sim hardware calibration; do ln -s "$(CURDIR)/$$d" build/typecheck/servoface/$$d; done

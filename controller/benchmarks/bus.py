@@ -4,7 +4,9 @@
 (written to every servo before measuring). Per baud and read (plain Sync Read / Fast Sync Read of Present
 Position), three loops on the same chain, interleaved (`interleave`: 20 rounds of one 0.25 s window each):
 the plain stock-SDK loop (`servoface.hardware.stock_loop`), `ServoBus` sync write + sync read, and a full
-`Driver.cycle`. Each figure is the median window rate next to the wire limit from
+`Driver.cycle`, whose clock runs only in its own windows (`interleave.OwnClock`: its slow telemetry
+keeps the schedule of one continuous back-to-back run, floor-rate reads included). Each figure is the
+median window rate next to the wire limit from
 `servoface.hardware.wire.cycle_budget` (packet sizes, baud, return delay), plus its ratio to the stock SDK
 loop (median of per-round ratios); the best window and the machine's load are in the note. The same three
 over a pty with the emulator in another process (`servoface emulate`; its CPU then is not the measured
@@ -24,7 +26,7 @@ import time
 from collections.abc import Callable, Iterator
 
 from servoface.controller.benchmarks.figure import Figure
-from servoface.controller.benchmarks.interleave import Step, interleaved, load_text
+from servoface.controller.benchmarks.interleave import OwnClock, Step, interleaved, load_text
 from servoface.hardware.bus import ServoBus, open_bus
 from servoface.hardware.driver import Driver
 from servoface.hardware.emulator import ServoChain
@@ -41,6 +43,7 @@ RETURN_DELAY_US = 0
 GOAL_RATIO = 0.9
 DRIVER_GOAL_RATIO = 0.95
 STOCK = "stock SDK loop (GroupSyncWrite + GroupSyncRead)"
+DRIVER = "Driver.cycle (telemetry + policy)"
 SETTLE = 3  # untimed cycles per window, every loop alike (`interleave.interleaved`: the driver's telemetry
 # catch-up after the others' windows is not its steady state)
 
@@ -147,15 +150,17 @@ def run(quick: bool = False) -> Iterator[Figure]:
 
 
 def contenders(
-    open_port: Callable[[], ServoBus], ids: list[int], fast: bool
+    open_port: Callable[[], ServoBus], ids: list[int], fast: bool, clock: OwnClock
 ) -> tuple[dict[str, Step], Driver, list[ServoBus]]:
     """The three loops compared on one chain, each on the port ``open_port`` gives (its own in process; one
     shared over a pty, whose lock admits one controller): the plain stock-SDK loop, servoface's `ServoBus`
-    sync write + sync read, and a full `Driver.cycle` (telemetry + fault policy). They take turns."""
+    sync write + sync read, and a full `Driver.cycle` (telemetry + fault policy) on ``clock``. They take turns."""
     buses = [open_port() for _ in range(3)]
     stock = StockSdkLoop(buses[0], ids, fast=fast)
     specs = [ServoSpec(sid, "XL330-M288", return_delay_us=RETURN_DELAY_US) for sid in ids]
-    driver = Driver(buses[2], specs, fast_sync_read=fast)
+    # the driver's telemetry schedule runs on the time it has the bus (`interleave.OwnClock`): its windows
+    # join up into one back-to-back run, floor-rate reads included, as a driver running on its own sees it
+    driver = Driver(buses[2], specs, fast_sync_read=fast, clock=clock)
     driver.configure()
     driver.torque_on()
     bus = buses[1]
@@ -172,7 +177,7 @@ def contenders(
     steps: dict[str, Step] = {
         STOCK: lambda n: stock.cycle(2048 + (n & 1)),
         "ServoBus sync write + sync read": bus_cycle,
-        "Driver.cycle (telemetry + policy)": driver_cycle,
+        DRIVER: driver_cycle,
     }
     return steps, driver, list({id(b): b for b in buses}.values())
 
@@ -180,9 +185,10 @@ def contenders(
 def _interleaved_figures(baud: int, fast: bool, rounds: int, window_s: float) -> Iterator[Figure]:
     chain, setup = _chain_and_bus(baud, wire_time=True)
     setup.close()
-    steps, driver, buses = contenders(lambda: open_bus("emulator", chain=chain, baud=baud), chain.ids, fast)
+    clock = OwnClock()
+    steps, driver, buses = contenders(lambda: open_bus("emulator", chain=chain, baud=baud), chain.ids, fast, clock)
     try:
-        yield from _figures(steps, driver, buses, baud, fast, rounds, window_s, "")
+        yield from _figures(steps, driver, clock, buses, baud, fast, rounds, window_s, "")
     finally:
         for b in buses:
             b.close()
@@ -233,10 +239,11 @@ def _pty_figures(baud: int, fast: bool, rounds: int, window_s: float) -> Iterato
             setup.write(sid, Register.RETURN_DELAY_TIME, RETURN_DELAY_US // 2)
         # one bus for the three: the port lock admits one controller per chain (a second open of the pty
         # raises PortLockedError), and the contenders take turns anyway
-        steps, driver, buses = contenders(lambda: setup, ids, fast)
+        clock = OwnClock()
+        steps, driver, buses = contenders(lambda: setup, ids, fast, clock)
         try:
             bests: list[float] = []
-            figures = list(_figures(steps, driver, buses, baud, fast, rounds, window_s, ", over a pty", bests))
+            figures = list(_figures(steps, driver, clock, buses, baud, fast, rounds, window_s, ", over a pty", bests))
         finally:
             for b in buses:
                 b.close()
@@ -260,6 +267,7 @@ def _pty_figures(baud: int, fast: bool, rounds: int, window_s: float) -> Iterato
 def _figures(
     steps: dict[str, Step],
     driver: Driver,
+    clock: OwnClock,
     buses: list[ServoBus],
     baud: int,
     fast: bool,
@@ -270,9 +278,9 @@ def _figures(
 ) -> Iterator[Figure]:
     """The figures of one interleaved run (``bests`` collects every contender's best window rate)."""
     reads0 = dict(driver.telemetry_reads)
-    t0 = time.perf_counter()
-    stats = interleaved(steps, STOCK, rounds, window_s, settle=SETTLE)
-    driver_s = (time.perf_counter() - t0) / len(steps)
+    t0 = clock()
+    stats = interleaved(steps, STOCK, rounds, window_s, settle=SETTLE, clocks={DRIVER: clock})
+    driver_s = clock() - t0  # the driver's own time: its windows, settle cycles included
     load = load_text()
     budget = cycle_budget(N_SERVOS, baud, return_delay_us=RETURN_DELAY_US, fast=fast)
     read = "fast sync read" if fast else "sync read"
@@ -290,7 +298,10 @@ def _figures(
         extra = ""
         if name.startswith("Driver"):
             extra = "; slow telemetry group reads/s " + ", ".join(f"{k} {v:.1f}" for k, v in telemetry.items())
-            extra += " (back to back: no idle bus time, so at FaultPolicy.telemetry_floor_share of nominal)"
+            extra += (
+                " (back to back: no idle bus time, so at FaultPolicy.telemetry_floor_share of nominal; the "
+                "driver's clock runs only in its own windows, so they join up into one continuous run)"
+            )
         yield Figure(
             f"{name}, {tag}",
             st.median,

@@ -195,9 +195,7 @@ class StreamSource:
             return None
         return arrival, index
 
-    def _take(
-        self, obj: Any, arrival: float, index: int, where: str, client: Hashable, authenticated: bool
-    ) -> bool:
+    def _take(self, obj: Any, arrival: float, index: int, where: str, client: Hashable, authenticated: bool) -> bool:
         guard = self.guard
         try:
             if guard is not None and not authenticated and not guard.token_ok(obj):

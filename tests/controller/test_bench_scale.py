@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 
 import pytest
@@ -49,3 +50,41 @@ def test_interleaved_windows_settle_before_timing_and_keep_counting() -> None:
     for name, ns in seen.items():
         assert ns == list(range(len(ns))) and len(ns) >= 3 * 5, name  # 4 settling + at least 1 timed per window
         assert out[name].count == len(ns)
+
+
+def test_own_clock_runs_only_in_its_contenders_windows() -> None:
+    """A contender's `OwnClock` advances during its own windows and warm-up only: the other contender's
+    windows (here a sleeping one) do not count, so its windows join up; it runs again afterwards."""
+    clock = interleave.OwnClock()
+    stamps: list[float] = []
+
+    def mine(_: int) -> None:
+        stamps.append(clock())
+
+    def other(_: int) -> None:
+        time.sleep(0.004)
+
+    t0, c0 = time.monotonic(), clock()
+    interleave.interleaved({"mine": mine, "other": other}, "other", 4, 0.01, warm=1, clocks={"mine": clock})
+    wall_s, own_s = time.monotonic() - t0, clock() - c0
+    assert wall_s > 0.075  # 4 windows of each contender at least
+    assert own_s < 0.7 * wall_s  # the other's windows are not in it
+    assert own_s > 0.035  # its own four windows are
+    gaps = [b - a for a, b in zip(stamps, stamps[1:], strict=False)]
+    assert max(gaps) < 0.01  # no step saw the other's windows (>= 12 ms each) go by
+    before = clock()
+    time.sleep(0.01)
+    assert clock() - before >= 0.009  # running again on return
+
+
+def test_own_clock_stands_still_while_paused() -> None:
+    clock = interleave.OwnClock()
+    clock.pause()
+    at = clock()
+    time.sleep(0.005)
+    assert clock() == at
+    clock.pause()  # idempotent
+    clock.resume()
+    clock.resume()
+    time.sleep(0.005)
+    assert 0.004 < clock() - at < 0.5

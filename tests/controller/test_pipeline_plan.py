@@ -122,7 +122,9 @@ def test_every_speculation_used_back_to_back_on_the_real_clock_is_the_fresh_chec
     remember = gate.remember_check
 
     def noting(
-        verdict: Verdict, last: Mapping[int, int], health: Mapping[int, ServoHealth] | None = None,
+        verdict: Verdict,
+        last: Mapping[int, int],
+        health: Mapping[int, ServoHealth] | None = None,
         elapsed_s: float | None = None,
     ) -> None:
         noted.append((verdict, elapsed_s))

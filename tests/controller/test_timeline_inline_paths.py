@@ -74,8 +74,11 @@ def test_a_channel_with_its_key_values_inline_is_the_plain_channel() -> None:
         for au in ("AU1", "AU12", "AU26")[: int(rng.integers(1, 4))]:
             times = np.sort(rng.choice([0.0, 0.5, 1.0, *rng.uniform(0, 2, 4)], size=int(rng.integers(1, 6))))
             channels[au] = tuple(
-                Key(float(t), None if rng.random() < 0.3 else float(rng.uniform(0, 1)),
-                    easings[int(rng.integers(len(easings)))])  # fmt: skip
+                Key(
+                    float(t),
+                    None if rng.random() < 0.3 else float(rng.uniform(0, 1)),
+                    easings[int(rng.integers(len(easings)))],
+                )
                 for t in times
             )
         clip = ChannelClip(channels, 2.0)
