@@ -199,6 +199,8 @@ class Face:
         written as a hardware backstop), the gate's tables are built (a stop signal there ends the start-up
         with torque never on), torque goes on with goals pinned to present positions and the Bus Watchdog
         armed, and the pipeline starts from where the servos are. Any failure leaves every servo torque off.
+        ``fast_sync_read``, ``policy`` and ``position_sentinel`` go to the `Driver` (``position_sentinel=False``:
+        no Indirect Address written, positions read directly).
         """
         opened = open_head(
             head,

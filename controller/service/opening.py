@@ -73,7 +73,8 @@ def open_head(
     (EEPROM only with torque off, limits written as a hardware backstop), the pipeline and its gate tables
     built, then torque on with goals pinned to present positions (Bus Watchdog armed, ``policy.watchdog_s``)
     and the pipeline starting from where the servos are. A stop signal before torque-on raises
-    :class:`~servoface.controller.stop_signals.StopRequested`; on any failure every servo ends torque off."""
+    :class:`~servoface.controller.stop_signals.StopRequested`; on any failure every servo ends torque off.
+    ``fast_sync_read``, ``policy`` and ``position_sentinel`` go to the `Driver`."""
     if (port is None) == (not emulate):
         raise ControllerError("Face.open: give exactly one of port='/dev/ttyUSB0' or emulate=True")
     the_head = head if isinstance(head, Head) else load_head(head)
