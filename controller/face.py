@@ -191,6 +191,7 @@ class Face:
         calibration: HeadCalibration | str | Path | None = None,
         fast_sync_read: FastSyncRead = "auto",
         policy: FaultPolicy | None = None,
+        position_sentinel: bool = True,
     ) -> Face:
         """Open ``head`` (built-in name, profile folder, or a loaded Head) on ``port`` or on the emulator.
 
@@ -198,6 +199,8 @@ class Face:
         written as a hardware backstop), the gate's tables are built (a stop signal there ends the start-up
         with torque never on), torque goes on with goals pinned to present positions and the Bus Watchdog
         armed, and the pipeline starts from where the servos are. Any failure leaves every servo torque off.
+        ``fast_sync_read``, ``policy`` and ``position_sentinel`` go to the `Driver` (``position_sentinel=False``:
+        no Indirect Address written, positions read directly).
         """
         opened = open_head(
             head,
@@ -209,6 +212,7 @@ class Face:
             calibration=calibration,
             fast_sync_read=fast_sync_read,
             policy=policy,
+            position_sentinel=position_sentinel,
         )
         return cls(opened.head, opened.pipeline, driver=opened.driver, bus=opened.bus, chain=opened.chain)
 

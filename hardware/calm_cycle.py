@@ -15,7 +15,7 @@ field by field, and with a driver that always takes the full path).
 from __future__ import annotations
 
 from servoface.hardware.driver_reads import ChainReads
-from servoface.hardware.registers import Register
+from servoface.hardware.sentinel import SENTINEL, TICK_MASK, TICK_SIGN
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import FaultEvent, ServoState, StateCapture
 
@@ -58,8 +58,21 @@ class CalmCycle(ChainReads):
         if not calm or len(self._cycle_events) != self._calm_events:
             self._apply_positions(now, ids, registers, got)
             return None
-        position = Register.PRESENT_POSITION
+        position = registers[0]
         items: dict[int, ServoState | StateCapture] = {}
+        if position is SENTINEL:  # through the sentinel: every witness byte first (a reset: the full path)
+            witness = self._witness
+            if any(values[position] >> 24 != witness.get(sid, -1) for sid, values in got.items()):
+                self._apply_positions(now, ids, registers, got)
+                return None
+            for sid, (rec, base) in plan.items():
+                tick = ((got[sid][position] & TICK_MASK) ^ TICK_SIGN) - TICK_SIGN
+                rec.position_tick = tick
+                rec.position_t_s = now
+                rec.failures = 0
+                rec.stale = False
+                items[sid] = (base, tick, now, rec.goal_tick, False)
+            return items
         for sid, (rec, base) in plan.items():  # `got` holds exactly the ids asked for: every servo's
             tick = got[sid][position]
             rec.position_tick = tick

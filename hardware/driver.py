@@ -2,13 +2,16 @@
 
 A cycle: validate goals (refuse the whole frame on any bad goal: nothing sent) -> one Sync Write of Goal
 Position to the servos in service -> one (Fast) Sync Read of Present Position (every reply's Alert bit
-is kept: an alarm is seen the cycle it happens) -> at most one due slow telemetry group (round-robin:
-status 10 Hz, motion 10 Hz, thermal 2 Hz while the caller leaves the bus that much idle time; down to
-`FaultPolicy.telemetry_floor_share` of those rates when cycles run back to back) -> fault policy ->
-re-probe of one missing servo -> a frozen `ChainSnapshot`. `cycle_start` / `cycle_finish` split it where
-the position replies are on the wire, so a caller can compute meanwhile (the pipeline's next frame). A calm
-cycle (`calm_cycle`) does its per-servo snapshot checks before collecting the replies, so little is left
-between the last reply and the next frame's bytes.
+is kept: an alarm is seen the cycle it happens), through the position sentinel where it verified at
+`configure` (hardware/sentinel.py: the same 4 bytes, from Indirect Data at 224, whose fourth byte shows a
+reset servo the cycle after the reset; a cycle that folds a telemetry group in reads the direct block) ->
+at most one due slow telemetry group (round-robin: status 10 Hz, motion 10 Hz, thermal 2 Hz while the
+caller leaves the bus that much idle time; down to `FaultPolicy.telemetry_floor_share` of those rates when
+cycles run back to back, the status group down to once per `FaultPolicy.sentinel_status_floor_s` then if
+the sentinel is on) -> fault policy -> re-probe of one missing servo -> a frozen `ChainSnapshot`.
+`cycle_start` / `cycle_finish` split it where the position replies are on the wire, so a caller can
+compute meanwhile (the pipeline's next frame). A calm cycle (`calm_cycle`) does its per-servo snapshot
+checks before collecting the replies, so little is left between the last reply and the next frame's bytes.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from typing import Literal
 
 from servoface.hardware.bus import ServoBus
 from servoface.hardware.calm_cycle import CalmCycle
-from servoface.hardware.driver_reads import MOTION, READ_FAILURES, STATUS, THERMAL, TelemetryGroup
+from servoface.hardware.driver_reads import MOTION, POSITION, READ_FAILURES, STATUS, THERMAL, TelemetryGroup
 from servoface.hardware.errors import (
     BusCorruptError,
     BusDisconnectedError,
@@ -36,6 +39,7 @@ from servoface.hardware.fault_policy import FaultPolicy, ThermalTrend, eased_goa
 from servoface.hardware.fault_reactions import FaultReactions
 from servoface.hardware.goal_check import check_goals
 from servoface.hardware.registers import Register
+from servoface.hardware.sentinel import SENTINEL, SentinelMap
 from servoface.hardware.servo_config import ConfigReport, ServoSpec, check_specs, configure_servo
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind, ServoState, StateCapture
@@ -45,6 +49,7 @@ CONFIGURE_QUIET_S = (0.2, 0.8)  # after a failed configure try, wait this long f
 # missing costs that second once, at start-up
 TORQUE_OFF_QUIET_S = (0.03, 0.12, 0.3)  # after a failed torque-off, wait this long for quiet (per pass)
 FastSyncRead = Literal[True, False, "auto"]  # `Driver`'s ``fast_sync_read``
+OFF_BY_REQUEST = "off by request (position_sentinel=False): positions read directly (Present Position, 132)"
 
 
 class Driver(CalmCycle):
@@ -56,6 +61,17 @@ class Driver(CalmCycle):
     was not configured), and uses it if every servo answers (`fast_read_info` says which and why); ``True``
     / ``False`` force it. Either way a chain on which it later fails while single reads work falls back to
     plain Sync Read (with an event).
+
+    ``position_sentinel`` (default on): at :meth:`configure`, map Present Position and a witness byte into
+    Indirect Data at 224 (hardware/sentinel.py; four Indirect Address slots, 1..4 or 17..20, found by
+    read-back) and read positions there, so each cycle's position read also shows a servo that was reset (its
+    map gone: the witness byte reads 0): seen, its position discarded, re-configured and re-pinned the next
+    cycle. Because of that the status group is read back to back only once per
+    `FaultPolicy.sentinel_status_floor_s` (2 s) instead of its floor share (0.4 s). Not dropped altogether:
+    that a lost map reads 0 is verified on the emulator only, and the status read (torque found off) is the
+    backstop on a servo where it is not so. ``False``: no Indirect Address is written and positions are read
+    directly (132). `sentinel_info` says which path is in use and why (a chain where the map does not verify
+    on every servo reads directly, with an event ``SENTINEL``).
     """
 
     def __init__(
@@ -66,9 +82,13 @@ class Driver(CalmCycle):
         policy: FaultPolicy | None = None,
         clock: Callable[[], float] = time.monotonic,
         fast_sync_read: FastSyncRead = "auto",
+        position_sentinel: bool = True,
     ) -> None:
         if not (fast_sync_read is True or fast_sync_read is False or fast_sync_read == "auto"):
             raise HardwareConfigError(f"fast_sync_read={fast_sync_read!r}: expected True, False or 'auto'")
+        if position_sentinel is not True and position_sentinel is not False:
+            raise HardwareConfigError(f"position_sentinel={position_sentinel!r}: expected True or False")
+        self.position_sentinel = position_sentinel
         self.bus = bus
         self.policy = policy or FaultPolicy()
         self.fast_sync_read = fast_sync_read is True
@@ -123,6 +143,14 @@ class Driver(CalmCycle):
         self._patient = False
         self._last_end_s = float("-inf")  # clock at the end of the last cycle
         self._calm_events = 0
+        self._sentinel = False
+        self._witness: dict[int, int] = {}
+        self._maps: dict[int, SentinelMap] = {}
+        self._block = POSITION
+        self._remap_failed: dict[int, float] = {}
+        self.sentinel_info = (
+            "not configured: positions read directly (Present Position, 132)" if position_sentinel else OFF_BY_REQUEST
+        )
 
     # -- ownership ----------------------------------------------------------------------------------
     def _check_owner(self) -> None:
@@ -189,6 +217,7 @@ class Driver(CalmCycle):
         """
         self._check_owner()
         reports = {}
+        self._sentinel, self._maps = False, {}  # decided afresh below (`_decide_sentinel`)
         for rec in self._records.values():
             try:
                 reports[rec.servo_id] = self._configure_retried(rec)
@@ -196,6 +225,7 @@ class Driver(CalmCycle):
                 if not allow_missing:
                     raise
                 self._mark_missing(rec, self._clock(), "did not answer during configure")
+        self._decide_sentinel()
         if self._fast_probe_pending and self._connected:
             self._probe_fast_read(self._clock())
         return reports
@@ -213,13 +243,51 @@ class Driver(CalmCycle):
         return self._configure_one(rec)  # the last try: its error is the caller's
 
     def _configure_one(self, rec: ServoRecord) -> ConfigReport:
-        report = configure_servo(self.bus, rec.spec)
+        report = configure_servo(self.bus, rec.spec, position_sentinel=self.position_sentinel)
         rec.torque_on = False
         rec.temperature_limit_c = report.limits[Register.TEMPERATURE_LIMIT]
         rec.current_limit = report.limits[Register.CURRENT_LIMIT] if rec.info.reports_current else None
         if rec.derated:  # configuration wrote the spec's profile; keep the derated one
             self.bus.write(rec.servo_id, Register.PROFILE_VELOCITY, self._reactions.derated_profile_velocity(rec))
+        smap = report.sentinel
+        if smap is not None:
+            self._maps[rec.servo_id] = smap
+            self._witness[rec.servo_id] = smap.witness
+            if self._sentinel and smap.slot is None:  # a servo replaced, its firmware changed: 224 is not it
+                self._sentinel_off(f"re-configure: {smap.why}")
+        self._remap_failed.pop(rec.servo_id, None)
         return report
+
+    def _decide_sentinel(self) -> None:
+        """After `configure`: positions through the sentinel (hardware/sentinel.py) when every configured
+        servo's map verified (each at 224: one Sync Read reads one address from all); else direct reads of
+        Present Position for the chain, with an event that says why. Servos missing now are checked when
+        they are configured (`_configure_one`)."""
+        maps = self._maps
+        refused = [m.why for m in maps.values() if m.slot is None]
+        if not self.position_sentinel:
+            self.sentinel_info = OFF_BY_REQUEST
+        elif not maps:
+            self.sentinel_info = "no servo configured: positions read directly (Present Position, 132)"
+        elif refused:
+            self._sentinel_off("; ".join(refused))
+        else:
+            self._sentinel = True
+            slots = {f"{f}..{f + 3}": sorted(s for s, m in maps.items() if m.slot == f) for f in (1, 17)}
+            self.sentinel_info = (
+                f"positions read through Indirect Data at {SENTINEL.address} (position + Status Return Level "
+                f"sentinel; Indirect Address slots {', '.join(f'{k} on servos {v}' for k, v in slots.items() if v)})"
+            )
+
+    def _sentinel_off(self, why: str) -> None:
+        """The chain reads Present Position directly; resets are seen by the status group (floor rate)."""
+        self._sentinel = False
+        self.sentinel_info = f"positions read directly (Present Position, 132): {why}"
+        self._emit(
+            None,
+            FaultKind.SENTINEL,
+            f"{why}: positions read directly; a reset servo is seen by the status read at its floor rate",
+        )
 
     def _pin_and_enable(self, rec: ServoRecord) -> None:
         """Bus Watchdog cleared, Goal Position := Present Position (clamped into the limits), Torque Enable = 1,

@@ -12,11 +12,13 @@ from servoface.hardware.errors import (
     BusDisconnectedError,
     BusError,
     BusTimeoutError,
+    HardwareConfigError,
     ServoStatusError,
 )
 from servoface.hardware.fault_policy import FaultPolicy
 from servoface.hardware.fault_reactions import FaultReactions
 from servoface.hardware.registers import Register, span
+from servoface.hardware.sentinel import SENTINEL, TICK_MASK, TICK_SIGN
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import FaultKind
 
@@ -62,8 +64,15 @@ class ChainReads:
     fold_telemetry: bool  # read a due motion / thermal group in the position read's transaction
     _folded: TelemetryGroup | None  # the group the position read in flight carries
     _folded_this_cycle: bool  # a group rode in this cycle's position read
+    _sentinel: bool  # positions read through the sentinel's map at 224 (hardware/sentinel.py)
+    _witness: dict[int, int]  # per servo, the sentinel byte while its map holds
+    _block: tuple[Register, ...]  # the registers of the position read in flight (`_position_block`)
+    _remap_failed: dict[int, float]  # servo -> when its failing re-configure after a lost sentinel was tried
 
     def _emit(self, servo_id: int | None, kind: FaultKind, reaction: str) -> None:
+        raise NotImplementedError
+
+    def _configure_one(self, rec: ServoRecord) -> object:
         raise NotImplementedError
 
     def _read_group(
@@ -126,15 +135,19 @@ class ChainReads:
         """The registers of this cycle's position read: Present Position, and — when the motion or the
         thermal group is due (`_due_group`) and `fold_telemetry` is on — that group's registers too, read
         in the same transaction (their blocks adjoin Present Position: 122..135 / 132..146, one reply per
-        servo instead of a second group read with its own instruction, turnaround and parse)."""
+        servo instead of a second group read with its own instruction, turnaround and parse). With the
+        position sentinel on (`_sentinel`), a cycle that folds nothing reads the sentinel (4 bytes at 224)
+        instead; one that folds reads the direct block as above (no witness that cycle: the next plain cycle
+        checks it)."""
         self._folded = None
-        if not self.fold_telemetry:
-            return POSITION
-        group = self._due_group(now)
-        if group is None or group.name not in FOLDABLE:
-            return POSITION
-        self._folded = group
-        return POSITION + group.registers
+        block: tuple[Register, ...] = (SENTINEL,) if self._sentinel else POSITION
+        if self.fold_telemetry:
+            group = self._due_group(now)
+            if group is not None and group.name in FOLDABLE:
+                self._folded = group
+                block = POSITION + group.registers
+        self._block = block
+        return block
 
     def _start_positions(self, now: float) -> None:
         """Send the position read's instruction; `_read_positions` collects the replies."""
@@ -160,7 +173,7 @@ class ChainReads:
             registers = self._position_block(now)
         else:
             ids = started
-            registers = POSITION if self._folded is None else POSITION + self._folded.registers
+            registers = self._block
         got = self._read_group(ids, registers, fast=self.fast_sync_read, started=started is not None)
         if self.fast_sync_read and ids:
             self._check_fast_read_support(self._group_failed and len(got) == len(ids))
@@ -169,15 +182,32 @@ class ChainReads:
     def _apply_positions(
         self, now: float, ids: list[int], registers: tuple[Register, ...], got: dict[int, dict[Register, int]]
     ) -> None:
-        """The position read's values into the records; a folded group's too; the silent ones marked."""
+        """The position read's values into the records; a folded group's too; the silent ones marked.
+        A read of the sentinel (``registers[0]``, whatever `_sentinel` says now): a reply whose fourth byte is
+        not the servo's witness is a reset servo's (`_sentinel_lost`): its position is discarded, never
+        applied."""
         records = self._records
-        position = Register.PRESENT_POSITION
-        for sid, values in got.items():  # `_mark_results` for the servos that answered, in the same pass
-            rec = records[sid]
-            rec.position_tick = values[position]
-            rec.position_t_s = now
-            rec.failures = 0
-            rec.stale = False
+        position = registers[0]
+        lost: dict[int, int] = {}
+        if position is not SENTINEL:
+            for sid, values in got.items():  # `_mark_results` for the servos that answered, in the same pass
+                rec = records[sid]
+                rec.position_tick = values[position]
+                rec.position_t_s = now
+                rec.failures = 0
+                rec.stale = False
+        else:
+            witness = self._witness
+            for sid, values in got.items():
+                raw = values[position]
+                if raw >> 24 != witness.get(sid, -1):
+                    lost[sid] = raw >> 24
+                    continue
+                rec = records[sid]
+                rec.position_tick = ((raw & TICK_MASK) ^ TICK_SIGN) - TICK_SIGN
+                rec.position_t_s = now
+                rec.failures = 0
+                rec.stale = False
         group, self._folded = self._folded, None
         if group is not None and ids:
             self._folded_this_cycle = True
@@ -186,9 +216,49 @@ class ChainReads:
             extra_bytes = len(ids) * (span(registers)[1] - span(POSITION)[1])
             group.cost_s = extra_bytes * 10.0 / max(1, int(getattr(self.bus, "baud", 1_000_000)))
             self.telemetry_reads[group.name] += 1
-            self._apply_group(group, got, now)
+            self._apply_group(group, got, now)  # a folded read is the direct block: no witness in it
+        for sid, byte in lost.items():
+            self._sentinel_lost(records[sid], byte, now)
         if len(got) < len(ids):  # the silent ones (`got` holds only ids asked for)
             self._mark_results([sid for sid in ids if sid not in got], got, now)
+
+    def _sentinel_lost(self, rec: ServoRecord, byte: int, now: float) -> None:
+        """A position reply whose sentinel byte is not the servo's witness: its Indirect Address map is gone,
+        so the servo was reset (RAM back to defaults, torque off). The position is discarded (stale). In
+        service: the reset reaction of the status read (`FaultReactions.on_reset_seen`: re-configured, which
+        rewrites the map, and goal re-pinned, this cycle). Out of service (torque off by choice or by a
+        fault reaction, a reboot pending, latched): re-configured now with torque left off (torque is never
+        turned on from here), so the map and the RAM settings are back and its own fault reaction carries on;
+        a re-configure that fails is tried again at most every `FaultPolicy.reprobe_interval_s`, with one
+        event. Being recovered already (after a reboot of ours): nothing, its recovery re-maps it."""
+        rec.stale = True
+        rec.failures = 0
+        if rec.recover_at_s is not None or rec.missing:
+            return
+        sid = rec.servo_id
+        why = f"position sentinel read {byte}, expected {self._witness.get(sid)}: Indirect Address map lost"
+        if rec.in_service:
+            self._reactions.on_reset_seen(rec, why, now)
+            return
+        failed_s = self._remap_failed.get(sid)
+        if failed_s is not None and now - failed_s < self.policy.reprobe_interval_s:
+            return
+        try:
+            self._configure_one(rec)
+        except BusDisconnectedError:
+            raise
+        except (BusError, HardwareConfigError) as err:
+            self._remap_failed[sid] = now
+            if failed_s is None:
+                self._emit(
+                    sid,
+                    FaultKind.RECONNECTED,
+                    f"servo reset ({why}); re-configure failed ({err}): torque stays off, re-configure tried "
+                    f"again every {self.policy.reprobe_interval_s:g} s",
+                )
+            return
+        self._remap_failed.pop(sid, None)
+        self._emit(sid, FaultKind.RECONNECTED, f"servo reset while out of service ({why}): re-configured, torque off")
 
     def _probe_fast_read(self, now: float) -> None:
         """``fast_sync_read="auto"``: one Fast Sync Read of Present Position from every readable servo. A
@@ -247,14 +317,19 @@ class ChainReads:
     def _due_group(self, now: float) -> TelemetryGroup | None:
         """The most overdue group, if it is to be read this cycle: at once when asked for (an alert, a
         reaction, the first read), when the caller left the bus idle for at least as long as its last read
-        took (nominal rate: the read fills idle time), or once overdue beyond the floor rate."""
-        late = 1.0 / self.policy.telemetry_floor_share - 1.0
+        took (nominal rate: the read fills idle time), or once overdue beyond the floor rate — for the status
+        group while the position sentinel is on, once `FaultPolicy.sentinel_status_floor_s` has passed since
+        its last read (every plain position reply shows a reset; this read is the backstop)."""
+        policy = self.policy
+        late = 1.0 / policy.telemetry_floor_share - 1.0
         best: TelemetryGroup | None = None
+        relaxed = self._groups[0] if self._sentinel else None  # the status group, with the sentinel on
         for g in self._groups:  # the first most overdue of the ready ones (as min() picks)
             due = g.due_s
             if due > now or (best is not None and due >= best.due_s):
                 continue
-            if due == float("-inf") or self._idle_s >= g.cost_s or now >= due + g.period_s * late:
+            lag = g.period_s * late if g is not relaxed else policy.sentinel_status_floor_s - g.period_s
+            if due == float("-inf") or self._idle_s >= g.cost_s or now >= due + lag:
                 best = g
         return best
 

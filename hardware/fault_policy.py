@@ -53,6 +53,14 @@ class FaultPolicy:
     # (a paced loop: nominal rates) and otherwise once this share of its rate is reached (cycles run back to
     # back: the reads would cost the goals' rate). An Alert bit in any reply reads the status group at once.
     telemetry_floor_share: float = 0.25
+    # While positions are read through the position sentinel (hardware/sentinel.py; `Driver.sentinel_info`),
+    # a reset servo shows in the next plain cycle's position reply (its Indirect Address map gone) and a
+    # hardware error in the Alert bit, so back to back the status group (Torque Enable, Hardware Error
+    # Status) is read only at least every this many seconds instead of at the floor share of its rate (0.4 s
+    # by default). It is kept, not dropped: that a lost map reads 0 after a reset is verified on the
+    # emulator only, not on a real servo, and this read is what sees a reset where that is not so. It is
+    # still read at its nominal rate when the bus is idle and at once when an Alert bit or a reaction asks.
+    sentinel_status_floor_s: float = 2.0
 
     def __post_init__(self) -> None:
         for name in (
@@ -73,6 +81,9 @@ class FaultPolicy:
             raise ValueError(
                 f"FaultPolicy.telemetry_floor_share = {self.telemetry_floor_share}: expected 0 < share <= 1"
             )
+        floor = self.sentinel_status_floor_s
+        if isinstance(floor, bool) or not isinstance(floor, int | float) or not 0 < floor < math.inf:
+            raise ValueError(f"FaultPolicy.sentinel_status_floor_s = {floor!r}: expected a finite time > 0 s")
         if not 0 <= self.backoff_gain <= 1:
             raise ValueError(f"FaultPolicy.backoff_gain = {self.backoff_gain}: expected 0..1")
         if self.watchdog_s and not WATCHDOG_UNIT_S <= self.watchdog_s <= 127 * WATCHDOG_UNIT_S:

@@ -141,13 +141,15 @@ class FaultReactions:
 
     def _on_reset(self, rec: ServoRecord, now: float) -> None:
         """Torque dropped without an error bit: the servo was reset (brown-out, power cycle)."""
+        self.on_reset_seen(rec, "torque found off", now)
+
+    def on_reset_seen(self, rec: ServoRecord, why: str, now: float) -> None:
+        """A servo in service was reset (brown-out, power cycle), as the status read (torque found off, no
+        error bit) or the position sentinel (its Indirect Address map gone) shows: re-configured and its goal
+        re-pinned (`service`, this cycle)."""
         rec.torque_on = False
         rec.recover_at_s = now
-        self.emit(
-            rec.servo_id,
-            FaultKind.RECONNECTED,
-            "servo reset (torque found off): re-configure, re-pin goal",
-        )
+        self.emit(rec.servo_id, FaultKind.RECONNECTED, f"servo reset ({why}): re-configure, re-pin goal")
 
     def on_thermal(self, rec: ServoRecord, voltage_raw: int, temperature_c: int, now: float) -> None:
         policy = self.policy

@@ -70,6 +70,13 @@ class Register(Enum):
     POSITION_TRAJECTORY = (140, 4, True, Area.READ_ONLY)
     PRESENT_INPUT_VOLTAGE = (144, 2, False, Area.READ_ONLY)  # 0.1 V
     PRESENT_TEMPERATURE = (146, 1, False, Area.READ_ONLY)  # deg C
+    # The position sentinel (hardware/sentinel.py). Indirect Address slots, 2 bytes each, little-endian,
+    # from 168 on every model: slots 1..4 (168..175) feed Indirect Data 1..4 at 224 in the base control
+    # table; on XL330 firmware >= 52 (20 slots, data from 208) slots 17..20 (200..207) feed 224..227.
+    INDIRECT_ADDRESS_1_4 = (168, 8, False, Area.RAM)
+    INDIRECT_ADDRESS_17_20 = (200, 8, False, Area.RAM)
+    # Indirect Data at 224..227 on every chain: Present Position bits 0..23, then the witness byte
+    INDIRECT_SENTINEL = (224, 4, False, Area.RAM)
 
     def __init__(self, address: int, size: int, signed: bool, area: Area) -> None:
         self.address = address

@@ -25,6 +25,7 @@ from servoface.hardware.registers import (
     model_by_name,
     model_name,
 )
+from servoface.hardware.sentinel import SentinelMap, map_sentinel
 
 POSITION_RANGE_TICK = (0, 4095)
 EXTENDED_RANGE_TICK = (-1_048_575, 1_048_575)
@@ -247,6 +248,7 @@ class ConfigReport:
     firmware_version: int
     written: tuple[str, ...]  # register names written (EEPROM only when they differed)
     limits: Mapping[Register, int]  # limits read back (temperature, voltage, current, position)
+    sentinel: SentinelMap | None = None  # the position sentinel's map (hardware/sentinel.py); None: not asked
 
 
 _READBACK = (
@@ -259,8 +261,10 @@ _READBACK = (
 )
 
 
-def configure_servo(bus: ServoBus, spec: ServoSpec) -> ConfigReport:
+def configure_servo(bus: ServoBus, spec: ServoSpec, *, position_sentinel: bool = False) -> ConfigReport:
     """Write ``spec`` to its servo and verify by reading back. Leaves torque OFF (the driver pins goals).
+    ``position_sentinel``: also map and verify the position sentinel (`map_sentinel`; the driver's reads use
+    it); without it no Indirect Address is written.
 
     Raises `ServoConfigMismatch` (wrong model, or a value that does not read back) and the bus errors.
     """
@@ -287,12 +291,14 @@ def configure_servo(bus: ServoBus, spec: ServoSpec) -> ConfigReport:
     for reg, value in wanted.items():
         if back[reg] != value:
             raise ServoConfigMismatch(spec.servo_id, reg.name, value, back[reg])
+    sentinel = map_sentinel(bus, spec.servo_id, spec.operating_mode) if position_sentinel else None  # RAM
     return ConfigReport(
         spec.servo_id,
         reply.model_number,
         reply.firmware_version,
         tuple(written),
         {r: back[r] for r in _READBACK},
+        sentinel,
     )
 
 

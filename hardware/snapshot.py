@@ -33,6 +33,7 @@ class FaultKind(Enum):
     REBOOTED = "rebooted"  # the driver rebooted a servo to clear its error
     RECOVERED = "recovered"  # a servo returned to service (torque back on, goal re-pinned)
     LATCHED = "latched"  # too many reboots, or a fault that needs a human: stays torque-off
+    SENTINEL = "sentinel"  # the position sentinel (Indirect Data) is off for the chain: reset seen by status reads
 
     __hash__ = object.__hash__  # singletons: identity hash at C speed (sets of them are checked every cycle)
 

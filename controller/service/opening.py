@@ -67,12 +67,14 @@ def open_head(
     calibration: HeadCalibration | str | Path | None = None,
     fast_sync_read: FastSyncRead = "auto",
     policy: FaultPolicy | None = None,
+    position_sentinel: bool = True,
 ) -> OpenedHead:
     """Open ``head`` on ``port`` or on the emulator: servos configured from the profile and calibration
     (EEPROM only with torque off, limits written as a hardware backstop), the pipeline and its gate tables
     built, then torque on with goals pinned to present positions (Bus Watchdog armed, ``policy.watchdog_s``)
     and the pipeline starting from where the servos are. A stop signal before torque-on raises
-    :class:`~servoface.controller.stop_signals.StopRequested`; on any failure every servo ends torque off."""
+    :class:`~servoface.controller.stop_signals.StopRequested`; on any failure every servo ends torque off.
+    ``fast_sync_read``, ``policy`` and ``position_sentinel`` go to the `Driver`."""
     if (port is None) == (not emulate):
         raise ControllerError("Face.open: give exactly one of port='/dev/ttyUSB0' or emulate=True")
     the_head = head if isinstance(head, Head) else load_head(head)
@@ -93,7 +95,7 @@ def open_head(
         bus = open_bus("dynamixel", port=port, baud=baud)
     driver: Driver | None = None
     try:
-        driver = Driver(bus, specs, fast_sync_read=fast_sync_read, policy=policy)
+        driver = Driver(bus, specs, fast_sync_read=fast_sync_read, policy=policy, position_sentinel=position_sentinel)
         driver.configure()
         with stop_signals.interruptible():  # torque is off and the bus idle: a signal aborts at once
             pipeline = Pipeline(  # builds the gate's tables (seconds on a first run) before torque goes on

@@ -144,6 +144,7 @@ def test_calm_cycles_give_the_full_paths_snapshots_bytes_and_events(seed: int, f
         (round(e.t_s, 9), e.id, e.instruction, bytes(e.params)) for e in chain_b.log
     ]
     assert list(drv_a.events) == list(drv_b.events)
+    assert drv_a._sentinel and drv_b._sentinel  # positions through the sentinel
     assert all(_snap_fields(snap) == want for snap, want in kept)  # built late, after the records moved on
     assert isinstance(drv_a, CountingDriver)
     assert drv_a.calm > 150  # many cycles were calm ...

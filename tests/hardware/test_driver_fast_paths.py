@@ -26,6 +26,7 @@ from servoface.hardware.errors import GoalRejectedError
 from servoface.hardware.fault_policy import ThermalTrend, eased_goal
 from servoface.hardware.goal_check import check_goals
 from servoface.hardware.registers import HardwareErrorBits, Register, model_by_name, span
+from servoface.hardware.sentinel import SENTINEL, split
 from servoface.hardware.servo_config import ServoSpec
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import ChainSnapshot, FaultKind, LazyServoStates, ServoState, build_state, peek_state
@@ -197,13 +198,24 @@ class StraightDriver(Driver):
             registers = self._position_block(now)
         else:
             ids = started
-            registers = POSITION if self._folded is None else POSITION + self._folded.registers
+            if self._folded is not None:
+                registers = POSITION + self._folded.registers
+            else:
+                registers = (SENTINEL,) if self._sentinel else POSITION
         got = self._read_group(ids, registers, fast=self.fast_sync_read, started=started is not None)
         if self.fast_sync_read and ids:
             self._check_fast_read_support(self._group_failed and len(got) == len(ids))
+        lost: dict[int, int] = {}
         for sid, values in got.items():
             rec = self._records[sid]
-            rec.position_tick = values[Register.PRESENT_POSITION]
+            if SENTINEL not in registers:
+                rec.position_tick = values[Register.PRESENT_POSITION]
+            else:
+                tick, byte = split(values[SENTINEL])
+                if byte != self._witness[sid]:
+                    lost[sid] = byte
+                    continue
+                rec.position_tick = tick
             rec.position_t_s = now
         group, self._folded = self._folded, None
         if group is not None and ids:
@@ -214,6 +226,8 @@ class StraightDriver(Driver):
             self.telemetry_reads[group.name] += 1
             self._apply_group(group, got, now)
         self._mark_results(ids, got, now)
+        for sid, byte in lost.items():
+            self._sentinel_lost(self._records[sid], byte, now)
 
     def _due_group(self, now: float) -> TelemetryGroup | None:
         late = 1.0 / self.policy.telemetry_floor_share - 1.0
@@ -221,7 +235,16 @@ class StraightDriver(Driver):
             g
             for g in self._groups
             if g.due_s <= now
-            and (g.due_s == float("-inf") or self._idle_s >= g.cost_s or now >= g.due_s + g.period_s * late)
+            and (
+                g.due_s == float("-inf")
+                or self._idle_s >= g.cost_s
+                or (not (g.name == "status" and self._sentinel) and now >= g.due_s + g.period_s * late)
+                or (
+                    g.name == "status"
+                    and self._sentinel
+                    and now >= g.due_s - g.period_s + self.policy.sentinel_status_floor_s
+                )
+            )
         ]
         return min(ready, key=lambda g: g.due_s) if ready else None
 

@@ -22,7 +22,8 @@ from tests.hardware.driver_helpers import run
 SYNC_READ, FAST_SYNC_READ = 0x82, 0x8A
 IDS = (1, 2, 3, 4)
 GOALS = {1: 2600, 2: 1700, 3: 1200, 4: 2050}
-POSITION_READ = bytes((132, 0, 4, 0))  # address 132, length 4: Present Position
+POSITION_READ = bytes((132, 0, 4, 0))  # address 132, length 4: Present Position (the probe reads it)
+SENTINEL_READ = bytes((224, 0, 4, 0))  # the cycle's: the position sentinel's Indirect Data
 
 
 def _chain(old_firmware: tuple[int, ...] = ()) -> ServoChain:
@@ -46,7 +47,7 @@ def _position_reads(chain: ServoChain, after: int = 0) -> list[tuple[int, bytes]
     return [
         (e.instruction, e.params)
         for e in chain.log.kept()[after:]
-        if e.instruction in (SYNC_READ, FAST_SYNC_READ) and e.params[:4] == POSITION_READ
+        if e.instruction in (SYNC_READ, FAST_SYNC_READ) and e.params[:4] in (POSITION_READ, SENTINEL_READ)
     ]
 
 

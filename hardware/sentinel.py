@@ -1,0 +1,125 @@
+"""The position sentinel: Present Position read through Indirect Data, with a fourth byte that proves the
+servo has not been reset since it was configured.
+
+Four Indirect Address slots map Present Position's three low bytes (132..134) and Status Return Level (68)
+to the four Indirect Data bytes at 224..227, so the per-cycle position read is still 4 bytes (as a read of
+132 is) and, while the map holds, its fourth byte is the servo's Status Return Level (1 or 2: a servo that
+answers a read has one of those). The map lives in RAM: a reset (brown-out, power cycle, reboot) puts every
+Indirect Address back to its default (its own Indirect Data byte, 0 after power-up), so the fourth byte
+reads 0 and the driver knows in that very cycle. (The servo's ID, 7, would be the obvious witness, but
+Indirect Address accepts 64..661 only: EEPROM cannot be mapped.) 24 bits signed hold every Present
+Position of the position modes (0..4095 plus Homing Offset, or +-256 turns); other operating modes keep
+the direct read.
+
+One Sync Read reads one address from every servo, so the data sits at 224 on every servo, whatever its
+table: the base control table has Indirect Data 1 at 224 (slots 1..4 feed 224..227); XL330 firmware >= 52
+has 20 slots with data from 208, so its slots 17..20 feed 224..227. Which one a servo has is found by
+read-back, never guessed from a model or firmware number: slots 1..4 are written, read back, and 224 read
+between two direct reads of Present Position; if that does not verify, slots 17..20 the same way; else the
+servo keeps the direct read and `SentinelMap.why` says why. No other slot is written (a user may use them),
+and slots that were tried and do not feed 224 are written back as they were. Slots that already hold the map
+(a re-configure with no reset since) are verified first, without a write.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from servoface.hardware.bus import ServoBus
+from servoface.hardware.errors import ServoStatusError
+from servoface.hardware.registers import OperatingMode, Register
+
+SLOT_TARGETS = (132, 133, 134, 68)  # Present Position bits 0..23, Status Return Level (the witness)
+MAP_VALUE = int.from_bytes(b"".join(a.to_bytes(2, "little") for a in SLOT_TARGETS), "little")
+SENTINEL = Register.INDIRECT_SENTINEL  # 224, 4 bytes, on every chain
+SLOTS = ((1, Register.INDIRECT_ADDRESS_1_4), (17, Register.INDIRECT_ADDRESS_17_20))  # tried in this order
+POSITION_MODES = frozenset(
+    {OperatingMode.POSITION, OperatingMode.EXTENDED_POSITION, OperatingMode.CURRENT_BASED_POSITION}
+)
+TICK_MASK = 0xFFFFFF
+TICK_SIGN = 0x800000
+
+
+@dataclass(frozen=True)
+class SentinelMap:
+    """What `map_sentinel` found for one servo."""
+
+    slot: int | None  # the first Indirect Address slot of the verified map (1 or 17); None: direct reads
+    witness: int  # the fourth byte while the map holds (the servo's Status Return Level); 0 without a map
+    why: str  # how it was decided (for events and `Driver.sentinel_info`)
+
+
+def split(raw: int) -> tuple[int, int]:
+    """(position tick, witness byte) of a sentinel register's value (24-bit two's complement, then a byte)."""
+    return ((raw & TICK_MASK) ^ TICK_SIGN) - TICK_SIGN, raw >> 24
+
+
+def map_sentinel(bus: ServoBus, servo_id: int, operating_mode: int) -> SentinelMap:
+    """Write the sentinel's map to one servo (slots 1..4, else 17..20) until Indirect Data at 224 verifies.
+
+    Call with torque off (configure): the position read at 224 is bracketed by two direct reads. A refusal
+    by the servo (an error status) counts as not verified; bus failures raise.
+    """
+    try:
+        mode = OperatingMode(operating_mode)
+    except ValueError:
+        return SentinelMap(None, 0, f"servo {servo_id}: operating mode {operating_mode}: direct reads")
+    if mode not in POSITION_MODES:
+        return SentinelMap(
+            None, 0, f"servo {servo_id}: {mode.name} mode (Present Position may exceed 24 bits): direct reads"
+        )
+    witness = bus.read(servo_id, Register.STATUS_RETURN_LEVEL)
+    tried: list[str] = []
+    was: dict[int, int] = {}
+    for first, slots in SLOTS:
+        try:
+            was[first] = bus.read(servo_id, slots)
+        except ServoStatusError as err:
+            tried.append(f"slots {first}..{first + 3}: unreadable ({err})")
+    # slots that hold the map already (configured before, no reset since) are checked first, unwritten: on
+    # XL330, writing slots 1..4 while 17..20 still feed 224 would verify through 17..20 and keep 1..4 too
+    for first, slots in sorted(SLOTS, key=lambda fs: was.get(fs[0]) != MAP_VALUE):
+        if first not in was:
+            continue
+        name = f"slots {first}..{first + 3}"
+        found = _try(bus, servo_id, slots, witness, write=was[first] != MAP_VALUE)
+        if found is None:
+            return SentinelMap(
+                first, witness, f"servo {servo_id}: Indirect Data at {SENTINEL.address} verified ({name})"
+            )
+        if was[first] != MAP_VALUE:
+            try:  # these slots do not feed 224 on this servo: leave them as they were (a user may use them)
+                bus.write(servo_id, slots, was[first])
+            except ServoStatusError:
+                pass
+        if isinstance(found, SentinelMap):
+            return found
+        tried.append(f"{name}: {found}")
+    return SentinelMap(
+        None,
+        0,
+        f"servo {servo_id}: the sentinel did not verify at {SENTINEL.address} ({'; '.join(tried)}): direct reads",
+    )
+
+
+def _try(bus: ServoBus, servo_id: int, slots: Register, witness: int, *, write: bool) -> str | SentinelMap | None:
+    """Map ``slots`` (``write``: else they hold the map already) and verify at 224: None when it verified, else
+    why not (a `SentinelMap` when the servo cannot use the sentinel at all)."""
+    if write:
+        try:
+            bus.write(servo_id, slots, MAP_VALUE)
+        except ServoStatusError as err:
+            return f"write refused ({err})"
+    if bus.read(servo_id, slots) != MAP_VALUE:
+        return "did not read back"
+    before = bus.read(servo_id, Register.PRESENT_POSITION)
+    if not -TICK_SIGN <= before < TICK_SIGN:
+        return SentinelMap(None, 0, f"servo {servo_id}: Present Position {before} beyond 24 bits: direct reads")
+    try:
+        tick, byte = split(bus.read(servo_id, SENTINEL))
+    except ServoStatusError as err:
+        return f"{SENTINEL.address} unreadable ({err})"
+    after = bus.read(servo_id, Register.PRESENT_POSITION)
+    if witness and byte == witness and min(before, after) <= tick <= max(before, after):
+        return None
+    return f"read position {tick}, witness {byte} (expected {before}..{after}, {witness})"
