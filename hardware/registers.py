@@ -70,6 +70,8 @@ class Register(Enum):
     POSITION_TRAJECTORY = (140, 4, True, Area.READ_ONLY)
     PRESENT_INPUT_VOLTAGE = (144, 2, False, Area.READ_ONLY)  # 0.1 V
     PRESENT_TEMPERATURE = (146, 1, False, Area.READ_ONLY)  # deg C
+    # bit 0 Startup Torque On, bit 1 RAM Restore (firmware >= 45; XL330 >= 46); absent on MX-28(2.0)
+    STARTUP_CONFIGURATION = (60, 1, False, Area.EEPROM)
     # The position sentinel (hardware/sentinel.py). Indirect Address slots, 2 bytes each, little-endian,
     # from 168 on every model: slots 1..4 (168..175) feed Indirect Data 1..4 at 224 in the base control
     # table; on XL330 firmware >= 52 (20 slots, data from 208) slots 17..20 (200..207) feed 224..227.

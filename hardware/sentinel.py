@@ -16,7 +16,9 @@ table: the base control table has Indirect Data 1 at 224 (slots 1..4 feed 224..2
 has 20 slots with data from 208, so its slots 17..20 feed 224..227. Which one a servo has is found by
 read-back, never guessed from a model or firmware number: slots 1..4 are written, read back, and 224 read
 between two direct reads of Present Position; if that does not verify, slots 17..20 the same way; else the
-servo keeps the direct read and `SentinelMap.why` says why. No other slot is written (a user may use them),
+servo keeps the direct read and `SentinelMap.why` says why. So does a servo with RAM Restore on (Startup
+Configuration bit 1): it may restore a backed-up RAM, the map included, at power-up, and then the witness
+would not show the reset. No other slot is written (a user may use them),
 and slots that were tried and do not feed 224 are written back as they were. Slots that already hold the map
 (a re-configure with no reset since) are verified first, without a write.
 """
@@ -36,6 +38,7 @@ SLOTS = ((1, Register.INDIRECT_ADDRESS_1_4), (17, Register.INDIRECT_ADDRESS_17_2
 POSITION_MODES = frozenset(
     {OperatingMode.POSITION, OperatingMode.EXTENDED_POSITION, OperatingMode.CURRENT_BASED_POSITION}
 )
+RAM_RESTORE_BIT = 0x02  # Startup Configuration (60) bit 1
 TICK_MASK = 0xFFFFFF
 TICK_SIGN = 0x800000
 
@@ -67,6 +70,17 @@ def map_sentinel(bus: ServoBus, servo_id: int, operating_mode: int) -> SentinelM
     if mode not in POSITION_MODES:
         return SentinelMap(
             None, 0, f"servo {servo_id}: {mode.name} mode (Present Position may exceed 24 bits): direct reads"
+        )
+    try:
+        startup = bus.read(servo_id, Register.STARTUP_CONFIGURATION)
+    except ServoStatusError:
+        startup = 0  # no such register on this table (older firmware): nothing is restored at power-up
+    if startup & RAM_RESTORE_BIT:
+        return SentinelMap(
+            None,
+            0,
+            f"servo {servo_id}: RAM Restore is on (Startup Configuration = {startup}, bit 1): a reset could "
+            "restore a backed-up map, so the witness would not show it: direct reads",
         )
     witness = bus.read(servo_id, Register.STATUS_RETURN_LEVEL)
     tried: list[str] = []

@@ -511,3 +511,47 @@ def test_another_process_chain_reset_by_a_reboot_on_the_wire_is_seen_and_repaire
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.communicate()
+
+
+def test_ram_restore_on_one_servo_keeps_direct_reads_for_the_chain_and_maps_nothing_on_it() -> None:
+    """RAM Restore (Startup Configuration bit 1) may bring a backed-up map back at power-up, so a reset would
+    not show in the witness: that servo is not mapped at all, the chain reads directly (an event says why),
+    and a reset is still seen by the status group."""
+    chain = ServoChain.create(ids=[1, 2, 3], model="XL330-M288", wire_time=False, clock="manual")
+    chain.servo(2).write_register("Startup Configuration", 2)
+    fresh = ServoChain.create(ids=[2], model="XL330-M288", wire_time=False, clock="manual")
+    specs = [ServoSpec(i, "XL330-M288", min_position_tick=1024, max_position_tick=3072) for i in (1, 2, 3)]
+    driver = Driver(open_bus("emulator", chain=chain), specs, clock=chain.clock)
+    driver.configure()
+    driver.torque_on()
+    ev = events_of(driver, FaultKind.SENTINEL)
+    assert len(ev) == 1 and "servo 2" in ev[0].reaction and "RAM Restore" in ev[0].reaction
+    assert "directly" in driver.sentinel_info and "RAM Restore" in driver.sentinel_info
+    assert not [w for w in _writes_at(chain, 168, 256) if w[0] == 2]
+    assert [_slots(chain, 2, k, 1) for k in range(1, 21)] == [_slots(fresh, 2, k, 1) for k in range(1, 21)]
+    n = len(chain.log.kept())
+    snaps = run(chain, driver, {1: 2000, 2: 2500, 3: 1500}, 1.0)
+    assert snaps[-1].positions_tick() == {1: 2000, 2: 2500, 3: 1500}
+    assert {r for r in _reads(chain, n) if r[1] == 4} == {(132, 4, 3)}
+    chain.servo(1).reboot(0.0)
+    run(chain, driver, {1: 2000, 2: 2500, 3: 1500}, 0.5)
+    assert events_of(driver, FaultKind.RECONNECTED, 1) and chain.servo(1).torque_on
+
+
+def test_startup_torque_on_alone_does_not_refuse_the_sentinel() -> None:
+    """Bit 0 (Startup Torque On) restores no RAM: the map still goes at a reset, so the sentinel stays on,
+    and it is what sees such a reset (torque comes back on by itself, so the status read would not)."""
+    chain = ServoChain.create(ids=[1, 2], model="XL330-M288", wire_time=False, clock="manual")
+    chain.servo(2).write_register("Startup Configuration", 1)
+    specs = [ServoSpec(i, "XL330-M288", min_position_tick=1024, max_position_tick=3072) for i in (1, 2)]
+    driver = Driver(open_bus("emulator", chain=chain), specs, clock=chain.clock)
+    driver.configure()
+    driver.torque_on()
+    assert driver._sentinel and not events_of(driver, FaultKind.SENTINEL)
+    run(chain, driver, {1: 2000, 2: 2500}, 0.5)
+    chain.servo(2).reboot(0.0)  # comes back with torque on by itself: "torque found off" cannot see it
+    assert chain.servo(2).torque_on
+    run(chain, driver, {1: 2000, 2: 2500}, 0.1)
+    ev = events_of(driver, FaultKind.RECONNECTED, 2)
+    assert len(ev) == 1 and "sentinel" in ev[0].reaction
+    assert _slots(chain, 2, 17) == list(SLOT_TARGETS)  # map rewritten (XL330: slots 17..20)
