@@ -227,6 +227,11 @@ def run_demo(
         perf = face.play(script) if builtin else face.perform(script, end_s)  # both on the head service
         errors = settle_error_tick(face)
         stats = face.driver.bus.stats.copy() if face.driver is not None else None
+        reads = (
+            {"positions": face.driver.sentinel_info, "read": face.driver.fast_read_info}
+            if face.driver is not None
+            else {}
+        )
     # the service has stopped (eased, torque off, port closed): the twin and the renderer are ours alone now
     say("rendering the twin video, the contact sheet and the most clipped frame")
     video = out_dir / f"twin.{video_format}"
@@ -248,6 +253,7 @@ def run_demo(
             "servos": len(face.head.actuators),
             "transactions": getattr(stats, "transactions", None),
             "bytes_written": getattr(stats, "bytes_written", None),
+            **reads,  # how positions were read: the position sentinel (or why not), Fast Sync Read (or why not)
         },
         "frames": summary["frames"],
         "verdicts": summary["verdicts"],

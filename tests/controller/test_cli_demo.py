@@ -58,6 +58,8 @@ def test_demo_cli_writes_video_sheet_clip_and_report(short_demo: Path, capsys: p
     assert report["frames"] >= 10 and sum(report["verdicts"].values()) == report["frames"]
     assert report["verdicts"]["clip"] + report["verdicts"]["reject"] > 0  # the jaw snap is too fast
     assert report["clip_reasons"] and report["bus"]["bytes_written"] > 0
+    assert "Indirect Data at 224" in report["bus"]["positions"]  # the position sentinel, on the mixed chain
+    assert "Fast Sync Read" in report["bus"]["read"]
     assert report["max_goal_error_tick"] is not None and report["max_goal_error_tick"] <= 1
     assert set(report["goal_error_tick"]) == {str(i) for i in range(1, 31)}
     gif = Image.open(short_demo / "twin.gif")
