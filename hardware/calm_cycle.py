@@ -59,22 +59,17 @@ class CalmCycle(ChainReads):
             self._apply_positions(now, ids, registers, got)
             return None
         position = registers[0]
-        items: dict[int, ServoState | StateCapture] = {}
-        if position is SENTINEL:  # through the sentinel: every witness byte first (a reset: the full path)
+        through = position is SENTINEL
+        if through:  # through the sentinel: every witness byte first (a reset: the full path)
             witness = self._witness
             if any(values[position] >> 24 != witness.get(sid, -1) for sid, values in got.items()):
                 self._apply_positions(now, ids, registers, got)
                 return None
-            for sid, (rec, base) in plan.items():
-                tick = ((got[sid][position] & TICK_MASK) ^ TICK_SIGN) - TICK_SIGN
-                rec.position_tick = tick
-                rec.position_t_s = now
-                rec.failures = 0
-                rec.stale = False
-                items[sid] = (base, tick, now, rec.goal_tick, False)
-            return items
+        items: dict[int, ServoState | StateCapture] = {}
         for sid, (rec, base) in plan.items():  # `got` holds exactly the ids asked for: every servo's
             tick = got[sid][position]
+            if through:
+                tick = ((tick & TICK_MASK) ^ TICK_SIGN) - TICK_SIGN
             rec.position_tick = tick
             rec.position_t_s = now
             rec.failures = 0

@@ -188,26 +188,21 @@ class ChainReads:
         applied."""
         records = self._records
         position = registers[0]
+        through = position is SENTINEL
+        witness = self._witness
         lost: dict[int, int] = {}
-        if position is not SENTINEL:
-            for sid, values in got.items():  # `_mark_results` for the servos that answered, in the same pass
-                rec = records[sid]
-                rec.position_tick = values[position]
-                rec.position_t_s = now
-                rec.failures = 0
-                rec.stale = False
-        else:
-            witness = self._witness
-            for sid, values in got.items():
-                raw = values[position]
-                if raw >> 24 != witness.get(sid, -1):
-                    lost[sid] = raw >> 24
+        for sid, values in got.items():  # `_mark_results` for the servos that answered, in the same pass
+            tick = values[position]
+            if through:  # position bits 0..23 and the witness byte (`sentinel.split`, inline)
+                if tick >> 24 != witness.get(sid, -1):
+                    lost[sid] = tick >> 24
                     continue
-                rec = records[sid]
-                rec.position_tick = ((raw & TICK_MASK) ^ TICK_SIGN) - TICK_SIGN
-                rec.position_t_s = now
-                rec.failures = 0
-                rec.stale = False
+                tick = ((tick & TICK_MASK) ^ TICK_SIGN) - TICK_SIGN
+            rec = records[sid]
+            rec.position_tick = tick
+            rec.position_t_s = now
+            rec.failures = 0
+            rec.stale = False
         group, self._folded = self._folded, None
         if group is not None and ids:
             self._folded_this_cycle = True
