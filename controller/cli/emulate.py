@@ -100,6 +100,8 @@ def chain_state(chain: Any) -> dict[str, Any]:
         "t_s": chain.time_s,
         "packets_received": len(chain.log),  # every instruction packet the chain ever got (CRC valid)
         "instruction_counts": _instruction_counts(chain),
+        "read_addresses": _read_addresses(chain),
+        "indirect_address_writes": _indirect_address_writes(chain),
         "servos": servos,
         "goal_writes": [[round(t, 6), sid, tick] for t, sid, tick in chain.goal_writes()],
         "torque_writes": [[round(t, 6), sid, v] for t, sid, v in chain.register_writes(64, 1)],
@@ -112,6 +114,28 @@ def _instruction_counts(chain: Any) -> dict[str, int]:
 
     counts = Counter(entry.instruction for entry in chain.log.kept())
     return {f"0x{code:02X}": n for code, n in sorted(counts.items())}
+
+
+def _read_addresses(chain: Any) -> dict[str, int]:
+    """How many (Fast) Sync Reads (0x82, 0x8A) the packet log holds per start address (``"224"``: through the
+    position sentinel's Indirect Data; ``"132"``: Present Position read directly)."""
+    from collections import Counter
+
+    counts = Counter(
+        entry.params[0] | entry.params[1] << 8
+        for entry in chain.log.kept()
+        if entry.instruction in (0x82, 0x8A) and len(entry.params) >= 4
+    )
+    return {str(address): n for address, n in sorted(counts.items())}
+
+
+def _indirect_address_writes(chain: Any) -> int:
+    """How many writes (any write instruction, per servo) the packet log holds to an Indirect Address slot of
+    the base table (168..223, 2 bytes each: XL330's 20 slots are 168..207)."""
+    from servoface.hardware.emulator.packet_log import register_writes
+
+    kept = chain.log.kept()
+    return len({(t, sid) for address in range(168, 224, 2) for t, sid, _ in register_writes(kept, address, 2)})
 
 
 def write_state(chain: Any, path: Path) -> None:

@@ -23,14 +23,18 @@ def add_head_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rate", type=float, default=50.0, help="control rate in Hz (default 50)")
     parser.add_argument("--calibration", type=Path, help="calibration JSON (default: the one the profile names)")
     parser.add_argument("--trace", type=Path, help="write every frame's trace as JSON lines to this file")
-    add_fast_read_argument(parser)
+    add_read_arguments(parser)
 
 
 FAST_READ_CHOICES = {"auto": "auto", "on": True, "off": False}  # --fast-sync-read -> Driver(fast_sync_read=)
 
 
-def add_fast_read_argument(parser: argparse.ArgumentParser) -> None:
-    """--fast-sync-read auto|on|off: how the driver reads positions (`Driver`'s ``fast_sync_read``)."""
+SENTINEL_CHOICES = {"on": True, "off": False}  # --position-sentinel -> Driver(position_sentinel=)
+
+
+def add_read_arguments(parser: argparse.ArgumentParser) -> None:
+    """--fast-sync-read auto|on|off and --position-sentinel on|off: how the driver reads positions
+    (`Driver`'s ``fast_sync_read`` and ``position_sentinel``)."""
     parser.add_argument(
         "--fast-sync-read",
         choices=tuple(FAST_READ_CHOICES),
@@ -38,11 +42,23 @@ def add_fast_read_argument(parser: argparse.ArgumentParser) -> None:
         help="read positions with Fast Sync Read: auto (default: probed at start-up, used if every servo "
         "answers), on (forced), off (plain Sync Read, e.g. firmware without it: no start-up probe)",
     )
+    parser.add_argument(
+        "--position-sentinel",
+        choices=tuple(SENTINEL_CHOICES),
+        default="on",
+        help="read positions through four Indirect Address slots that also show a reset servo at once: on "
+        "(default), off (nothing written to Indirect Address, e.g. slots another tool uses: positions read "
+        "directly, a reset seen by the status read)",
+    )
 
 
-def fast_read_value(args: argparse.Namespace) -> Any:
-    """The ``fast_sync_read`` value ``--fast-sync-read`` names ("auto" without the argument)."""
-    return FAST_READ_CHOICES[getattr(args, "fast_sync_read", "auto")]
+def read_options(args: argparse.Namespace) -> dict[str, Any]:
+    """``fast_sync_read`` and ``position_sentinel`` for `Face.open` / `open_head`, as the arguments name them
+    (the defaults where a command has no such arguments)."""
+    return {
+        "fast_sync_read": FAST_READ_CHOICES[getattr(args, "fast_sync_read", "auto")],
+        "position_sentinel": SENTINEL_CHOICES[getattr(args, "position_sentinel", "on")],
+    }
 
 
 def open_errors() -> tuple[type[BaseException], ...]:
@@ -69,7 +85,7 @@ def open_face(args: argparse.Namespace, head: Head) -> Face:
             baud=args.baud,
             rate_hz=args.rate,
             calibration=args.calibration,
-            fast_sync_read=fast_read_value(args),
+            **read_options(args),
         )
     except BusTimeoutError as err:
         if args.port is None:

@@ -10,7 +10,7 @@ import threading
 import time
 from pathlib import Path
 
-from servoface.controller.cli.head_args import add_fast_read_argument, fast_read_value
+from servoface.controller.cli.head_args import add_read_arguments, read_options
 from servoface.controller.cli.network_args import add_network_arguments, open_from_args
 
 HELP = "serve a head on Zenoh (servoface/<site>/<name>/...): commands, AU streams, state, status, presence"
@@ -25,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     where.add_argument("--emulate", action="store_true", help="an in-process emulated chain")
     parser.add_argument("--baud", type=int, default=1_000_000, help="bus speed (default 1000000)")
     parser.add_argument("--rate", type=float, default=50.0, help="control rate in Hz (default 50)")
-    add_fast_read_argument(parser)
+    add_read_arguments(parser)
     parser.add_argument(
         "--hold-on-link-loss",
         action="store_true",
@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
             emulate=args.emulate,
             baud=args.baud,
             rate_hz=args.rate,
-            fast_sync_read=fast_read_value(args),
+            **read_options(args),
         )
     except (ControllerError, SimError, HardwareError, OSError, ValueError) as err:
         session.close()

@@ -10,7 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from servoface.controller.cli.head_args import add_fast_read_argument, fast_read_value
+from servoface.controller.cli.head_args import add_read_arguments, read_options
 
 HELP = "serve the studio (browser app) for a head: live AUs and twin, servos, calibration, authoring"
 
@@ -23,7 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--baud", type=int, default=1_000_000, help="bus speed in bps (default 1000000)")
     parser.add_argument("--rate", type=float, default=50.0, help="control rate in Hz (default 50)")
     parser.add_argument("--calibration", type=Path, help="calibration JSON (default: the one the profile names)")
-    add_fast_read_argument(parser)
+    add_read_arguments(parser)
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1, loopback)")
     parser.add_argument("--port-http", type=int, default=8765, help="HTTP port (default 8765; 0 = any free one)")
     parser.add_argument(
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         opened = open_head(
             args.head, port=args.port, emulate=args.emulate, baud=args.baud, rate_hz=args.rate,
-            calibration=args.calibration, fast_sync_read=fast_read_value(args),
+            calibration=args.calibration, **read_options(args),
         )  # fmt: skip
     except open_errors() as err:
         print(f"servoface studio: {err}", file=sys.stderr)
