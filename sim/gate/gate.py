@@ -144,6 +144,8 @@ class TwinGate:
         pairs = list(cfg.collision_pairs) if cfg.collision_pairs is not None else auto_pairs(head, self.tree)
         self.collisions = PartCollisions(head, self.tree, pairs, cfg.tss, cache, clearance=cfg.clearance)
         self._pair_index: dict[tuple[str, ...], list[int]] = {}  # (part a, part b) -> indices of their specs
+        self._pair_columns: dict[tuple[str, ...], BoolArray] = {}  # (part a, part b) -> servos moving them
+        self._skin_columns: BoolArray | None = None  # servos moving the skin (`_uninvolved`)
         for p, spec in enumerate(self.collisions.specs):
             self._pair_index.setdefault((spec.a, spec.b), []).append(p)
         self._last_sent: IntArray | None = None
@@ -418,6 +420,7 @@ class TwinGate:
             suspects=suspects,
             rate_last=rate_last,
             skin_first=skin_first,
+            free=self._uninvolved(hard),
         )
         if best is not None and np.array_equal(best, last) and np.array_equal(clamped, last):
             # the per-servo clamp itself is the last command and passed every check (e.g. a servo held at
@@ -429,6 +432,36 @@ class TwinGate:
         goals = dict(zip(self.table.ids, best.tolist(), strict=True))
         return self._remember(Verdict("clip", goals, tuple(findings), frac, requested), last, best)
 
+    def _uninvolved(self, hard: list[Finding]) -> BoolArray | None:
+        """The servos that cannot move what the request's state checks failed on, as a (n,) mask (None when
+        none can be told apart): for a collision, every servo but those driving a joint on either part's
+        chain; for strain and flips, every servo but those driving a skinning joint's chain and the anchors
+        (the eyes and lids of the built-in heads). A coupling rule or any other finding, or a head whose
+        calibration couples servos, frees none (freeing the servos a coupling rule does not name was tried:
+        the human's walk then moved further and its gate time per frame rose ~15 %, p99 included). The
+        scale-back keeps the free servos at their whole clamped step (`_scale_back`)."""
+        if not hard or self.poser.coupled:
+            return None
+        involved = np.zeros(self.table.n, dtype=bool)
+        for f in hard:
+            if f.check == "collision" and f.parts:
+                key = tuple(f.parts)
+                cols = self._pair_columns.get(key)
+                if cols is None:
+                    joints = self.tree.ancestry(self._part_index(name) for name in key)
+                    cols = self._pair_columns[key] = self.poser.columns_driving(joints)
+                involved |= cols
+            elif f.check in ("strain", "flip"):
+                if self._skin_columns is None:
+                    cols = self.poser.columns_driving(self.tree.ancestry(self.skin.joints_used))
+                    cols[self.poser.anchor_cols] = True
+                    self._skin_columns = cols
+                involved |= self._skin_columns
+            else:
+                return None
+        free = ~involved
+        return free if free.any() else None
+
     def _scale_back(
         self,
         req: IntArray,
@@ -439,16 +472,18 @@ class TwinGate:
         suspects: tuple[int, ...] = (),
         rate_last: IntArray | None = None,
         skin_first: bool = False,
+        free: BoolArray | None = None,
     ) -> tuple[IntArray | None, float]:
         """The largest step fraction whose clamped command passes every check (batched bisection).
         ``skip_full``: ``req`` itself failed a state check, so its clamp is not re-checked if equal.
         ``skin_first``: measure each candidate's skin before its contact tests (`_last_ok`).
-        ``rate_last``: where the rate caps measure the step from (default ``last``; see `limits.per_time`)."""
+        ``rate_last``: where the rate caps measure the step from (default ``last``; see `limits.per_time`).
+        ``free``: servos that cannot move what the request failed on (`_uninvolved`): the search first scales
+        only the others, these keeping their whole clamped step (a jaw that would hit the teeth does not
+        slow the eyes); if no such candidate passes, every servo is scaled. Every candidate is fully
+        checked either way, so this changes which safe command is found, never whether it is safe."""
         step = req - last
         base = last if rate_last is None else rate_last
-        lo, hi = 0.0, 1.0
-        best: IntArray | None = None
-        best_frac = 0.0
         # answers already known in this search (command bytes -> passed), from every candidate checked: a
         # round's last candidate is always one (round 1's is the clamped request, a later round's the failed
         # top end of the previous round), and truncation makes neighbouring candidates repeat
@@ -458,10 +493,36 @@ class TwinGate:
             known[cand_1.tobytes()] = False  # the request itself failed a state check
         elif self._last_ok(cand_1[None, :], suspects, known, skin_first) == 0:
             return cand_1, 1.0
+        if free is not None and not np.array_equal(cand_1[free], last[free]):
+            best, frac = self._bisect(step, last, base, last_step, table, cand_1, free, suspects, known, skin_first)
+            if best is not None:
+                return best, frac
+        return self._bisect(step, last, base, last_step, table, cand_1, None, suspects, known, skin_first)
+
+    def _bisect(
+        self,
+        step: IntArray,
+        last: IntArray,
+        base: IntArray,
+        last_step: IntArray,
+        table: lim.ServoTable,
+        cand_1: IntArray,
+        free: BoolArray | None,
+        suspects: tuple[int, ...],
+        known: dict[bytes, bool],
+        skin_first: bool,
+    ) -> tuple[IntArray | None, float]:
+        """`_scale_back`'s search on the step fraction: 8 candidates a round, every one fully checked; the
+        ``free`` servos at ``cand_1`` (the clamped request) in every candidate."""
+        lo, hi = 0.0, 1.0
+        best: IntArray | None = None
+        best_frac = 0.0
         for _ in range(max(1, self.config.bisection_rounds)):
             fracs = lo + (hi - lo) * np.arange(1, 9) / 8.0
             raw = last + np.trunc(fracs[:, None] * step[None, :]).astype(np.int64)
             cands = lim.clamp(raw, base, last_step, table)
+            if free is not None:
+                cands[:, free] = cand_1[free]
             found = self._last_ok(cands, suspects, known, skin_first)
             if found is None:
                 hi = fracs[0]

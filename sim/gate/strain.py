@@ -107,6 +107,11 @@ class SkinTwin:
         # `measure_one_faces`' last keyed answer: (offsets key, static, subset, skinning joints' transforms, answer)
         self._last_one: tuple[bytes, tuple[float, float, int], int, FloatArray, _Measured] | None = None
 
+    @property
+    def joints_used(self) -> list[int]:
+        """JointTree indices of the joints some skin vertex is weighted to (the head base left out)."""
+        return list(self._joints_used)
+
     def _fast_subset(self, edges: NDArray[np.bool_], faces: NDArray[np.bool_]) -> None:
         """The active edges and faces `measure_one` measures (all of them, or the pull-driven ones), and
         the vertices they touch (`fast_vertices`). Each call is a new `subset` (a `FlipProbe` is of one)."""

@@ -101,6 +101,17 @@ class TwinPoser:
         q[self._joint_idx] = targets.take(self._joint_col)
         return targets, np.clip(q, self.tree.lower_deg, self.tree.upper_deg), targets.take(self.anchor_cols)
 
+    def columns_driving(self, joints: list[int]) -> NDArray[np.bool_]:
+        """(n,) mask of the servo columns whose targets set any of ``joints`` (JointTree indices)."""
+        mask = np.zeros(len(self.roles), dtype=bool)
+        mask[self._joint_col[np.isin(self._joint_idx, np.asarray(joints, dtype=np.int64))]] = True
+        return mask
+
+    @property
+    def coupled(self) -> bool:
+        """Some servo's target depends on other servos' ticks (a calibration coupling)."""
+        return self._any_coupled
+
     def joint_angles(self, targets: FloatArray) -> FloatArray:
         """(k, J) joint angles: driven joints from their servo's target, the rest at neutral, all clamped to
         the joint limits (the rig's hard stops, as in `servoface.sim.kinematics`)."""

@@ -45,7 +45,9 @@ class Verdict:
     ``goals_tick`` is what may be sent (servo id -> tick, every servo): the request (accept), the nearest
     safe command found (clip) or the last safe command (reject = hold). ``findings`` lists every check that
     fired on the request, plus, for a clip, why it was scaled back. ``step_fraction`` is the share of the
-    requested step that was kept (1 for accept, 0 for reject).
+    requested step that was kept (1 for accept, 0 for reject; for a clip, the share of the servos it slowed:
+    the servos that cannot move what the request failed on keep their whole clamped step, see
+    `TwinGate._uninvolved`).
     """
 
     kind: VerdictKind

@@ -46,20 +46,42 @@ def _plain_scale_back(
     suspects: tuple[int, ...] = (),
     rate_last: Any = None,
     skin_first: bool = False,
+    free: Any = None,
 ) -> tuple[Any, float]:
-    """`TwinGate._scale_back` before the reuse and the skin-first order (``skin_first`` is ignored)."""
+    """`TwinGate._scale_back` before the reuse and the skin-first order (``skin_first`` is ignored): the
+    ``free`` servos at the clamped request first, then every servo scaled."""
     step = req - last
     base = last if rate_last is None else rate_last
-    lo, hi = 0.0, 1.0
-    best = None
-    best_frac = 0.0
     cand_1 = lim.clamp(req, base, last_step, table)
     if not (skip_full and np.array_equal(cand_1, req)) and _plain_last_ok(self, cand_1[None, :], suspects) == 0:
         return cand_1, 1.0
+    if free is not None and not np.array_equal(cand_1[free], last[free]):
+        best, frac = _plain_bisect(self, step, last, base, last_step, table, cand_1, free, suspects)
+        if best is not None:
+            return best, frac
+    return _plain_bisect(self, step, last, base, last_step, table, cand_1, None, suspects)
+
+
+def _plain_bisect(
+    self: TwinGate,
+    step: Any,
+    last: Any,
+    base: Any,
+    last_step: Any,
+    table: lim.ServoTable,
+    cand_1: Any,
+    free: Any,
+    suspects: tuple[int, ...],
+) -> tuple[Any, float]:
+    lo, hi = 0.0, 1.0
+    best = None
+    best_frac = 0.0
     for _ in range(max(1, self.config.bisection_rounds)):
         fracs = lo + (hi - lo) * np.arange(1, 9) / 8.0
         raw = last + np.trunc(fracs[:, None] * step[None, :]).astype(np.int64)
         cands = lim.clamp(raw, base, last_step, table)
+        if free is not None:
+            cands[:, free] = cand_1[free]
         found = _plain_last_ok(self, cands, suspects)
         if found is None:
             hi = fracs[0]
