@@ -17,66 +17,29 @@ from typing import Any
 import pytest
 from servoface.hardware.bus import open_bus
 from servoface.hardware.driver import Driver
-from servoface.hardware.dynamixel_bus import DynamixelBus, TableCrcPacketHandler, _WindowedPort, sdk
+from servoface.hardware.dynamixel_bus import DynamixelBus, TableCrcPacketHandler, sdk
 from servoface.hardware.emulator import ServoChain
 from servoface.hardware.registers import Register
 from servoface.hardware.servo_config import ServoSpec
 
+from tests.hardware.pty_pair import PtyPort, pty_pair
+
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals need a POSIX system")
 
 
-class _Pty:
-    """A pty whose slave a `_WindowedPort` opens as the SDK does (``serial.Serial(..., timeout=0)``)."""
-
-    def __init__(self, raw: bool) -> None:
-        self.master, slave = os.openpty()
-        self.port = _WindowedPort(os.ttyname(slave))
-        self.port.baudrate = 1_000_000
-        assert self.port.openPort()
-        os.close(slave)
-        if not raw:
-            self.port._raw_read = self.port._raw_write = False  # pyserial's own read and write, the reference
-
-    def feed(self, data: bytes) -> None:
-        """Write ``data`` at the far end and wait until all of it can be read (a pty hands it over later)."""
-        before = self.port.ser.in_waiting
-        os.write(self.master, data)
-        deadline = time.monotonic() + 2.0
-        while self.port.ser.in_waiting < before + len(data) and time.monotonic() < deadline:
-            time.sleep(0.0005)
-
-    def read(self, size: int) -> tuple[str, Any]:
-        try:
-            return "ok", self.port.readPort(size)
-        except Exception as err:
-            return type(err).__name__, str(err)
-
-    def close(self) -> None:
-        for fd in (self.master,):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
-        if self.port.is_open:
-            self.port.closePort()
-
-
 @pytest.fixture
-def ptys() -> Iterator[tuple[_Pty, _Pty]]:
-    pair = (_Pty(raw=False), _Pty(raw=True))
-    yield pair
-    for p in pair:
-        p.close()
+def ptys() -> Iterator[tuple[PtyPort, PtyPort]]:
+    yield from pty_pair()
 
 
-def test_a_pyserial_port_is_read_raw(ptys: tuple[_Pty, _Pty]) -> None:
+def test_a_pyserial_port_is_read_raw(ptys: tuple[PtyPort, PtyPort]) -> None:
     """The point of it (and that the reference really is pyserial's read and write)."""
     assert ptys[1].port._raw_read and not ptys[0].port._raw_read
     assert ptys[1].port._raw_write and not ptys[0].port._raw_write
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_the_same_bytes_as_pyserial(ptys: tuple[_Pty, _Pty], seed: int) -> None:
+def test_the_same_bytes_as_pyserial(ptys: tuple[PtyPort, PtyPort], seed: int) -> None:
     rng = random.Random(seed)
     for _ in range(150):
         if rng.random() < 0.7:
@@ -92,7 +55,7 @@ def test_the_same_bytes_as_pyserial(ptys: tuple[_Pty, _Pty], seed: int) -> None:
 
 
 @pytest.mark.parametrize("pending", [b"", b"\xff\xff\xfd\x00\x01"])
-def test_the_far_end_closed_is_pyserials_error(ptys: tuple[_Pty, _Pty], pending: bytes) -> None:
+def test_the_far_end_closed_is_pyserials_error(ptys: tuple[PtyPort, PtyPort], pending: bytes) -> None:
     for p in ptys:
         if pending:
             p.feed(pending)
@@ -103,7 +66,7 @@ def test_the_far_end_closed_is_pyserials_error(ptys: tuple[_Pty, _Pty], pending:
     assert ours[0] == "SerialException"
 
 
-def test_a_port_closed_under_the_sdk_is_pyserials_error(ptys: tuple[_Pty, _Pty]) -> None:
+def test_a_port_closed_under_the_sdk_is_pyserials_error(ptys: tuple[PtyPort, PtyPort]) -> None:
     for p in ptys:
         p.port.ser.close()
     theirs, ours = ptys[0].read(11), ptys[1].read(11)
@@ -112,7 +75,7 @@ def test_a_port_closed_under_the_sdk_is_pyserials_error(ptys: tuple[_Pty, _Pty])
 
 @pytest.mark.parametrize("code", [errno.EIO, errno.EBADF, errno.EAGAIN, errno.EINTR])
 def test_an_os_error_of_the_fd_is_pyserials(
-    ptys: tuple[_Pty, _Pty], code: int, monkeypatch: pytest.MonkeyPatch
+    ptys: tuple[PtyPort, PtyPort], code: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """EIO (a USB adapter pulled), EBADF: pyserial's ``SerialException('read failed: ...')``; EAGAIN / EINTR:
     nothing read. Both read through the same ``os.read``, failing for the ptys' fds."""
@@ -133,7 +96,7 @@ def test_an_os_error_of_the_fd_is_pyserials(
     assert ours == (("ok", b"") if code in (errno.EAGAIN, errno.EINTR) else ("SerialException", ours[1]))
 
 
-def test_a_reopened_port_is_read_raw_again(ptys: tuple[_Pty, _Pty]) -> None:
+def test_a_reopened_port_is_read_raw_again(ptys: tuple[PtyPort, PtyPort]) -> None:
     port = ptys[1].port
     port.closePort()
     assert not port._raw_read
@@ -224,13 +187,13 @@ def test_a_vanished_pty_is_the_same_disconnect(stage: str) -> None:
     assert ours == theirs
 
 
-def _later(p: _Pty, data: bytes, after_s: float) -> threading.Thread:
+def _later(p: PtyPort, data: bytes, after_s: float) -> threading.Thread:
     t = threading.Thread(target=lambda: (time.sleep(after_s), os.write(p.master, data)))
     t.start()
     return t
 
 
-def test_bytes_that_come_during_the_wait_are_the_next_reads(ptys: tuple[_Pty, _Pty]) -> None:
+def test_bytes_that_come_during_the_wait_are_the_next_reads(ptys: tuple[PtyPort, PtyPort]) -> None:
     """An empty read waits (until the reply window ends) and wakes when bytes come: it returns nothing, as
     pyserial's read before the wait did, and the next read gets them — the SDK checks its window in between."""
     reads: list[list[bytes]] = []
@@ -248,7 +211,7 @@ def test_bytes_that_come_during_the_wait_are_the_next_reads(ptys: tuple[_Pty, _P
 
 
 @pytest.mark.parametrize("arrives", [None, b"\xff\xff\xfd\x00\x01\x03\x00\x55\x00"])
-def test_the_sdk_reply_window_ends_as_before(ptys: tuple[_Pty, _Pty], arrives: bytes | None) -> None:
+def test_the_sdk_reply_window_ends_as_before(ptys: tuple[PtyPort, PtyPort], arrives: bytes | None) -> None:
     """The SDK's rxPacket on either port: nothing (timeout) or a truncated packet (corrupt) in its window."""
     packet = TableCrcPacketHandler()
     results = []

@@ -16,68 +16,23 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
-from servoface.hardware.dynamixel_bus import _WindowedPort
+
+from tests.hardware.pty_pair import PtyPort, pty_pair
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals need a POSIX system")
 
 
-class _Pty:
-    def __init__(self, raw: bool) -> None:
-        self.master, slave = os.openpty()
-        self.port = _WindowedPort(os.ttyname(slave))
-        self.port.baudrate = 1_000_000
-        assert self.port.openPort()
-        os.close(slave)
-        if not raw:
-            self.port._raw_write = False  # pyserial's own write, the reference
-
-    def write(self, packet: Any) -> tuple[str, Any]:
-        try:
-            return "ok", self.port.writePort(packet)
-        except Exception as err:
-            return type(err).__name__, str(err)
-
-    def drain(self) -> bytes:
-        """Everything written so far, as the far end reads it."""
-        out = b""
-        os.set_blocking(self.master, False)
-        deadline = time.monotonic() + 0.05
-        while time.monotonic() < deadline:
-            try:
-                got = os.read(self.master, 65536)
-            except BlockingIOError:
-                time.sleep(0.002)
-                continue
-            except OSError:
-                break
-            if got:
-                out += got
-                deadline = time.monotonic() + 0.05
-        return out
-
-    def close(self) -> None:
-        try:
-            os.close(self.master)
-        except OSError:
-            pass
-        if self.port.is_open:
-            self.port.closePort()
-
-
 @pytest.fixture
-def ptys() -> Iterator[tuple[_Pty, _Pty]]:
-    pair = (_Pty(raw=False), _Pty(raw=True))
-    yield pair
-    for p in pair:
-        p.close()
+def ptys() -> Iterator[tuple[PtyPort, PtyPort]]:
+    yield from pty_pair()
 
 
-def test_a_pyserial_port_is_written_raw(ptys: tuple[_Pty, _Pty]) -> None:
+def test_a_pyserial_port_is_written_raw(ptys: tuple[PtyPort, PtyPort]) -> None:
     assert ptys[1].port._raw_write and not ptys[0].port._raw_write
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_the_same_bytes_as_pyserial(ptys: tuple[_Pty, _Pty], seed: int) -> None:
+def test_the_same_bytes_as_pyserial(ptys: tuple[PtyPort, PtyPort], seed: int) -> None:
     rng = random.Random(seed)
     for _ in range(60):
         values = [rng.randrange(256) for _ in range(rng.choice((10, 14, 44, 164, rng.randint(1, 1000))))]
@@ -91,14 +46,14 @@ def test_the_same_bytes_as_pyserial(ptys: tuple[_Pty, _Pty], seed: int) -> None:
     assert ptys[1].drain() == ptys[0].drain()
 
 
-def test_a_full_buffer_waits_and_keeps_every_byte(ptys: tuple[_Pty, _Pty]) -> None:
+def test_a_full_buffer_waits_and_keeps_every_byte(ptys: tuple[PtyPort, PtyPort]) -> None:
     """More than the pty holds, the far end reading late: partial writes and EAGAIN, then the rest."""
     rng = random.Random(7)
     packets = [[rng.randrange(256) for _ in range(1000)] for _ in range(120)]  # ~120 KB
     for p in ptys:
         got: list[bytes] = []
 
-        def reader(p: _Pty = p, got: list[bytes] = got) -> None:
+        def reader(p: PtyPort = p, got: list[bytes] = got) -> None:
             time.sleep(0.1)
             got.append(p.drain())
 
@@ -113,7 +68,7 @@ def test_a_full_buffer_waits_and_keeps_every_byte(ptys: tuple[_Pty, _Pty]) -> No
 
 @pytest.mark.parametrize("code", [errno.EIO, errno.EBADF, errno.EAGAIN, errno.EINTR])
 def test_an_os_error_of_the_fd_is_pyserials(
-    ptys: tuple[_Pty, _Pty], code: int, monkeypatch: pytest.MonkeyPatch
+    ptys: tuple[PtyPort, PtyPort], code: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """EIO (a USB adapter pulled), EBADF: pyserial's ``SerialException('write failed: ...')``; EAGAIN / EINTR
     once: retried, every byte written."""
@@ -137,7 +92,7 @@ def test_an_os_error_of_the_fd_is_pyserials(
         assert ours[0] == "SerialException" and "write failed" in ours[1]
 
 
-def test_the_far_end_closed_is_pyserials_error(ptys: tuple[_Pty, _Pty]) -> None:
+def test_the_far_end_closed_is_pyserials_error(ptys: tuple[PtyPort, PtyPort]) -> None:
     for p in ptys:
         os.close(p.master)
     for _ in range(2):
@@ -145,14 +100,14 @@ def test_the_far_end_closed_is_pyserials_error(ptys: tuple[_Pty, _Pty]) -> None:
         assert ours == theirs
 
 
-def test_a_port_closed_under_the_sdk_is_pyserials_error(ptys: tuple[_Pty, _Pty]) -> None:
+def test_a_port_closed_under_the_sdk_is_pyserials_error(ptys: tuple[PtyPort, PtyPort]) -> None:
     for p in ptys:
         p.port.ser.close()
     theirs, ours = ptys[0].write([1, 2]), ptys[1].write([1, 2])
     assert ours == theirs and ours[0] == "PortNotOpenError"
 
 
-def test_a_reopened_port_is_written_raw_again(ptys: tuple[_Pty, _Pty]) -> None:
+def test_a_reopened_port_is_written_raw_again(ptys: tuple[PtyPort, PtyPort]) -> None:
     port = ptys[1].port
     port.closePort()
     assert not port._raw_write
