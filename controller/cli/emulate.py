@@ -121,10 +121,13 @@ def _read_addresses(chain: Any) -> dict[str, int]:
     position sentinel's Indirect Data; ``"132"``: Present Position read directly)."""
     from collections import Counter
 
+    from servoface.hardware.emulator.packet import Instruction
+
+    reads = (Instruction.SYNC_READ, Instruction.FAST_SYNC_READ)
     counts = Counter(
         entry.params[0] | entry.params[1] << 8
         for entry in chain.log.kept()
-        if entry.instruction in (0x82, 0x8A) and len(entry.params) >= 4
+        if entry.instruction in reads and len(entry.params) >= 4
     )
     return {str(address): n for address, n in sorted(counts.items())}
 
