@@ -42,6 +42,17 @@ class NodeProc:
                 out.append((t, tick))
         return out
 
+    def wait_goals(self, servo_id: int, timeout_s: float = 20.0) -> list[tuple[float, int]]:
+        """The goals written so far, once there is at least one: the wire log is flushed every 50 ms
+        and a loaded machine may list the head before its first frame reaches the file. Empty after
+        ``timeout_s`` (or when the node exits) — the caller asserts."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            goals = self.goals(servo_id)
+            if goals or time.monotonic() >= deadline or self.proc.poll() is not None:
+                return goals
+            time.sleep(0.1)
+
     def stop(self) -> None:
         if self.proc.poll() is None:
             self.proc.send_signal(signal.SIGTERM)

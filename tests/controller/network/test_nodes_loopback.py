@@ -230,7 +230,9 @@ time.sleep(60)
 """
     helper = _helper(tmp, code)
     assert helper.stdout is not None and helper.stdout.readline().strip() == "sent"
-    rest_brow = node.goals(BROW, 0.0)[0][1]
+    rest_goals = node.wait_goals(BROW)
+    assert rest_goals, "the node wrote no goals"
+    rest_brow = rest_goals[0][1]
     sent = time.monotonic()
 
     def raised_and_settled() -> bool:  # the surprise (transition 0.3 s) is on the wire and held

@@ -34,8 +34,8 @@ def _moved_after(node: NodeProc, since_s: float, rest: int, *, wait_s: float) ->
 
 
 def _rest(node: NodeProc) -> int:
-    goals = node.goals(BROW)
-    assert goals, "the node wrote no goals yet"
+    goals = node.wait_goals(BROW)
+    assert goals, f"the node wrote no goals in 20 s: {node.log.read_text()[-2000:]}"
     return goals[-1][1]
 
 
@@ -93,7 +93,8 @@ def test_an_operator_makes_the_head_talk(tls_node) -> None:  # type: ignore[no-u
     session, client = _client(node.endpoint, "operator", "op-secret", tls.ca)
     try:
         assert _wait_heads(client, 1)
-        goals = node.goals(JAW)
+        goals = node.wait_goals(JAW)
+        assert goals, f"the node wrote no goals in 20 s: {node.log.read_text()[-2000:]}"
         rest, since = goals[-1][1], time.monotonic()
         client.send(KEYS, "say", text="Hello, how are you today?")
         deadline = time.monotonic() + 15
