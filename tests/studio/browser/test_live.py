@@ -79,6 +79,32 @@ def test_the_servos_page_shows_telemetry_and_jogs_within_limits(studio_page: tup
     page.wait_for_selector("#page-servos:not(.manual)")
 
 
+def test_a_state_older_than_the_click_does_not_flip_the_manual_box_back(studio_page: tuple[Any, StudioRig]) -> None:
+    """The page's first GET of the state (or a push) can arrive after the user's click on "manual": the box
+    keeps what was clicked until the server answers, then shows the answer (it once flipped back, and a
+    loaded CI machine caught it)."""
+    page, rig = studio_page
+    page.click('a[data-page="servos"]')
+    held: list[Any] = []
+    page.route("**/api/servos/manual", lambda route: held.append(route))  # it waits here until continued
+    page.check("#manual")
+    deadline = time.monotonic() + 30
+    while not held and time.monotonic() < deadline:
+        page.wait_for_timeout(20)
+    assert held, "the page sent no manual-mode request"
+    stale = "() => { const s = {...window.studio.state, manual: false}; window.studio.listeners.forEach((f) => f(s)); }"
+    page.evaluate(stale)  # a state that left the server before the click
+    assert page.is_checked("#manual")
+    assert rig.client.get("/api/state").json()["manual"] is False  # (the request is still held)
+    held[0].continue_()
+    page.wait_for_selector("#page-servos.manual")
+    assert page.is_checked("#manual") and rig.client.get("/api/state").json()["manual"] is True
+    page.unroute("**/api/servos/manual")
+    page.uncheck("#manual")
+    page.wait_for_selector("#page-servos:not(.manual)")
+    assert rig.client.get("/api/state").json()["manual"] is False
+
+
 def test_closing_the_tab_eases_the_head_to_neutral_unless_hold(browser: Any, studio: StudioRig) -> None:
     from tests.studio.browser.conftest import open_page
 

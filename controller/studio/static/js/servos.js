@@ -2,18 +2,30 @@
 
 import { h, fmt } from "./dom.js";
 
-let ctx, tbody, manualBox, stepSel, visible = false;
+let ctx, tbody, manualBox, stepSel, pageEl, visible = false;
+let manualPending = 0; // manual-mode requests on their way
 const rows = new Map();
 
 export function mount(el, c) {
   ctx = c;
   manualBox = h("input", { type: "checkbox", id: "manual" });
-  manualBox.addEventListener("change", () =>
-    ctx.api.post("/api/servos/manual", { on: manualBox.checked }).catch((err) => {
-      manualBox.checked = !manualBox.checked;
-      ctx.report(err);
-    }),
-  );
+  // while a request is on its way, a state that left the server before it (the page's first GET of the
+  // state, a push) must not flip the box back: the box shows the request, then the server's answer
+  manualBox.addEventListener("change", () => {
+    manualPending += 1;
+    ctx.api
+      .post("/api/servos/manual", { on: manualBox.checked })
+      .then((res) => {
+        if (manualPending === 1) showManual(!!res.manual);
+      })
+      .catch((err) => {
+        if (manualPending === 1) showManual(!!(ctx.state && ctx.state.manual));
+        ctx.report(err);
+      })
+      .finally(() => {
+        manualPending -= 1;
+      });
+  });
   stepSel = h(
     "select#jog-step",
     {},
@@ -59,10 +71,15 @@ export function mount(el, c) {
     ),
   );
   ctx.live.on("telemetry", (msg) => visible && update(msg.servos));
+  pageEl = el;
   ctx.onState((state) => {
-    manualBox.checked = !!state.manual;
-    el.classList.toggle("manual", !!state.manual);
+    if (manualPending === 0) showManual(!!state.manual);
   });
+}
+
+function showManual(on) {
+  manualBox.checked = on;
+  pageEl.classList.toggle("manual", on);
 }
 
 function row(servo) {
