@@ -115,6 +115,13 @@ class Pipeline:
         self.last_snapshot: ChainSnapshot | None = None
         self.last_cycle_s: float | None = None  # clock() of the last driver cycle (pacing)
         self.last_write_s: float | None = None  # clock() when the last goals went on the wire
+        self.last_write_began_s: float | None = None  # clock() when that write began (its `cycle_start` called)
+        # where that write's slot began: the time it was held to (a held frame), else when it began; the next
+        # held write is held to a period after it (`_slot`), so sleep overshoots do not add up either
+        self.last_slot_start_s: float | None = None
+        # the elapsed time a held next frame is checked for: a period less the last write's own time (None:
+        # a whole period), so that held writes start a period apart (`_slot_deficit`)
+        self._slot_s: float | None = None
         self._interval_s: float | None = None  # between the last two writes (plans the speculation)
         self._short_run = 0  # writes in a row that came well within a period of the one before
         self._checked_s: float | None = None  # the elapsed time the last check was made for
@@ -237,7 +244,7 @@ class Pipeline:
         elapsed_s = (
             None
             if self.driver is None or self.last_write_s is None or not self.per_time_caps
-            else self.gate.frame_period_s
+            else self._slot()
             if held
             else self.clock() - self.last_write_s
         )  # since the last goals went on the wire (a held frame: when they will): caps hold per second
@@ -282,13 +289,19 @@ class Pipeline:
         self._last_clipped = not _clean(verdict)
         sent = dict(verdict.goals_tick)
         written = 0
-        if held:  # checked for a whole period: the goals leave no earlier than that after the last ones
-            self._hold_to_slot()
+        slot_start_s = None
+        if held:  # checked for its slot: the goals leave no earlier than that after the last ones
+            slot_start_s = self._hold_to_slot()
         t3 = time.perf_counter()
         if self.driver is not None:
             before = self.driver.bus.stats.bytes_written
+            began_s = self.clock()
             self.driver.cycle_start(sent)
             now_s = self.clock()  # after: the goals are on the wire by now (conservative)
+            period_s = self.gate.frame_period_s  # a held next frame starts its write a period after this one's:
+            slot_start_s = began_s if slot_start_s is None else min(slot_start_s, began_s)
+            self._slot_s = period_s - min(max(0.0, now_s - slot_start_s), PACE_MAX_SHARE * period_s)  # `_slot`
+            self.last_write_began_s, self.last_slot_start_s = began_s, slot_start_s
             interval = None if self.last_write_s is None else now_s - self.last_write_s
             short = interval is not None and interval < self.gate.frame_period_s * (1.0 - PACE_MAX_SHARE)
             self._short_run = self._short_run + 1 if short else 0
@@ -355,16 +368,27 @@ class Pipeline:
         self._solved = ((dict(aus), id(self.face), id(self.calibration)), result)
         return dict(targets), dict(clamped), result[2], dict(requested)
 
+    def _slot(self) -> float:
+        """The elapsed time a held frame is checked for and sent after: one period from where the last write's
+        slot began (`last_slot_start_s`: the time it was held to, or when it began), counted from when it
+        ended (`last_write_s`, taken after it to be safe): a period less that write's own time and any
+        oversleep of its hold (at most `PACE_MAX_SHARE` of a period less; a whole period before any write)."""
+        return self.gate.frame_period_s if self._slot_s is None else self._slot_s
+
     def _slot_deficit(self) -> float | None:
         """How early this frame is for its slot, if it is held to it (else None): it comes a little less
-        than one frame period after the last goals went on the wire (a paced loop whose previous frame left
-        late within its slot) — at most `PACE_MAX_SHARE` of a period early. The gate then checks it with the
-        caps of one whole period (as the speculative check during the last wait did, so that verdict is used
-        instead of a second check), and `_hold_to_slot` sends it no earlier than one period after the last
-        write: the check's time is spent inside the period, not added to it, so a paced loop's writes do not
-        drift later by one check a frame. They still drift by what a write takes (the last write's time is
-        taken after it, to be safe), which `_pay_back` returns on a quiet frame. A caller stepping faster
-        than the rate is not held (its caps shrink with the time instead, and a late frame of it is not held
+        than `_slot` after the last goals went on the wire (a paced loop) — at most `PACE_MAX_SHARE` of a
+        period early. The gate then checks it with the caps of that elapsed time (as the speculative check
+        during the last wait did, `_plans_s`, so that verdict is used instead of a second check), and
+        `_hold_to_slot` sends it no earlier than that after the last write: the check's time is spent inside
+        the period, not added to it, and as the slot is a period from where the last one's began, held writes
+        begin on a grid a period apart — they do not drift later by a check, a write or a sleep's overshoot a
+        frame (a slot of a whole period from the end of the last write let a paced loop's writes drift ~0.35
+        ms a frame, until `_pay_back` checked a frame a second time to catch up: one frame in three). A late
+        frame is checked for the time that has passed; the next one early by more than `PAY_BACK_SHARE` of a
+        period and clean goes at once (`_pay_back`). The caps are never for more time than passes from the
+        end of one write to the start of the next (tests/controller/test_pipeline_slot.py). A caller stepping
+        faster than the rate is not held (its caps shrink with the time instead, and a late frame of it is not held
         either: its speculations were planned for its own short intervals, `_plans_s`), nor one without a
         driver, with `pace_writes` off, or on a clock that is not the real monotonic one (a test's manual
         clock does not move while we sleep: its caller owns time)."""
@@ -372,9 +396,8 @@ class Pipeline:
             return None
         if self._short_run >= 2 or self.clock is not time.monotonic:
             return None
-        period_s = self.gate.frame_period_s
-        deficit_s = period_s - (self.clock() - self.last_write_s)
-        return deficit_s if 0 < deficit_s <= PACE_MAX_SHARE * period_s else None
+        deficit_s = self._slot() - (self.clock() - self.last_write_s)
+        return deficit_s if 0 < deficit_s <= PACE_MAX_SHARE * self.gate.frame_period_s else None
 
     def _pay_back(
         self, requested: dict[int, int], health: dict[int, ServoHealth] | None
@@ -397,15 +420,17 @@ class Pipeline:
         self.gate.restore_step_state(state)
         return None
 
-    def _hold_to_slot(self) -> None:
-        """Sleep until one frame period has passed since the last write (a held frame, `_slot_deficit`: its
-        caps were those of a whole period, never more time than really passes before its goals leave)."""
+    def _hold_to_slot(self) -> float | None:
+        """Sleep until `_slot` has passed since the last write (a held frame, `_slot_deficit`: its caps were
+        those of that elapsed time, never more time than really passes before its goals leave); returns the
+        time it held to (None without a last write)."""
         last_write_s = self.last_write_s
         if last_write_s is None:
-            return
-        period_s = self.gate.frame_period_s
-        while (deficit_s := period_s - (self.clock() - last_write_s)) > 0:
+            return None
+        slot_s = self._slot()
+        while (deficit_s := slot_s - (self.clock() - last_write_s)) > 0:
             time.sleep(deficit_s)  # (never ends early on a monotonic clock; re-checked all the same)
+        return last_write_s + slot_s
 
     def _health(self) -> dict[int, ServoHealth] | None:
         if self.last_snapshot is None:
@@ -447,20 +472,24 @@ class Pipeline:
                      None if health is None else dict(health), before, tuple(specs))  # fmt: skip
 
     def _plans_s(self) -> tuple[float | None, ...]:
-        """The elapsed times the speculative checks of the next frame assume, in order: (None,) (a whole
-        period, the per-frame caps) for a paced caller; for one stepping faster than the rate (frames back to
+        """The elapsed times the speculative checks of the next frame assume, in order: for a paced caller,
+        `_slot` (what a held next frame is checked for; (None,), the per-frame caps, without per-time caps
+        or pacing); for one stepping faster than the rate (frames back to
         back, the last two intervals well under a period), the shortest elapsed time of the last
         `PLAN_HISTORY` checks — the next check most likely comes at least that late, and a clean accept
         checked for it holds for any later time (`Speculation.holds_for`) — then, for a frame that does not
         accept cleanly there, the longest of them (at most `PLAN_WAIT_MAX_S` later): a step that comes before
         it waits for it (`_reach_plan`), so that its caps are the planned ones."""
         interval = self._interval_s
-        if not self.per_time_caps or interval is None or self._short_run < 2 or not self._elapsed_s:
-            return (None,)  # (one short: a paced loop's catch-up after a late frame, its next comes a period later)
+        if not self.per_time_caps:
+            return (None,)
+        if interval is None or self._short_run < 2 or not self._elapsed_s:
+            # (one short: a paced loop's catch-up after a late frame, its next comes a period later)
+            return (self._slot_s,) if self.pace_writes and self.clock is time.monotonic else (None,)
         recent = sorted(self._elapsed_s)
         short_s = min(list(self._elapsed_s)[-PLAN_SHORT_OF:])
         if short_s >= self.gate.frame_period_s * (1.0 - PACE_MAX_SHARE):
-            return (None,)
+            return (self._slot_s,) if self.pace_writes and self.clock is time.monotonic else (None,)
         long_s = min(recent[int(PLAN_LONG_QUANTILE * (len(recent) - 1))], short_s + PLAN_WAIT_MAX_S)
         last_s = self._checked_s  # the last check's elapsed time (its f_last): a plan a hair short of it
         if last_s is not None and long_s < last_s < long_s + PLAN_SNAP_S:  # would scale the last step by just
@@ -506,6 +535,7 @@ class Pipeline:
             return None
         self.last_snapshot = self.driver.cycle(self.last_goals_tick)
         self.last_cycle_s = self.last_write_s = self.clock()
+        self._slot_s = None
         self.gate.reset()  # the servos got a zero step: the next frame starts from rest (accel cap)
         return self.last_snapshot
 

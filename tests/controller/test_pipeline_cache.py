@@ -78,7 +78,7 @@ def test_a_frame_just_short_of_a_period_is_held_to_its_slot_and_uses_the_specula
     used = 0
     for k, aus in enumerate(frames):
         if p.last_write_s is not None:  # as if this frame came a little early within a paced loop (not so
-            p.last_write_s = time.monotonic() - (1.0 - 0.5 * PAY_BACK_SHARE) * period_s  # early: `_pay_back`)
+            p.last_write_s = time.monotonic() - (p._slot() - 0.5 * PAY_BACK_SHARE * period_s)  # early: `_pay_back`)
         t0 = time.monotonic()
         trace = p.step(aus, next_frame=frames[k + 1] if k + 1 < len(frames) else None)
         if k > 0:

@@ -1,6 +1,7 @@
-"""A paced frame is held to its slot (`Pipeline._slot_held`, `_hold_to_slot`): a frame a little less than a
-period after the last write is checked with the caps of one whole period and sent no earlier than a period
-after the last write. The safety invariant: the per-time caps are never computed for more time than really
+"""A paced frame is held to its slot (`Pipeline._slot_deficit`, `_slot`, `_hold_to_slot`): a frame a little
+less than its slot after the last write (a period less that write's own time) is checked with the caps of
+that elapsed time and sent no earlier than that after the last write, so held writes begin a period apart
+and do not drift. The safety invariant: the per-time caps are never computed for more time than really
 passes before the write. Shown from what was recorded: the clock when each `Driver.cycle_start` began and
 ended, against the elapsed time each check (or used speculation) of the next frame was made for, over frames
 that come early within the hold share, early beyond it, late and back to back."""
@@ -95,6 +96,8 @@ def test_caps_are_never_for_more_time_than_passes_before_the_write(face: Face, s
     short_runs: list[int] = []
     checks: list[list[float | None]] = []
     used: list[float | None] = []
+    slots: list[float] = []
+    bounds: list[tuple[float | None, float | None, float | None]] = []
     for k, aus in enumerate(frames):
         last_write_s = p.last_write_s
         assert last_write_s is not None
@@ -102,10 +105,12 @@ def test_caps_are_never_for_more_time_than_passes_before_the_write(face: Face, s
         if wait_s > 0:
             time.sleep(wait_s)
         short_runs.append(p._short_run)
+        slots.append(p._slot())
         n = len(rec.elapsed)
         p.step(aus, next_frame=frames[k + 1] if k + 1 < len(frames) else None)
         checks.append(rec.elapsed[n:])  # one check or used speculation, and one more if `_pay_back` tried
         assert checks[-1] and len(checks[-1]) <= 2
+        bounds.append((p.last_slot_start_s, p.last_write_began_s, p.last_write_s))
         used.append(p._checked_s)  # the elapsed time of the verdict sent (`_pay_back` may discard its check)
         assert used[-1] in checks[-1]
         assert p.gate.step_state().last_fraction == lim.time_fraction(used[-1], period_s)  # (its memory)
@@ -116,10 +121,19 @@ def test_caps_are_never_for_more_time_than_passes_before_the_write(face: Face, s
         assert elapsed_s is not None
         passed_s = rec.writes[k][0] - rec.writes[k - 1][1]  # from the end of one write to the start of the next
         assert passed_s >= elapsed_s, (k, passed_s, checks[k])  # the invariant
-        if period_s in checks[k]:  # held (checked for exactly a period: sent no earlier), or paid back
-            held += elapsed_s == period_s
-            paid += elapsed_s < period_s
+        slot_start_s, began_s, ended_s = bounds[k - 1]  # the last write as the pipeline timed it (around ours)
+        assert slot_start_s is not None and began_s is not None and ended_s is not None
+        assert slot_start_s <= began_s <= rec.writes[k - 1][0] and rec.writes[k - 1][1] <= ended_s
+        # the slot: a period from where the last slot began (at most PACE_MAX_SHARE of a period less)
+        assert slots[k] == period_s - min(ended_s - slot_start_s, PACE_MAX_SHARE * period_s)
+        if slots[k] in checks[k]:  # held (checked for exactly its slot: sent no earlier), or paid back
+            held += elapsed_s == slots[k]
+            paid += elapsed_s < slots[k]
             assert short_runs[k] < 2  # a caller faster than the rate is never held
+            if elapsed_s == slots[k]:  # held: its slot began where it was held to, a period after the last one's
+                assert bounds[k][0] == ended_s + slots[k]
+                if ended_s - slot_start_s < PACE_MAX_SHARE * period_s:  # on the grid (1 ns: float rounding)
+                    assert abs(bounds[k][0] - (slot_start_s + period_s)) < 1e-9, (k, bounds[k], slot_start_s)
     assert held >= 5 and paid >= 1, (held, paid)  # (a loaded machine may make some frames late)
     assert any(e is not None and e < (1.0 - PACE_MAX_SHARE) * period_s for e in rec.elapsed)  # not held
 
