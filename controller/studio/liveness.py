@@ -9,7 +9,13 @@ socket that has sent one is *armed*: when nothing at all has arrived on it for `
 where the drop put it until the user acts (any motion message). A socket that never sent a heartbeat (a
 script, a test client) is judged by its close only, as before.
 
-Times are ``time.monotonic`` (the host's, not the service clock): the question is when bytes arrived."""
+Times are ``time.monotonic`` (the host's, not the service clock): the question is when bytes arrived.
+
+Silence counts only while this process runs: when the watchdog wakes more than ``STALL_S`` late (the
+process descheduled or starved on a loaded machine), heartbeats may be sitting unread in the socket
+buffers, so the time it did not run is not held against the sockets (`excuse_stall`). A dead browser is
+still found within ``timeout_s`` of the time the server was awake to hear it; a stalled server cannot move
+the head meanwhile either (its loop is in this process)."""
 
 from __future__ import annotations
 
@@ -21,6 +27,7 @@ from dataclasses import dataclass
 HEARTBEAT_INTERVAL_S = 0.25  # what the page sends (documented; the server does not depend on it)
 HEARTBEAT_TIMEOUT_S = 0.8  # nothing heard for this long (3 heartbeats) on an armed socket: gone; ease starts < 1 s
 WATCH_PERIOD_S = 0.05
+STALL_S = 0.1  # the watchdog waking this much later than its period: the process did not run (`excuse_stall`)
 
 
 @dataclass
@@ -109,12 +116,33 @@ class Liveness:
             self.on_last_gone("silent")
         return gone
 
+    def excuse_stall(self, stalled_s: float) -> None:
+        """The process did not run for ``stalled_s`` (the watchdog woke that late): each live socket's last
+        heard time moves forward by it (never past now), so that time is not counted as its silence.
+        Nothing below ``STALL_S`` (ordinary wake-up jitter)."""
+        if not stalled_s > STALL_S:
+            return
+        now = self.clock()
+        with self._lock:
+            for s in self._sockets.values():
+                if not s.silent:
+                    s.last_heard_s = min(now, s.last_heard_s + stalled_s)
+
+    def watch_step(self, last_s: float) -> float:
+        """One wake of the watchdog, ``last_s`` the clock at the one before: a late wake excused
+        (`excuse_stall`), then `check`; returns the clock now."""
+        now = self.clock()
+        self.excuse_stall(now - last_s - WATCH_PERIOD_S)
+        self.check()
+        return now
+
     def _watch(self) -> None:
+        last_s = self.clock()
         while not self._stop.wait(WATCH_PERIOD_S):
             try:
-                self.check()
+                last_s = self.watch_step(last_s)
             except Exception:  # noqa: BLE001 - the watchdog must outlive a failing callback
-                pass
+                last_s = self.clock()
 
     def close(self) -> None:
         self._stop.set()

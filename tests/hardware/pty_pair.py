@@ -21,15 +21,18 @@ class PtyPort:
         self.port.baudrate = 1_000_000
         assert self.port.openPort()
         os.close(slave)
+        self.written = self.drained = 0  # bytes `write` reported written / `drain` read at the far end
         if not raw:
             self.port._raw_read = self.port._raw_write = False  # pyserial's own read and write, the reference
 
     def write(self, packet: Any) -> tuple[str, Any]:
         """``writePort(packet)``'s result, or its error's type name and message."""
         try:
-            return "ok", self.port.writePort(packet)
+            n = self.port.writePort(packet)
         except Exception as err:
             return type(err).__name__, str(err)
+        self.written += int(n)
+        return "ok", n
 
     def read(self, size: int) -> tuple[str, Any]:
         """``readPort(size)``'s result, or its error's type name and message."""
@@ -46,12 +49,17 @@ class PtyPort:
         while self.port.ser.in_waiting < before + len(data) and time.monotonic() < deadline:
             time.sleep(0.0005)
 
-    def drain(self) -> bytes:
-        """Everything written so far, as the far end reads it."""
+    def drain(self, expect: int | None = None) -> bytes:
+        """Everything written so far, as the far end reads it: at least ``expect`` bytes (default: what
+        `write` reported and no drain has read yet) as they come, up to 10 s (a loaded machine may hand
+        them over late; stopping early would leave a writer blocked on a full pty), then whatever else
+        comes within 50 ms (bytes nobody reported)."""
+        want = self.written - self.drained if expect is None else expect
         out = b""
         os.set_blocking(self.master, False)
+        give_up = time.monotonic() + 10.0
         deadline = time.monotonic() + 0.05
-        while time.monotonic() < deadline:
+        while time.monotonic() < deadline or (len(out) < want and time.monotonic() < give_up):
             try:
                 got = os.read(self.master, 65536)
             except BlockingIOError:
@@ -62,6 +70,7 @@ class PtyPort:
             if got:
                 out += got
                 deadline = time.monotonic() + 0.05
+        self.drained += len(out)
         return out
 
     def close(self) -> None:

@@ -55,7 +55,7 @@ def test_a_full_buffer_waits_and_keeps_every_byte(ptys: tuple[PtyPort, PtyPort])
 
         def reader(p: PtyPort = p, got: list[bytes] = got) -> None:
             time.sleep(0.1)
-            got.append(p.drain())
+            got.append(p.drain(expect=sum(len(packet) for packet in packets)))
 
         t = threading.Thread(target=reader)
         t.start()

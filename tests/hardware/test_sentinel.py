@@ -283,7 +283,9 @@ def test_back_to_back_the_status_group_is_read_at_the_sentinels_low_floor_rate(s
         assert cycles > 100 and gaps, (cycles, status)
         if sentinel:
             assert 3 <= len(status) <= 6, status  # 1.5 s / 0.3 s
-            assert gaps[0] >= 0.3 - 0.005 and gaps[len(gaps) // 2] <= 0.36, gaps
+            # (a cycle descheduled between its clock reading and its status read shortens the next gap a
+            # little, a stall lengthens one: bounds that still tell 0.3 s from the 0.08 s floor and from 2 s)
+            assert gaps[0] >= 0.3 - 0.02 and gaps[len(gaps) // 2] <= 0.45, gaps
         else:
             assert len(status) >= 12 and gaps[len(gaps) // 2] <= 0.1, gaps  # every 0.08 s
         driver.close(torque_off=True)
@@ -309,10 +311,11 @@ def test_a_reset_is_still_seen_by_the_status_floor_where_the_witness_is_blind() 
         for k, a in zip(range(17, 21), SLOT_TARGETS, strict=True):
             servo.write_register(f"Indirect Address {k}", a)  # the map "survives" (it does not on the emulator)
         t0 = time.monotonic()
-        while time.monotonic() < t0 + 1.0 and not events_of(driver, FaultKind.RECONNECTED, 2):
+        while time.monotonic() < t0 + 2.0 and not events_of(driver, FaultKind.RECONNECTED, 2):
             driver.cycle(GOALS)
         ev = events_of(driver, FaultKind.RECONNECTED, 2)
-        assert ev and "torque found off" in ev[0].reaction and time.monotonic() - t0 <= 0.5
+        # within the 0.3 s floor (and a loaded machine's stall), well before the default 2 s one
+        assert ev and "torque found off" in ev[0].reaction and time.monotonic() - t0 <= 0.8
         driver.cycle(GOALS)
         assert servo.torque_on
         driver.close(torque_off=True)

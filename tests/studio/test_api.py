@@ -15,6 +15,12 @@ from websockets.exceptions import InvalidStatus
 from tests.studio.conftest import StudioRig
 
 
+def _wrong(token: str) -> str:
+    """The token with its last character changed (to "x", or "y" if it was an "x": a token drawn ending
+    in "x" once made the "wrong" token the right one)."""
+    return token[:-1] + ("y" if token.endswith("x") else "x")
+
+
 def _servo(rig: StudioRig, role: str) -> dict[str, Any]:
     return next(s for s in rig.client.get("/api/head").json()["servos"] if s["role"] == role)
 
@@ -24,7 +30,7 @@ def test_requests_without_the_token_are_refused_and_move_nothing(studio: StudioR
     jaw = _servo(studio, "jaw")["id"]
     before = studio.goal_tick(jaw)
     bare = httpx.Client(base_url=studio.base_url, timeout=30)
-    for headers in ({}, {"Authorization": "Bearer wrong"}, {"X-Servoface-Token": studio.token[:-1] + "x"}):
+    for headers in ({}, {"Authorization": "Bearer wrong"}, {"X-Servoface-Token": _wrong(studio.token)}):
         for method, path, body in (("GET", "/api/head", None), ("POST", "/api/aus", {"aus": {"AU26": 1.0}}),
                                    ("GET", "/", None), ("POST", "/api/estop", {})):  # fmt: skip
             r = bare.request(method, path, json=body, headers=headers)

@@ -114,3 +114,41 @@ def test_a_socket_that_never_sent_a_heartbeat_is_judged_by_its_close() -> None:
         assert gone == ["closed", "silent"]
     finally:
         live.close()
+
+
+def test_time_the_server_did_not_run_is_not_silence() -> None:
+    """The watchdog woke late (the studio's process descheduled or starved on a loaded machine): heartbeats
+    may be unread in the socket buffers, so that time is excused; silence afterwards is still found within
+    the timeout of the time the process ran. A wake less than `STALL_S` late excuses nothing. Manual
+    clock, one watchdog wake per `watch_step`."""
+    from servoface.controller.studio.liveness import STALL_S, WATCH_PERIOD_S
+
+    now = [0.0]
+    gone: list[str] = []
+    live = Liveness(gone.append, timeout_s=0.8, clock=lambda: now[0], watch=False)
+
+    def run_until_gone(last: float, n: int) -> float:  # the process runs on, the browser says nothing
+        while len(gone) < n and now[0] < 10.0:
+            now[0] += WATCH_PERIOD_S
+            last = live.watch_step(last)
+        return now[0]
+
+    try:
+        key = live.joined()
+        live.heard(key, heartbeat=True)
+        now[0] = 0.6
+        last = live.watch_step(0.0)  # woke 0.55 s late: excused (the socket was last heard at 0)
+        assert gone == [] and live.live == 1
+        silent_at = run_until_gone(last, 1)
+        assert gone == ["silent"]
+        assert 0.55 + 0.8 < silent_at <= 0.55 + 0.8 + WATCH_PERIOD_S + 1e-9, silent_at  # (without: at 0.8)
+        heard_at = now[0]
+        live.heard(key, heartbeat=True)  # speaks again: live, nothing moves by itself
+        assert live.live == 1
+        now[0] += WATCH_PERIOD_S + 0.9 * STALL_S  # a wake a little late only
+        last = live.watch_step(heard_at)
+        silent_at = run_until_gone(last, 2)
+        assert gone == ["silent", "silent"]
+        assert silent_at - heard_at < 0.8 + 0.9 * STALL_S, silent_at - heard_at  # nothing was excused
+    finally:
+        live.close()

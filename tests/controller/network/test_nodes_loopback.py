@@ -80,7 +80,7 @@ def _wait_for(cond, timeout_s: float = 15.0, every_s: float = 0.1):  # type: ign
 
 def test_all_three_heads_are_present_with_their_status(net) -> None:  # type: ignore[no-untyped-def]
     _, nodes, client, _ = net
-    heads = client.heads("lobby/*")
+    heads = client.heads("lobby/*", timeout_s=5.0)  # (each status asked with it too: a loaded machine)
     assert sorted(h.name for h in heads) == ["h1", "h2", "h3"]
     for h in heads:
         assert h.status["face_type"] == "human" and "AU12" in h.status["aus"] and h.status["running"]
@@ -116,7 +116,7 @@ def test_a_50_hz_stream_from_another_process_reaches_the_wire_within_30_ms(net) 
     tmp, nodes, client, _ = net
     node = nodes[0]
     steps_log = tmp / "steps.json"
-    before = client.status(head_keys("lobby", "h1"))
+    before = client.status(head_keys("lobby", "h1"), timeout_s=5.0)
     code = f"""
 import json, time
 from servoface.controller.network.client import HeadsClient
@@ -151,7 +151,7 @@ s.close()
         assert onset is not None, f"no jaw goal change after the step at {t:.3f}"
         lat.append(onset - t)
     lat_ms = np.array(lat) * 1e3
-    after = client.status(head_keys("lobby", "h1"))
+    after = client.status(head_keys("lobby", "h1"), timeout_s=5.0)
     late = (after["late"] - before["late"]) / max(after["frames"] - before["frames"], 1)
     print(
         f"stream publish -> goal on the wire: median {np.median(lat_ms):.1f} ms, "
@@ -195,7 +195,7 @@ def test_frames_with_an_unknown_schema_version_move_nothing(net) -> None:  # typ
     _, nodes, client, _ = net
     node = nodes[2]
     keys = head_keys("lobby", "h3")
-    before = client.status(keys)["counters"]["refused"]
+    before = client.status(keys, timeout_s=5.0)["counters"]["refused"]
     t0 = time.monotonic()
     for i in range(20):
         client.session.put(
@@ -209,7 +209,7 @@ def test_frames_with_an_unknown_schema_version_move_nothing(net) -> None:  # typ
     for sid in (JAW, HEAD.servo_ids["lip_corner_l"]):
         goals = node.goals(sid, t0 - 0.2)
         assert max(g for _, g in goals) - min(g for _, g in goals) <= 2, f"servo {sid} moved"
-    refused = client.status(keys)["counters"]["refused"]
+    refused = client.status(keys, timeout_s=5.0)["counters"]["refused"]
     gained = {k: refused.get(k, 0) - before.get(k, 0) for k in refused}
     assert gained.get("bad message (schema)", 0) >= 60, refused
 

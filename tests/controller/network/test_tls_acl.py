@@ -44,6 +44,16 @@ def _client(endpoint: str, user: str, password: str, ca: Path) -> tuple[object, 
     return session, HeadsClient(session)
 
 
+def _status(client: HeadsClient, timeout_s: float = 20.0) -> dict:  # type: ignore[type-arg]
+    """The head's status; `HeadsClient.status` gives {} when no reply came within its 1 s (a loaded
+    machine, a Zenoh link re-forming): asked again until one does."""
+    deadline = time.monotonic() + timeout_s
+    while not (status := client.status(KEYS)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert status, "the node gave no status"
+    return status
+
+
 def _wait_heads(client: HeadsClient, n: int, timeout_s: float = 30.0) -> list:  # type: ignore[type-arg]
     deadline = time.monotonic() + timeout_s
     heads: list = []  # type: ignore[type-arg]
@@ -76,7 +86,7 @@ def test_an_operator_over_tls_sees_and_moves_the_head(tls_node) -> None:  # type
     session, client = _client(node.endpoint, "operator", "op-secret", tls.ca)
     try:
         heads = _wait_heads(client, 1)
-        assert [h.name for h in heads] == ["t1"] and heads[0].status["running"]
+        assert [h.name for h in heads] == ["t1"] and _status(client)["running"]
         rest, since = _rest(node), time.monotonic()
         client.send(KEYS, "express", name="surprise", transition_s=0.2, hold_s=0.5)
         assert _moved_after(node, since, rest, wait_s=10.0), "the operator's command did not reach the head"
@@ -139,28 +149,28 @@ def test_an_observer_reads_and_can_stop_but_cannot_move(tls_node) -> None:  # ty
     try:
         heads = _wait_heads(guard, 1)
         assert [h.name for h in heads] == ["t1"], "an observer may see presence and status"
-        accepted = heads[0].status["counters"]["accepted"]
+        accepted = _status(guard)["counters"]["accepted"]
         rest, since = _rest(node), time.monotonic()
         guard.send(KEYS, "express", name="surprise", transition_s=0.2, hold_s=0.5)
         for _ in range(10):
             guard.send_aus(KEYS, {"AU1": 1.0, "AU2": 1.0, "AU26": 0.8})
             time.sleep(0.02)
         assert not _moved_after(node, since, rest, wait_s=1.5), "an observer's command or AU frames moved the head"
-        after = guard.status(KEYS)
+        after = _status(guard)
         assert after["counters"]["accepted"] == accepted, "Zenoh should drop them before the node sees them"
         guard.estop("lobby/*", reason="guard pressed stop")  # a pattern: allowed by servoface-estop
         deadline = time.monotonic() + 10
-        while not guard.status(KEYS).get("estop_latched") and time.monotonic() < deadline:
+        while not _status(guard).get("estop_latched") and time.monotonic() < deadline:
             time.sleep(0.1)
-        assert guard.status(KEYS)["estop_latched"], "the observer's e-stop was not honoured"
+        assert _status(guard)["estop_latched"], "the observer's e-stop was not honoured"
         guard.send(KEYS, "clear_estop")
         time.sleep(1.0)
-        assert guard.status(KEYS)["estop_latched"], "an observer must not clear the e-stop"
+        assert _status(guard)["estop_latched"], "an observer must not clear the e-stop"
         operator.send(KEYS, "clear_estop")
         deadline = time.monotonic() + 10
-        while guard.status(KEYS).get("estop_latched") and time.monotonic() < deadline:
+        while _status(guard).get("estop_latched") and time.monotonic() < deadline:
             time.sleep(0.1)
-        assert not guard.status(KEYS)["estop_latched"], "the operator could not clear the e-stop"
+        assert not _status(guard)["estop_latched"], "the operator could not clear the e-stop"
     finally:
         g_session.close()  # type: ignore[attr-defined]
         o_session.close()  # type: ignore[attr-defined]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from typing import Any
 
 import pytest
@@ -58,9 +59,12 @@ def test_a_bad_command_raises_at_once_and_changes_nothing(shared: Running, what:
 
 def test_a_command_starts_at_its_absolute_time_on_the_service_clock(running: Running) -> None:
     svc = running.service
-    at = svc.now_s() + 0.3
+    at = svc.now_s() + 2.0  # far enough that a loaded machine's loop shows it scheduled before it starts
     h = svc.set_aus({"AU1": 0.5}, track="face", transition_s=0.1, at_s=at)
-    assert h.wait(0.1) is Status.PENDING and svc.status().tracks["face"].scheduled == 1
+    deadline = time.monotonic() + 1.5  # the status view shows it once a frame has taken it from the inbox
+    while svc.status().tracks["face"].scheduled != 1 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert h.status is Status.PENDING and svc.status().tracks["face"].scheduled == 1
     assert h.wait(5.0) is Status.DONE
     assert h.started_s == pytest.approx(at)
     assert h.finished_s is not None and h.finished_s >= at + 0.1 - 1e-9
