@@ -630,6 +630,7 @@ class HeadService:
         if not self._drain(t) or self._stop_requested:
             return False
         trace: FrameTrace | None = None
+        done: list[CommandHandle] = []  # commands whose sources finished this frame: completed once published
         try:
             if self._motion_allowed():
                 self.tracks.activate_due(t, self._notify)
@@ -641,15 +642,19 @@ class HeadService:
                     self.pipeline.hold()
                 else:
                     trace = self.pipeline.step(frame, t, late_s=tick.late_s)
-                self.tracks.advance(t, self._notify)
+                done = self.tracks.advance(t)
             elif self.driver is not None:  # torque off / e-stop: no goals, telemetry goes on
                 self.pipeline.last_snapshot = self.driver.read_state()
         except HardwareError as err:
+            self._complete(done, t)
             self._bus_failed(t, err)
             return False
         except (ControllerError, SimError) as err:
             self.observers.offer("fault", ServiceEvent(t, "frame_error", str(err)))
-        self._publish(t, tick, trace)
+        try:
+            self._publish(t, tick, trace)
+        finally:
+            self._complete(done, t)
         snap = self.pipeline.last_snapshot
         if self.stop_on_port_failure and snap is not None and not snap.bus_connected:
             self._bus_failed(
@@ -657,6 +662,13 @@ class HeadService:
             )
             return False
         return None
+
+    def _complete(self, handles: list[CommandHandle], t_s: float) -> None:
+        """Commands whose sources finished at ``t_s``, DONE after that frame is published (`_frame`): a
+        waiter woken by it reads that frame's status and trace, not the one before."""
+        for handle in handles:
+            if handle._set(Status.DONE, t_s):
+                self._notify(handle)
 
     def _drain(self, t_s: float) -> bool:
         while True:

@@ -150,9 +150,11 @@ class TrackTable:
                 fresh = False
         return mix(contributions)
 
-    def advance(self, t_s: float, notify: Notify) -> None:
-        """After the frame went out: running sources that finished complete their command (a holding one
-        stays on its track, an ended one leaves it empty)."""
+    def advance(self, t_s: float) -> list[CommandHandle]:
+        """After the frame went out: running sources that finished leave their track (a holding one stays
+        on it, an ended one leaves it empty); returns their commands, for the caller to complete once the
+        frame is published (a waiter woken by DONE then sees that frame's status and trace)."""
+        done: list[CommandHandle] = []
         for slot in self.slots.values():
             source = slot.source
             if source is None:
@@ -160,10 +162,11 @@ class TrackTable:
             state = source.state(t_s)
             if state == "running":
                 continue
-            if slot.handle is not None and slot.handle._set(Status.DONE, t_s):
-                notify(slot.handle)
+            if slot.handle is not None and not slot.handle.status.final:
+                done.append(slot.handle)
             if state == "ended":
                 slot.source, slot.handle, slot.last = None, None, {}
+        return done
 
     def busy(self, t_s: float, alive: frozenset[str]) -> bool:
         """True while a non-alive track has a running source or a command scheduled."""

@@ -57,6 +57,31 @@ def test_a_bad_command_raises_at_once_and_changes_nothing(shared: Running, what:
     assert len(svc._inbox) == inbox and svc.status().tracks == before
 
 
+def test_a_finished_command_is_done_once_its_last_frame_is_published(
+    running: Running, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A waiter woken by DONE reads the frame the command finished on (its status view and trace), not the
+    one before: the handle is completed after `_publish` (it once was before, in `advance`)."""
+    svc = running.service
+    real = HeadService._publish
+    watched: list[Any] = []
+    at_publish: list[tuple[float, Status]] = []
+
+    def publish(self: HeadService, t_s: float, tick: Any, trace: Any) -> None:
+        if watched:
+            at_publish.append((t_s, watched[0].status))
+        real(self, t_s, tick, trace)
+
+    monkeypatch.setattr(HeadService, "_publish", publish)
+    h = svc.set_aus({"AU1": 0.5}, track="face", transition_s=0.2)
+    watched.append(h)
+    assert h.wait(5.0) is Status.DONE
+    last = svc.last_trace
+    assert last is not None and h.finished_s is not None and last.t_s >= h.finished_s
+    finishing = [status for t_s, status in at_publish if t_s == h.finished_s]
+    assert finishing == [Status.RUNNING], at_publish[-3:]  # published first, then completed
+
+
 def test_a_command_starts_at_its_absolute_time_on_the_service_clock(running: Running) -> None:
     svc = running.service
     at = svc.now_s() + 2.0  # far enough that a loaded machine's loop shows it scheduled before it starts
