@@ -119,8 +119,8 @@ class Pipeline:
         # where that write's slot began: the time it was held to (a held frame), else when it began; the next
         # held write is held to a period after it (`_slot`), so sleep overshoots do not add up either
         self.last_slot_start_s: float | None = None
-        # the elapsed time a held next frame is checked for: a period less the last write's own time (None:
-        # a whole period), so that held writes start a period apart (`_slot_deficit`)
+        # the elapsed time a held next frame is checked for: a period less the time from the last write's
+        # slot start to its end (None: a whole period), so that held writes start a period apart (`_slot`)
         self._slot_s: float | None = None
         self._interval_s: float | None = None  # between the last two writes (plans the speculation)
         self._short_run = 0  # writes in a row that came well within a period of the one before

@@ -14,7 +14,9 @@ Times are ``time.monotonic`` (the host's, not the service clock): the question i
 Silence counts only while this process runs: when the watchdog wakes more than ``STALL_S`` late (the
 process descheduled or starved on a loaded machine), heartbeats may be sitting unread in the socket
 buffers, so the time it did not run is not held against the sockets (`excuse_stall`). A dead browser is
-still found within ``timeout_s`` of the time the server was awake to hear it; a stalled server cannot move
+still found within ``timeout_s`` of the time the server was awake to hear it, and at most
+``EXCUSE_LIMIT`` × ``timeout_s`` of stalls is excused per silence (a machine so loaded that every wake is
+late still finds a dead browser, within ``timeout_s`` × (1 + ``EXCUSE_LIMIT``)); a stalled server cannot move
 the head meanwhile either (its loop is in this process)."""
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ HEARTBEAT_INTERVAL_S = 0.25  # what the page sends (documented; the server does 
 HEARTBEAT_TIMEOUT_S = 0.8  # nothing heard for this long (3 heartbeats) on an armed socket: gone; ease starts < 1 s
 WATCH_PERIOD_S = 0.05
 STALL_S = 0.1  # the watchdog waking this much later than its period: the process did not run (`excuse_stall`)
+EXCUSE_LIMIT = 2.0  # at most this many timeouts of stalls excused per silence of a socket
 
 
 @dataclass
@@ -36,6 +39,7 @@ class _Socket:
     armed: bool = False
     silent: bool = False
     busy: int = 0  # messages being handled: a slow handler is not a silent browser
+    excused_s: float = 0.0  # stall time excused since it was last heard (`Liveness.excuse_stall`)
 
 
 class Liveness:
@@ -91,6 +95,7 @@ class Liveness:
             if s is None:
                 return
             s.last_heard_s = self.clock()
+            s.excused_s = 0.0
             s.armed = s.armed or heartbeat
             s.silent = False
             s.busy = max(0, s.busy + busy)
@@ -118,15 +123,19 @@ class Liveness:
 
     def excuse_stall(self, stalled_s: float) -> None:
         """The process did not run for ``stalled_s`` (the watchdog woke that late): each live socket's last
-        heard time moves forward by it (never past now), so that time is not counted as its silence.
-        Nothing below ``STALL_S`` (ordinary wake-up jitter)."""
+        heard time moves forward by it (never past now, and by at most ``EXCUSE_LIMIT`` timeouts in all
+        since it was last heard), so that time is not counted as its silence. Nothing below ``STALL_S``
+        (ordinary wake-up jitter)."""
         if not stalled_s > STALL_S:
             return
         now = self.clock()
+        limit_s = EXCUSE_LIMIT * self.timeout_s
         with self._lock:
             for s in self._sockets.values():
                 if not s.silent:
-                    s.last_heard_s = min(now, s.last_heard_s + stalled_s)
+                    excuse_s = max(0.0, min(stalled_s, limit_s - s.excused_s))
+                    s.excused_s += excuse_s
+                    s.last_heard_s = min(now, s.last_heard_s + excuse_s)
 
     def watch_step(self, last_s: float) -> float:
         """One wake of the watchdog, ``last_s`` the clock at the one before: a late wake excused
