@@ -14,6 +14,8 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Callable
+from typing import Any
 
 from dynamixel_sdk import (
     COMM_SUCCESS,
@@ -41,6 +43,24 @@ def check(ph: PacketHandler, what: str, comm: int, err: int = 0) -> None:
         raise RuntimeError(f"{what}: {ph.getRxPacketError(err)}")
 
 
+TRIES = 3  # a reply that does not come is asked for again: a real bus loses one now and then, and the SDK's
+# reply window is tight (a few ms past the packet's wire time), so a loaded computer can miss one too
+
+
+def transact(ph: PacketHandler, what: str, call: Callable[..., Any], *args: Any) -> tuple[Any, ...]:
+    """``call(*args)`` (an SDK transaction: its result ends in ``comm`` or ``(comm, error)``), sent again up to
+    ``TRIES`` times while the communication fails; a servo's error byte is not retried. Raises if it still
+    fails; returns the result as a tuple."""
+    for attempt in range(TRIES):
+        result = call(*args)
+        values = result if isinstance(result, tuple) else (result,)
+        comm, err = (values[-2], values[-1]) if len(values) >= 2 else (values[0], 0)
+        if comm == COMM_SUCCESS or attempt == TRIES - 1:
+            check(ph, what, comm, err)
+            return values
+    raise AssertionError("unreachable")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("port")
@@ -59,14 +79,12 @@ def main(argv: list[str] | None = None) -> int:
         # ping + single read + single writes
         start: dict[int, int] = {}
         for sid in ids:
-            model, comm, err = ph.ping(port, sid)
-            check(ph, f"ping {sid}", comm, err)
-            pos, comm, err = ph.read4ByteTxRx(port, sid, ADDR_PRESENT_POSITION)
-            check(ph, f"read position {sid}", comm, err)
+            model = transact(ph, f"ping {sid}", ph.ping, port, sid)[0]
+            pos = transact(ph, f"read position {sid}", ph.read4ByteTxRx, port, sid, ADDR_PRESENT_POSITION)[0]
             start[sid] = signed32(pos)
-            check(ph, f"profile velocity {sid}", *ph.write4ByteTxRx(port, sid, ADDR_PROFILE_VELOCITY, 0))
-            check(ph, f"goal := present {sid}", *ph.write4ByteTxRx(port, sid, ADDR_GOAL_POSITION, start[sid]))
-            check(ph, f"torque on {sid}", *ph.write1ByteTxRx(port, sid, ADDR_TORQUE_ENABLE, 1))
+            transact(ph, f"profile velocity {sid}", ph.write4ByteTxRx, port, sid, ADDR_PROFILE_VELOCITY, 0)
+            transact(ph, f"goal := present {sid}", ph.write4ByteTxRx, port, sid, ADDR_GOAL_POSITION, start[sid])
+            transact(ph, f"torque on {sid}", ph.write1ByteTxRx, port, sid, ADDR_TORQUE_ENABLE, 1)
             print(f"ping {sid}: model {model}, present position {start[sid]}")
 
         # one sync write of all goals
@@ -83,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
         deadline = time.monotonic() + 3.0
         present: dict[int, int] = {}
         while time.monotonic() < deadline:
-            check(ph, "sync read", reader.txRxPacket())
+            transact(ph, "sync read", reader.txRxPacket)
             present = {sid: signed32(reader.getData(sid, ADDR_PRESENT_POSITION, LEN_POSITION)) for sid in ids}
             if present == goals:
                 break
@@ -91,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"sync read: {present}")
 
         # fast sync read must agree
-        check(ph, "fast sync read", reader.fastSyncRead())
+        transact(ph, "fast sync read", reader.fastSyncRead)
         fast = {sid: signed32(reader.getData(sid, ADDR_PRESENT_POSITION, LEN_POSITION)) for sid in ids}
         print(f"fast sync read: {fast}")
         if present != goals or fast != goals:

@@ -57,8 +57,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="append",
         default=[],
         type=_typed(parse_fault),
-        metavar="ID:KIND[@START[+DURATION]]",
-        help="script a fault (repeatable), e.g. 3:no_reply@2s+0.5s, 5:late_reply=20ms@1s, 2:overload@3s",
+        metavar="ID:KIND[*N][@START[+DURATION]]",
+        help="script a fault (repeatable), e.g. 3:no_reply@2s+0.5s, 5:late_reply=20ms@1s, 2:overload@3s, "
+        "3:no_reply*1 (only servo 3's next reply lost)",
     )
     parser.add_argument(
         "--realism", action="store_true", help="non-ideal servos: backlash, settling error and lag, encoder noise"
@@ -218,7 +219,7 @@ def _ranges(ids: list[int]) -> str:
 def _inject(chain: Any, faults: list[FaultSpec]) -> None:
     now = chain.time_s
     for f in faults:
-        options: dict[str, Any] = {"start_s": now + f.start_s, "duration_s": f.duration_s}
+        options: dict[str, Any] = {"start_s": now + f.start_s, "duration_s": f.duration_s, "replies": f.replies}
         if f.value is not None:
             options["delay_s" if f.kind == "late_reply" else "drop_bytes"] = (
                 f.value if f.kind == "late_reply" else int(f.value)

@@ -3,12 +3,15 @@
 parse_ids("1-4,7")                          -> [1, 2, 3, 4, 7]
 parse_servos("1-17:XL330-M288,18-21:XL430-W250") -> [(1, "XL330-M288"), ..., (21, "XL430-W250")]
 parse_fault("3:no_reply@2s+0.5s")            -> FaultSpec(3, "no_reply", start_s=2.0, duration_s=0.5)
+parse_fault("3:no_reply*1")                  -> FaultSpec(3, "no_reply", replies=1): one lost reply
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+
+from servoface.hardware.emulator.faults import REPLY_KINDS
 
 MAX_SERVO_ID = 252
 
@@ -64,13 +67,15 @@ def parse_servos(text: str) -> list[tuple[int, str]]:
 @dataclass(frozen=True)
 class FaultSpec:
     """One scripted fault: on servo ``servo_id`` from ``start_s`` (after serving starts) for ``duration_s``
-    (None = until the emulator stops); ``value`` is late_reply's delay (s) or dropped_bytes' count."""
+    (None = until the emulator stops); ``value`` is late_reply's delay (s) or dropped_bytes' count;
+    ``replies``: a reply fault that spoils only this many of the servo's status packets, then ends."""
 
     servo_id: int
     kind: str
     start_s: float = 0.0
     duration_s: float | None = None
     value: float | None = None
+    replies: int | None = None
 
 
 def _seconds(text: str, what: str) -> float:
@@ -90,16 +95,18 @@ def _seconds(text: str, what: str) -> float:
 
 
 def parse_fault(text: str, kinds: frozenset[str] | None = None) -> FaultSpec:
-    """``ID:KIND[=VALUE][@START[+DURATION]]``, e.g. ``3:no_reply@2s+0.5s``, ``5:late_reply=20ms@1s``,
-    ``2:overload@3s`` (from 3 s on), ``4:disconnect`` (now, for good)."""
+    """``ID:KIND[=VALUE][*N][@START[+DURATION]]``, e.g. ``3:no_reply@2s+0.5s``, ``5:late_reply=20ms@1s``,
+    ``2:overload@3s`` (from 3 s on), ``4:disconnect`` (now, for good), ``3:no_reply*1`` (servo 3's next
+    reply lost, exactly one: ``*N`` counts a reply fault's spoiled status packets)."""
     head, sep, kind_part = text.strip().partition(":")
     if not sep:
-        raise ValueError(f"fault {text!r}: expected ID:KIND[@START[+DURATION]], e.g. 3:no_reply@2s+0.5s")
+        raise ValueError(f"fault {text!r}: expected ID:KIND[=VALUE][*N][@START[+DURATION]], e.g. 3:no_reply@2s+0.5s")
     try:
         servo_id = int(head)
     except ValueError:
         raise ValueError(f"fault {text!r}: servo id {head!r} is not an integer") from None
     kind_text, _, when = kind_part.partition("@")
+    kind_text, star, count_text = kind_text.partition("*")
     kind, eq, value_text = kind_text.partition("=")
     kind = kind.strip()
     if kinds is not None and kind not in kinds:
@@ -115,10 +122,20 @@ def parse_fault(text: str, kinds: frozenset[str] | None = None) -> FaultSpec:
                 raise ValueError(f"fault {text!r}: dropped_bytes={value_text!r}, expected an integer") from None
         else:
             raise ValueError(f"fault {text!r}: only late_reply=DELAY and dropped_bytes=N take a value")
+    replies = None
+    if star:
+        if kind not in REPLY_KINDS:
+            raise ValueError(f"fault {text!r}: only reply faults {sorted(REPLY_KINDS)} take *N")
+        try:
+            replies = int(count_text)
+        except ValueError:
+            raise ValueError(f"fault {text!r}: *{count_text!r}, expected a count of replies >= 1") from None
+        if replies < 1:
+            raise ValueError(f"fault {text!r}: *{count_text!r}, expected a count of replies >= 1")
     start_s, duration_s = 0.0, None
     if when:
         start_text, plus, duration_text = when.partition("+")
         start_s = _seconds(start_text, f"fault {text!r} start")
         if plus:
             duration_s = _seconds(duration_text, f"fault {text!r} duration")
-    return FaultSpec(servo_id, kind, start_s, duration_s, value)
+    return FaultSpec(servo_id, kind, start_s, duration_s, value, replies)

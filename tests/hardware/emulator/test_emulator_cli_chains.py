@@ -27,14 +27,18 @@ def test_parse_servos_and_faults() -> None:
     assert parse_fault("3:no_reply@2s+0.5s") == FaultSpec(3, "no_reply", 2.0, 0.5)
     assert parse_fault("5:late_reply=20ms@1s") == FaultSpec(5, "late_reply", 1.0, None, 0.02)
     assert parse_fault("4:disconnect") == FaultSpec(4, "disconnect")
+    assert parse_fault("3:no_reply*2@1s") == FaultSpec(3, "no_reply", 1.0, None, None, 2)
+    assert parse_fault("5:late_reply=20ms*1") == FaultSpec(5, "late_reply", 0.0, None, 0.02, 1)
     for bad in ("1-3", "1-3:", "x:XL330-M288", "1,1:XL330-M288"):
         with pytest.raises(ValueError):
             parse_servos(bad)
-    for bad in ("3", "a:no_reply", "3:no_reply@-1s", "3:no_reply@2s+x", "3:no_reply=4"):
+    for bad in ("3", "a:no_reply", "3:no_reply@-1s", "3:no_reply@2s+x", "3:no_reply=4", "3:no_reply*0", "3:no_reply*x"):
         with pytest.raises(ValueError):
             parse_fault(bad)
     with pytest.raises(ValueError, match="kind"):
         parse_fault("3:melt", frozenset({"no_reply"}))
+    with pytest.raises(ValueError, match=r"only reply faults .* take \*N"):
+        parse_fault("2:overload*1")
 
 
 @contextmanager
@@ -70,9 +74,11 @@ def _ping(path: str, ids: list[int]) -> dict[int, int]:
     ph = sdk.PacketHandler(2.0)
     out = {}
     for sid in ids:
-        model, comm, err = ph.ping(port, sid)
-        if comm == sdk.COMM_SUCCESS:
-            out[sid] = model
+        for _ in range(3):  # the SDK's reply window is a few ms: a loaded machine can miss a reply
+            model, comm, err = ph.ping(port, sid)
+            if comm == sdk.COMM_SUCCESS:
+                out[sid] = model
+                break
     port.closePort()
     return out
 
