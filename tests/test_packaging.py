@@ -40,13 +40,34 @@ def _package_folders() -> set[str]:
     return found
 
 
+def _folder_of(package: str) -> Path:
+    """The repo folder a listed package installs from (through the deepest package-dir entry above it)."""
+    mapping = {**{f"servoface.{p}": p for p in OURS}, **MAPPED}
+    head = max((pkg for pkg in mapping if package == pkg or package.startswith(pkg + ".")), key=len)
+    return (
+        ROOT / mapping[head] / Path(*package[len(head) :].lstrip(".").split("."))
+        if package != head
+        else ROOT / mapping[head]
+    )
+
+
+def _data_folders() -> set[str]:
+    """Listed folders without an __init__.py: data the wheel ships (samples, scripts, meshes, shaders, the
+    studio's static files), listed so that setuptools does not warn that they look importable."""
+    data = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    listed = set(data["tool"]["setuptools"]["packages"])
+    return {pkg for pkg in listed if _folder_of(pkg).is_dir() and not (_folder_of(pkg) / "__init__.py").exists()}
+
+
 def test_pyproject_lists_every_package_under_the_servoface_root() -> None:
     data = tomllib.loads((ROOT / "pyproject.toml").read_text())
     listed = set(data["tool"]["setuptools"]["packages"])
     missing = sorted(_package_folders() - listed)
-    extra = sorted(listed - _package_folders())
+    extra = sorted(listed - _package_folders() - _data_folders())
     assert not missing, f"add these to [tool.setuptools] packages in pyproject.toml: {missing}"
     assert not extra, f"pyproject.toml lists packages with no folder: {extra}"
+    for folder in map(_folder_of, _data_folders()):  # a data folder holds files besides .py ones
+        assert any(f.is_file() and f.suffix != ".py" for f in folder.iterdir()), f"{folder}: no data files"
     assert "servoface.controller.testing" not in listed
     assert data["tool"]["setuptools"]["package-dir"] == {**{f"servoface.{p}": p for p in OURS}, **MAPPED}
 
