@@ -1,6 +1,6 @@
 """Write the small synthetic sample files in this folder (deterministic; no tracker, no downloads).
 
-    python -m servoface.controller.inputs.samples.generate
+    python -m servoface.controller.inputs.samples.generate [FOLDER]   # default: this folder
 
 - ``openface_smile.csv``: OpenFace 2.x FeatureExtraction layout (leading spaces in the header, gaze/pose
   columns, AUxx_r and AUxx_c), 30 fps, 2 s: a smile (AU6 + AU12) rises and falls; tracking is lost
@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path
 
 HERE = Path(__file__).parent
@@ -167,12 +168,18 @@ def fap(path: Path) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
-def main() -> None:
-    openface(HERE / "openface_smile.csv")
-    pyfeat(HERE / "pyfeat_surprise.csv")
-    arkit(HERE / "arkit_smile.jsonl")
-    mediapipe(HERE / "mediapipe_blink.csv")
-    fap(HERE / "greeting.fap")
+def main(argv: list[str] | None = None) -> None:
+    """Write the samples into the folder given (created if need be), else into this one (the repo's)."""
+    args = sys.argv[1:] if argv is None else argv
+    if len(args) > 1:
+        raise SystemExit("usage: python -m servoface.controller.inputs.samples.generate [FOLDER]")
+    out = Path(args[0]) if args else HERE
+    out.mkdir(parents=True, exist_ok=True)
+    openface(out / "openface_smile.csv")
+    pyfeat(out / "pyfeat_surprise.csv")
+    arkit(out / "arkit_smile.jsonl")
+    mediapipe(out / "mediapipe_blink.csv")
+    fap(out / "greeting.fap")
 
 
 if __name__ == "__main__":
