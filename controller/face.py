@@ -21,6 +21,7 @@ track, an e-stop from any thread). ``face.traces`` keeps the recent frame traces
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import signal
 import threading
@@ -295,10 +296,16 @@ class Face:
         """Move to a named expression's apex (scaled by ``intensity``) and hold it."""
         library = self._expressions()
         if not isinstance(name, str) or name not in library:
-            raise ControllerError(f"express: unknown expression {printable_repr(name)}; known: {sorted(library)}")
+            close = difflib.get_close_matches(name, sorted(library), n=1) if isinstance(name, str) else []
+            maybe = f" (did you mean {close[0]!r}?)" if close else ""
+            raise ControllerError(
+                f"express: unknown expression {printable_repr(name)}{maybe}; known: {sorted(library)}"
+            )
         level = as_finite(intensity)
         if level is None or not 0 <= level <= 1:
             raise ControllerError(f"express: intensity must be a number within 0..1, got {printable_repr(intensity)}")
+        check_seconds(transition_s, "express: transition_s")  # named as the caller wrote them
+        check_seconds(hold_s, "express: hold_s")
         apex = {au: v * level for au, v in library[name].apex().items()}
         return self.set_aus(apex, transition_s=transition_s, hold_s=hold_s)
 

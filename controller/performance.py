@@ -39,6 +39,17 @@ class Performance:
         if not isinstance(self.traces, TraceRing):
             self.traces = TraceRing(self.traces)
 
+    def __repr__(self) -> str:
+        """A line a REPL can show (the frames and loop statistics are counted, not listed)."""
+        achieved = "" if self.stats is None else f", achieved_hz={self.stats.achieved_hz:.1f}"
+        ended = "".join(
+            [
+                ", interrupted=True" if self.interrupted else "",
+                f", bus_failure={self.bus_failure!r}" if self.bus_failure else "",
+            ]
+        )
+        return f"Performance(frames={self.traces.total}, verdicts={self.verdicts}, rate_hz={self.rate_hz:g}{achieved}{ended})"
+
     @property
     def verdicts(self) -> dict[str, int]:
         counts = self.traces.verdict_counts

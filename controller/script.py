@@ -30,6 +30,7 @@ errors carry tomllib's line and column. The format (all times in seconds, intens
 
 from __future__ import annotations
 
+import difflib
 import re
 import tomllib
 from collections.abc import Mapping
@@ -113,7 +114,14 @@ def load_script(path: str | Path, *, allowed: frozenset[str] | None = None) -> S
     try:
         text = p.read_text(encoding="utf-8")
     except OSError as err:
-        raise ScriptError(f"{p}: cannot read script ({err.strerror or err})") from err
+        hint = ""
+        if isinstance(path, str) and "/" not in path and not p.exists():  # a name: perhaps a shipped one misspelt
+            from servoface.controller.shipped import shipped_scripts
+
+            names = sorted(shipped_scripts())
+            close = difflib.get_close_matches(path.removesuffix(".toml"), names, n=1)
+            hint = (f" (did you mean {close[0]!r}?)" if close else "") + f"; shipped scripts: {names}"
+        raise ScriptError(f"{p}: cannot read script ({err.strerror or err}){hint}") from err
     return parse_script(text, source=str(p), allowed=allowed)
 
 

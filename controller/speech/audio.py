@@ -26,6 +26,7 @@ def write_wav(path: str | Path, samples: NDArray[np.int16], rate_hz: int) -> Pat
             w.setsampwidth(2)
             w.setframerate(int(rate_hz))
             w.writeframes(np.asarray(samples, dtype="<i2").tobytes())
+        os.chmod(tmp, 0o644)  # as a file written in place (mkstemp makes it 0600)
         os.replace(tmp, out)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -186,6 +186,7 @@ class ScriptFolder:
         try:
             with os.fdopen(fd, "w", encoding="utf-8") as f:
                 f.write(text)
+            os.chmod(tmp, 0o644)  # as a file written in place (mkstemp makes it 0600)
             os.replace(tmp, p)
         except BaseException:
             Path(tmp).unlink(missing_ok=True)
