@@ -48,7 +48,8 @@ class Performance:
                 f", bus_failure={self.bus_failure!r}" if self.bus_failure else "",
             ]
         )
-        return f"Performance(frames={self.traces.total}, verdicts={self.verdicts}, rate_hz={self.rate_hz:g}{achieved}{ended})"
+        counts = f"frames={self.traces.total}, verdicts={self.verdicts}"
+        return f"Performance({counts}, rate_hz={self.rate_hz:g}{achieved}{ended})"
 
     @property
     def verdicts(self) -> dict[str, int]:

@@ -69,7 +69,8 @@ def test_files_written_atomically_are_not_private(tmp_path: Path) -> None:
         write_script(tmp_path / "speech.toml", "[script]\nface = 'human'\n"),
     ]
     folder = ScriptFolder(tmp_path / "studio", None)
-    saved = folder.save("greeting.toml", "[script]\nface = 'human'\n\n[[play]]\nat_s = 0.0\nlibrary = 'happiness'\n", "text")
+    text = "[script]\nface = 'human'\n\n[[play]]\nat_s = 0.0\nlibrary = 'happiness'\n"
+    saved = folder.save("greeting.toml", text, "text")
     written.append(Path(saved["path"]))
     for path in written:
         assert stat.S_IMODE(path.stat().st_mode) == 0o644, path
