@@ -325,6 +325,9 @@ def load_calibration(path: str | os.PathLike[str]) -> HeadCalibration:
         text = p.read_text(encoding="utf-8")
     except OSError as err:
         raise CalibrationFileError(str(p), "", f"cannot read the calibration file ({err.strerror})") from err
+    except UnicodeDecodeError as err:
+        byte = f"byte 0x{err.object[err.start]:02x} at offset {err.start}"
+        raise CalibrationFileError(str(p), "", f"not a calibration JSON file (not UTF-8 text: {byte})") from err
     try:
         data = json.loads(text)
     except json.JSONDecodeError as err:

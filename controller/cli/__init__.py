@@ -51,6 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="servoface",
         description="Drive expressive Dynamixel faces: AUs -> muscles -> calibration -> twin gate -> bus.",
     )
+    parser.add_argument("--version", action="version", version=f"servoface {version()}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, module_name in COMMANDS.items():
         module = _load(module_name)
@@ -66,11 +67,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     from servoface.controller.cli.options import CommandLineError, parse_command
     from servoface.controller.cli.terminal import printable
 
+    # a tuple, not list(): once imported, the `list` sub-command's module shadows that name in this package
+    argv = tuple(argv) if argv is not None else tuple(sys.argv[1:])
+    if argv[:1] == ("--version",):  # answered before the sub-commands are imported
+        print(f"servoface {version()}")
+        return 0
     parser = build_parser()
     try:
         args = parse_command(argv, parser)  # argparse (usage errors exit 2), then every option's range
     except CommandLineError as err:
-        command = next((a for a in (argv if argv is not None else sys.argv[1:]) if a in COMMANDS), "")
+        command = next((a for a in argv if a in COMMANDS), "")
         print(f"servoface {command}: {printable(err)}".replace(" :", ":"), file=sys.stderr)
         return 2
     if getattr(args, "_run", None) is None:
@@ -82,8 +88,28 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("servoface: interrupted", file=sys.stderr)
         return 130
     except OSError as err:  # a path, folder or device the command could not use: say which, no traceback
+        from servoface.controller.cli.exits import exit_code
+
         print(f"servoface {args.command}: {describe_os_error(err)}", file=sys.stderr)
-        return 1
+        return exit_code(err)  # 2: a path as given cannot be used; 1: the device or disk failed
+    except Exception as err:
+        from servoface.controller.cli.exits import EXIT_USAGE, is_input_error
+
+        if not is_input_error(err):
+            raise
+        print(f"servoface {args.command}: {printable(err)}", file=sys.stderr)  # bad input: a message, exit 2
+        return EXIT_USAGE
+
+
+def version() -> str:
+    """The installed distribution's version (``unknown`` when run from a tree that was never installed)."""
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as dist_version
+
+    try:
+        return dist_version("servoface")
+    except PackageNotFoundError:
+        return "unknown (not installed: `pip install -e .`)"
 
 
 def describe_os_error(err: OSError) -> str:
@@ -100,6 +126,7 @@ def describe_os_error(err: OSError) -> str:
         errno.ENOSPC: "free some disk space",
         errno.ENOTDIR: "a part of the path is a file, not a folder",
         errno.EISDIR: "give a file name, not a folder",
+        errno.EEXIST: "something of that name is in the way: choose another name",
     }.get(err.errno or 0, "")
     return f"cannot use{where}: {what}" + (f" ({hint})" if hint else "")
 

@@ -229,9 +229,10 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from servoface.calibration.builtin import write_builtin
-    from servoface.calibration.errors import CalibrationError, ProcedureAborted
+    from servoface.calibration.errors import CalibrationError, CalibrationFileError, ProcedureAborted
     from servoface.calibration.fileformat import load_calibration, save_calibration
     from servoface.calibration.procedure import ProcedureOptions, calibrate_from_csv
+    from servoface.controller.cli.exits import EXIT_USAGE
     from servoface.hardware.errors import HardwareError
     from servoface.sim.heads import load_head
 
@@ -270,7 +271,7 @@ def _run(args: argparse.Namespace) -> int:
         except CalibrationError as err:
             if args.roles:
                 print(f"servoface calibrate: cannot keep the other servos: {err}", file=sys.stderr)
-                return 1
+                return EXIT_USAGE
             print(f"# ignoring the existing calibration as a guide: {err}")
         keep = guide if args.roles else None
     try:
@@ -292,9 +293,9 @@ def _run(args: argparse.Namespace) -> int:
     except HardwareError as err:
         print(f"servoface calibrate: bus: {err}; nothing saved", file=sys.stderr)
         return 1
-    except CalibrationError as err:
+    except CalibrationError as err:  # a missing or malformed measurement file: bad input (2); a fit that fails: 1
         print(f"servoface calibrate: {err}", file=sys.stderr)
-        return 1
+        return EXIT_USAGE if isinstance(err, CalibrationFileError) else 1
     _report(result)
     print(f"next: servoface check {args.head}")
     return 0

@@ -73,17 +73,29 @@ def _calibration_gaps(head: Any, cal: Any, head_arg: str) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     from servoface.calibration import CalibrationError, load_calibration
+    from servoface.controller.cli.exits import EXIT_USAGE, head_hint, head_message, no_profile_at
+    from servoface.controller.cli.terminal import printable
     from servoface.controller.errors import ControllerError
     from servoface.sim.errors import SimError
     from servoface.sim.heads import load_head
     from servoface.sim.heads.sizes import size_warnings
 
+    if args.json is not None:  # the report takes a while: a path it cannot be written to fails first
+        from servoface.controller.cli import describe_os_error
+        from servoface.controller.cli.outputs import writable_file
+
+        try:
+            writable_file(args.json)
+        except OSError as err:
+            print(f"servoface check: --json {args.json}: {describe_os_error(err)}", file=sys.stderr)
+            return EXIT_USAGE
     try:
         head = load_head(args.head)
     except (SimError, OSError) as err:
-        print(f"servoface check: {err}", file=sys.stderr)
-        print("  next: fix head.toml at that key and run `servoface check` again", file=sys.stderr)
-        return 1
+        print(f"servoface check: {printable(head_message(args.head, err, flag=''))}", file=sys.stderr)
+        print(f"  {head_hint(args.head)}", file=sys.stderr)
+        # nothing there to check: a usage error (2); a profile that is there but malformed: a problem found (1)
+        return EXIT_USAGE if no_profile_at(args.head) else 1
     print(
         f"head {head.name!r} ({head.face_type}): {len(head.joints)} joints, {len(head.parts)} parts, "
         f"{head.skin.vertices_mm.shape[0]} skin vertices{'' if head.has_skin else ' (mechanical: no skin)'}, "
@@ -94,6 +106,7 @@ def run(args: argparse.Namespace) -> int:
     problems: list[str] = []
     cal_path = args.calibration if args.calibration is not None else head.calibration_path
     cal = None
+    broken = None  # why a calibration file that exists cannot be used
     if cal_path is None or not Path(cal_path).is_file():
         where = "head.toml names no calibration file" if cal_path is None else f"no calibration file {cal_path} yet"
         problems.append(f"{where}: {_cal_hint(args.head)}")
@@ -101,13 +114,16 @@ def run(args: argparse.Namespace) -> int:
         try:
             cal = load_calibration(cal_path)
         except (CalibrationError, OSError) as err:
-            problems.append(f"{err}: {_cal_hint(args.head)}")
+            broken = printable(err).removeprefix(f"{cal_path}: ")
+            problems.append(
+                f"calibration file {cal_path} is broken: {broken}; fix it or recalibrate: {_cal_hint(args.head)}"
+            )
     if cal is not None:
         print(f"calibration: {cal_path}")
         problems += _calibration_gaps(head, cal, args.head)
     if cal is not None and not problems:
         problems += _servo_table(head, cal)
-    uncalibrated = cal is None
+    uncalibrated = cal is None and broken is None  # (a broken file: the report would fail on it too)
     if (not problems or uncalibrated) and not args.no_report:
         if uncalibrated:
             print("\n(no calibration yet: the report below uses the profile's actuator ranges, without the twin gate)")

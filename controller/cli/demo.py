@@ -29,20 +29,29 @@ def run(args: argparse.Namespace) -> int:
 
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     from servoface.controller.cli import describe_os_error
+    from servoface.controller.cli.exits import EXIT_USAGE, exit_code, head_hint, head_message
     from servoface.controller.cli.outputs import writable_folder
+    from servoface.controller.cli.terminal import printable
     from servoface.controller.demo import run_demo
 
-    try:
-        writable_folder(args.out)
-    except OSError as err:
-        print(f"servoface demo: --out {args.out}: {describe_os_error(err)}", file=sys.stderr)
-        return 1
     head = args.head
     from servoface.calibration import CalibrationError
     from servoface.controller.errors import ControllerError
     from servoface.hardware.errors import HardwareError
     from servoface.sim.errors import SimError
+    from servoface.sim.heads import load_head
 
+    try:  # the head checked before anything is opened or announced
+        load_head(head)
+    except (SimError, OSError) as err:
+        print(f"servoface demo: {printable(head_message(head, err))}", file=sys.stderr)
+        print(f"  {head_hint(head)}", file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        writable_folder(args.out)
+    except OSError as err:
+        print(f"servoface demo: --out {args.out}: {describe_os_error(err)}", file=sys.stderr)
+        return exit_code(err)
     try:
         out = run_demo(
             args.out,
@@ -54,9 +63,9 @@ def run(args: argparse.Namespace) -> int:
             show=args.show,
         )
     except (SimError, CalibrationError, ControllerError, HardwareError) as err:
-        print(f"servoface demo: --head {head}: {err}", file=sys.stderr)
+        print(f"servoface demo: {printable(head_message(head, err))}", file=sys.stderr)
         print(f"  next: `servoface check {head}` names what to fix", file=sys.stderr)
-        return 1
+        return exit_code(err)
     r = out.report_data
     loop = r["loop"]
     print(

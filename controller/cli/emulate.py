@@ -6,7 +6,9 @@
     servoface emulate --head dog --fault 3:no_reply@2s+0.5s --fault 5:overload@10s
 
 Prints the pseudo-terminal path as the first line of output, then serves until Ctrl-C or SIGTERM (exit 0).
-Fault times count from when serving starts.
+Fault times count from when serving starts. A profile not calibrated yet (right after `servoface new`) is
+served all the same, every servo at tick 2048, so calibration can be rehearsed on the emulator; a calibration
+file that is there but broken is refused (exit 2).
 """
 
 from __future__ import annotations
@@ -164,32 +166,46 @@ def _parse_signal_fault(text: str) -> tuple[int, str, float]:
     return sid, parts[1], delay
 
 
-def _head_chain(name: str) -> tuple[list[tuple[int, str]], dict[int, int]]:
-    """(id, model) of every servo of head ``name`` and, if it has a calibration, its neutral ticks."""
+UNCALIBRATED_REST_TICK = 2048  # the middle of every supported model's 0..4095 position range
+
+
+def _head_chain(name: str) -> tuple[list[tuple[int, str]], dict[int, int], str | None]:
+    """(id, model) of every servo of head ``name``, their rest ticks (the calibration's neutral ticks, or
+    the middle of the position range for a profile not calibrated yet) and, for the latter, a note saying
+    so and how to calibrate (``{pty}``: where the pty path goes). A calibration file that exists but is
+    broken raises CalibrationError."""
     from servoface.controller.face import head_calibration
     from servoface.controller.head_servos import driver_model_name
     from servoface.sim.heads import load_head
 
     head = load_head(name)
     pairs = [(a.servo.id, driver_model_name(a.servo.model)) for a in head.actuators]
-    neutral: dict[int, int] = {}
-    if head.calibration_path is not None:
-        cal = head_calibration(head)
-        neutral = {sid: cal.by_id(sid).neutral_tick for sid, _ in pairs if sid in cal.ids}
-    return pairs, neutral
+    path = head.calibration_path
+    if path is None or not Path(path).exists():  # right after `servoface new`: rehearse calibration here
+        where = "names no calibration file" if path is None else f"has no {path} yet"
+        note = (
+            f"head {head.name!r} is not calibrated ({where}): its servos wait at tick "
+            f"{UNCALIBRATED_REST_TICK}; calibrate with `servoface calibrate --head {name} --port {{pty}}`"
+        )
+        return pairs, {sid: UNCALIBRATED_REST_TICK for sid, _ in pairs}, note
+    cal = head_calibration(head)
+    neutral = {sid: cal.by_id(sid).neutral_tick for sid, _ in pairs if sid in cal.ids}
+    return pairs, neutral, None
 
 
-def _chain_description(args: argparse.Namespace) -> tuple[list[tuple[int, str]], dict[int, int], str]:
+def _chain_description(
+    args: argparse.Namespace,
+) -> tuple[list[tuple[int, str]], dict[int, int], str, str | None]:
     if args.model is not None and (args.head is not None or args.servos is not None):
         raise ValueError("--model goes with --ids (--servos and --head name each servo's model)")
     if args.head is not None:
-        pairs, neutral = _head_chain(args.head)
-        return pairs, neutral, f"head {args.head!r}"
+        pairs, neutral, note = _head_chain(args.head)
+        return pairs, neutral, f"head {args.head!r}", note
     if args.servos is not None:
-        return args.servos, {}, "chain"
+        return args.servos, {}, "chain", None
     ids = args.ids if args.ids is not None else parse_ids("1-24")
     model = args.model or "XL330-M288"
-    return [(sid, model) for sid in ids], {}, "chain"
+    return [(sid, model) for sid in ids], {}, "chain", None
 
 
 def _summary(pairs: list[tuple[int, str]]) -> str:
@@ -228,12 +244,14 @@ def _inject(chain: Any, faults: list[FaultSpec]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from servoface.calibration import CalibrationError
+    from servoface.controller.cli.terminal import printable
     from servoface.controller.errors import ControllerError
     from servoface.hardware.emulator import FAULT_KINDS, EmulatorError, ServoChain
     from servoface.sim.errors import SimError
 
     try:
-        pairs, neutral, what = _chain_description(args)
+        pairs, neutral, what, note = _chain_description(args)
         for f in args.fault:
             parse_fault(f"{f.servo_id}:{f.kind}", FAULT_KINDS)  # the kind, checked against the emulator's list
         from servoface.hardware.emulator.chain import RUN_LOG_LIMIT
@@ -249,8 +267,8 @@ def run(args: argparse.Namespace) -> int:
             chain.servo(sid).move_by_hand(tick)
         _inject(chain, args.fault)
         on_signal_faults = [_parse_signal_fault(text) for text in args.fault_on_signal]
-    except (ValueError, EmulatorError, SimError, ControllerError, OSError) as err:
-        print(f"servoface emulate: {err}", file=sys.stderr)
+    except (ValueError, EmulatorError, SimError, ControllerError, CalibrationError, OSError) as err:
+        print(f"servoface emulate: {printable(err)}", file=sys.stderr)
         return 2
     stop = threading.Event()
 
@@ -281,6 +299,8 @@ def run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
                 flush=True,
             )
+            if note is not None:
+                print(f"# {note.replace('{pty}', path)}", file=sys.stderr, flush=True)
             while not stop.wait(0.2):
                 pass
             if args.state_file is not None:

@@ -71,6 +71,21 @@ def open_errors() -> tuple[type[BaseException], ...]:
     return (ControllerError, SimError, CalibrationError, HardwareError, ValueError, OSError)
 
 
+def check_expression(head: Head, name: str) -> None:
+    """Refuse an expression ``name`` the head's library does not have (ControllerError naming the ones it
+    has), before anything is opened: a typo must not switch torque on."""
+    from servoface.controller.errors import ControllerError
+    from servoface.sim.expressions import load_library
+
+    known = load_library(head.expressions_path or head.face_type)
+    if name not in known:
+        import difflib
+
+        close = difflib.get_close_matches(name, sorted(known), n=1)
+        maybe = f" (did you mean {close[0]!r}?)" if close else ""  # as Face.express says it
+        raise ControllerError(f"unknown expression {name!r}{maybe}; known: {sorted(known)}")
+
+
 def open_face(args: argparse.Namespace, head: Head) -> Face:
     """The head on the port or the emulator the arguments name. A chain that does not answer raises
     BusTimeoutError with a hint at the baud rate (the likeliest cause on a fresh set-up)."""

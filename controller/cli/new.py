@@ -34,8 +34,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"servoface new: {err}", file=sys.stderr)
         return 2
     except OSError as err:
+        from servoface.controller.cli.exits import exit_code
+
         print(f"servoface new: {args.folder}: {describe_os_error(err)}", file=sys.stderr)
-        return 1
+        return exit_code(err)  # 2: a folder that cannot be made where it was asked for
     folder = made.folder
     print(f"wrote a {made.kind} head profile to {folder}:")
     for path in made.files:

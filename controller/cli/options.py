@@ -64,8 +64,9 @@ RANGES: dict[str, Range] = {
     "input_fps": Range(0.0, 1e4, False, True, "frames per second"),
     "face_id": Range(0.0, MAX_INT, True, True, "a face index (0: the first)"),
     "columns": Range(1.0, 1e4, True, True, "a number of columns"),
+    "latency_ms": Range(0.0, 1000.0, True, True, "milliseconds"),
 }
-SDK_BAUD_COMMANDS = frozenset({"play", "stream", "say", "studio", "node", "calibrate", "demo"})
+SDK_BAUD_COMMANDS = frozenset({"play", "stream", "say", "studio", "node", "calibrate", "demo", "scan"})
 
 
 class CommandLineError(ControllerError):

@@ -10,6 +10,7 @@ from typing import Any
 from servoface.controller.cli.head_args import (
     TraceFile,
     add_head_arguments,
+    check_expression,
     exit_status,
     open_errors,
     open_face,
@@ -76,7 +77,6 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
     from servoface.controller.stop_signals import StopRequested, interruptible
     from servoface.hardware.errors import HardwareError
     from servoface.sim.errors import SimError
-    from servoface.sim.expressions import load_library
     from servoface.sim.heads import load_head
 
     recording = None
@@ -98,9 +98,7 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
                 if speaks(what):  # say cues synthesised, the sound file read: before the port is opened
                     prepared = prepare(what)
             else:
-                known = load_library(head.expressions_path or head.face_type)
-                if args.what not in known:
-                    raise ControllerError(f"unknown expression {args.what!r}; known: {sorted(known)}")
+                check_expression(head, args.what)
             trace_file.open()
         where = "the emulator" if args.emulate else args.port
         print(f"# opening head {head.name!r} on {where}", file=sys.stderr, flush=True)

@@ -67,6 +67,8 @@ def run(args: argparse.Namespace) -> int:
     # cheap checks first: nothing heavy is imported and nothing is written on bad input
     if args.all + (args.expression is not None) + (args.input is not None) != 1:
         return _fail("give one expression name, or --all for the whole library, or --input FILE")
+    if args.at is not None and args.input is None:
+        return _fail("--at picks a moment of a recording: it goes with --input FILE (an expression shows its apex)")
     suffix = args.output.suffix.lower()
     allowed = STILL if args.all else STILL + CLIP
     if suffix not in allowed:
@@ -109,7 +111,9 @@ def run(args: argparse.Namespace) -> int:
     try:
         head = load_head(args.head)
     except (HeadProfileError, FileNotFoundError, KeyError, ValueError) as err:
-        return _fail(f"--head {args.head!r}: {err}")
+        from servoface.controller.cli.exits import head_hint, head_message
+
+        return _fail(f"{head_message(args.head, err)}\n  {head_hint(args.head)}")
     if args.input is not None:
         from servoface.controller.cli.preview_input import preview_input
 
@@ -129,8 +133,10 @@ def run(args: argparse.Namespace) -> int:
 
         try:
             twin = AchievableFace(head, frame_period_s=1.0 / args.fps if suffix in CLIP else 0.02)
-        except (SimError, CalibrationError) as err:
-            return _fail(f"{err}\n  next: `servoface check {args.head}` names what to fix", code=1)
+        except (SimError, CalibrationError) as err:  # a broken profile or calibration file: bad input
+            from servoface.controller.cli.exits import exit_code
+
+            return _fail(f"{err}\n  next: `servoface check {args.head}` names what to fix", code=exit_code(err))
         if twin.note:
             print(f"servoface preview: note: {twin.note}", file=sys.stderr)
     shown_as = {"achievable": "what the servos make", "target": "muscle-model target", "both": "target | servos"}

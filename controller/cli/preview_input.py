@@ -37,8 +37,10 @@ def preview_input(args: argparse.Namespace, head: Any, size: tuple[int, int], cl
     try:
         twin = None if shown == "target" else AchievableFace(head, frame_period_s=1.0 / args.fps if clip else 0.02)
     except (SimError, CalibrationError) as err:  # a calibration that does not fit the head: say so
+        from servoface.controller.cli.exits import exit_code
+
         print(f"servoface preview: {err}\n  next: `servoface check {args.head}` names what to fix", file=sys.stderr)
-        return 1
+        return exit_code(err)
     try:
         with HeadRenderer(width, height, view=view) as renderer:
             if clip:

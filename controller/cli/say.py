@@ -6,7 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from servoface.controller.cli.head_args import add_head_arguments, open_errors, open_face
+from servoface.controller.cli.head_args import add_head_arguments, check_expression, open_errors, open_face
+from servoface.controller.cli.terminal import printable
 
 HELP = "speak a text with lip sync on a head (espeak-ng); write speech.wav, speech.toml and a twin video"
 
@@ -31,6 +32,8 @@ def run(args: argparse.Namespace) -> int:
     # --rate and --lead-ms were range-checked by options.parse_command
     try:
         head = load_head(args.head)
+        if args.expression:
+            check_expression(head, args.expression)  # before espeak-ng runs and before the head is opened
         speech = speech_from_text(args.text, voice=args.voice, rate_wpm=args.rate_wpm, lead_s=args.lead_ms / 1e3)
         if args.out is not None:
             from servoface.controller.cli.outputs import writable_folder
@@ -40,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"wrote {wav} and {script} (play it again: servoface play {script} --head {args.head} ...)")
         face = open_face(args, head)
     except (SpeechError, *open_errors()) as err:  # type: ignore[misc]  # mypy cannot read a starred tuple
-        print(f"servoface say: {err}", file=sys.stderr)
+        print(f"servoface say: {printable(err)}", file=sys.stderr)
         return 2
     with face:
         if args.expression:

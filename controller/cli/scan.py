@@ -48,6 +48,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import warnings
 
+    from servoface.controller.cli.exits import EXIT_USAGE
+    from servoface.controller.cli.terminal import printable
     from servoface.hardware.bus import ids_from_spec, open_bus
     from servoface.hardware.errors import HardwareError
     from servoface.hardware.registers import HardwareErrorBits
@@ -58,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as err:
         print(f"servoface scan: --ids: {err}", file=sys.stderr)
         return 2
-    # --retries was range-checked by options.parse_command
+    # --retries, --latency-ms and --baud were range-checked by options.parse_command
     bauds = DYNAMIXEL_BAUDS if args.baud == "all" else (args.baud,)
     total = 0
     for i, baud in enumerate(bauds):
@@ -66,9 +68,9 @@ def run(args: argparse.Namespace) -> int:
             warnings.simplefilter("always")
             try:
                 bus = open_bus("dynamixel", port=args.port, baud=baud, latency_timer_ms=args.latency_ms)
-            except HardwareError as err:
-                print(f"servoface scan: {err}", file=sys.stderr)
-                return 1
+            except HardwareError as err:  # a port that does not exist or cannot be opened: the user's to fix
+                print(f"servoface scan: {printable(err)}", file=sys.stderr)
+                return EXIT_USAGE
         if i == 0:
             for warning in caught:
                 print(f"warning: {warning.message}", file=sys.stderr)

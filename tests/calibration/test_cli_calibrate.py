@@ -48,7 +48,7 @@ def test_csv_mode_through_the_cli(tmp_path: Path, capsys: pytest.CaptureFixture[
 def test_cli_reports_bad_csv_with_its_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "m.csv").write_text("jaw,0,2048\njaw,25,two\n")
     code = main(["calibrate", "--head", "human", "--csv", str(tmp_path / "m.csv"), "--out", str(tmp_path / "x")])
-    assert code == 1
+    assert code == 2  # a malformed measurement file is bad input
     assert "line 2: tick 'two' is not an integer" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
 

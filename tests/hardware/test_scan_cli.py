@@ -32,7 +32,7 @@ def test_scan_reports_an_empty_chain_and_bad_arguments(capsys: pytest.CaptureFix
     finally:
         chain.close()
     assert "--ids" in capsys.readouterr().err
-    assert main(["scan", "--port", "/dev/does-not-exist"]) == 1
+    assert main(["scan", "--port", "/dev/does-not-exist"]) == 2  # a port that does not exist: bad input
     assert "cannot open" in capsys.readouterr().err
 
 
