@@ -207,13 +207,24 @@ def _report(head: Any, cal: Any, args: argparse.Namespace) -> None:
     print(f"cannot show ({len(cannot)}): {', '.join(s.name for s in cannot) or 'none'}")
     for s in cannot:
         print(f"  {s.name:7} {'; '.join(s.reasons) or 'moves nothing'}")
-    print(f"library expressions ({len(exprs)}):")
+    print(f"library expressions ({len(exprs)}, shown: of the whole expression, weighted by AU intensity):")
     rows = []
     for s in exprs:
-        expr_aus = sorted({_au_key(k) for k in _apex(library[s.name])} & cannot_numbers, key=_au_order)
-        lost = f"; without {', '.join(expr_aus)}" if expr_aus else ""
-        print(f"  {s.name:12} {s.shown:6.0%} {s.max_error_mm:6.1f}mm{lost}")
-        rows.append({**s.as_dict(), "aus_it_cannot_show": expr_aus})
+        apex = _apex(library[s.name])
+        expr_aus = sorted({_au_key(k) for k in apex} & cannot_numbers, key=_au_order)
+        share = _share_it_has(apex, set(expr_aus))
+        overall = s.shown * share  # the face's own model cannot even ask for the AUs it lacks: count them out
+        rest = f" ({s.shown:.0%} of the rest)" if share > 0 else " (all of its AUs)"
+        lost = f"; without {', '.join(expr_aus)}{rest}" if expr_aus else ""
+        print(f"  {s.name:12} {overall:6.0%} {s.max_error_mm:6.1f}mm{lost}")
+        rows.append(
+            {
+                **s.as_dict(),
+                "aus_it_cannot_show": expr_aus,
+                "au_share": round(share, 3),
+                "shown_overall": round(overall, 3),
+            }
+        )
     if args.json is not None:
         data = {
             "head": head.name,
@@ -229,6 +240,13 @@ def _apex(expression: Any) -> dict[str, float]:
     from servoface.sim.render.clips import apex_aus
 
     return dict(apex_aus(expression))
+
+
+def _share_it_has(apex: dict[str, float], lacking: set[str]) -> float:
+    """The share of an expression's AU intensity (sum of |value| over its AUs) on AUs the head can show."""
+    total = sum(abs(v) for v in apex.values())
+    kept = sum(abs(v) for k, v in apex.items() if _au_key(k) not in lacking)
+    return kept / total if total > 0 else 1.0
 
 
 def _au_key(name: str) -> str:

@@ -52,7 +52,7 @@ def test_bad_arguments_exit_2_and_write_nothing(
 def test_unknown_head_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "x.png"
     assert main(["preview", "joy", "--head", "cat", "-o", str(out), *SMALL]) == 2
-    assert "--head 'cat'" in capsys.readouterr().err
+    assert "--head cat: expected a built-in head name" in capsys.readouterr().err
     assert not out.exists()
 
 

@@ -56,6 +56,12 @@ def test_own_head_checks_previews_and_plays(kind: str, tmp_path: Path, capsys: p
     for entry in data["aus"]:
         if entry["cannot_show"]:
             assert entry["reasons"], entry  # each with its reason
+    for row in data["expressions"]:  # an expression is scored as a whole: the AUs a head lacks count against it
+        assert row["shown_overall"] == pytest.approx(row["shown"] * row["au_share"], abs=2e-3), row
+        assert (row["au_share"] < 1.0) == bool(row["aus_it_cannot_show"]), row
+    if kind == "mechanical":  # no smile on this head: its happiness is not "100 %"
+        happiness = next(r for r in data["expressions"] if r["name"] == "happiness")
+        assert happiness["aus_it_cannot_show"] == ["AU6", "AU12"] and happiness["shown_overall"] < 0.25
     # preview: a still and the sheet, the achievable face by default
     still = tmp_path / "still.png"
     assert main(["preview", HEADS[kind][2][0], "--head", str(folder), "-o", str(still)]) == 0
