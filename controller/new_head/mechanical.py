@@ -13,7 +13,9 @@ import numpy as np
 
 EYE_L = (32.0, 122.0, 58.0)
 EYE_RADIUS_MM = 13.0
-LID_RADIUS_MM = 16.0
+LID_RADIUS_MM = 14.0  # the upper lid's inner radius: 1 mm clear of the eye (and of the pupil, 0.5 mm proud)
+UPPER_LID_EDGE_DEG = 22.0  # the open lid's edge, above the pupil (beta, up from straight ahead)
+LOWER_LID_TOP_DEG = -36.0  # the fixed lower lid's edge; a blink (+70 deg) brings the upper lid's to -48
 
 
 def _box(lo: tuple[float, float, float], hi: tuple[float, float, float]) -> object:
@@ -33,17 +35,39 @@ def _sphere(centre: tuple[float, float, float], radius: float, subdivisions: int
     return s
 
 
-def _lid(centre: tuple[float, float, float]) -> object:
-    """The front-upper quarter of a sphere shell around the eye: closes by turning about the eye's x axis."""
-    import trimesh
+def _lid_shell(
+    centre: tuple[float, float, float], radius: float, beta_deg: tuple[float, float], thick_mm: float = 1.0
+) -> object:
+    """A smooth spherical lid shell around the eye, closed (watertight) and ``thick_mm`` thick.
 
-    s = trimesh.creation.icosphere(subdivisions=3, radius=LID_RADIUS_MM)
-    tri = s.vertices[s.faces].mean(axis=1)
-    keep = (tri[:, 1] > 7.0) & (tri[:, 2] > -4.0)
-    lid = trimesh.Trimesh(s.vertices, s.faces[keep], process=True)
-    lid.remove_unreferenced_vertices()
-    lid.apply_translation(centre)
-    return lid
+    beta = the angle about the eye's x axis from straight ahead (+z) towards up (+y), so the lid's edge is
+    a great circle through the eye's left and right poles and turning the lid about x only shifts beta.
+    Dense rows and columns: the edges are smooth arcs, not the steps of a cut icosphere."""
+    import trimesh
+    from servoface.sim.heads import mesh_tools as mt
+
+    rows = max(8, int(round((beta_deg[1] - beta_deg[0]) / 3.0)))
+    outer = mt.sphere_patch(np.zeros(3), radius + thick_mm, beta_deg, (-88.0, 88.0), rows, 48)
+    inner = mt.sphere_patch(np.zeros(3), radius, beta_deg, (-88.0, 88.0), rows, 48)
+    v, f = mt.shell_from_grids(outer, inner)
+    mesh = trimesh.Trimesh(v + np.asarray(centre), f, process=False)
+    if mesh.volume < 0:
+        mesh.invert()
+    return mesh
+
+
+def _lid(centre: tuple[float, float, float]) -> object:
+    """The upper lid: a shell just outside the eye from above the pupil, over the top, to behind the eye.
+
+    It closes by turning about the eye's x axis (+70 deg for a blink) and then covers the whole front of the
+    eye down to ``LOWER_LID_TOP_DEG``, where the fixed lower lid takes over (a rigid lid turning 70 deg
+    alone cannot cover a whole hemisphere)."""
+    return _lid_shell(centre, LID_RADIUS_MM, (UPPER_LID_EDGE_DEG, UPPER_LID_EDGE_DEG + 178.0))
+
+
+def _lower_lid(centre: tuple[float, float, float]) -> object:
+    """The fixed lower lid: a shell just outside the upper lid, under the front of the eye."""
+    return _lid_shell(centre, LID_RADIUS_MM + 1.5, (-100.0, LOWER_LID_TOP_DEG))
 
 
 def _cylinder(radius: float, y0: float, y1: float, z: float = 0.0) -> object:
@@ -78,10 +102,13 @@ def meshes() -> dict[str, object]:
         "jaw": _box((-40.0, 38.0, 18.0), (40.0, 70.0, 62.0)),
         "eye_l": _sphere(EYE_L, EYE_RADIUS_MM),
         "eye_r": _sphere(eye_r, EYE_RADIUS_MM),
-        "pupil_l": _sphere((EYE_L[0], EYE_L[1], EYE_L[2] + EYE_RADIUS_MM - 1.5), 4.5, 2),
-        "pupil_r": _sphere((eye_r[0], eye_r[1], eye_r[2] + EYE_RADIUS_MM - 1.5), 4.5, 2),
+        # the pupil stands only 0.5 mm proud of the eye, so a closed lid hides it
+        "pupil_l": _sphere((EYE_L[0], EYE_L[1], EYE_L[2] + EYE_RADIUS_MM - 3.5), 4.0, 3),
+        "pupil_r": _sphere((eye_r[0], eye_r[1], eye_r[2] + EYE_RADIUS_MM - 3.5), 4.0, 3),
         "lid_l": _lid(EYE_L),
         "lid_r": _lid(eye_r),
+        "lower_lid_l": _lower_lid(EYE_L),
+        "lower_lid_r": _lower_lid(eye_r),
         "brow_l": _box((18.0, 147.0, 52.0), (50.0, 153.0, 60.0)),
         "brow_r": _box((-50.0, 147.0, 52.0), (-18.0, 153.0, 60.0)),
     }
@@ -262,6 +289,18 @@ color_rgba = [0.62, 0.52, 0.46, 1.0]
 name = "lid_r"
 joint = "upper_lid_r"
 mesh = "meshes/lid_r.stl"
+color_rgba = [0.62, 0.52, 0.46, 1.0]
+
+[[part]]
+name = "lower_lid_l"             # fixed: the closing upper lid tucks under it (no joint of its own)
+joint = "neck_pan"
+mesh = "meshes/lower_lid_l.stl"
+color_rgba = [0.62, 0.52, 0.46, 1.0]
+
+[[part]]
+name = "lower_lid_r"
+joint = "neck_pan"
+mesh = "meshes/lower_lid_r.stl"
 color_rgba = [0.62, 0.52, 0.46, 1.0]
 
 # --- actuators: one servo each (ids and models as you assigned them) -------------------------------------

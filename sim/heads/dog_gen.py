@@ -206,12 +206,84 @@ def eyelid(side: float, upper: bool = True) -> tuple[F64, I64]:
     return _out(*mt.shell_from_grids(_in_eye_frame(side, outer), _in_eye_frame(side, inner)))
 
 
+def _eye_hole_loop(side: float) -> tuple[F64, F64]:
+    """The skin's eye opening as an ordered closed loop: (k, 3) rim points and (k, 3) skin normals there
+    (design coordinates, normals pointing out of the head)."""
+    import trimesh
+
+    v, f, _ = _skin()
+    v = v - OFFSET
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    uniq, counts = np.unique(e, axis=0, return_counts=True)
+    edges = uniq[counts == 1]
+    local = (v - _eye(side)) @ _eye_rot(side)
+    near = (np.abs(local[:, 0]) < 25.0) & (np.abs(local[:, 1]) < 20.0) & (local[:, 2] > -10.0)
+    edges = edges[near[edges].all(1)]
+    nxt: dict[int, list[int]] = {}
+    for a, b in edges.tolist():
+        nxt.setdefault(a, []).append(b)
+        nxt.setdefault(b, []).append(a)
+    start = min(nxt)
+    loop, prev = [start], -1
+    while True:
+        cur = loop[-1]
+        step = [n for n in nxt[cur] if n != prev]
+        prev, cand = cur, step[0]
+        if cand == start:
+            break
+        loop.append(cand)
+    ids = np.array(loop)
+    # wind the loop counter-clockwise about the eye's gaze (same for both eyes after their own frame)
+    ang = np.unwrap(np.arctan2(local[ids, 1], local[ids, 0]))
+    if ang[-1] < ang[0]:
+        ids = ids[::-1]
+    normals = trimesh.Trimesh(v, f, process=False).vertex_normals[ids]
+    return v[ids], np.asarray(normals, dtype=np.float64)
+
+
 def eye_socket(side: float) -> tuple[F64, I64]:
-    o = np.array([0.0, 0.0, -1.0])
-    flip = np.array([-1.0, 1.0, -1.0])
-    outer = o + mt.sphere_patch(np.zeros(3), EYE_RADIUS + 4.0, (-89.0, 89.0), (-89.0, 89.0), 16, 16) * flip
-    inner = o + mt.sphere_patch(np.zeros(3), EYE_RADIUS + 3.2, (-89.0, 89.0), (-89.0, 89.0), 16, 16) * flip
-    return _out(*mt.shell_from_grids(_in_eye_frame(side, outer), _in_eye_frame(side, inner)))
+    """A dark cup behind the eyeball, lofted from the skin's eye opening so no line of sight through the
+    opening reaches the head's inside (or, through the other eye's opening, the background).
+
+    The opening is deep on the muzzle side (its rim stands ~25 mm in front of the eye's centre there), so a
+    cup behind the eye alone left a tunnel open to the inside (issue: a hole beside the eye in side view).
+    A flange 1.5 mm under the skin just outside the rim (hidden by the skin, so a little skin motion opens
+    no gap) joins the wall, which starts on the rim itself and runs back to a ring of radius
+    ``EYE_RADIUS + 4`` at the eye's equator; a back hemisphere closes it. Open at the front, so it is drawn
+    from both sides."""
+    if side < 0:  # the mirror of the left one, exactly (the skin's triangle diagonals are not mirrored)
+        v, f = eye_socket(1.0)
+        return mt.mirror_x(v, f)
+    rim, nrm = _eye_hole_loop(side)
+    rot, c = _eye_rot(side), _eye(side)
+    loc = (rim - c) @ rot  # eye frame
+    n_loc = nrm @ rot
+    rad = np.hypot(loc[:, 0], loc[:, 1])
+    radial = np.stack([loc[:, 0] / rad, loc[:, 1] / rad, np.zeros(len(rad))], 1)
+    lip = loc + 1.5 * radial - 1.5 * n_loc  # outside the opening, under the skin
+    phi = np.arctan2(loc[:, 1], loc[:, 0])
+    r_cup = EYE_RADIUS + 4.0
+    z0 = -1.0
+    equator = np.stack([r_cup * np.cos(phi), r_cup * np.sin(phi), np.full(len(phi), z0)], 1)
+    rows = [lip]  # a flange under the skin, then the wall from the rim itself (no slit at the skin's edge)
+    for t in np.linspace(0.0, 1.0, 7):
+        rows.append((1.0 - t) * loc + t * equator)
+    for th in np.radians(np.linspace(90.0, 170.0, 9)[1:]):  # polar angle from the gaze: back to the pole
+        rows.append(
+            np.stack(
+                [
+                    r_cup * np.sin(th) * np.cos(phi),
+                    r_cup * np.sin(th) * np.sin(phi),
+                    np.full(len(phi), z0 + r_cup * np.cos(th)),
+                ],
+                1,
+            )
+        )
+    grid = np.stack(rows)  # (rows, k, 3)
+    nr, k, _ = grid.shape
+    verts = np.concatenate([grid.reshape(-1, 3), [[0.0, 0.0, z0 - r_cup]]])
+    faces = np.concatenate([mt.grid_faces(nr, k, periodic_u=True), mt.fan((nr - 1) * k + np.arange(k), nr * k)])
+    return verts @ rot.T + c + OFFSET, np.asarray(faces, dtype=np.int64)
 
 
 def skull() -> tuple[F64, I64]:
@@ -281,7 +353,8 @@ def tongue_root() -> tuple[F64, I64]:
 
 
 def tongue_tip() -> tuple[F64, I64]:
-    v, f = mt.ellipsoid((0.0, 74.5, 131.0), (9.0, 2.8, 8.5), subdiv=3)
+    """Reaches to 4.7 mm behind the lower incisors at rest, so AU18 (tongue_extend -10) takes it past them."""
+    v, f = mt.ellipsoid((0.0, 74.5, 132.5), (9.0, 2.8, 9.0), subdiv=3)
     return _out(v, f)
 
 
@@ -325,5 +398,5 @@ def ear(side: float) -> tuple[F64, I64]:
 
 
 EAR_BASE_L = tuple(float(v) for v in np.array([40.0, 146.0, -12.0]) + OFFSET)
-TONGUE_ROOT_PIVOT = tuple(float(v) for v in np.array([0.0, 74.5, 80.0]) + OFFSET)
+TONGUE_ROOT_PIVOT = tuple(float(v) for v in np.array([0.0, -30.0, 230.0]) + OFFSET)  # tongue_extend (remote)
 TONGUE_TIP_PIVOT = tuple(float(v) for v in np.array([0.0, 74.5, 121.0]) + OFFSET)
