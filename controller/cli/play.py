@@ -95,6 +95,10 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
                 print("\n".join(recording.report.lines()))
             elif is_script:
                 what = load_script(args.what)
+                if what.face_type != head.face_type:  # Face.play would refuse it once the head is open
+                    raise ControllerError(
+                        f"script {args.what} is for a {what.face_type} face; head {head.name!r} is {head.face_type}"
+                    )
                 if speaks(what):  # say cues synthesised, the sound file read: before the port is opened
                     prepared = prepare(what)
             else:

@@ -222,3 +222,16 @@ def test_cli_check_a_folder_without_head_toml(tmp_path: Path, capsys: pytest.Cap
     status, _, err = _run(["check", str(tmp_path)], capsys)
     assert status == 2  # nothing there to check (a malformed head.toml is a problem found: 1)
     assert f"servoface new {tmp_path} --from mechanical" in err and "head.toml at that key" not in err
+
+
+def test_cli_play_refuses_a_script_for_the_other_face_before_opening(capsys: pytest.CaptureFixture[str]) -> None:
+    status, _, err = _run(["play", "human_performance", "--head", "dog", "--emulate"], capsys)
+    assert status == 2
+    assert "opening head" not in err and "stop (" not in err  # refused before the head was opened
+    assert "is for a human face; head 'dog' is dog" in err
+
+
+def test_cli_play_names_an_expression_of_the_other_face(capsys: pytest.CaptureFixture[str]) -> None:
+    status, _, err = _run(["play", "smelling", "--head", "human", "--emulate"], capsys)
+    assert status == 2
+    assert "unknown expression 'smelling' (a dog expression; head 'human' is a human face); known: [" in err
