@@ -64,6 +64,8 @@ def run(args: argparse.Namespace) -> int:
     bauds = DYNAMIXEL_BAUDS if args.baud == "all" else (args.baud,)
     total = 0
     for i, baud in enumerate(bauds):
+        if len(bauds) > 1:  # a few seconds a baud rate: say what is going on
+            print(f"# trying {baud} bps ({i + 1} of {len(bauds)})", file=sys.stderr, flush=True)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:

@@ -58,7 +58,8 @@ def test_scan_all_bauds_finds_a_factory_fresh_chain(capsys: pytest.CaptureFixtur
         assert main(["scan", "--port", chain.serve_pty(), "--baud", "all", "--ids", "1"]) == 0
     finally:
         chain.close()
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
     assert "at 57600 bps, ids 1: 1 servo(s)" in out and "XL430-W250" in out
+    assert "# trying 57600 bps (1 of " in err  # progress on stderr, a line per baud rate (seconds each)
     with pytest.raises(SystemExit):
         main(["scan", "--port", "/dev/null", "--baud", "fast"])
