@@ -9,8 +9,12 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from servoface.controller.cli.head_args import add_read_arguments, read_options
+
+if TYPE_CHECKING:
+    from servoface.controller.stop_signals import StopSignals
 
 HELP = "serve the studio (browser app) for a head: live AUs and twin, servos, calibration, authoring"
 
@@ -46,11 +50,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import signal
-    import threading
+    from servoface.controller.stop_signals import StopSignals
 
+    with StopSignals() as signals:  # SIGINT (twice: hurry to neutral), SIGTERM, SIGHUP: the one stop path
+        return _studio(args, signals)
+
+
+class _Wake:
+    """Wakes the main thread's wait when a stop signal comes (`StopSignals.watching`)."""
+
+    def __init__(self) -> None:
+        import threading
+
+        self.event = threading.Event()
+
+    def stop(self) -> None:
+        self.event.set()
+
+
+def _studio(args: argparse.Namespace, signals: StopSignals) -> int:
     from servoface.controller.cli.head_args import open_errors
     from servoface.controller.service import HeadService, open_head
+    from servoface.controller.stop_signals import StopRequested, interruptible
     from servoface.controller.studio import StudioError, StudioOptions, StudioServer
     from servoface.controller.studio.security import is_loopback
 
@@ -64,49 +85,47 @@ def run(args: argparse.Namespace) -> int:
             print(f"servoface studio: --{name.replace('_', '-')} {folder}: not a folder", file=sys.stderr)
             return 2
     try:
-        opened = open_head(
-            args.head, port=args.port, emulate=args.emulate, baud=args.baud, rate_hz=args.rate,
-            calibration=args.calibration, **read_options(args),
-        )  # fmt: skip
+        with interruptible():  # torque off, no bus traffic yet: a signal ends the start-up at once
+            opened = open_head(
+                args.head, port=args.port, emulate=args.emulate, baud=args.baud, rate_hz=args.rate,
+                calibration=args.calibration, **read_options(args),
+            )  # fmt: skip
+    except StopRequested as err:
+        print(f"servoface studio: {err} during start-up; every servo left with torque off", file=sys.stderr)
+        return signals.exit_code() or 130
     except open_errors() as err:
         print(f"servoface studio: {err}", file=sys.stderr)
         return 2
     service = HeadService(opened.head, opened.pipeline)
     options = StudioOptions(out_dir=args.out_dir, scripts_dir=args.scripts_dir, render=not args.no_render)
-
-    def interrupt(signum: int, frame: object) -> None:
-        raise KeyboardInterrupt(signal.Signals(signum).name)
-
-    previous = {}
-    if threading.current_thread() is threading.main_thread():
-        previous = {s: signal.signal(s, interrupt) for s in (signal.SIGTERM, signal.SIGHUP)}
     server = None
     code = 0
-    reason = "end"
+    wake = _Wake()
     try:
-        server = StudioServer(
-            service, host=args.host, port=args.port_http, allow_remote=args.allow_remote, options=options,
-            allow_origins=frozenset(args.allow_origin),
-        )  # fmt: skip
-        server.start()
-        where = "emulated chain" if args.emulate else args.port
-        print(f"servoface studio: head '{opened.head.name}' on {where}", flush=True)
-        print(f"open {server.url}", flush=True)
-        print("Ctrl-C to stop (the head eases to neutral, torque off)", flush=True)
-        server.wait()
-    except KeyboardInterrupt as err:
-        reason = str(err) or "SIGINT"
+        with signals.watching(wake):  # handlers never raise from here on: they ask for the stop, and a
+            # second signal hurries the ease (the service's shutdown reads `StopSignals.hurry`)
+            server = StudioServer(
+                service, host=args.host, port=args.port_http, allow_remote=args.allow_remote, options=options,
+                allow_origins=frozenset(args.allow_origin),
+            )  # fmt: skip
+            server.start()
+            where = "emulated chain" if args.emulate else args.port
+            print(f"servoface studio: head '{opened.head.name}' on {where}", flush=True)
+            print(f"open {server.url}", flush=True)
+            print("Ctrl-C to stop (the head eases to neutral, torque off)", flush=True)
+            while not wake.event.wait(0.2) and server.running:
+                pass
     except (StudioError, OSError) as err:
         print(f"servoface studio: {err}", file=sys.stderr)
         code = 2
     finally:
         if server is not None:
             server.stop()
-        report = service.shutdown(reason=reason)
+        report = service.shutdown(reason=signals.name or "end")
         if opened.chain is not None:
             opened.chain.close()
-        for s, handler in previous.items():
-            signal.signal(s, handler)
     for line in report.lines():
         print(line, flush=True)
-    return code if report.torque_off else 3
+    if not report.torque_off:
+        return 3
+    return code or (signals.exit_code() or 0)

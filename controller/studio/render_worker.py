@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import multiprocessing
 import queue
+import signal
 import sys
 import threading
 import types
@@ -45,7 +46,11 @@ def _pose_for(op: str, payload: Mapping[Any, Any], model: Any, twin: Any) -> Any
 
 
 def worker_main(conn: Connection, head: Any, calibration: Any, period_s: float, width: int, height: int) -> None:
-    """The child's body (module level: the spawn start method imports it)."""
+    """The child's body (module level: the spawn start method imports it). Stop signals are the parent's to
+    handle (a terminal's Ctrl-C reaches the whole process group): the child ends when the parent closes the
+    pipe or sends None, after the head is safe, and never with a traceback of its own."""
+    for stop_signal in (signal.SIGINT, signal.SIGHUP):
+        signal.signal(stop_signal, signal.SIG_IGN)
     try:
         from servoface.controller.studio.png import encode_png
         from servoface.sim.achievable import AchievableFace

@@ -101,6 +101,11 @@ class StudioServer:
             time.sleep(0.02)
         return self
 
+    @property
+    def running(self) -> bool:
+        """The server's thread is serving (False once it ended, by `stop` or on its own)."""
+        return self._thread is not None and self._thread.is_alive()
+
     def wait(self) -> None:
         """Block until the server stops (Ctrl-C in the main thread raises KeyboardInterrupt here)."""
         while self._thread is not None and self._thread.is_alive():
