@@ -165,7 +165,7 @@ def test_bad_paths_get_a_message_not_a_traceback(installed: tuple[Path, Path, di
     servoface = str(python.parent / "servoface")
     cases = [
         ([servoface, "preview", "happiness", "-o", "/proc/x.png"], 2),
-        ([servoface, "demo", "--out", "/proc/x"], 1),
+        ([servoface, "demo", "--out", "/proc/x"], 2),  # a folder that cannot be made: bad input
         ([servoface, "play", "no_such_script.toml", "--emulate"], 2),
         ([servoface, "play", "--input", "sample:nope", "--emulate"], 2),
         ([servoface, "play", "--input", "missing.csv", "--emulate"], 2),
