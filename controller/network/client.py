@@ -20,7 +20,7 @@ from typing import Any
 
 from servoface.controller.network.errors import NetworkError
 from servoface.controller.network.keys import PRESENCE_ROOT, VERBS, HeadKeys, head_keys, parse_head_key, pattern_keys
-from servoface.controller.network.messages import envelope
+from servoface.controller.network.messages import envelope, open_envelope
 
 CLOCK_EXCHANGES = 5
 
@@ -99,6 +99,11 @@ class HeadsClient:
         keys = pattern_keys(pattern)
         self.session.put(f"{keys.base}/cmd/estop", self._body({"reason": reason}))
 
+    def clear_estop(self, pattern: str = "*/*") -> None:
+        """Unlatch the e-stop of every head matching ``pattern`` (torque stays off until asked for)."""
+        keys = pattern_keys(pattern)
+        self.session.put(f"{keys.base}/cmd/clear_estop", self._body({}))
+
     # -- clocks and cues ----------------------------------------------------------------------------
     def clock_offset(self, keys: HeadKeys, exchanges: int = CLOCK_EXCHANGES, timeout_s: float = 1.0) -> ClockOffset:
         best: tuple[float, float] | None = None  # (round trip, offset)
@@ -117,9 +122,57 @@ class HeadsClient:
             raise NetworkError(f"{keys.base}: no answer from its clock (is the head there? servoface heads)")
         return ClockOffset(best[1], best[0] / 2)
 
-    def cue(self, pattern: str, what: dict[str, Any], *, in_s: float = 0.5, timeout_s: float = 1.0) -> dict[str, Any]:
+    def cue(
+        self,
+        pattern: str,
+        what: dict[str, Any],
+        *,
+        in_s: float = 0.5,
+        timeout_s: float = 1.0,
+        answers_within_s: float | None = None,
+    ) -> dict[str, Any]:
         """Start ``what`` ({"verb": "express", "name": ...}) on every head matching ``pattern`` at one time,
-        ``in_s`` from now. Returns {"at_monotonic_s", "heads": {site/name: offset}}."""
+        ``in_s`` from now. Returns {"cue", "at_monotonic_s", "heads": {site/name: offset}}; with
+        ``answers_within_s``, also "answers": {site/name: "accepted" | "refused: why" | "no answer"}: each
+        head's own word on the cue (it publishes ``state/cue`` when it takes one, ``state/refused`` when it
+        refuses: an unknown name, a value out of range, an e-stop latched), waited for that long at most."""
+        if answers_within_s is None:
+            return self._cue(pattern, what, in_s=in_s, timeout_s=timeout_s)
+        keys = pattern_keys(pattern)
+        heard: list[tuple[str, str, dict[str, Any]]] = []  # (site/name, state kind, body)
+        lock = threading.Lock()
+
+        def on_state(sample: Any) -> None:
+            key = str(sample.key_expr)
+            parsed = parse_head_key(key)
+            try:
+                _, body = open_envelope(sample.payload.to_bytes())
+            except Exception:  # noqa: BLE001 - not a message of ours: ignored
+                return
+            if parsed is not None:
+                with lock:
+                    heard.append((f"{parsed[0]}/{parsed[1]}", key.rsplit("/", 1)[-1], body))
+
+        subscribers = [self.session.declare_subscriber(keys.state(kind), on_state) for kind in ("cue", "refused")]
+        try:
+            result = self._cue(pattern, what, in_s=in_s, timeout_s=timeout_s)
+            answers: dict[str, str] = {}
+            deadline = time.monotonic() + answers_within_s
+            while True:
+                with lock:
+                    for head, kind, body in heard:
+                        if body.get("cue") == result["cue"] and head in result["heads"]:
+                            answers.setdefault(head, "accepted" if kind == "cue" else f"refused: {body.get('error')}")
+                if len(answers) == len(result["heads"]) or time.monotonic() >= deadline:
+                    break
+                time.sleep(0.02)
+            result["answers"] = {head: answers.get(head, "no answer") for head in result["heads"]}
+            return result
+        finally:
+            for sub in subscribers:
+                sub.undeclare()
+
+    def _cue(self, pattern: str, what: dict[str, Any], *, in_s: float, timeout_s: float) -> dict[str, Any]:
         if not isinstance(in_s, int | float) or not 0.05 <= in_s <= 60:
             raise NetworkError(f"cue: --at must be +0.05 s .. +60 s from now, got {in_s!r}")
         heads = self.heads(pattern, timeout_s=timeout_s)

@@ -227,7 +227,10 @@ class HeadNode:
             self.run_command(verb, body)
         except Exception as err:  # noqa: BLE001 - a refused command is counted and reported, never fatal
             self.guard.refuse(f"{verb} refused")
-            self._put(self.keys.state("refused"), {"verb": verb, "error": str(err)[:300]})
+            refusal = {"verb": verb, "error": str(err)[:300]}
+            if verb == "cue":  # which cue: its sender waits for each head's answer (`HeadsClient.cue_answers`)
+                refusal["cue"] = str(body.get("cue", ""))[:64]
+            self._put(self.keys.state("refused"), refusal)
 
     def _run_slow(self) -> None:
         while not self._stop.is_set():

@@ -272,3 +272,37 @@ def test_killing_a_node_removes_it_from_the_heads_list_within_1_s(net) -> None: 
             break
         time.sleep(0.05)
     assert gone is not None and gone <= 3.0, f"h3 still listed {gone}"
+
+
+def test_a_cue_says_which_heads_took_it_and_which_refused(net, capsys) -> None:  # type: ignore[no-untyped-def]
+    """Each head answers a cue (it publishes state/cue or state/refused with the cue's id); the sender, and
+    `servoface cue`, say which refused and why. An e-stopped head refuses; `cue clear_estop` unlatches it.
+    (The heads still up: another test of this module stops h3.)"""
+    from servoface.controller.cli import main
+
+    _, nodes, client, _ = net
+    connect = [arg for n in nodes if n.proc.poll() is None for arg in ("--connect", n.endpoint)]
+    connect += ["--user", "operator", "--password", "op-secret"]
+    good = client.cue(
+        "lobby/*", {"verb": "express", "name": "happiness", "hold_s": 0.2}, in_s=0.5, answers_within_s=5.0
+    )
+    live = sorted(good["heads"])
+    assert "lobby/h1" in live and "lobby/h2" in live, good
+    assert good["answers"] == {head: "accepted" for head in live}, good
+    bad = client.cue("lobby/*", {"verb": "express", "name": "glee"}, in_s=0.5, answers_within_s=5.0)
+    assert all(a.startswith("refused: ") and "glee" in a for a in bad["answers"].values()), bad
+    # the command line: exit 1 and the reason on stderr for a refused cue
+    assert main(["cue", "--heads", "lobby/*", "express", "glee", *connect]) == 1
+    out, err = capsys.readouterr()
+    assert f"taken by 0 of {len(live)} head(s)" in out and err.count("refused: ") == len(live), out + err
+    # an e-stopped head refuses; clear_estop from the command line unlatches it
+    client.estop("lobby/h2", reason="test")
+    _wait_for(lambda: client.status(head_keys("lobby", "h2"), timeout_s=5.0).get("estop_latched"), 15.0)
+    stopped = client.cue("lobby/*", {"verb": "neutral"}, in_s=0.5, answers_within_s=5.0)
+    assert stopped["answers"]["lobby/h2"].startswith("refused: "), stopped
+    assert stopped["answers"]["lobby/h1"] == "accepted", stopped
+    assert main(["cue", "--heads", "lobby/h2", "clear_estop", *connect]) == 0
+    assert _wait_for(lambda: client.status(head_keys("lobby", "h2"), timeout_s=5.0).get("estop_latched") is False, 15.0)
+    capsys.readouterr()
+    assert main(["cue", "--heads", "lobby/h1", "neutral", *connect]) == 0  # (h2's torque stays off until asked)
+    assert "taken by 1 of 1 head(s)" in capsys.readouterr().out
