@@ -159,11 +159,11 @@ def create_app(studio: Studio, token: str, origins: OriginPolicy, limiter: RateL
     def scripts() -> Any:
         return studio.script_list()
 
-    @api.get("/api/scripts/{name}")
+    @api.get("/api/scripts/{name:path}")  # (a name with "/" or ".." reaches check_name: 422, not a 404)
     def script_load(name: str) -> Any:
         return studio.script_load(name)
 
-    @api.put("/api/scripts/{name}")
+    @api.put("/api/scripts/{name:path}")
     async def script_save(name: str, request: Request) -> Any:
         body = m.parse(m.ScriptBody, await body_of(request))
         return await run_in_threadpool(studio.script_save, name, body)

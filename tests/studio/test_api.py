@@ -262,6 +262,16 @@ SMILE = {
 }
 
 
+def test_a_script_name_with_a_path_is_refused_by_name_not_with_a_404(studio: StudioRig, tmp_path: Path) -> None:
+    """What the Author page sends for '../evil name.toml' (encodeURIComponent): a 422 naming the field."""
+    for raw in ("..%2Fevil%20name.toml", "a%2Fb.toml", "..%2F..%2Fetc%2Fx.toml"):
+        r = studio.client.put(f"/api/scripts/{raw}", json={"document": SMILE})
+        assert r.status_code == 422, (raw, r.status_code, r.text)
+        assert r.json()["error"]["field"] == "name" and "bare file name" in r.json()["error"]["message"]
+        assert studio.client.get(f"/api/scripts/{raw}").status_code == 422
+    assert not list(tmp_path.parent.glob("evil*")) and not list(tmp_path.glob("**/*.toml"))
+
+
 def test_script_round_trip_without_loss(studio: StudioRig, tmp_path: Path) -> None:
     r = studio.client.put("/api/scripts/smile.toml", json={"document": SMILE})
     assert r.status_code == 200, r.text
