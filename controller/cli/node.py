@@ -113,6 +113,8 @@ def run(args: argparse.Namespace) -> int:
         node.close()
         report = service.shutdown()
         print(f"node {keys.base}: stopped; {json.dumps(node.guard.counters())}; link losses {node.link_losses}")
+        for line in [] if report is None else report.lines():  # how the head ended: eased, torque off
+            print(line, flush=True)
         if report is not None and getattr(report, "unreached", None):
             print(f"servoface node: torque could not be turned off on {report.unreached}", file=sys.stderr)
             code = 1

@@ -9,7 +9,7 @@ from pathlib import Path
 from servoface.controller.cli.head_args import add_head_arguments, check_expression, open_errors, open_face
 from servoface.controller.cli.terminal import printable
 
-HELP = "speak a text with lip sync on a head (espeak-ng); write speech.wav, speech.toml and a twin video"
+HELP = "speak a text with lip sync on a head (espeak-ng); with --out, also write speech.wav, speech.toml, a video"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

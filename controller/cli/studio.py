@@ -84,6 +84,14 @@ def _studio(args: argparse.Namespace, signals: StopSignals) -> int:
         if not folder.is_dir():
             print(f"servoface studio: --{name.replace('_', '-')} {folder}: not a folder", file=sys.stderr)
             return 2
+    taken = _port_taken(args.host, args.port_http)
+    if taken is not None:  # before the head is opened: a taken port must not switch torque on
+        print(
+            f"servoface studio: --port-http {args.port_http}: cannot listen on {args.host}:{args.port_http} "
+            f"({taken}); is another studio running? choose another port, or 0 for any free one",
+            file=sys.stderr,
+        )
+        return 2
     try:
         with interruptible():  # torque off, no bus traffic yet: a signal ends the start-up at once
             opened = open_head(
@@ -129,3 +137,19 @@ def _studio(args: argparse.Namespace, signals: StopSignals) -> int:
     if not report.torque_off:
         return 3
     return code or (signals.exit_code() or 0)
+
+
+def _port_taken(host: str, port: int) -> str | None:
+    """Why ``host:port`` cannot be listened on now (as the server will bind it), or None (0: any free port)."""
+    import socket
+
+    if port == 0:
+        return None
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind((host, port))
+        except OSError as err:
+            return err.strerror or str(err)
+    return None

@@ -177,7 +177,9 @@ class HeadsClient:
             raise NetworkError(f"cue: --at must be +0.05 s .. +60 s from now, got {in_s!r}")
         heads = self.heads(pattern, timeout_s=timeout_s)
         if not heads:
-            raise NetworkError(f"cue: no head matches {pattern!r} (servoface heads lists what is there)")
+            raise NetworkError(
+                f"cue: no head matches {pattern!r} (servoface heads lists what is there; check --connect)"
+            )
         offsets = {(h.site, h.name): self.clock_offset(head_keys(h.site, h.name)) for h in heads}
         at_local = time.monotonic() + in_s
         cue_id = uuid.uuid4().hex[:8]

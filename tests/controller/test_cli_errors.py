@@ -235,3 +235,18 @@ def test_cli_play_names_an_expression_of_the_other_face(capsys: pytest.CaptureFi
     status, _, err = _run(["play", "smelling", "--head", "human", "--emulate"], capsys)
     assert status == 2
     assert "unknown expression 'smelling' (a dog expression; head 'human' is a human face); known: [" in err
+
+
+def test_cli_studio_on_a_taken_port_is_refused_before_the_head_opens(capsys: pytest.CaptureFixture[str]) -> None:
+    import socket
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        status, out, err = _run(
+            ["studio", "--head", "human", "--emulate", "--port-http", str(port), "--no-render"], capsys
+        )
+    assert status == 2
+    assert f"--port-http {port}: cannot listen on 127.0.0.1:{port}" in err and "or 0 for any free one" in err, err
+    assert "stop (" not in out + err  # the head was never opened

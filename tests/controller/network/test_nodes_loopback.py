@@ -306,3 +306,13 @@ def test_a_cue_says_which_heads_took_it_and_which_refused(net, capsys) -> None: 
     capsys.readouterr()
     assert main(["cue", "--heads", "lobby/h1", "neutral", *connect]) == 0  # (h2's torque stays off until asked)
     assert "taken by 1 of 1 head(s)" in capsys.readouterr().out
+
+
+def test_a_stopped_node_says_how_its_head_ended(net) -> None:  # type: ignore[no-untyped-def]
+    """SIGTERM (a service manager's stop): the node's log ends with the head's stop report, as play's does."""
+    _, nodes, _, _ = net
+    node: NodeProc = nodes[0]
+    node.stop()
+    assert node.proc.returncode == 0
+    log = node.log.read_text()
+    assert "stopped;" in log and "eased to neutral" in log and "torque off on every servo" in log, log[-2000:]
