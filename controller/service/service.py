@@ -741,7 +741,12 @@ class HeadService:
         self._view = self.tracks.view(t_s)  # before the presses complete: status() then shows empty tracks
         ok = self._torque_off_all()
         detail = "torque off" if ok else "torque off FAILED on some servos"
-        self.observers.offer("fault", ServiceEvent(t_s, "estop", f"{detail}; {handle.detail if handle else ''}"))
+        # the presses answered here, by their reasons (a pending press's detail is its reason until it is done)
+        reasons = list(dict.fromkeys(p.detail for p in self._estop_pending if p.detail))
+        if not reasons and handle is not None and handle.detail:
+            reasons = [handle.detail]
+        said = f"{detail} ({', '.join(reasons)})" if reasons else detail
+        self.observers.offer("fault", ServiceEvent(t_s, "estop", said))
         while self._estop_pending:  # every press so far is answered by this torque-off
             press = self._estop_pending.popleft()
             if press._set(Status.DONE if ok else Status.FAILED, self.clock.now_s(), detail):

@@ -67,3 +67,17 @@ def test_estop_twice_is_one_latch_and_shutdown_after_it_skips_the_ease(running: 
     report = svc.shutdown(ease_s=0.5)
     assert report.torque_off and not report.eased
     assert all(not running.chain.servo(s).torque_on for s in running.chain.ids)
+
+
+def test_the_estop_event_names_the_presses_it_answers(running: Running) -> None:
+    """One event per torque-off, naming each press's reason once ("torque off; torque off" named none)."""
+    svc = running.service
+    events = svc.subscribe("fault")
+    a, b = svc.estop("studio button"), svc.estop("studio button")
+    assert a.wait(2.0) is Status.DONE and b.wait(2.0) is Status.DONE
+    later = svc.estop("network")
+    assert later.wait(2.0) is Status.DONE
+    details = [e.detail for e in events.drain() if e.kind == "estop"]
+    assert details[0] == "torque off (studio button)", details
+    assert details[-1] == "torque off (network)", details
+    events.close()

@@ -190,3 +190,16 @@ def test_a_speech_cue_made_in_the_page_saves_reloads_and_talks_on_the_head(studi
     rig.wait_for(lambda: rig.goal_tick(jaw_id) == rest, timeout_s=60, what="the jaw at rest after the words")
     moves = {t for _, sid, t in rig.chain.goal_writes()[writes_before:] if sid == jaw_id}
     assert len(moves) > 5  # it opened and closed along the words, not one jump
+
+
+def test_a_name_with_a_path_is_refused_by_name_in_the_page(studio_page: tuple[Any, StudioRig]) -> None:
+    """'../evil name.toml' in the name field: the page shows the server's 422 about file names once (it showed
+    "Not Found"; a field-prefixed message was prefixed twice), and nothing is written."""
+    page, rig = studio_page
+    page.click('a[data-page="author"]')
+    page.fill("#author-name", "../evil name.toml")
+    page.click("#author-save")
+    page.wait_for_function("document.querySelector('#author-status').textContent.includes('bare file name')")
+    text = page.inner_text("#author-status")
+    assert text.startswith("name: expected a bare file name") and "name: name:" not in text, text
+    assert "evil name.toml" not in rig.client.get("/api/scripts").json()["scripts"]

@@ -14,7 +14,8 @@ export class ApiError extends Error {
     this.field = err.field || "";
   }
   describe() {
-    return this.field ? `${this.field}: ${this.message}` : this.message;
+    // (a message that already starts with its field, as pydantic's do, is not prefixed twice)
+    return this.field && !this.message.startsWith(`${this.field}:`) ? `${this.field}: ${this.message}` : this.message;
   }
 }
 

@@ -103,7 +103,10 @@ async function boot() {
   });
   live.on("state", (msg) => setState(msg.state || msg));
   live.on("hello", (msg) => msg.state && setState(msg.state));
-  live.on("fault", (msg) => toast(`${msg.kind}${msg.servo_id != null ? ` (servo ${msg.servo_id})` : ""}: ${msg.detail || ""}`, "warn"));
+  live.on("fault", (msg) => {
+    if (msg.kind === "estop") return; // the latched banner says it (one press reaches the server twice: socket and HTTP)
+    toast(`${msg.kind}${msg.servo_id != null ? ` (servo ${msg.servo_id})` : ""}: ${msg.detail || ""}`, "warn");
+  });
   live.on("error", (msg) => msg.id == null && toast(msg.error?.message || "refused", "error"));
   ctx.onState(renderChrome);
   try {
