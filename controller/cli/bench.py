@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import json
 import sys
+from collections import Counter
 
 HELP = "run benchmarks and print figures (one JSON object per line with --json)"
 
@@ -40,7 +42,9 @@ def run(args: argparse.Namespace) -> int:
             f"# {'suite':9s} {'figure':48s} {'value':>12s} {'unit':10s} {'verdict':7s} "
             "goal (floor: at least / ceiling: at most); vs limit"
         )
+        print("# ratio: how many times better than the limit (value / limit for a floor, limit / value for a ceiling)")
     status = 0
+    verdicts: Counter[str] = Counter()
     for name in names:
         try:
             module = importlib.import_module(SUITES[name])
@@ -53,14 +57,27 @@ def run(args: argparse.Namespace) -> int:
         options = {"minutes": args.minutes} if args.minutes is not None and _takes_minutes(module) else {}
         try:
             for figure in module.run(quick=args.quick, **options):
+                verdicts[figure.verdict] += 1
                 if args.json:
-                    print(figure.to_json(), flush=True)
+                    print(json.dumps({"suite": name, **figure.as_dict()}), flush=True)
                 else:
                     print(_row(name, figure), flush=True)
         except SuiteUnavailable as err:
             print(f"servoface bench: suite '{name}' cannot run here: {err}", file=sys.stderr)
             status = 1
+    if not args.json:
+        print(summary_line(verdicts))
     return status
+
+
+def summary_line(verdicts: Counter[str]) -> str:
+    """``# 14 figures: 11 meet their goal, 2 short, 1 without a goal`` (a short figure does not change the
+    exit status: benchmarks measure, and a shared machine's load moves them; the README quotes quiet runs)."""
+    total = sum(verdicts.values())
+    return (
+        f"# {total} figures: {verdicts['meets']} meet their goal, {verdicts['short']} short, "
+        f"{verdicts['-']} without a goal (short figures do not fail the run: they depend on the machine's load)"
+    )
 
 
 def suite_names(requested: list[str]) -> list[str]:

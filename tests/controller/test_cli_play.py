@@ -72,3 +72,30 @@ def test_a_typo_is_reported_before_the_port_is_opened(capsys: pytest.CaptureFixt
     assert main(["play", "glee", "--port", "/dev/does-not-exist"]) == 2
     err = capsys.readouterr().err
     assert "glee" in err and "does-not-exist" not in err
+
+
+def test_bench_rows_say_what_ratio_means_and_end_with_a_count(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A two-figure suite (a module of this test, registered as a suite): the text ends with the verdict
+    count; --json lines carry their suite."""
+    import json
+    import sys
+    import types
+
+    from servoface.controller import benchmarks
+    from servoface.controller.benchmarks.figure import Figure
+
+    suite = types.ModuleType("tests_two_figures")
+    suite.run = lambda quick=False: iter(  # type: ignore[attr-defined]
+        [Figure("fast", 2.0, "ms", limit=1.0, better="lower"), Figure("wide", 0.95, "x", limit=1.0, goal_ratio=0.9)]
+    )
+    monkeypatch.setitem(sys.modules, "tests_two_figures", suite)
+    monkeypatch.setitem(benchmarks.SUITES, "two", "tests_two_figures")
+    assert main(["bench", "two"]) == 0  # a short figure does not fail the run
+    out = capsys.readouterr().out
+    assert "# ratio: how many times better than the limit" in out
+    assert out.strip().splitlines()[-1].startswith("# 2 figures: 1 meet their goal, 1 short, 0 without a goal")
+    assert main(["bench", "two", "--json"]) == 0
+    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [r["suite"] for r in rows] == ["two", "two"] and [r["verdict"] for r in rows] == ["short", "meets"]
