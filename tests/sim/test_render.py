@@ -3,29 +3,18 @@
 from __future__ import annotations
 
 import threading
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
 import trimesh
 from servoface.sim.errors import RenderError
-from servoface.sim.render import HeadRenderer, MeshItem, egl_missing_reason, parse_size
+from servoface.sim.render import HeadRenderer, MeshItem, parse_size
 from servoface.sim.render.camera import BACKGROUND_RGB
 from servoface.sim.render.materials import eye_vertex_colors, srgb_to_linear
 from servoface.sim.render.normals import VertexNormals
 
 W, H = 160, 120
 SKIN = (0.86, 0.70, 0.60, 1.0)
-
-
-@pytest.fixture(scope="module")
-def renderer() -> Iterator[HeadRenderer]:
-    reason = egl_missing_reason()
-    if reason is not None:
-        pytest.skip(reason)
-    r = HeadRenderer(W, H)
-    yield r
-    r.close()
 
 
 def _translate(x: float, y: float, z: float) -> np.ndarray:

@@ -4,27 +4,15 @@ AU18, and closed lids of the mechanical template covering the whole eyeball."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import numpy as np
 import pytest
 from scipy import ndimage
 from servoface.sim.expressions.library import load_library
 from servoface.sim.face_model import FaceModel
 from servoface.sim.heads import load_head
-from servoface.sim.render import HeadRenderer, egl_missing_reason
+from servoface.sim.render import HeadRenderer
 
 W, H = 320, 240
-
-
-@pytest.fixture(scope="module")
-def renderer() -> Iterator[HeadRenderer]:
-    reason = egl_missing_reason()
-    if reason is not None:
-        pytest.skip(reason)
-    r = HeadRenderer(W, H)
-    yield r
-    r.close()
 
 
 @pytest.fixture(scope="module")

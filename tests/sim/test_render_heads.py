@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 import pytest
-from servoface.sim.render import HeadRenderer, egl_missing_reason
+from servoface.sim.render import HeadRenderer
 from servoface.sim.render.camera import BACKGROUND_RGB, default_view
 from servoface.sim.render.clips import library_sheet, pick_expression, render_aus
 from servoface.sim.render.twin import face_model, render_target_vs_gated, render_targets
@@ -18,16 +17,6 @@ W, H = 160, 120
 # Measured at 160x120 (default views): the closest human pairs are neutral/blink/wink (~1.0, the eyes
 # only), the closest dog pair anger/anger_without_tongue (~1.1, the tongue only); most pairs are > 2.
 MIN_PAIR_DIFF = 0.8
-
-
-@pytest.fixture(scope="module")
-def renderer() -> Iterator[HeadRenderer]:
-    reason = egl_missing_reason()
-    if reason is not None:
-        pytest.skip(reason)
-    r = HeadRenderer(W, H)
-    yield r
-    r.close()
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,7 @@ head sits on its neck without a gap. Pixels are found by projecting posed landma
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -15,20 +15,10 @@ from numpy.typing import NDArray
 from servoface.sim.face_model import FaceModel
 from servoface.sim.heads import load_head
 from servoface.sim.landmarks import landmark_set
-from servoface.sim.render import HeadRenderer, egl_missing_reason
+from servoface.sim.render import HeadRenderer
 from servoface.sim.render.camera import frame_box
 
 W, H = 480, 480
-
-
-@pytest.fixture(scope="module")
-def renderer() -> Iterator[HeadRenderer]:
-    reason = egl_missing_reason()
-    if reason is not None:
-        pytest.skip(reason)
-    r = HeadRenderer(W, H)
-    yield r
-    r.close()
 
 
 class Shot:
