@@ -54,7 +54,22 @@ from servoface.hardware.fault_policy import FaultPolicy
 from servoface.sim.head import Head
 from servoface.sim.heads import load_head
 
-__all__ = ["SETTLE_MAX_S", "Face", "head_calibration"]
+__all__ = ["SETTLE_MAX_S", "Face", "head_calibration", "unknown_expression"]
+
+
+def unknown_expression(name: Any, known: Any, head: Head) -> str:
+    """``unknown expression 'x' (did you mean 'y'?); known: [...]`` for a name the head's library lacks; a
+    built-in of the other kind of face is named as such (`Face.express` and the command line say it alike)."""
+    from servoface.sim.expressions import load_library
+
+    names = sorted(known)
+    close = difflib.get_close_matches(name, names, n=1) if isinstance(name, str) else []
+    maybe = f" (did you mean {close[0]!r}?)" if close else ""
+    other = "dog" if head.face_type == "human" else "human"
+    if not close and isinstance(name, str) and name in load_library(other):
+        maybe = f" (a {other} expression; head {head.name!r} is a {head.face_type} face)"
+    return f"unknown expression {printable_repr(name)}{maybe}; known: {names}"
+
 
 _GAZE_AUS = frozenset({"AU51", "AU52", "AU53", "AU54", "AU55", "AU56", "AU61", "AU62", "AU63", "AU64"})
 _DOG_GAZE_AUS = frozenset({"AU9", "AU10", "AU11", "AU12", "AU13"})
@@ -296,11 +311,7 @@ class Face:
         """Move to a named expression's apex (scaled by ``intensity``) and hold it."""
         library = self._expressions()
         if not isinstance(name, str) or name not in library:
-            close = difflib.get_close_matches(name, sorted(library), n=1) if isinstance(name, str) else []
-            maybe = f" (did you mean {close[0]!r}?)" if close else ""
-            raise ControllerError(
-                f"express: unknown expression {printable_repr(name)}{maybe}; known: {sorted(library)}"
-            )
+            raise ControllerError(f"express: {unknown_expression(name, library, self.head)}")
         level = as_finite(intensity)
         if level is None or not 0 <= level <= 1:
             raise ControllerError(f"express: intensity must be a number within 0..1, got {printable_repr(intensity)}")

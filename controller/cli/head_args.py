@@ -79,14 +79,9 @@ def check_expression(head: Head, name: str) -> None:
 
     known = load_library(head.expressions_path or head.face_type)
     if name not in known:
-        import difflib
+        from servoface.controller.face import unknown_expression
 
-        close = difflib.get_close_matches(name, sorted(known), n=1)
-        maybe = f" (did you mean {close[0]!r}?)" if close else ""  # as Face.express says it
-        other = "dog" if head.face_type == "human" else "human"
-        if not close and name in load_library(other):  # a built-in of the other kind of face
-            maybe = f" (a {other} expression; head {head.name!r} is a {head.face_type} face)"
-        raise ControllerError(f"unknown expression {name!r}{maybe}; known: {sorted(known)}")
+        raise ControllerError(unknown_expression(name, known, head))
 
 
 def open_face(args: argparse.Namespace, head: Head) -> Face:
