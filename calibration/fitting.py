@@ -29,6 +29,7 @@ from servoface.calibration.spec import ServoSpec
 COVERAGE_TOLERANCE = 0.02  # fraction of the range the points may stop short of each end
 GAP_WARNING = 0.35  # warn when two neighbouring points are further apart than this fraction of the range
 RESIDUAL_WARNING_TICK = 4.0  # warn when a fitted curve misses a measured point by more than this
+FAR_OUTSIDE_RANGES = 1.0  # a point more than this many range widths past either end is refused (a typo)
 
 
 @dataclass
@@ -45,8 +46,27 @@ def default_curve_kind(spec: ServoSpec) -> str:
     return "linear" if spec.kind == "joint" else "pchip"
 
 
+def far_outside(spec: ServoSpec, target: float) -> str | None:
+    """Why a measured ``target`` cannot be meant (more than `FAR_OUTSIDE_RANGES` range widths past either
+    end of the spec's range: a typo, or another unit), else None. Points a little past the ends are welcome
+    (they pin the curve's ends); one far away would pull a fitted line flat across the whole range."""
+    span = spec.upper - spec.lower
+    reach = FAR_OUTSIDE_RANGES * span
+    if spec.lower - reach <= target <= spec.upper + reach:
+        return None
+    return (
+        f"servo '{spec.role}': measured target {target:g} {spec.unit} is far outside its range "
+        f"{spec.lower:g}..{spec.upper:g} {spec.unit} (more than {FAR_OUTSIDE_RANGES:g} range width past it: "
+        f"{spec.lower - reach:g}..{spec.upper + reach:g} accepted); a typo, or a target in another unit?"
+    )
+
+
 def check_coverage(spec: ServoSpec, points: NDArray[np.float64]) -> list[str]:
-    """Raise CoverageError unless the points span [lower, upper]; return warnings about gaps."""
+    """Raise CoverageError unless the points span [lower, upper] and none is `far_outside` it; return
+    warnings about gaps."""
+    for target in points[:, 0].tolist():
+        if (why := far_outside(spec, target)) is not None:
+            raise CoverageError(why)
     span = spec.upper - spec.lower
     tol = COVERAGE_TOLERANCE * span
     lo, hi = float(points[:, 0].min()), float(points[:, 0].max())
@@ -107,6 +127,11 @@ def check_servo(spec: ServoSpec, curve: Curve, points: ArrayLike, *, neutral_tic
         raise CalibrationError(
             f"servo '{spec.role}': its range {spec.lower:g}..{spec.upper:g} {spec.unit} maps to ticks "
             f"{tick_lo}..{tick_hi}, outside {MIN_POSITION_TICK}..{MAX_POSITION_TICK}; re-mount the horn"
+        )
+    if tick_hi == tick_lo:
+        raise CalibrationError(
+            f"servo '{spec.role}': its whole range {spec.lower:g}..{spec.upper:g} {spec.unit} maps to one tick "
+            f"({tick_lo}): the measured ticks do not change with the target; re-measure"
         )
     if tick_hi - tick_lo < 8:
         warnings.append(

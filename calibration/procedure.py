@@ -30,7 +30,7 @@ from servoface.calibration.errors import (
     ProcedureError,
 )
 from servoface.calibration.fileformat import metadata_now, save_calibration
-from servoface.calibration.fitting import FitReport, fit_coupled_servo, fit_servo
+from servoface.calibration.fitting import FitReport, far_outside, fit_coupled_servo, fit_servo
 from servoface.calibration.head import HeadCalibration
 from servoface.calibration.measurements import Measurement, read_measurements_csv
 from servoface.calibration.plot import plot_servo
@@ -393,6 +393,10 @@ def calibrate_from_csv(
     missing = [s.role for s in specs if s.role not in rows and (keep is None or s.role not in keep)]
     if missing:
         raise ProcedureError(f"{csv_path}: no measurements for role(s) {missing}")
+    for spec in specs:  # a target far outside the servo's range is a typo: named by its line, before any fit
+        for m in rows.get(spec.role, ()):
+            if (why := far_outside(spec, m.target)) is not None:
+                raise MeasurementCsvError(str(csv_path), m.line, why)
     coupled = [s for s in specs if s.role in rows and rows[s.role][0].neighbours]
     for spec in specs:
         if spec.role not in rows or spec in coupled:

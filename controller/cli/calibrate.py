@@ -293,9 +293,10 @@ def _run(args: argparse.Namespace) -> int:
     except HardwareError as err:
         print(f"servoface calibrate: bus: {err}; nothing saved", file=sys.stderr)
         return 1
-    except CalibrationError as err:  # a missing or malformed measurement file: bad input (2); a fit that fails: 1
+    except CalibrationError as err:  # a measurement file that is missing, malformed or cannot be fit: bad
+        # input (2); measurements taken on the head that cannot be fit: the run failed (1)
         print(f"servoface calibrate: {err}", file=sys.stderr)
-        return EXIT_USAGE if isinstance(err, CalibrationFileError) else 1
+        return EXIT_USAGE if isinstance(err, CalibrationFileError) or args.csv is not None else 1
     _report(result)
     print(f"next: servoface check {args.head}")
     return 0

@@ -53,6 +53,28 @@ def test_cli_reports_bad_csv_with_its_line(tmp_path: Path, capsys: pytest.Captur
     assert not (tmp_path / "x").exists()
 
 
+@pytest.mark.parametrize(
+    "body, message",
+    [
+        ("jaw,0,2048\njaw,25,2332\njaw,-1e9,1593\n", "line 3: servo 'jaw': measured target -1e+09 deg is far outside"),
+        ("jaw,-25,2047\njaw,50,2049\n", "whole range 0..25 deg maps to one tick (2048)"),
+    ],
+)
+def test_cli_measurements_that_cannot_make_a_curve_are_bad_input(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], body: str, message: str
+) -> None:
+    """A measurement file whose numbers cannot be fit is the user's input to fix (exit 2), with the cause:
+    a target far outside the servo's range (a typo) named by its line; ticks that do not follow the target."""
+    (tmp_path / "m.csv").write_text(body)
+    out = tmp_path / "x.json"
+    code = main(["calibrate", "--head", "human", "--csv", str(tmp_path / "m.csv"), "--roles", "jaw", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert message in err
+    assert "must satisfy" not in err
+    assert not out.exists()
+
+
 @pytest.fixture
 def typed_keys(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[str]]:
     """Feed input() from a list; each key waits a little so the emulated servo finishes a jog."""

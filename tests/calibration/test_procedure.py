@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from servoface.calibration.errors import (
+    CalibrationError,
     CoverageError,
     MeasurementCsvError,
     ProcedureAborted,
@@ -259,6 +260,8 @@ def test_csv_mode_end_to_end(tmp_path: Path) -> None:
         ("jaw,0,2048\n\n# c\njaw,0,2100\n", 4, "target 0 already measured on line 1"),
         ("jaw,0,2048\n", 1, "only one measurement"),
         ("# nothing\n", 0, "no measurements"),
+        ("jaw,0,2048\njaw,25,2332\njaw,-1e9,1593\n", 3, r"target -1e\+09 deg is far outside its range 0\.\.25 deg"),
+        ("jaw,0,2048\njaw,250,4000\n", 2, r"far outside its range 0\.\.25 deg \(.*-25\.\.50 accepted\)"),
     ],
 )
 def test_csv_errors_name_the_line(tmp_path: Path, body: str, line: int, message: str) -> None:
@@ -282,6 +285,24 @@ def test_coverage_and_monotonicity_are_checked_with_numbers(tmp_path: Path) -> N
     path.write_text("jaw,0,2048\njaw,12,2248\njaw,25,2332\n")
     result = calibrate_from_csv(path, spec, "one", curve_kind="linear")
     assert any("misses a measured point by" in w for w in result.warnings)
+
+
+def test_points_a_little_past_the_ends_are_welcome(tmp_path: Path) -> None:
+    """Only a point more than a range width past an end is refused: one just past pins the curve's end."""
+    path = tmp_path / "past.csv"
+    path.write_text("jaw,-24,1775\njaw,0,2048\njaw,25,2332\njaw,49,2605\n")
+    result = calibrate_from_csv(path, small_specs()[:1], "one")
+    assert result.calibration["jaw"].to_tick(12.5) == pytest.approx(2048 + 12.5 * 4096 / 360, abs=1)
+
+
+def test_ticks_that_do_not_follow_the_target_are_refused_not_saved_flat(tmp_path: Path) -> None:
+    """Two points far apart whose ticks barely differ fit a line that maps the whole range to one tick: an
+    error saying so (it was "tick limits 2048..2048 must satisfy ..." from deep inside)."""
+    path = tmp_path / "flat.csv"
+    path.write_text("jaw,-25,2047\njaw,50,2049\n")
+    with pytest.raises(CalibrationError, match=r"whole range 0\.\.25 deg maps to one tick \(2048\)"):
+        calibrate_from_csv(path, small_specs()[:1], "one", out=tmp_path / "cal.json")
+    assert not (tmp_path / "cal.json").exists()
 
 
 def _png_size(data: bytes) -> tuple[int, int]:
