@@ -4,8 +4,10 @@ The skin is a loft of cross-sections along the head's length (+z towards the nos
 the mouth line on both sides, and the last ring collapses onto the front of the mouth, so upper lip
 (flews) and lower lip/chin share rest positions but not faces: the lower part follows the jaw and the
 mouth opens; raising the flews (snarl) shows the teeth behind them. The nose pad, the eye openings and
-the muzzle are carved in the same loft. Rigid parts: skull, jaw with lower teeth, upper teeth, eyeballs
-(iris, pupil), upper lids, cropped erect ears, a two-segment tongue, neck, mouth cavity and eye sockets.
+the muzzle are carved in the same loft; the eye openings' rims are then laid on their ellipses
+(`servoface.sim.heads.opening`), so the skin's edge round each eye is a smooth curve, not a grid's
+stair-step. Rigid parts: skull, jaw with lower teeth, upper teeth, eyeballs (iris, pupil), upper lids,
+cropped erect ears, a two-segment tongue, neck, mouth cavity and eye sockets.
 
 Design coordinates put the atlas at (0, 70, -50); every mesh is shifted by ``OFFSET`` so that the head
 frame's origin is the top of the neck, as for every head.
@@ -16,7 +18,9 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
+from numpy.typing import NDArray
 from servoface.sim.heads import mesh_tools as mt
+from servoface.sim.heads import opening
 from servoface.sim.heads.mesh_tools import F64, I64
 
 OFFSET = np.array([0.0, -70.0, 50.0])
@@ -58,32 +62,32 @@ def _ring_params(z: F64) -> tuple[F64, F64, F64, F64]:
     return np.interp(z, _Z, _TOP), np.interp(z, _Z, _YC), np.interp(z, _Z, _BOT), np.interp(z, _Z, _W)
 
 
-@lru_cache(maxsize=1)
-def _skin() -> tuple[F64, I64, F64]:
-    ns, nu = 58, 88  # nu divisible by 4: columns at +-90 deg lie on the mouth line
-    zs = _stations(ns)
-    top, yc, bot, w = _ring_params(zs)
-    u = (np.arange(nu) - nu // 2) * (2.0 * np.pi / nu)  # 0 = top, +pi/2 = head's left (+x); exactly odd
-    su, cu = np.sin(u)[None, :], np.cos(u)[None, :]
+def _surface(z: F64, u: F64) -> F64:
+    """(..., 3) skin points (design coordinates) at station ``z`` (mm along the head) and angle ``u`` (rad
+    round the ring: 0 = top, +pi/2 = the head's left); arrays of one shape. The skin is this surface on a
+    grid of stations and angles, so a vertex moved in (z, u) stays on it."""
+    z = np.asarray(z, dtype=np.float64)
+    u = np.asarray(u, dtype=np.float64)
+    top, yc, bot, w = _ring_params(z)
+    su, cu = np.sin(u), np.cos(u)
     upper = cu >= 0
     e_up, e_lo = 0.62, 0.85
-    h = np.where(upper, (top - yc)[:, None], (yc - bot)[:, None])
+    h = np.where(upper, top - yc, yc - bot)
     e = np.where(upper, e_up, e_lo)
-    x = w[:, None] * np.sign(su) * np.abs(su) ** e
+    x = w * np.sign(su) * np.abs(su) ** e
     # towards the tip the rings flatten onto the mouth's front edge: spread their points evenly along it
-    x_even = w[:, None] * np.sign(su) * (1.0 - np.abs(1.0 - 2.0 * np.abs(u)[None, :] / np.pi))
-    even = mt.smoothstep((zs[:, None] - (_Z[-1] - 14.0)) / 14.0)
+    x_even = w * np.sign(su) * (1.0 - np.abs(1.0 - 2.0 * np.abs(u) / np.pi))
+    even = mt.smoothstep((z - (_Z[-1] - 14.0)) / 14.0)
     x = (1.0 - even) * x + even * x_even
-    y = yc[:, None] + h * np.sign(cu) * np.abs(cu) ** e
-    z = np.broadcast_to(zs[:, None], x.shape).copy()
+    y = yc + h * np.sign(cu) * np.abs(cu) ** e
+    station = z
     # Staffy cheeks: bulge the lower sides behind the mouth corner
-    zz = z
-    x = x * (1.0 + 0.10 * mt.gauss2(zz - 15.0, (y - 70.0), 30.0, 22.0))
+    x = x * (1.0 + 0.10 * mt.gauss2(z - 15.0, (y - 70.0), 30.0, 22.0))
     # chin recedes below the mouth line near the front
-    below = np.clip((yc[:, None] - y) / 14.0, 0.0, 1.0)
-    z = z - 9.0 * below * mt.smoothstep((zs[:, None] - 110.0) / 40.0)
+    below = np.clip((yc - y) / 14.0, 0.0, 1.0)
+    z = z - 9.0 * below * mt.smoothstep((station - 110.0) / 40.0)
     # nostrils and nose pad shape: a slight dip on each side of the front face
-    frontness = mt.smoothstep((zs[:, None] - 148.0) / 6.0)
+    frontness = mt.smoothstep((station - 148.0) / 6.0)
     nostril = mt.gauss2(np.abs(x) - 8.0, y - 99.0, 4.0, 3.0)
     z = z - 3.0 * nostril * frontness
     # brow: a bump above each eye, a central furrow on the stop
@@ -91,9 +95,17 @@ def _skin() -> tuple[F64, I64, F64]:
     x = x + np.sign(x) * 3.0 * mt.gauss2(z - 40.0, y - 130.0, 14.0, 8.0)
     y = y + 4.0 * mt.gauss2(ax - 30.0, z - 52.0, 12.0, 10.0)
     y = y - 3.0 * mt.gauss2(ax, z - 45.0, 6.0, 14.0)
+    return np.stack([x, y, z], -1)
 
+
+@lru_cache(maxsize=1)
+def _skin() -> tuple[F64, I64, F64]:
+    ns, nu = 58, 88  # nu divisible by 4: columns at +-90 deg lie on the mouth line
+    zs = _stations(ns)
+    u = (np.arange(nu) - nu // 2) * (2.0 * np.pi / nu)  # 0 = top, +pi/2 = head's left (+x); exactly odd
+    grid_z, grid_u = np.broadcast_arrays(zs[:, None], u[None, :])
     nz = len(zs)
-    verts = np.stack([x, y, z], -1).reshape(-1, 3)
+    verts = _surface(grid_z, grid_u).reshape(-1, 3)
     faces = mt.grid_faces(nz, nu, periodic_u=True)[:, ::-1]
     n_grid = len(faces)
     back = len(verts)
@@ -110,7 +122,8 @@ def _skin() -> tuple[F64, I64, F64]:
     ring_of[back] = -1
     lower_col = np.abs(u) > np.pi / 2 + 1e-9
     side_col = np.isclose(np.abs(u), np.pi / 2)
-    # eye openings, in each eye's own frame, decided per grid quad so both sides match
+    # eye openings, in each eye's own frame, decided per grid quad so both sides match; the stair-step rim
+    # this leaves is laid on the opening's ellipse below (`_smooth_eye_rims`)
     cen = mt.quad_centres(verts, faces, n_grid)
     hole = np.zeros(len(faces), dtype=bool)
     for sx in (1.0, -1.0):
@@ -133,7 +146,10 @@ def _skin() -> tuple[F64, I64, F64]:
     f_low &= on_line[faces].any(1)
     area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     keep = (area > 1e-9) & ~hole
+    faces = opening.swap_ear_diagonals(faces, n_grid, keep)
     faces, f_low = faces[keep], f_low[keep]
+    params = np.concatenate([np.stack([grid_z, grid_u], -1).reshape(-1, 2), [[np.nan, np.nan]]])  # back: none
+    verts[:back] = _surface(*_smooth_eye_rims(verts, faces, params[:back], nu).T)
     # the upper lip keeps the line's vertices; the lower lip gets copies
     ids = np.nonzero(on_line)[0]
     verts, faces, _ = mt.split_vertices(verts, faces, ids, f_low)
@@ -150,6 +166,33 @@ def _skin() -> tuple[F64, I64, F64]:
     for wgt, rgba in ((blaze, MUZZLE_RGBA), (lips, LIP_RGBA), (nose, NOSE_RGBA)):
         col = col * (1.0 - wgt[:, None]) + np.array(rgba) * wgt[:, None]
     return verts + OFFSET, faces, col
+
+
+def _hole_coords(side: float, points: F64) -> F64:
+    """(..., 2) coordinates of points in an eye's frame in which the skin's eye opening is the unit circle."""
+    local = (points - _eye(side)) @ _eye_rot(side)
+    return np.asarray(local[..., :2] / np.array(_EYE_HOLE), dtype=np.float64)
+
+
+def _near_eye(side: float, points: F64) -> NDArray[np.bool_]:
+    local = (points - _eye(side)) @ _eye_rot(side)
+    return np.asarray((np.abs(local[:, 0]) < 25.0) & (np.abs(local[:, 1]) < 20.0) & (local[:, 2] > -10.0))
+
+
+def _smooth_eye_rims(verts: F64, faces: I64, params: F64, nu: int) -> F64:
+    """New (z, u) params (n, 2) of the grid vertices (n = rings x nu): the left eye's opening smoothed
+    (`opening.smooth_opening`) and mirrored (u -> -u) onto the right one, so the skin stays symmetric."""
+    n = len(params)
+    ids = np.arange(n)
+    return opening.smooth_opening(
+        params,
+        faces,
+        _near_eye(1.0, verts[:n]),
+        _surface,
+        lambda p: _hole_coords(1.0, p),
+        steps=np.array([1e-4, 1e-6]),  # finite-difference steps in z (mm) and u (rad)
+        mirror=((ids // nu) * nu + (nu - ids % nu) % nu, np.array([1.0, -1.0])),
+    )
 
 
 def skin() -> tuple[F64, I64, F64]:
@@ -213,26 +256,8 @@ def _eye_hole_loop(side: float) -> tuple[F64, F64]:
 
     v, f, _ = _skin()
     v = v - OFFSET
-    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    uniq, counts = np.unique(e, axis=0, return_counts=True)
-    edges = uniq[counts == 1]
     local = (v - _eye(side)) @ _eye_rot(side)
-    near = (np.abs(local[:, 0]) < 25.0) & (np.abs(local[:, 1]) < 20.0) & (local[:, 2] > -10.0)
-    edges = edges[near[edges].all(1)]
-    nxt: dict[int, list[int]] = {}
-    for a, b in edges.tolist():
-        nxt.setdefault(a, []).append(b)
-        nxt.setdefault(b, []).append(a)
-    start = min(nxt)
-    loop, prev = [start], -1
-    while True:
-        cur = loop[-1]
-        step = [n for n in nxt[cur] if n != prev]
-        prev, cand = cur, step[0]
-        if cand == start:
-            break
-        loop.append(cand)
-    ids = np.array(loop)
+    ids = opening.boundary_loop(f, _near_eye(side, v))
     # wind the loop counter-clockwise about the eye's gaze (same for both eyes after their own frame)
     ang = np.unwrap(np.arctan2(local[ids, 1], local[ids, 0]))
     if ang[-1] < ang[0]:
@@ -247,10 +272,11 @@ def eye_socket(side: float) -> tuple[F64, I64]:
 
     The opening is deep on the muzzle side (its rim stands ~25 mm in front of the eye's centre there), so a
     cup behind the eye alone left a tunnel open to the inside (issue: a hole beside the eye in side view).
-    A flange 1.5 mm under the skin just outside the rim (hidden by the skin, so a little skin motion opens
-    no gap) joins the wall, which starts on the rim itself and runs back to a ring of radius
-    ``EYE_RADIUS + 4`` at the eye's equator; a back hemisphere closes it. Open at the front, so it is drawn
-    from both sides."""
+    A flange 1.5 mm under the skin, 1.5 mm out from the rim along the skin (hidden by it, so a little skin
+    motion opens no gap; pushed out in the eye's plane instead, it poked through the skin where the skin
+    is oblique, dark spikes round the opening) joins the wall, which starts on the rim itself and runs
+    back to a ring of radius ``EYE_RADIUS + 4`` at the eye's equator; a back hemisphere closes it. Open at
+    the front, so it is drawn from both sides."""
     if side < 0:  # the mirror of the left one, exactly (the skin's triangle diagonals are not mirrored)
         v, f = eye_socket(1.0)
         return mt.mirror_x(v, f)
@@ -258,9 +284,11 @@ def eye_socket(side: float) -> tuple[F64, I64]:
     rot, c = _eye_rot(side), _eye(side)
     loc = (rim - c) @ rot  # eye frame
     n_loc = nrm @ rot
-    rad = np.hypot(loc[:, 0], loc[:, 1])
-    radial = np.stack([loc[:, 0] / rad, loc[:, 1] / rad, np.zeros(len(rad))], 1)
-    lip = loc + 1.5 * radial - 1.5 * n_loc  # outside the opening, under the skin
+    # away from the opening along the skin: across the rim (loop counter-clockwise about the gaze)
+    tangent = np.roll(loc, -1, axis=0) - np.roll(loc, 1, axis=0)
+    away = np.cross(tangent, n_loc)
+    away /= np.linalg.norm(away, axis=1, keepdims=True)
+    lip = loc + 1.5 * away - 1.5 * n_loc  # outside the opening, under the skin
     phi = np.arctan2(loc[:, 1], loc[:, 0])
     r_cup = EYE_RADIUS + 4.0
     z0 = -1.0
