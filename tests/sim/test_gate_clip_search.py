@@ -47,9 +47,10 @@ def _plain_scale_back(
     rate_last: Any = None,
     skin_first: bool = False,
     free: Any = None,
+    known: Any = None,
 ) -> tuple[Any, float]:
-    """`TwinGate._scale_back` before the reuse and the skin-first order (``skin_first`` is ignored): the
-    ``free`` servos at the clamped request first, then every servo scaled."""
+    """`TwinGate._scale_back` before the reuse and the skin-first order (``skin_first`` and ``known`` are
+    ignored): the ``free`` servos at the clamped request first, then every servo scaled."""
     step = req - last
     base = last if rate_last is None else rate_last
     cand_1 = lim.clamp(req, base, last_step, table)
