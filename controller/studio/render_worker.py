@@ -52,14 +52,14 @@ def worker_main(conn: Connection, head: Any, calibration: Any, period_s: float, 
     for stop_signal in (signal.SIGINT, signal.SIGHUP):
         signal.signal(stop_signal, signal.SIG_IGN)
     try:
+        from servoface.controller.studio.framing import LiveRenderer
         from servoface.controller.studio.png import encode_png
         from servoface.sim.achievable import AchievableFace
         from servoface.sim.face_model import FaceModel
-        from servoface.sim.render import HeadRenderer
 
         model = FaceModel(head)
         twin = AchievableFace(head, calibration, frame_period_s=period_s, model=model)
-        renderer = HeadRenderer(width, height)
+        renderer = LiveRenderer(width, height)  # the whole head, crown included (see its module)
     except Exception as err:  # noqa: BLE001 - reported to the parent, which runs without renders
         conn.send(("error", f"{type(err).__name__}: {err}"))
         conn.close()

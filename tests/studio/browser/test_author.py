@@ -3,11 +3,14 @@ emulator: the goals on that wire are the ones the studio's head takes for the sa
 
 from __future__ import annotations
 
+import io
 import tomllib
 from collections import Counter
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+from PIL import Image
 from servoface.controller.script import load_script
 
 from tests.integration.safe_stop_rig import bench
@@ -203,3 +206,51 @@ def test_a_name_with_a_path_is_refused_by_name_in_the_page(studio_page: tuple[An
     text = page.inner_text("#author-status")
     assert text.startswith("name: expected a bare file name") and "name: name:" not in text, text
     assert "evil name.toml" not in rig.client.get("/api/scripts").json()["scripts"]
+
+
+# the box of the first text in an element, from its text node (not the element: a label may be a part of it)
+_TEXT_BOX = """(sel) => {
+  const el = document.querySelector(sel);
+  const keep = (n) => (n.textContent.trim() ? NodeFilter.FILTER_ACCEPT : NodeFilter.FILTER_SKIP);
+  const walker = document.createTreeWalker(el, NodeFilter.SHOW_TEXT, { acceptNode: keep });
+  const node = walker.nextNode();
+  const range = document.createRange();
+  range.selectNodeContents(node);
+  const r = range.getBoundingClientRect();
+  return { x: r.x, y: r.y, w: r.width, h: r.height, text: node.textContent };
+}"""
+_PLAYHEAD_X = (
+    "(() => { const r = document.querySelector('.tl-playhead').getBoundingClientRect(); return r.x + r.width / 2; })()"
+)
+
+
+def test_the_playhead_passes_under_the_timeline_labels(studio_page: tuple[Any, StudioRig]) -> None:
+    """A clip's label ("blink") and the blink row's text stay readable where the playhead crosses them: the
+    text is drawn over the line (hit testing follows paint order, so the playhead, made hit-testable for
+    the check, is not what is found at the text) and no pixel of the line shows inside the text's box."""
+    page, _ = studio_page
+    page.click('a[data-page="author"]')
+    page.wait_for_selector("#author-lib")
+    page.select_option("#author-lib", "blink")
+    page.click("#author-add-clip")
+    page.wait_for_selector('.tl-row[data-row="clips:gesture"] .tl-clip')
+    page.add_style_tag(content=".tl-playhead { pointer-events: auto !important; }")
+    page.locator(".timeline").scroll_into_view_if_needed()  # points below the window hit nothing
+    ruler = page.locator(".tl-ruler").bounding_box()
+    for label in ('.tl-row[data-row="clips:gesture"] .tl-clip', '.tl-row[data-row="blink"]'):
+        box = page.evaluate(_TEXT_BOX, label)
+        assert box["w"] > 10, box
+        cx, cy = box["x"] + box["w"] / 2, box["y"] + box["h"] / 2
+        page.mouse.click(cx, ruler["y"] + ruler["height"] / 2)  # scrub: the playhead to the text's middle
+        page.wait_for_function(f"Math.abs({_PLAYHEAD_X} - {cx}) < 2")
+        on_top = page.evaluate(
+            "([sel, x, y]) => { const el = document.elementFromPoint(x, y); "
+            "return { inside: document.querySelector(sel).contains(el), cls: el ? el.className || el.tagName : '' }; }",
+            [label, page.evaluate(_PLAYHEAD_X), cy],
+        )
+        assert on_top["inside"], f"the playhead is drawn over {box['text']!r} (found {on_top['cls']!r} there)"
+        shot = page.screenshot(clip={"x": box["x"], "y": box["y"], "width": box["w"], "height": box["h"]})
+        with Image.open(io.BytesIO(shot)) as im:
+            rgb = np.asarray(im.convert("RGB")).astype(int)
+        red = (rgb[..., 0] > 200) & (rgb[..., 1] < 170) & (rgb[..., 2] < 170)  # the playhead's #ff7b72
+        assert not red.any(), f"{int(red.sum())} playhead pixels inside the label {box['text']!r}"

@@ -1,4 +1,6 @@
 // The timeline: a ruler, one row per track (keyframes as diamonds, clips as blocks), a playhead.
+// Text on the timeline (a clip's label, a row's text, the ruler's seconds) is drawn over the playhead on
+// a background of its own, so the line never cuts a word (studio.css, "timeline layers").
 // Click a key to select it, drag it to move it in time; double-click an empty row to add a key;
 // click or drag on the ruler to scrub.
 
@@ -71,7 +73,7 @@ export class TimelineView {
     const sel = this.selected && this.selected.row === row.id && this.selected.id === item.id;
     let el;
     if (item.end_s != null) {
-      el = h("div.tl-clip", { style: `left:${X0 + item.t_s * this.pxPerS}px;width:${Math.max(18, (item.end_s - item.t_s) * this.pxPerS)}px`, title: item.text }, item.text);
+      el = h("div.tl-clip", { style: `left:${X0 + item.t_s * this.pxPerS}px;width:${Math.max(18, (item.end_s - item.t_s) * this.pxPerS)}px`, title: item.text }, h("span.tl-text", {}, item.text));
     } else {
       el = h("div.tl-key", { style: `left:${X0 + item.t_s * this.pxPerS}px`, title: `${item.t_s.toFixed(2)} s${item.text ? " · " + item.text : ""}` });
     }
