@@ -1,4 +1,8 @@
-"""`servoface lipsync AUDIO.wav [--text T | --transcript FILE] --head NAME|PATH [--out DIR]`."""
+"""`servoface lipsync AUDIO.wav [--text T | --transcript FILE] --head NAME|PATH [--out DIR]`.
+
+With a transcript, the transcript check's doubts (``speech/align_check.py``) are printed as a warning on
+stderr and the lip sync goes ahead; a gross mismatch is an error (exit 2) unless ``--allow-mismatch``.
+"""
 
 from __future__ import annotations
 
@@ -18,13 +22,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("out/lipsync"), help="output folder (default out/lipsync)")
     parser.add_argument("--lead-ms", type=float, default=50.0, help="mouth ahead of the sound, ms (default 50)")
     parser.add_argument("--no-video", action="store_true", help="write only the script and the audio")
+    parser.add_argument(
+        "--allow-mismatch",
+        action="store_true",
+        help="lip-sync even when the transcript does not seem to be the text of the audio (a warning then)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     from servoface.controller.au_names import head_au_names
     from servoface.controller.cli.head_args import open_errors
     from servoface.controller.cli.outputs import writable_folder
-    from servoface.controller.speech.errors import SpeechError
+    from servoface.controller.speech.errors import SpeechError, TranscriptMismatchError
     from servoface.controller.speech.lipsync import speech_from_recording
     from servoface.controller.speech.say import say_on_face, write_outputs
     from servoface.sim.heads import load_head
@@ -36,11 +45,19 @@ def run(args: argparse.Namespace) -> int:
         if args.transcript is not None:
             transcript = args.transcript.read_text(encoding="utf-8")
         writable_folder(args.out)
-        speech = speech_from_recording(args.audio, transcript, lead_s=args.lead_ms / 1e3)
+        speech = speech_from_recording(
+            args.audio, transcript, lead_s=args.lead_ms / 1e3, allow_mismatch=args.allow_mismatch
+        )
         wav, script = write_outputs(speech, head.face_type, args.out, allowed=head_au_names(head))
+    except TranscriptMismatchError as err:
+        print(f"servoface lipsync: {err} (--allow-mismatch lip-syncs anyway)", file=sys.stderr)
+        return 2
     except (SpeechError, *open_errors()) as err:  # type: ignore[misc]  # mypy cannot read a starred tuple
         print(f"servoface lipsync: {err}", file=sys.stderr)
         return 2
+    check = speech.transcript_check
+    if check is not None and not check.ok:
+        print(f"servoface lipsync: warning: {check.message()}", file=sys.stderr)
     print(f"{speech.method}: {len(speech.plan.segments) or 'envelope'} visemes over {speech.duration_s:.2f} s")
     print(f"wrote {script} (servoface play {script} --head {args.head} --emulate) and {wav}")
     if args.no_video:

@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from servoface.controller.errors import ControllerError
+
+if TYPE_CHECKING:
+    from servoface.controller.speech.align_check import TranscriptCheck
 
 
 class SpeechError(ControllerError):
@@ -15,3 +20,12 @@ class SynthesisUnavailableError(SpeechError):
 
 class AlignmentError(SpeechError):
     """Forced alignment could not align the audio with its transcript."""
+
+
+class TranscriptMismatchError(AlignmentError):
+    """The transcript is grossly not the text of the audio (no alignment path, or a far worse fit than a
+    free phone decode); ``check`` is the transcript check when there was one."""
+
+    def __init__(self, message: str, check: TranscriptCheck | None = None) -> None:
+        super().__init__(message)
+        self.check = check

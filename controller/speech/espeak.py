@@ -136,6 +136,8 @@ class _Engine:
         lib.espeak_SetVoiceByName.argtypes = [ctypes.c_char_p]
         lib.espeak_SetVoiceByName.restype = ctypes.c_int
         lib.espeak_SetParameter.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_int]
+        lib.espeak_GetParameter.argtypes = [ctypes.c_int, ctypes.c_int]
+        lib.espeak_GetParameter.restype = ctypes.c_int
         lib.espeak_Synth.argtypes = [
             ctypes.c_void_p,
             ctypes.c_size_t,
@@ -190,10 +192,10 @@ class _Engine:
                 if self.lib.espeak_SetVoiceByName(voice.encode()) != 0:
                     raise SpeechError(f"voice {voice!r}: espeak-ng has no such voice (try 'en', 'en-us', 'de')")
                 self._voice = voice
-            if rate_wpm is not None:
-                self.lib.espeak_SetParameter(_PARAM_RATE, rate_wpm, 0)
-            if pitch is not None:
-                self.lib.espeak_SetParameter(_PARAM_PITCH, pitch, 0)
+            # espeak-ng keeps a rate or pitch once set: None means its default again, not the last caller's
+            for param, value in ((_PARAM_RATE, rate_wpm), (_PARAM_PITCH, pitch)):
+                default = self.lib.espeak_GetParameter(param, 0)  # current=0: the default value
+                self.lib.espeak_SetParameter(param, default if value is None else value, 0)
             self._chunks, self._events, self._written = [], [], 0
             data = text.encode("utf-8") + b"\0"
             buf = ctypes.create_string_buffer(data)

@@ -1,5 +1,11 @@
 """The three ways to a lip-sync plan, end to end: text (synthesised), recorded speech with its transcript
-(aligned), any audio (envelope)."""
+(aligned), any audio (envelope).
+
+An aligned recording carries the transcript check (``speech/align_check.py``): ``Speech.transcript_check``
+says whether the transcript seems to be the text of the audio. A doubtful fit is a warning on the result;
+a gross mismatch raises ``TranscriptMismatchError`` unless ``allow_mismatch`` (then the plan is made from
+the alignment anyway, or from the audio's envelope when no alignment path fitted at all).
+"""
 
 from __future__ import annotations
 
@@ -8,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
+from servoface.controller.speech.align_check import TranscriptCheck
 from servoface.controller.speech.audio import read_wav, to_float
 from servoface.controller.speech.plan import DEFAULT_LEAD_S, LipSyncPlan, plan_from_visemes
 from servoface.controller.speech.timing import visemes_from_phonemes
@@ -23,6 +30,7 @@ class Speech:
     method: str
     text: str = ""
     phonemes: tuple[tuple[str, float], ...] = ()  # (phoneme, start s) the plan was made from (text, aligned)
+    transcript_check: TranscriptCheck | None = None  # recordings with a transcript: does it fit the audio?
 
     @property
     def duration_s(self) -> float:
@@ -61,16 +69,22 @@ def speech_from_recording(
     *,
     lead_s: float = DEFAULT_LEAD_S,
     intensity: float = 1.0,
+    allow_mismatch: bool = False,
 ) -> Speech:
-    """Recorded speech: forced alignment when a transcript is given, else the causal envelope."""
+    """Recorded speech: forced alignment when a transcript is given, else the causal envelope. The
+    transcript is checked against the audio: see the module docstring for ``allow_mismatch``."""
     samples, rate = read_wav(audio) if isinstance(audio, str | Path) else (np.asarray(audio[0], float), int(audio[1]))
+    from servoface.controller.speech.envelope import envelope_plan
+
     if transcript is None:
-        from servoface.controller.speech.envelope import envelope_plan
-
         return Speech(samples, rate, envelope_plan(samples, rate, lead_s=lead_s), "envelope")
-    from servoface.controller.speech.align import align
+    from servoface.controller.speech.align_check import checked_alignment
 
-    phones = align(samples, rate, transcript)
+    alignment, check = checked_alignment(samples, rate, transcript, allow_mismatch=allow_mismatch)
+    if alignment is None:  # no path fitted and the caller allowed it: the mouth follows the sound
+        plan = envelope_plan(samples, rate, lead_s=lead_s)
+        return Speech(samples, rate, plan, "envelope", transcript, transcript_check=check)
+    phones = alignment.phones
     segments = visemes_from_phonemes([(p.phone, p.start_s) for p in phones], len(samples) / rate, alphabet="arpabet")
     plan = plan_from_visemes(
         segments,
@@ -80,4 +94,5 @@ def speech_from_recording(
         lead_s=lead_s,
         intensity=intensity,
     )
-    return Speech(samples, rate, plan, "aligned", transcript, tuple((p.phone, p.start_s) for p in phones))
+    events = tuple((p.phone, p.start_s) for p in phones)
+    return Speech(samples, rate, plan, "aligned", transcript, events, check)

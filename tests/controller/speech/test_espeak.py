@@ -49,3 +49,11 @@ def test_bad_voice_is_refused(voice: str) -> None:
 def test_rate_out_of_range_is_refused() -> None:
     with pytest.raises(SpeechError, match="rate_wpm"):
         synthesize("hello", rate_wpm=5000)
+
+
+def test_a_rate_or_pitch_does_not_stay_for_the_next_caller() -> None:
+    text = "Bob bought a big blue balloon."
+    plain = synthesize(text)
+    synthesize(text, rate_wpm=300, pitch=90)
+    again = synthesize(text)
+    assert again.duration_s == pytest.approx(plain.duration_s, rel=0.03)
