@@ -150,22 +150,45 @@ def _skin() -> tuple[F64, I64, F64]:
     faces, f_low = faces[keep], f_low[keep]
     params = np.concatenate([np.stack([grid_z, grid_u], -1).reshape(-1, 2), [[np.nan, np.nan]]])  # back: none
     verts[:back] = _surface(*_smooth_eye_rims(verts, faces, params[:back], nu).T)
-    # the upper lip keeps the line's vertices; the lower lip gets copies
+    weights = _colour_weights(verts, faces[(faces < back).all(1)])
+    # the upper lip keeps the line's vertices; the lower lip gets copies (of their colour weights too)
     ids = np.nonzero(on_line)[0]
     verts, faces, _ = mt.split_vertices(verts, faces, ids, f_low)
+    weights = np.concatenate([weights, weights[ids]])
 
-    verts, faces, _ = mt.compact(verts, faces)
+    verts, faces, (kept,) = mt.compact(verts, faces, weights)
+    weights = np.asarray(kept, dtype=np.float64)
 
     col = np.tile(np.array(SKIN_RGBA), (len(verts), 1))
+    for k, rgba in enumerate((MUZZLE_RGBA, LIP_RGBA, NOSE_RGBA)):
+        wgt = weights[:, k]
+        col = col * (1.0 - wgt[:, None]) + np.array(rgba) * wgt[:, None]
+    return verts + OFFSET, faces, col
+
+
+_COLOUR_BLEND_ROUNDS = 3  # passes of `mt.blend_vertex_values` over the nose's and lips' colour weights
+_COLOUR_GAIN = (1.3, 1.8)  # the nose's and the lips' blended weights are scaled by these (then capped at 1)
+
+
+def _colour_weights(verts: F64, faces: I64) -> F64:
+    """(n, 3) weights of the blaze, lip and nose colours at the skin's vertices (design coordinates).
+
+    The nose pad's and the lips' edges are sharper (1.5..3 mm) than the skin's grid is fine there (rings
+    3.5 mm apart on the nose's front, columns up to 8 mm apart above the mouth line); coloured per vertex,
+    such an edge is drawn along the grid's triangles, a saw-tooth (session 36). Their weights are blended
+    over the grid's edges, so each edge spans a couple of grid cells wherever the grid runs and is drawn as
+    a smooth curve. The blaze's edges are soft enough already."""
     vx, vy, vz = verts[:, 0], verts[:, 1], verts[:, 2]
     yc_v = np.interp(vz, _Z, _YC)
     blaze = mt.smoothstep((9.0 - np.abs(vx)) / 4.0) * mt.smoothstep((vy - yc_v - 22.0) / 6.0)
     blaze = blaze * mt.smoothstep((vz - 40.0) / 15.0) * mt.smoothstep((140.0 - vz) / 6.0)
     nose = mt.smoothstep((vz - 141.0) / 3.0) * mt.smoothstep((vy - 91.0) / 2.5)
     lips = mt.smoothstep((vz - MOUTH_CORNER_Z + 4.0) / 4.0) * mt.smoothstep((3.5 - np.abs(vy - yc_v)) / 1.5)
-    for wgt, rgba in ((blaze, MUZZLE_RGBA), (lips, LIP_RGBA), (nose, NOSE_RGBA)):
-        col = col * (1.0 - wgt[:, None]) + np.array(rgba) * wgt[:, None]
-    return verts + OFFSET, faces, col
+    soft = mt.blend_vertex_values(np.stack([nose, lips], 1), faces, _COLOUR_BLEND_ROUNDS)
+    # blending lowers a thin band's middle (the lips' most): a gain brings the full colour back inside. Only
+    # a gentle one: sharpening the blended edge again (to under ~2 grid cells) brings the saw-tooth back
+    soft = np.minimum(soft * np.array(_COLOUR_GAIN), 1.0)
+    return np.stack([blaze, soft[:, 1], soft[:, 0]], 1)
 
 
 def _hole_coords(side: float, points: F64) -> F64:

@@ -2,7 +2,9 @@
 
 The skin is a loft of horizontal superellipse cross-sections (neck up to a pole on the crown) with the
 face carved in as depth bumps; it has two eye openings and a mouth slit (upper and lower lip share their
-rest positions but not their faces, so the lower lip follows the jaw and the mouth opens). Rigid parts
+rest positions but not their faces, so the lower lip follows the jaw and the mouth opens). The eye
+openings' rims are laid on their ellipses on the skin surface itself (`servoface.sim.heads.opening`), so
+the skin's edge round each eye is a smooth curve, not a grid's stair-step. Rigid parts
 (skull, jaw with lower teeth, upper teeth, eyeballs with iris and pupil, eyelid shells, neck, ears, the
 dark mouth cavity and eye sockets) are placed around it. Head frame: mm, +y up, +z out of the face,
 +x to the head's own left; the origin is the top of the neck.
@@ -13,7 +15,9 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
+from numpy.typing import NDArray
 from servoface.sim.heads import mesh_tools as mt
+from servoface.sim.heads import opening
 from servoface.sim.heads.mesh_tools import F64, I64
 
 # --- the numbers head.toml refers to (keep in sync; tests check) -------------------------------------------
@@ -109,22 +113,30 @@ def _brow_weight(x: F64, y: F64) -> F64:
     return np.asarray(band * span, dtype=np.float64)
 
 
+def _surface(y: F64, alpha: F64) -> F64:
+    """(..., 3) skin points at height ``y`` (mm) and azimuth ``alpha`` (rad round the head, 0 = front, +pi/2 =
+    the head's left); arrays of one shape. The skin is this surface on a grid of rows and columns, so a vertex
+    moved in (y, alpha) stays on it."""
+    y = np.asarray(y, dtype=np.float64)
+    alpha = np.asarray(alpha, dtype=np.float64)
+    w, df, db = _upper_profile(y)
+    sa, ca = np.sin(alpha), np.cos(alpha)
+    e = 0.9  # superellipse exponent (< 1: squarer cross-section)
+    x = w * np.sign(sa) * np.abs(sa) ** e
+    depth = np.where(ca >= 0, df, db)
+    z = depth * np.sign(ca) * np.abs(ca) ** e
+    front = mt.smoothstep((ca - 0.15) / 0.45)
+    z = z + _face_depth(x, y) * front
+    return np.stack([x, y, z], -1)
+
+
 @lru_cache(maxsize=1)
 def _skin() -> tuple[F64, I64, F64, dict[str, int]]:
     """(vertices, faces, vertex colours (n, 4), named vertex ids)."""
     nv, nu = 54, 96
-    rows = _rows(nv)
-    alpha = _columns(nu)
-    w, df, db = _upper_profile(rows)
-    sa, ca = np.sin(alpha)[None, :], np.cos(alpha)[None, :]
-    e = 0.9  # superellipse exponent (< 1: squarer cross-section)
-    x = w[:, None] * np.sign(sa) * np.abs(sa) ** e
-    depth = np.where(ca >= 0, df[:, None], db[:, None])
-    z = depth * np.sign(ca) * np.abs(ca) ** e
-    y = np.broadcast_to(rows[:, None], x.shape)
-    front = mt.smoothstep((ca - 0.15) / 0.45)
-    z = z + _face_depth(x, y) * front
-    verts = np.stack([x, y, z], -1).reshape(-1, 3)
+    grid_y, grid_a = np.broadcast_arrays(_rows(nv)[:, None], _columns(nu)[None, :])
+    rows = grid_y[:, 0]
+    verts = _surface(grid_y, grid_a).reshape(-1, 3)
     faces = mt.grid_faces(nv, nu, periodic_u=True)
     n_grid = len(faces)
     pole = len(verts)
@@ -136,24 +148,16 @@ def _skin() -> tuple[F64, I64, F64, dict[str, int]]:
     if float(np.sum(n * (tri.mean(1) - np.array([0.0, 120.0, 0.0])))) < 0:
         faces = faces[:, ::-1].copy()
 
-    # eye openings: drop faces whose centroid lies in the ellipse, snap the rim onto it
+    # eye openings: drop the grid quads whose centre lies in the ellipse (per quad, so both sides match),
+    # then lay the stair-step rim this leaves on the ellipse, on the skin surface (`_smooth_eye_rims`)
     cen = mt.quad_centres(verts, faces, n_grid)
     hole = np.zeros(len(faces), dtype=bool)
     for sx in (1.0, -1.0):
-        ex, ey = sx * EYE_CENTRE_L[0], EYE_CENTRE_L[1]
-        r = ((cen[:, 0] - ex) / EYE_HOLE_SEMI[0]) ** 2 + ((cen[:, 1] - ey) / EYE_HOLE_SEMI[1]) ** 2
+        r = np.sum(_hole_coords(sx, cen) ** 2, axis=1)
         hole |= (r < 1.0) & (cen[:, 2] > 20.0)
-    faces = faces[~hole]
-    rim = mt.boundary_vertices(faces)
-    rim = rim[verts[rim, 2] > 20.0]
-    for sx in (1.0, -1.0):
-        ex, ey = sx * EYE_CENTRE_L[0], EYE_CENTRE_L[1]
-        sel = rim[(np.abs(verts[rim, 0] - ex) < 25.0) & (np.abs(verts[rim, 1] - ey) < 20.0)]
-        u = (verts[sel, 0] - ex) / EYE_HOLE_SEMI[0]
-        v = (verts[sel, 1] - ey) / EYE_HOLE_SEMI[1]
-        rr = np.hypot(u, v)
-        verts[sel, 0] = ex + u / rr * EYE_HOLE_SEMI[0]
-        verts[sel, 1] = ey + v / rr * EYE_HOLE_SEMI[1]
+    faces = opening.swap_ear_diagonals(faces, n_grid, ~hole)[~hole]
+    params = np.stack([grid_y, grid_a], -1).reshape(-1, 2)
+    verts[:pole] = _surface(*_smooth_eye_rims(verts[:pole], faces, params, nu).T)
 
     # mouth slit on the mouth row: faces below it get their own copies of the lip-line vertices
     k = int(np.argmin(np.abs(rows - MOUTH_Y)))
@@ -174,6 +178,35 @@ def _skin() -> tuple[F64, I64, F64, dict[str, int]]:
         colours = colours * (1.0 - wgt[:, None]) + np.array(rgba) * wgt[:, None]
     named: dict[str, int] = {}
     return verts, faces, colours, named
+
+
+def _hole_coords(side: float, points: F64) -> F64:
+    """(..., 2) coordinates of points (..., 3) in which an eye's skin opening is the unit circle: the
+    opening is an ellipse seen from the front (along -z), of half-sizes ``EYE_HOLE_SEMI``."""
+    centre = np.array([side * EYE_CENTRE_L[0], EYE_CENTRE_L[1]])
+    return np.asarray((points[..., :2] - centre) / np.array(EYE_HOLE_SEMI), dtype=np.float64)
+
+
+def _near_eye(side: float, points: F64) -> NDArray[np.bool_]:
+    """(n,) points (n, 3) round an eye's opening on the face (not the back of the head)."""
+    d = np.abs(points[:, :2] - np.array([side * EYE_CENTRE_L[0], EYE_CENTRE_L[1]]))
+    return np.asarray((d[:, 0] < 25.0) & (d[:, 1] < 20.0) & (points[:, 2] > 20.0))
+
+
+def _smooth_eye_rims(verts: F64, faces: I64, params: F64, nu: int) -> F64:
+    """New (y, azimuth) params (n, 2) of the grid vertices (n = rows x nu): the left eye's opening smoothed
+    (`opening.smooth_opening`) and mirrored (azimuth -> -azimuth) onto the right one, so the skin stays
+    symmetric."""
+    ids = np.arange(len(params))
+    return opening.smooth_opening(
+        params,
+        faces,
+        _near_eye(1.0, verts),
+        _surface,
+        lambda p: _hole_coords(1.0, p),
+        steps=np.array([1e-4, 1e-6]),  # finite-difference steps in y (mm) and azimuth (rad)
+        mirror=((ids // nu) * nu + (nu - ids % nu) % nu, np.array([1.0, -1.0])),
+    )
 
 
 def skin() -> tuple[F64, I64, F64]:

@@ -65,6 +65,22 @@ def quad_centres(vertices: F64, faces: I64, n_grid: int) -> F64:
     return out  # summation order differs between mirror quads; keep decisions identical
 
 
+def blend_vertex_values(values: F64, faces: I64, rounds: int) -> F64:
+    """Per-vertex values (n, k) moved ``rounds`` times halfway to the mean over their edge neighbours in
+    ``faces`` (vertices on no face keep theirs): a value that steps from one vertex to the next is spread
+    over a few edges, so interpolated over the triangles it changes along a smooth curve."""
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    e = np.unique(np.sort(e, axis=1), axis=0)
+    e = np.concatenate([e, e[:, ::-1]])
+    deg = np.bincount(e[:, 0], minlength=len(values)).astype(np.float64)[:, None]
+    out = np.asarray(values, dtype=np.float64).copy()
+    for _ in range(rounds):
+        acc = np.zeros_like(out)
+        np.add.at(acc, e[:, 0], out[e[:, 1]])
+        out = np.where(deg > 0, 0.5 * out + 0.5 * acc / np.maximum(deg, 1.0), out)
+    return out
+
+
 def fan(ring: I64, centre: int, reverse: bool = False) -> I64:
     """Triangles joining a closed ring of vertex ids to one centre vertex."""
     nxt = np.roll(ring, -1)
