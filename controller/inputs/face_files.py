@@ -5,19 +5,23 @@ Link Face's CSV export included).
 JSON lines: every line is a message object with a time ``t`` (s) or ``timestamp_ms``; a file without any
 times is timed by row at ``fps`` (default 60, reported). Blank lines and lines starting with ``#`` are
 skipped. A bad line is a bad row (tolerance.py); errors name the file, the line and the field (``aus.AU12``).
+Pretty-printed objects one after another and one JSON array of objects are read the same way, each object
+named by the line it starts on (json_stream.py).
 
 Blendshape CSV: one column per blendshape (ARKit spelling, or Live Link Face's ``EyeBlinkLeft`` /
 ``EYE_BLINK_LEFT``), a time column ``t`` / ``t_s`` / ``time`` / ``timestamp`` / ``timestamp_ms`` (unit
-detected, timebase.py) or ``frame`` / ``Timecode`` (HH:MM:SS:FF[.sub], at ``fps``), or none (rows at
-``fps``, default 60); optional ``yaw_deg, pitch_deg, roll_deg`` (head_pose.py convention) and
-``confidence``. Live Link Face's ``BlendShapeCount`` and head/eye rotation columns (units not documented; any
-spelling) and any other unknown column are ignored and listed in the report.
+detected, timebase.py) or ``frame``, or a timecode ``HH:MM:SS:FF[.sub]`` in ``Timecode`` or any time column
+(skellytracker writes it in ``Timestamp``; frame rate given or inferred, timecode.py; plain numbers in a
+``Timecode`` column are frame numbers at ``fps``), or none (rows at ``fps``, default 60); optional
+``yaw_deg, pitch_deg, roll_deg`` (head_pose.py convention) and ``confidence``. Live Link Face's
+``BlendShapeCount`` and head/eye rotation columns (units not documented; any spelling) and any other unknown
+column are ignored and listed in the report.
 """
 
 from __future__ import annotations
 
-import json
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -27,20 +31,22 @@ from servoface.controller.inputs.blendshapes import SCORE_SLACK, _fold
 from servoface.controller.inputs.csv_table import CsvTable, read_text
 from servoface.controller.inputs.errors import InputError
 from servoface.controller.inputs.head_pose import parse_head
+from servoface.controller.inputs.json_stream import json_items
 from servoface.controller.inputs.mediapipe_result import NoFace, is_result, normalise_result
 from servoface.controller.inputs.messages import MessageDecoder
 from servoface.controller.inputs.openface import _options
 from servoface.controller.inputs.recorded import Recording
 from servoface.controller.inputs.report import InputReport
+from servoface.controller.inputs.timecode import Timecode, looks_like_timecode, parse_timecode, timecode_seconds
 from servoface.controller.inputs.tolerance import BadRow, Tolerance
 from servoface.sim.rig import FaceType
 
 _TIME_COLUMNS = ("t", "t_s", "time", "timestamp", "timestamp_s", "timestamp_ms", "timestamp_us", "frame", "timecode")
 _POSE_COLUMNS = ("yaw_deg", "pitch_deg", "roll_deg")
-_LLF_IGNORED = frozenset(
+_LLF_ROTATIONS = frozenset(
     _fold(n)
     for n in (
-        "BlendShapeCount", "HeadYaw", "HeadPitch", "HeadRoll", "LeftEyeYaw", "LeftEyePitch", "LeftEyeRoll",
+        "HeadYaw", "HeadPitch", "HeadRoll", "LeftEyeYaw", "LeftEyePitch", "LeftEyeRoll",
         "RightEyeYaw", "RightEyePitch", "RightEyeRoll",
     )
 )  # fmt: skip
@@ -73,13 +79,13 @@ def read_jsonl(
     timed: list[bool] = []
     total = 0
     clamped: list[str] = []
-    for number, line in enumerate(read_text(file).splitlines(), start=1):
-        if not line.strip() or line.lstrip().startswith("#"):
-            continue
+    for number, obj in json_items(read_text(file), str(file)):
         total += 1
         where = f"{file}: line {number}"
         try:
-            row, has_t = _jsonl_row(line, number, where, decoder, opts, gate, clamped)
+            if isinstance(obj, BadRow):
+                raise obj
+            row, has_t = _jsonl_row(obj, number, where, decoder, opts, gate, clamped)
         except BadRow as err:
             tol.handle(err)
             continue
@@ -99,7 +105,7 @@ def read_jsonl(
 
 
 def _jsonl_row(
-    line: str,
+    obj: Any,
     number: int,
     where: str,
     decoder: MessageDecoder,
@@ -107,10 +113,6 @@ def _jsonl_row(
     gate: float,
     clamped: list[str],
 ) -> tuple[RawRow, bool]:
-    try:
-        obj: Any = json.loads(line)
-    except (ValueError, RecursionError) as err:
-        raise BadRow(f"{where}: not valid JSON: {err}", "lines that are not JSON") from err
     try:
         if is_result(obj):
             obj = normalise_result(obj, face_id=opts.face_id or 0, where=where)
@@ -148,19 +150,18 @@ def _jsonl_row(
     return RawRow(number, t, values, head, None, extra), msg.t_s is not None
 
 
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def _score(value: Any, field: str, clamped: list[str]) -> float:
     from servoface.controller.inputs.blendshapes import check_score
 
     return check_score(value, field=field, clamped=clamped)
-
-
-def _timecode_s(text: str, fps: float, where: str) -> float:
-    parts = text.replace(";", ":").split(":")
-    try:
-        h, m, s, f = (float(p) for p in parts)
-    except ValueError as err:
-        raise BadRow(f"{where}: {text!r} is not a timecode HH:MM:SS:FF[.sub]", "bad Timecode") from err
-    return h * 3600 + m * 60 + s + f / fps
 
 
 def read_blendshape_csv(
@@ -201,11 +202,11 @@ def read_blendshape_csv(
             f"{table.path}: no blendshape columns found (expected ARKit/MediaPipe names such as mouthSmileLeft); "
             f"header has {', '.join(table.header[:8])}"
         )
-    llf = [c for c in report.columns_ignored if _fold(c) in _LLF_IGNORED]
+    llf = [c for c in report.columns_ignored if _fold(c) in _LLF_ROTATIONS]
     if llf:
         report.notes.append(f"Live Link Face head/eye rotation columns ignored (units undocumented): {llf[:4]}")
-    is_timecode = time_col is not None and time_col.lower() == "timecode"
-    rate = opts.fps or 60.0
+    is_timecode: bool | None = None  # decided by the first data row (skellytracker's "Timestamp" holds one)
+    codes: list[Timecode] = []
     rows: list[RawRow] = []
     last: dict[str, float] = {}
     total = 0
@@ -214,10 +215,16 @@ def read_blendshape_csv(
         try:
             if time_col is None:
                 t = float(len(rows))
-            elif is_timecode:
-                t = _timecode_s(table.cell(cells, line, time_col), rate, table.where(line, time_col))
             else:
-                t = table.number(cells, line, time_col)
+                text = table.cell(cells, line, time_col)
+                if is_timecode is None:
+                    named = time_col.lower() == "timecode"
+                    is_timecode = looks_like_timecode(text) or (named and not _is_number(text))
+                if is_timecode:
+                    code = parse_timecode(text, table.where(line, time_col))
+                    t = float(len(rows))
+                else:
+                    t = table.number(cells, line, time_col)
             values: dict[str, float] = {}
             for col, name in shape_cols.items():
                 raw = table.value(cells, line, col)
@@ -237,13 +244,21 @@ def read_blendshape_csv(
         good = confidence >= (opts.min_confidence or 0.0)
         filled = fill_cells(values, last, report) if good else None
         rows.append(RawRow(line, t, filled, head if filled is not None else None))
+        if is_timecode:
+            codes.append(code)
+    timecode_note = ""
+    if not is_timecode and time_col is not None and time_col.lower() == "timecode" and opts.time_unit == "auto":
+        opts = _options(opts, time_unit="frames")  # frame numbers in a Timecode column (some LLF-style writers)
     if is_timecode:
+        seconds, timecode_note = timecode_seconds(codes, opts.fps)
+        rows = [replace(row, t=t_s) for row, t_s in zip(rows, seconds, strict=True)]
         opts = _options(opts, time_unit="s" if opts.time_unit == "auto" else None)
-        how = "given" if opts.fps else "default; set the fps option"
-        report.notes.append(f"Timecode frames at {rate:g} fps ({how})")
-    return assemble(
+    recording = assemble(
         rows, report, opts, tol, kind="blendshapes", time_column=time_col, default_fps=60.0, total_rows=total
     )
+    if timecode_note:
+        report.time = f"{time_col}: {timecode_note}" + (f"; rows at {report.fps:g} fps" if report.fps else "")
+    return recording
 
 
 __all__ = ["SCORE_SLACK", "read_blendshape_csv", "read_jsonl"]

@@ -1,7 +1,8 @@
 """Pick the reader of a recorded file by what is in it, not by its name (an OpenFace file saved as
 ``.openface`` or ``.txt``, a tab-separated ``.tsv``, a MediaPipe dump named ``.json``):
 
-* first non-blank line starts with ``{`` -> JSON lines (messages or MediaPipe results);
+* first non-blank line starts with ``{`` or ``[`` -> JSON (lines, pretty-printed objects or one array; messages
+  or MediaPipe results);
 * ``.fap``, or a header ``<version> <name> <fps> <n>`` followed by a 68/69-value 0/1 mask -> MPEG-4 FAP;
 * otherwise a delimited table, by its header (separator sniffed): ``AUxx_r`` -> OpenFace, ``AUxx`` ->
   py-feat, ARKit/MediaPipe names -> blendshapes; none of these -> an error saying what was found.
@@ -27,7 +28,7 @@ def detect_format(file: Path) -> str:
     if not lines:
         raise InputError(f"{file}: empty file, expected a tracker recording")
     first = lines[0]
-    if first.startswith("{"):
+    if first.startswith(("{", "[")):
         return "jsonl"
     if file.suffix.lower() == ".fap" or (len(lines) > 1 and _MASK.match(lines[1])):
         return "fap"

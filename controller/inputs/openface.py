@@ -6,7 +6,9 @@ columns are ignored. Needed: at least one ``AUxx_r``; ``timestamp`` (unit detect
 ``frame`` at fps, else row order), ``confidence`` and ``success`` are used when present (a file trimmed to
 its AU columns is read as all tracked, with a note). Intensities 0..5 become 0..1 (``/ 5``; a value up to
 0.5 beyond 0..5 is clamped and counted, beyond that the row is bad, tolerance.py). Presence columns ``_c``
-are not used. With several faces (``face_id``), one face is read (default: the lowest id).
+are not used. With several faces (``face_id``), one face is read (default: the lowest id). FaceLandmarkImg
+writes an image's faces as ``face, confidence, ...`` (no frame, timestamp or success): ``face`` is read as the
+face id, and one face of one image is a still.
 
 Lost tracking: a row with ``success == 0`` or ``confidence < min_confidence`` (default 0.8, the common
 gate) is not trusted; the ``lost`` policy fills it: ``"hold"`` (default) keeps the last good AUs,
@@ -99,7 +101,8 @@ def read_openface_csv(
     time_col = next((c for c in ("timestamp", "frame") if c in table.columns), None)
     has_pose = all(c in table.columns for c in _POSE)
     has_gaze = all(c in table.columns for c in ("gaze_angle_x", "gaze_angle_y"))
-    used = set(au_cols) | {"face_id", "timestamp", "frame", "confidence", "success"}
+    face_col = next((c for c in ("face_id", "face") if c in table.columns), None)
+    used = set(au_cols) | {"face_id", "face", "timestamp", "frame", "confidence", "success"}
     used |= set(_POSE) if has_pose else set()
     used |= {"gaze_angle_x", "gaze_angle_y"} if has_gaze else set()
     report.columns_ignored = [c for c in table.header if c not in used and not c.endswith("_c")]
@@ -113,8 +116,8 @@ def read_openface_csv(
     for line, cells in table.rows():
         total += 1
         try:
-            if "face_id" in table.columns:
-                fid = int(table.number(cells, line, "face_id"))
+            if face_col is not None:
+                fid = int(table.number(cells, line, face_col))
                 faces[fid] = faces.get(fid, 0) + 1
                 if wanted is None:
                     wanted = min(faces)
@@ -157,6 +160,8 @@ def read_openface_csv(
     recording = assemble(rows, report, opts, tol, kind="aus", time_column=time_col, default_fps=30.0, total_rows=total)
     if report.held:
         report.notes.append(f"lost tracking = success 0 or confidence < {gate:g} (--min-confidence)")
+    if len(rows) == 1:
+        report.notes.append("one row: a still image (play holds it: --hold)")
     return recording
 
 
