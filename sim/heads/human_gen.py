@@ -164,20 +164,39 @@ def _skin() -> tuple[F64, I64, F64, dict[str, int]]:
     row_ids = k * nu + np.arange(nu)
     slit = row_ids[(np.abs(verts[row_ids, 0]) < MOUTH_HALF_WIDTH) & (verts[row_ids, 2] > 40.0)]
     below = np.all(verts[faces][:, :, 1] <= MOUTH_Y + 1e-6, axis=1) & np.isin(faces, slit).any(1)
+    weights = _colour_weights(verts, faces)
+    # the lower lip's copies of the lip-line vertices take their colour weights too
     verts, faces, copies = mt.split_vertices(verts, faces, slit, below)
+    weights = np.concatenate([weights, weights[slit]])
 
-    verts, faces, _ = mt.compact(verts, faces)
+    verts, faces, (kept,) = mt.compact(verts, faces, weights)
+    weights = np.asarray(kept, dtype=np.float64)
     colours = np.tile(np.array(SKIN_RGBA), (len(verts), 1))
-    nostril = 0.85 * mt.gauss2(np.abs(verts[:, 0]) - 7.0, verts[:, 1] - 89.5, 2.4, 1.6)
-    for wgt, rgba in (
-        (nostril, NOSTRIL_RGBA),
-        (_lip_weight(verts[:, 0], verts[:, 1]), LIP_RGBA),
-        (_brow_weight(verts[:, 0], verts[:, 1]), BROW_RGBA),
-    ):
-        wgt = wgt * (verts[:, 2] > 30.0)
+    for k, rgba in enumerate((NOSTRIL_RGBA, LIP_RGBA, BROW_RGBA)):
+        wgt = weights[:, k]
         colours = colours * (1.0 - wgt[:, None]) + np.array(rgba) * wgt[:, None]
     named: dict[str, int] = {}
     return verts, faces, colours, named
+
+
+_LIP_BLEND_ROUNDS = 3  # passes of `mt.blend_vertex_values` over the lips' colour weight
+_LIP_GAIN = 1.3  # the lips' blended weight is scaled by this (then capped at 1)
+
+
+def _colour_weights(verts: F64, faces: I64) -> F64:
+    """(n, 3) weights of the nostril, lip and brow colours at the skin's vertices, on the uncut skin.
+
+    The lips' edges ramp over 2..3 mm, sharper than the skin's grid is fine there (rows 4 mm apart, columns
+    2.5 mm), so coloured per vertex their ends were drawn along the grid's triangles: a slanted, notched
+    end on each lip, different left and right (session 36). The lips' weight is blended over the grid's
+    edges, so its edge spans a couple of grid cells and is drawn as a smooth curve; a gain brings the full
+    colour back inside the band."""
+    x, y = verts[:, 0], verts[:, 1]
+    front = verts[:, 2] > 30.0
+    nostril = 0.85 * mt.gauss2(np.abs(x) - 7.0, y - 89.5, 2.4, 1.6)
+    lips = mt.blend_vertex_values((_lip_weight(x, y) * front)[:, None], faces, _LIP_BLEND_ROUNDS)[:, 0]
+    lips = np.minimum(lips * _LIP_GAIN, 1.0)
+    return np.stack([nostril, lips, _brow_weight(x, y)], 1) * front[:, None]
 
 
 def _hole_coords(side: float, points: F64) -> F64:

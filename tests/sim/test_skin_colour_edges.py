@@ -1,13 +1,14 @@
-"""The dog skin's colour edges (session 36): the nose pad's and the lips' colours are per vertex, with edges
-sharper than the skin's grid is fine there, so they were drawn along the grid's triangles as a saw-tooth
-(spikes under the nose pad, blotches on the upper lip). Measured on the mesh: the curves where the vertex
-colours' lightness, interpolated over the triangles as the renderer does, crosses a level."""
+"""The skins' colour edges (session 36): the dog's nose pad and lips and the human's lips are coloured per
+vertex, with edges sharper than the skin's grid is fine there, so they were drawn along the grid's triangles
+as a saw-tooth (the dog: spikes under the nose pad, blotches on the upper lip; the human: slanted, notched
+lip ends, different left and right). Measured on the mesh: the curves where the vertex colours' lightness,
+interpolated over the triangles as the renderer does, crosses a level."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from servoface.sim.heads import dog_gen
+from servoface.sim.heads import dog_gen, human_gen
 
 LUMA = np.array([0.299, 0.587, 0.114])
 
@@ -71,3 +72,38 @@ def test_the_nose_and_lip_colour_edges_are_smooth_curves(level: float) -> None:
         turns = _turns_deg(line, 1.0)
         where = (line.mean(0) - dog_gen.OFFSET).round(0)
         assert turns.max() < 60.0, (where, np.sort(turns)[-5:].round(0))
+
+
+def _human_lip_lines(level_frac: float) -> list[np.ndarray]:
+    """Iso-lines of the human skin's lightness at ``level_frac`` of the way from skin to lip colour, round
+    the mouth (head frame; the nostrils, just above, excluded)."""
+    v, f, c = human_gen.skin()
+    skin, lip = np.array(human_gen.SKIN_RGBA[:3]) @ LUMA, np.array(human_gen.LIP_RGBA[:3]) @ LUMA
+    lines = _iso_lines(v, f, c[:, :3] @ LUMA, skin + level_frac * (lip - skin))
+    mouth_y = human_gen.MOUTH_Y
+    return [
+        ln
+        for ln in lines
+        if len(ln) >= 20 and abs(ln.mean(0)[0]) < 40.0 and abs(ln.mean(0)[1] - mouth_y) < 12.0 and ln.mean(0)[2] > 30.0
+    ]
+
+
+@pytest.mark.parametrize("level_frac", [0.4, 0.5, 0.7, 0.8])
+def test_the_human_lip_colour_edges_are_smooth_curves(level_frac: float) -> None:
+    # sampled every mm, the old per-vertex lip colour turned by 61..86 deg at the lips' ends (|x| 19..25 mm);
+    # the lip weight's own iso-lines (on a fine flat grid) turn by 30..40 deg at these levels
+    lines = _human_lip_lines(level_frac)
+    assert len(lines) == 2  # the upper and the lower lip (the mouth slit parts them)
+    for line in lines:
+        turns = _turns_deg(line, 1.0)
+        assert turns.max() < 60.0, (line.mean(0).round(0), np.sort(turns)[-5:].round(0))
+
+
+def test_the_human_lips_keep_their_full_colour_inside() -> None:
+    # blending the lip weight softens its edge; it must not wash the lips out
+    v, _, c = human_gen.skin()
+    core = (np.abs(v[:, 0]) < 16.0) & (np.abs(v[:, 1] - human_gen.MOUTH_Y) < 6.0) & (v[:, 2] > 30.0)
+    skin, lip = np.array(human_gen.SKIN_RGBA[:3]) @ LUMA, np.array(human_gen.LIP_RGBA[:3]) @ LUMA
+    weight = (skin - c[core, :3] @ LUMA) / (skin - lip)
+    assert core.sum() > 20
+    assert weight.min() > 0.9
