@@ -43,12 +43,15 @@ def run(args: argparse.Namespace) -> int:
         head = load_head(args.head)
         transcript = args.text
         if args.transcript is not None:
-            transcript = args.transcript.read_text(encoding="utf-8")
+            transcript = _read_transcript(args.transcript)
         writable_folder(args.out)
         speech = speech_from_recording(
             args.audio, transcript, lead_s=args.lead_ms / 1e3, allow_mismatch=args.allow_mismatch
         )
         wav, script = write_outputs(speech, head.face_type, args.out, allowed=head_au_names(head))
+    except TranscriptFileError as err:
+        print(f"servoface lipsync: {err}", file=sys.stderr)
+        return 2
     except TranscriptMismatchError as err:
         print(f"servoface lipsync: {err} (--allow-mismatch lip-syncs anyway)", file=sys.stderr)
         return 2
@@ -71,3 +74,23 @@ def run(args: argparse.Namespace) -> int:
         count = render_talking(face, perf, speech, video)
     print(f"wrote {video}: {count} frames, the achievable face with the sound")
     return 0
+
+
+class TranscriptFileError(Exception):
+    """``--transcript FILE`` cannot be read as text (the message names the flag, the path and what to do)."""
+
+
+def _read_transcript(path: Path) -> str:
+    """The text of ``--transcript FILE``; a path that is not there but reads like words is pointed at --text."""
+    from servoface.controller.cli import describe_os_error
+
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as err:
+        why = f"{err.reason} at byte {err.start}"
+        raise TranscriptFileError(f"--transcript {str(path)!r}: not UTF-8 text ({why})") from err
+    except FileNotFoundError as err:
+        hint = 'the transcript\'s words themselves go in --text "..."' if " " in str(path) else "check the path"
+        raise TranscriptFileError(f"--transcript {str(path)!r}: no such file; {hint}") from err
+    except OSError as err:
+        raise TranscriptFileError(f"--transcript {str(path)!r}: {describe_os_error(err)}") from err

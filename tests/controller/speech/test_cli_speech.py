@@ -91,6 +91,11 @@ def test_lipsync_of_a_recording_with_and_without_its_text(tmp_path: Path) -> Non
     [
         (["lipsync", "missing.wav"], "cannot read"),
         (["lipsync", "notes.txt"], "cannot read"),
+        (
+            ["lipsync", "notes.txt", "--transcript", "the birch canoe"],
+            "--transcript 'the birch canoe': no such file; the transcript's words themselves go in --text",
+        ),
+        (["lipsync", "notes.txt", "--transcript", "binary.txt"], "--transcript 'binary.txt': not UTF-8 text"),
         (["say", "", "--emulate"], "text"),
         (["say", "hi", "--voice", "zz-nope", "--emulate"], "voice"),
         (["say", "hi", "--lead-ms", "-5", "--emulate"], "lead-ms"),
@@ -98,5 +103,6 @@ def test_lipsync_of_a_recording_with_and_without_its_text(tmp_path: Path) -> Non
 )
 def test_bad_input_is_a_message_not_a_traceback(tmp_path: Path, args: list[str], message: str) -> None:
     (tmp_path / "notes.txt").write_text("not audio")
+    (tmp_path / "binary.txt").write_bytes(b"\xff\xfe\x00\x81 not text")
     proc = _servoface(*args, cwd=tmp_path)
     assert proc.returncode == 2 and message in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
