@@ -104,6 +104,7 @@ def session_config(
     ``access_control`` section (:func:`.acl.node_acl`), which needs the users file (its subjects are user
     names)."""
     check_endpoints(listen, connect, creds, tls, insecure=insecure)
+    check_tls_files(listen, connect, tls)
     if acl is not None and creds.users_file is None:
         raise NetworkError("access control (--operators) needs --users-file: its rules name authenticated users")
     import zenoh
@@ -124,8 +125,7 @@ def session_config(
         put("transport/auth/usrpwd/user", creds.user)
         put("transport/auth/usrpwd/password", creds.password or "")
     if creds.users_file is not None:
-        if not Path(creds.users_file).is_file():
-            raise NetworkError(f"users file {creds.users_file}: not found (expected lines 'user:password')")
+        check_users_file(Path(creds.users_file))
         put("transport/auth/usrpwd/dictionary_file", str(creds.users_file))
     if tls.root_ca is not None:
         put("transport/link/tls/root_ca_certificate", str(tls.root_ca))
@@ -135,6 +135,66 @@ def session_config(
     if acl is not None:
         put("access_control", acl)
     return conf
+
+
+def check_users_file(path: Path) -> None:
+    """A users file (``--users-file``) Zenoh can read: UTF-8 text of ``user:password`` lines, at least one
+    (Zenoh's own refusal of a bad one is a Rust backtrace naming no line)."""
+    expected = "expected lines 'user:password'"
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise NetworkError(f"users file {path}: not found ({expected})") from None
+    except UnicodeDecodeError as err:
+        raise NetworkError(f"users file {path}: not UTF-8 text (byte {err.start}); {expected}") from None
+    except OSError as err:
+        raise NetworkError(f"users file {path}: cannot read ({err.strerror or err}); {expected}") from None
+    users = 0
+    for n, line in enumerate(text.splitlines(), start=1):
+        if not line.strip():
+            continue
+        user, sep, _ = line.partition(":")
+        if not sep or not user.strip():
+            raise NetworkError(f"users file {path}: line {n}: {expected}")
+        users += 1
+    if not users:
+        raise NetworkError(f"users file {path}: no users ({expected})")
+
+
+_PEM = {
+    "root_ca": ("--tls-ca", "CERTIFICATE"),
+    "cert": ("--tls-cert", "CERTIFICATE"),
+    "key": ("--tls-key", "PRIVATE KEY"),
+}
+
+
+def check_tls_files(listen: Sequence[str], connect: Sequence[str], tls: TlsFiles) -> None:
+    """TLS files that are given are used and usable: some endpoint is ``tls/`` or ``quic/`` (else the files
+    would be silently ignored on a plain ``tcp/`` link, and whoever passed them would believe the link
+    encrypted), and each is a readable PEM file of its kind (a certificate, a private key). The files' own
+    validity (chain, expiry, key match) is Zenoh's to judge when it listens or connects."""
+    given = {name: getattr(tls, name) for name in _PEM if getattr(tls, name) is not None}
+    if not given:
+        return
+    flags = "/".join(_PEM[name][0] for name in given)
+    if not any(_host(e)[0] in ("tls", "quic") for e in (*listen, *connect)):
+        where = ", ".join([*listen, *connect]) or "none"
+        raise NetworkError(
+            f"{flags} given, but no tls/ or quic/ endpoint would use them (endpoints: {where}); listen on "
+            "or connect to a tls/HOST:PORT endpoint (--listen / --connect), or leave the TLS files out"
+        )
+    for name, path in given.items():
+        flag, kind = _PEM[name]
+        try:
+            data = Path(path).read_bytes()
+        except FileNotFoundError:
+            raise NetworkError(f"{flag} {path}: not found (expected a PEM file)") from None
+        except OSError as err:
+            raise NetworkError(f"{flag} {path}: cannot read ({err.strerror or err})") from None
+        if b"-----BEGIN " not in data or f"{kind}-----".encode() not in data:
+            raise NetworkError(
+                f"{flag} {path}: not a PEM {kind.lower()} (expected a '-----BEGIN ...{kind}-----' block)"
+            )
 
 
 def open_session(**kwargs: Any) -> Any:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 from servoface.controller.network.errors import InsecureEndpointError, MessageError, NetworkError
@@ -93,3 +94,47 @@ def test_speech_commands_go_to_the_slow_worker_and_nothing_else_does() -> None:
     assert not needs_synthesis("cue", {"what": "say"})
     assert not needs_synthesis("cue", {})
     assert not needs_synthesis("express", {"name": "joy", "what": {"verb": "say"}})
+
+
+def test_tls_files_are_used_and_are_pem_files_of_their_kind(tmp_path: Path) -> None:
+    """TLS files with no tls/ endpoint were silently unused (a plain tcp/ link, believed encrypted); a file
+    that is not PEM reached Zenoh, whose refusal is a Rust backtrace naming no flag."""
+    from servoface.controller.network.zconfig import session_config
+
+    from tests.controller.network.certs import make_tls
+
+    real = make_tls(tmp_path)
+    tls = TlsFiles(real.ca, real.cert, real.key)
+    with pytest.raises(NetworkError, match=r"--tls-ca/--tls-cert/--tls-key given, but no tls/ or quic/ endpoint"):
+        session_config(listen=["tcp/127.0.0.1:7447"], tls=tls)
+    with pytest.raises(NetworkError, match=r"--tls-ca given, but no tls/"):
+        session_config(connect=["tcp/127.0.0.1:7447"], tls=TlsFiles(real.ca))
+    (tmp_path / "junk.bin").write_bytes(b"\xff\xfe\x00junk")
+    tls_ep = ["tls/127.0.0.1:7447"]
+    with pytest.raises(NetworkError, match=r"--tls-ca .*junk\.bin: not a PEM certificate"):
+        session_config(listen=tls_ep, tls=TlsFiles(tmp_path / "junk.bin", real.cert, real.key))
+    with pytest.raises(NetworkError, match=r"--tls-key .*: not a PEM private key"):
+        session_config(listen=tls_ep, tls=TlsFiles(real.ca, real.cert, real.cert))
+    with pytest.raises(NetworkError, match=r"--tls-cert .*nothere\.pem: not found"):
+        session_config(listen=tls_ep, tls=TlsFiles(real.ca, tmp_path / "nothere.pem", real.key))
+    session_config(listen=tls_ep, tls=tls)  # the real set passes
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        (b"\xff\xfe\x00", r"not UTF-8 text \(byte 0\)"),
+        (b"alice:pw\nbob\n", r"line 2: expected lines 'user:password'"),
+        (b":nobody\n", r"line 1: expected lines 'user:password'"),
+        (b"\n\n", r"no users"),
+    ],
+)
+def test_a_users_file_zenoh_cannot_read_is_named_with_its_line(tmp_path: Path, body: bytes, message: str) -> None:
+    from servoface.controller.network.zconfig import session_config
+
+    users = tmp_path / "users.txt"
+    users.write_bytes(body)
+    with pytest.raises(NetworkError, match=message):
+        session_config(listen=["tcp/127.0.0.1:7447"], creds=Credentials(users_file=users))
+    users.write_text("alice:pw\n\nbob:secret\n")
+    session_config(listen=["tcp/127.0.0.1:7447"], creds=Credentials(users_file=users))
