@@ -21,6 +21,8 @@ from servoface.controller.face import Face
 from servoface.controller.inputs import InputError, ReadOptions, detect_format, load_recording
 from servoface.controller.inputs.timecode import parse_timecode, timecode_seconds
 
+from tests.controller.test_inputs_real_files import _play
+
 FIX = Path(__file__).resolve().parent / "fixtures" / "real_trackers"
 MEDIAPIPE_RESULT = FIX / "mediapipe_js_face_landmarker_result.json"
 
@@ -43,14 +45,6 @@ def _warm_head() -> Iterator[None]:
     face = Face.open("human", emulate=True, wire_time=False)
     face.close(ease_s=0.0)
     yield
-
-
-def _play(path: Path, capsys: pytest.CaptureFixture[str], *extra: str) -> str:
-    rc = cli_main(["play", "--emulate", "--input", str(path), "--duration", "0.06", *extra])
-    out, err = capsys.readouterr()
-    assert rc == 0, out + err
-    assert "frames; verdicts" in out
-    return out
 
 
 def _steps(path: Path, **options: object) -> list[float]:
