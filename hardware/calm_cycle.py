@@ -15,7 +15,7 @@ field by field, and with a driver that always takes the full path).
 from __future__ import annotations
 
 from servoface.hardware.driver_reads import ChainReads
-from servoface.hardware.sentinel import SENTINEL, TICK_MASK, TICK_SIGN
+from servoface.hardware.sentinel import TICK_SIGN
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import FaultEvent, ServoState, StateCapture
 
@@ -59,17 +59,17 @@ class CalmCycle(ChainReads):
             self._apply_positions(now, ids, registers, got)
             return None
         position = registers[0]
-        through = position is SENTINEL
-        if through:  # through the sentinel: every witness byte first (a reset: the full path)
+        sign = TICK_SIGN.get(position)  # through the sentinel: its position's sign bit; None: a direct read
+        if sign is not None:  # through the sentinel: every witness byte first (a reset: the full path)
             witness = self._witness
-            if any(values[position] >> 24 != witness.get(sid, -1) for sid, values in got.items()):
+            if any(values[position] & 0xFF != witness.get(sid, -1) for sid, values in got.items()):
                 self._apply_positions(now, ids, registers, got)
                 return None
         items: dict[int, ServoState | StateCapture] = {}
         for sid, (rec, base) in plan.items():  # `got` holds exactly the ids asked for: every servo's
             tick = got[sid][position]
-            if through:
-                tick = ((tick & TICK_MASK) ^ TICK_SIGN) - TICK_SIGN
+            if sign is not None:
+                tick = ((tick >> 8) ^ sign) - sign
             rec.position_tick = tick
             rec.position_t_s = now
             rec.failures = 0

@@ -39,7 +39,7 @@ from servoface.hardware.fault_policy import FaultPolicy, ThermalTrend, eased_goa
 from servoface.hardware.fault_reactions import FaultReactions
 from servoface.hardware.goal_check import check_goals
 from servoface.hardware.registers import Register
-from servoface.hardware.sentinel import SENTINEL, SentinelMap
+from servoface.hardware.sentinel import SENTINEL, SENTINEL_SHORT, SentinelMap
 from servoface.hardware.servo_config import ConfigReport, ServoSpec, check_specs, configure_servo
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import ChainSnapshot, FaultEvent, FaultKind, ServoState, StateCapture
@@ -62,16 +62,18 @@ class Driver(CalmCycle):
     / ``False`` force it. Either way a chain on which it later fails while single reads work falls back to
     plain Sync Read (with an event).
 
-    ``position_sentinel`` (default on): at :meth:`configure`, map Present Position and a witness byte into
-    Indirect Data at 224 (hardware/sentinel.py; four Indirect Address slots, 1..4 or 17..20, found by
-    read-back) and read positions there, so each cycle's position read also shows a servo that was reset (its
-    map gone: the witness byte reads 0): seen, its position discarded, re-configured and re-pinned the next
-    cycle. Because of that the status group is read back to back only once per
-    `FaultPolicy.sentinel_status_floor_s` (2 s) instead of its floor share (0.4 s). Not dropped altogether:
-    that a lost map reads 0 is verified on the emulator only, and the status read (torque found off) is the
-    backstop on a servo where it is not so. ``False``: no Indirect Address is written and positions are read
-    directly (132). `sentinel_info` says which path is in use and why (a chain where the map does not verify
-    on every servo reads directly, with an event ``SENTINEL``).
+    ``position_sentinel`` (default on): at :meth:`configure`, map a witness byte and Present Position into Indirect
+    Data at 224 (hardware/sentinel.py; four Indirect Address slots, 1..4 or 17..20, found by read-back) and read
+    positions there, so each cycle's position read also shows a servo that was reset (its map gone: the witness byte
+    reads 0): seen, its position discarded, re-configured and re-pinned the next cycle. The read is 3 bytes per
+    servo (witness + 16-bit position) when every servo is in Position Control Mode with a Homing Offset that keeps
+    it in 16 bits, a byte less than Present Position's own (4.5 to 6.5 % of a 24-servo cycle's wire time), else 4
+    (witness + 24 bits). Because of the witness the status group is read back to back only once per
+    `FaultPolicy.sentinel_status_floor_s` (2 s) instead of its floor share (0.4 s). Not dropped altogether: that a
+    lost map reads 0 is verified on the emulator only, and the status read (torque found off) is the backstop on a
+    servo where it is not so. ``False``: no Indirect Address is written and positions are read directly (132).
+    `sentinel_info` says which path is in use and why (a chain where the map does not verify on every servo reads
+    directly, with an event ``SENTINEL``).
     """
 
     def __init__(
@@ -144,6 +146,7 @@ class Driver(CalmCycle):
         self._last_end_s = float("-inf")  # clock at the end of the last cycle
         self._calm_events = 0
         self._sentinel = False
+        self._sentinel_read = SENTINEL  # the read at 224 while `_sentinel`: 4 bytes, or 3 (`SENTINEL_SHORT`)
         self._witness: dict[int, int] = {}
         self._maps: dict[int, SentinelMap] = {}
         self._block = POSITION
@@ -255,6 +258,8 @@ class Driver(CalmCycle):
             self._witness[rec.servo_id] = smap.witness
             if self._sentinel and smap.slot is None:  # a servo replaced, its firmware changed: 224 is not it
                 self._sentinel_off(f"re-configure: {smap.why}")
+            elif self._sentinel and not smap.short and self._sentinel_read is SENTINEL_SHORT:
+                self._sentinel_on(f"re-configure: {smap.why}")  # its positions need 24 bits: 4-byte reads
         self._remap_failed.pop(rec.servo_id, None)
         return report
 
@@ -272,12 +277,24 @@ class Driver(CalmCycle):
         elif refused:
             self._sentinel_off("; ".join(refused))
         else:
-            self._sentinel = True
-            slots = {f"{f}..{f + 3}": sorted(s for s, m in maps.items() if m.slot == f) for f in (1, 17)}
-            self.sentinel_info = (
-                f"positions read through Indirect Data at {SENTINEL.address} (position + Status Return Level "
-                f"sentinel; Indirect Address slots {', '.join(f'{k} on servos {v}' for k, v in slots.items() if v)})"
-            )
+            long = [m.why for m in maps.values() if not m.short]
+            self._sentinel_on("; ".join(long) if long else "")
+
+    def _sentinel_on(self, why_long: str) -> None:
+        """Positions through the sentinel: 3-byte reads unless ``why_long`` names a servo that needs 4."""
+        self._sentinel = True
+        self._sentinel_read = SENTINEL if why_long else SENTINEL_SHORT
+        maps = self._maps
+        slots = {f"{f}..{f + 3}": sorted(s for s, m in maps.items() if m.slot == f) for f in (1, 17)}
+        size = (
+            f"4 bytes: witness + position bits 0..23, as {why_long}"
+            if why_long
+            else ("3 bytes: witness + position bits 0..15, every servo in Position Control Mode")
+        )
+        self.sentinel_info = (
+            f"positions read through Indirect Data at {SENTINEL.address} ({size}; Status Return Level "
+            f"sentinel; Indirect Address slots {', '.join(f'{k} on servos {v}' for k, v in slots.items() if v)})"
+        )
 
     def _sentinel_off(self, why: str) -> None:
         """The chain reads Present Position directly; resets are seen by the status group (floor rate)."""

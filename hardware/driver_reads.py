@@ -18,7 +18,7 @@ from servoface.hardware.errors import (
 from servoface.hardware.fault_policy import FaultPolicy
 from servoface.hardware.fault_reactions import FaultReactions
 from servoface.hardware.registers import Register, span
-from servoface.hardware.sentinel import SENTINEL, TICK_MASK, TICK_SIGN
+from servoface.hardware.sentinel import TICK_SIGN
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import FaultKind
 
@@ -65,6 +65,7 @@ class ChainReads:
     _folded: TelemetryGroup | None  # the group the position read in flight carries
     _folded_this_cycle: bool  # a group rode in this cycle's position read
     _sentinel: bool  # positions read through the sentinel's map at 224 (hardware/sentinel.py)
+    _sentinel_read: Register  # that read: `SENTINEL` (4 bytes) or `SENTINEL_SHORT` (3)
     _witness: dict[int, int]  # per servo, the sentinel byte while its map holds
     _block: tuple[Register, ...]  # the registers of the position read in flight (`_position_block`)
     _remap_failed: dict[int, float]  # servo -> when its failing re-configure after a lost sentinel was tried
@@ -136,11 +137,11 @@ class ChainReads:
         thermal group is due (`_due_group`) and `fold_telemetry` is on — that group's registers too, read
         in the same transaction (their blocks adjoin Present Position: 122..135 / 132..146, one reply per
         servo instead of a second group read with its own instruction, turnaround and parse). With the
-        position sentinel on (`_sentinel`), a cycle that folds nothing reads the sentinel (4 bytes at 224)
-        instead; one that folds reads the direct block as above (no witness that cycle: the next plain cycle
-        checks it)."""
+        position sentinel on (`_sentinel`), a cycle that folds nothing reads the sentinel (3 or 4 bytes at
+        224: `_sentinel_read`) instead; one that folds reads the direct block as above (no witness that cycle:
+        the next plain cycle checks it)."""
         self._folded = None
-        block: tuple[Register, ...] = (SENTINEL,) if self._sentinel else POSITION
+        block: tuple[Register, ...] = (self._sentinel_read,) if self._sentinel else POSITION
         if self.fold_telemetry:
             group = self._due_group(now)
             if group is not None and group.name in FOLDABLE:
@@ -183,21 +184,21 @@ class ChainReads:
         self, now: float, ids: list[int], registers: tuple[Register, ...], got: dict[int, dict[Register, int]]
     ) -> None:
         """The position read's values into the records; a folded group's too; the silent ones marked.
-        A read of the sentinel (``registers[0]``, whatever `_sentinel` says now): a reply whose fourth byte is
+        A read of the sentinel (``registers[0]``, whatever `_sentinel` says now): a reply whose first byte is
         not the servo's witness is a reset servo's (`_sentinel_lost`): its position is discarded, never
         applied."""
         records = self._records
         position = registers[0]
-        through = position is SENTINEL
+        sign = TICK_SIGN.get(position)  # a read of the sentinel: its position's sign bit; None: a direct read
         witness = self._witness
         lost: dict[int, int] = {}
         for sid, values in got.items():  # `_mark_results` for the servos that answered, in the same pass
             tick = values[position]
-            if through:  # position bits 0..23 and the witness byte (`sentinel.split`, inline)
-                if tick >> 24 != witness.get(sid, -1):
-                    lost[sid] = tick >> 24
+            if sign is not None:  # the witness byte, then the position (`sentinel.split`, inline)
+                if tick & 0xFF != witness.get(sid, -1):
+                    lost[sid] = tick & 0xFF
                     continue
-                tick = ((tick & TICK_MASK) ^ TICK_SIGN) - TICK_SIGN
+                tick = ((tick >> 8) ^ sign) - sign
             rec = records[sid]
             rec.position_tick = tick
             rec.position_t_s = now

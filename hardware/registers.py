@@ -77,8 +77,10 @@ class Register(Enum):
     # table; on XL330 firmware >= 52 (20 slots, data from 208) slots 17..20 (200..207) feed 224..227.
     INDIRECT_ADDRESS_1_4 = (168, 8, False, Area.RAM)
     INDIRECT_ADDRESS_17_20 = (200, 8, False, Area.RAM)
-    # Indirect Data at 224..227 on every chain: Present Position bits 0..23, then the witness byte
+    # Indirect Data at 224..227 on every chain: the witness byte, then Present Position bits 0..23; the
+    # short read stops after bits 0..15 (Position Control Mode: one turn plus Homing Offset fits 16 bits)
     INDIRECT_SENTINEL = (224, 4, False, Area.RAM)
+    INDIRECT_SENTINEL_SHORT = (224, 3, False, Area.RAM)
 
     def __init__(self, address: int, size: int, signed: bool, area: Area) -> None:
         self.address = address

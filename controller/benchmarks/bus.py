@@ -264,6 +264,20 @@ def _pty_figures(baud: int, fast: bool, rounds: int, window_s: float) -> Iterato
     )
 
 
+def _read_size_note(driver: Driver, baud: int, fast: bool) -> str:
+    """What the driver's position read carries per servo next to the stock loop's 4 bytes of Present
+    Position, and the wire limit of its own packets (the figure's ratio is to the stock loop's packets)."""
+    size = driver._block[0].size if len(driver._block) == 1 else 4
+    if size == 4:
+        return "; positions read 4 bytes per servo, as the stock loop's"
+    own = cycle_budget(N_SERVOS, baud, read_len=size, return_delay_us=RETURN_DELAY_US, fast=fast)
+    return (
+        f"; positions read {size} bytes per servo through the position sentinel (witness byte + 16-bit "
+        f"position: `servoface.hardware.sentinel`), where the stock loop reads Present Position's 4: its own "
+        f"packets' wire limit {own.limit_hz:.1f}/s ({own.bytes_total} B)"
+    )
+
+
 def _figures(
     steps: dict[str, Step],
     driver: Driver,
@@ -297,7 +311,8 @@ def _figures(
             goal = DRIVER_GOAL_RATIO
         extra = ""
         if name.startswith("Driver"):
-            extra = "; slow telemetry group reads/s " + ", ".join(f"{k} {v:.1f}" for k, v in telemetry.items())
+            extra = _read_size_note(driver, baud, fast)
+            extra += "; slow telemetry group reads/s " + ", ".join(f"{k} {v:.1f}" for k, v in telemetry.items())
             extra += (
                 " (back to back: no idle bus time, so at FaultPolicy.telemetry_floor_share of nominal; the "
                 "driver's clock runs only in its own windows, so they join up into one continuous run)"

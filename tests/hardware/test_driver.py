@@ -138,10 +138,10 @@ def test_slow_telemetry_is_round_robin_and_keeps_cycles_short(fast: bool | str) 
     def covering(address: int) -> int:
         return sum(lo <= address < hi for lo, hi in blocks)
 
-    # positions every cycle: through the sentinel (4 bytes at 224) in a plain cycle; a cycle that folds motion /
+    # positions every cycle: through the sentinel (3 bytes at 224) in a plain cycle; a cycle that folds motion /
     # thermal in reads the direct block as without the sentinel (122..135 / 132..146)
     assert driver.sentinel_info.startswith("positions read through Indirect Data at 224")
-    assert covering(224) + covering(132) == len(snaps) and (224, 228) in blocks
+    assert covering(224) + covering(132) == len(snaps) and (224, 227) in blocks
     assert 2 * 2 - 1 <= covering(144) <= 2 * 2 + 1  # thermal at 2 Hz
     assert 10 * 2 - 2 <= covering(122) <= 10 * 2 + 1  # motion at 10 Hz
     assert 10 * 2 - 2 <= covering(64) <= 10 * 2 + 1  # status at 10 Hz (the bus is idle between cycles)

@@ -26,7 +26,7 @@ from servoface.hardware.errors import GoalRejectedError
 from servoface.hardware.fault_policy import ThermalTrend, eased_goal
 from servoface.hardware.goal_check import check_goals
 from servoface.hardware.registers import HardwareErrorBits, Register, model_by_name, span
-from servoface.hardware.sentinel import SENTINEL, split
+from servoface.hardware.sentinel import SENTINEL, SENTINEL_SHORT, split
 from servoface.hardware.servo_config import ServoSpec
 from servoface.hardware.servo_record import ServoRecord
 from servoface.hardware.snapshot import ChainSnapshot, FaultKind, LazyServoStates, ServoState, build_state, peek_state
@@ -201,17 +201,17 @@ class StraightDriver(Driver):
             if self._folded is not None:
                 registers = POSITION + self._folded.registers
             else:
-                registers = (SENTINEL,) if self._sentinel else POSITION
+                registers = (self._sentinel_read,) if self._sentinel else POSITION
         got = self._read_group(ids, registers, fast=self.fast_sync_read, started=started is not None)
         if self.fast_sync_read and ids:
             self._check_fast_read_support(self._group_failed and len(got) == len(ids))
         lost: dict[int, int] = {}
         for sid, values in got.items():
             rec = self._records[sid]
-            if SENTINEL not in registers:
+            if registers[0] not in (SENTINEL, SENTINEL_SHORT):
                 rec.position_tick = values[Register.PRESENT_POSITION]
             else:
-                tick, byte = split(values[SENTINEL])
+                tick, byte = split(values[registers[0]], registers[0])
                 if byte != self._witness[sid]:
                     lost[sid] = byte
                     continue

@@ -23,7 +23,7 @@ SYNC_READ, FAST_SYNC_READ = 0x82, 0x8A
 IDS = (1, 2, 3, 4)
 GOALS = {1: 2600, 2: 1700, 3: 1200, 4: 2050}
 POSITION_READ = bytes((132, 0, 4, 0))  # address 132, length 4: Present Position (the probe reads it)
-SENTINEL_READ = bytes((224, 0, 4, 0))  # the cycle's: the position sentinel's Indirect Data
+SENTINEL_READ = bytes((224, 0, 3, 0))  # the cycle's: the position sentinel's Indirect Data (3 bytes)
 
 
 def _chain(old_firmware: tuple[int, ...] = ()) -> ServoChain:

@@ -1,8 +1,9 @@
 """The position sentinel (hardware/sentinel.py), from the emulator's side of the wire (the stock SDK talks to
 it): the Indirect Address map written and verified at configure (slots 1..4 on a base control table, 17..20
-on XL330 firmware >= 52, so every servo's data is at 224), one Sync Read of 4 bytes at 224 per cycle on the
-built-in heads' mixed chain, a servo reset mid-run seen the next cycle and brought back, direct reads (and an
-event) where the map does not verify or by request, the status group's low floor rate, folded cycles."""
+on XL330 firmware >= 52, so every servo's data is at 224), one Sync Read of 3 bytes at 224 per cycle on the
+built-in heads' mixed chain (4 where a servo's positions need more than 16 bits), a servo reset mid-run
+seen the next cycle and brought back, direct reads (and an event) where the map does not verify or by
+request, the status group's low floor rate, folded cycles."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from servoface.hardware.driver import Driver
 from servoface.hardware.emulator import ServoChain
 from servoface.hardware.fault_policy import FaultPolicy
 from servoface.hardware.registers import Register
-from servoface.hardware.sentinel import MAP_VALUE, SLOT_TARGETS, split
+from servoface.hardware.sentinel import MAP_VALUE, SENTINEL, SENTINEL_SHORT, SLOT_TARGETS, fits_short, split
 from servoface.hardware.servo_config import ServoSpec
 from servoface.hardware.snapshot import FaultKind
 
@@ -104,7 +105,7 @@ def test_the_built_in_heads_mix_both_tables() -> None:
 
 
 @pytest.mark.parametrize("fast", [False, True])
-def test_the_human_heads_mixed_chain_reads_one_sync_read_of_4_bytes_at_224_per_cycle(fast: bool) -> None:
+def test_the_human_heads_mixed_chain_reads_one_sync_read_of_3_bytes_at_224_per_cycle(fast: bool) -> None:
     chain, driver, goals = _human(fast)
     models = dict(_head_models("human"))
     assert driver.sentinel_info.startswith("positions read through Indirect Data at 224"), driver.sentinel_info
@@ -122,7 +123,8 @@ def test_the_human_heads_mixed_chain_reads_one_sync_read_of_4_bytes_at_224_per_c
     assert len(per_cycle) == len(snaps)  # one per cycle, every servo in it
     assert all(k == len(models) for _, _, k in per_cycle)
     plain = [r for r in per_cycle if r[0] == 224]
-    assert set(plain) == {(224, 4, len(models))} and len(plain) >= 0.8 * len(snaps)
+    assert set(plain) == {(224, 3, len(models))} and len(plain) >= 0.8 * len(snaps)
+    assert "3 bytes" in driver.sentinel_info, driver.sentinel_info
     assert (132, 4, len(models)) not in reads  # never a direct 4-byte read of Present Position
 
 
@@ -334,7 +336,7 @@ def test_folded_cycles_read_the_direct_block_and_the_next_plain_cycle_checks_the
     assert _reads(chain, n)[0] == (122, 14, 4)  # Moving .. Present Position, direct, as without the sentinel
     assert snap[2].position_tick == present and not snap.events  # applied directly; no witness in it
     snap = driver.cycle(GOALS)
-    assert _reads(chain, n)[1] == (224, 4, 4)
+    assert _reads(chain, n)[1] == (224, 3, 4)
     seen = [e for e in snap.events if e.servo_id == 2 and e.kind == FaultKind.RECONNECTED]
     assert seen and "position sentinel read 0" in seen[0].reaction and chain.servo(2).torque_on
     chain.set_input_voltage(None, 4.8)
@@ -382,9 +384,81 @@ def test_face_open_passes_the_opt_out_through(sentinel: bool) -> None:
 
 
 def test_negative_and_multi_turn_positions_survive_24_bits() -> None:
-    assert split(0x02_FFFFFF) == (-1, 2)
-    assert split(0x01_000000 | (4096 * 255)) == (4096 * 255, 1)
-    assert split(0x02_000000 | ((-4096 * 256) & 0xFFFFFF)) == (-4096 * 256, 2)
+    assert split(0xFFFFFF_02) == (-1, 2)
+    assert split((4096 * 255) << 8 | 0x01) == (4096 * 255, 1)
+    assert split(((-4096 * 256) & 0xFFFFFF) << 8 | 0x02) == (-4096 * 256, 2)
+
+
+def test_the_short_read_holds_16_bits_signed_and_only_position_mode_fits_it() -> None:
+    assert split(0xFFFF_02, SENTINEL_SHORT) == (-1, 2)
+    assert split(4095 << 8 | 0x01, SENTINEL_SHORT) == (4095, 1)
+    assert split(0x8000_02, SENTINEL_SHORT) == (-0x8000, 2)
+    assert fits_short(3, 0) and fits_short(3, -0x8000) and fits_short(3, 0x7FFF - 4095)
+    assert not fits_short(3, 0x7FFF - 4094) and not fits_short(3, -0x8001)  # 0..4095 + offset leaves int16
+    assert not fits_short(4, 0) and not fits_short(5, 0)  # Extended / Current-based Position: +-256 turns
+
+
+@pytest.mark.parametrize("fast", [False, True])
+@pytest.mark.parametrize(
+    "why, mode, offset",
+    [("extended", 4, 0), ("offset", 3, 31_000), ("short", 3, -20_000), ("short", 3, 0)],
+)
+def test_the_read_is_3_bytes_only_where_every_servo_fits_16_bits(fast: bool, why: str, mode: int, offset: int) -> None:
+    """One servo in Extended Position Mode, or with a Homing Offset that takes its positions past 16 bits,
+    makes the whole chain read 4 bytes (one Sync Read reads one length from all), and its positions beyond
+    16 bits come through; otherwise 3 bytes, negative positions (a negative offset) included. Seen from the
+    emulator's side: the reads' lengths, and every position as the servo has it."""
+    chain = ServoChain.create(ids=[1, 2, 3], model="XL330-M288", wire_time=False, clock="manual")
+    chain.servo(2).write_register("Homing Offset", offset)
+    specs = [
+        ServoSpec(1, "XL330-M288", min_position_tick=1024, max_position_tick=3072),
+        ServoSpec(
+            2, "XL330-M288", operating_mode=mode, min_position_tick=1024, max_position_tick=3072 + 77_000 * (mode == 4)
+        ),
+        ServoSpec(3, "XL330-M288", min_position_tick=1024, max_position_tick=3072),
+    ]
+    driver = Driver(open_bus("emulator", chain=chain), specs, clock=chain.clock, fast_sync_read=fast)
+    driver.configure()
+    if mode == 4:
+        chain.servo(2).move_by_hand(70_000)  # 17 turns: past 16 bits
+    driver.torque_on([1, 3] if offset else None)  # an offset servo stays off: its goals sit beyond its limits
+    assert driver._sentinel and not events_of(driver, FaultKind.SENTINEL), driver.sentinel_info
+    goals = {1: 2000, 2: 70_000 if mode == 4 else 2500, 3: 1500}
+    n = len(chain.log.kept())
+    snaps = run(chain, driver, goals, 1.0)
+    assert {sid: chain.servo(sid).position_tick for sid in goals} == snaps[-1].positions_tick()
+    at = snaps[-1][2].position_tick  # past 16 bits (extended, offset 31000) or negative (offset -20000)
+    assert (
+        not any(s.stale for s in snaps[-1])
+        and at == {0: 70_000 if mode == 4 else 2500, 31_000: 33_048, -20_000: -17_952}[offset]
+    )
+    plain = {r for r in _reads(chain, n) if r[0] == 224}
+    size = 3 if why == "short" else 4
+    assert plain == {(224, size, 3)}, plain
+    assert driver._sentinel_read is (SENTINEL_SHORT if size == 3 else SENTINEL)
+    assert f"{size} bytes" in driver.sentinel_info
+    if why != "short":
+        assert "servo 2" in driver.sentinel_info, driver.sentinel_info  # which servo needs the 4 bytes, and why
+    chain.servo(2).reboot(0.0)  # a reset is still seen by the witness, whichever length
+    snap = driver.cycle(goals)
+    assert [e for e in snap.events if e.servo_id == 2 and "position sentinel read 0" in e.reaction]
+
+
+def test_a_reconfigured_servo_that_needs_24_bits_turns_the_chain_to_4_byte_reads() -> None:
+    """A servo whose Homing Offset changed behind the driver's back (then reset, so it is re-configured)
+    no longer fits 16 bits: from the re-configure on the chain reads 4 bytes, and its positions are right."""
+    chain, driver = make_driver()
+    run(chain, driver, GOALS, 0.3)
+    assert driver._sentinel_read is SENTINEL_SHORT
+    n = len(chain.log.kept())
+    chain.servo(3).write_register("Homing Offset", 100_000)  # EEPROM: kept through the reset
+    chain.servo(3).reboot(0.0)
+    snaps = run(chain, driver, GOALS, 1.0)
+    assert driver._sentinel_read is SENTINEL and "4 bytes" in driver.sentinel_info
+    later = [r for r in _reads(chain, n) if r[0] == 224]
+    assert later[0] == (224, 3, 4) and later[-1] == (224, 4, 4)
+    at = snaps[-1][3].position_tick  # past 16 bits; the servo chases a goal its offset puts out of reach
+    assert at > 0x7FFF and abs(at - chain.servo(3).position_tick) < 200 and not snaps[-1][3].stale
 
 
 def test_data_elsewhere_keeps_direct_reads_with_an_event() -> None:
