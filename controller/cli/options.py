@@ -132,6 +132,38 @@ def option_flags(parser: argparse.ArgumentParser, command: str | None) -> dict[s
     return flags
 
 
+def join_dash_values(argv: Sequence[str], parser: argparse.ArgumentParser) -> list[str]:
+    """``--size -5x3`` as ``--size=-5x3``: argparse takes a value that starts with ``-`` and is not a plain
+    negative number (``-5x3``, ``-1e3``, ``-0.5s``) for another option and says only "expected one argument";
+    joined, the value reaches the option's own check, whose message names the flag and what it expects. Only
+    for an option of the sub-command that takes one value, and a value that is a dash and a digit or dot."""
+    subparsers = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]  # noqa: SLF001
+    command = next((a for a in argv if subparsers and a in subparsers[0].choices), None)
+    sub = subparsers[0].choices[command] if command is not None else parser
+    takes_one = {
+        flag
+        for action in sub._actions  # noqa: SLF001 - argparse keeps its actions there
+        if action.option_strings and action.nargs is None and not isinstance(action, argparse._StoreConstAction)  # noqa: SLF001
+        for flag in action.option_strings
+    }
+    out: list[str] = []
+    tokens = list(argv)
+    k = 0
+    while k < len(tokens):
+        token = tokens[k]
+        value = tokens[k + 1] if k + 1 < len(tokens) else ""
+        if token in takes_one and len(value) > 1 and value[0] == "-" and (value[1].isdigit() or value[1] == "."):
+            out.append(f"{token}={value}")
+            k += 2
+            continue
+        if token == "--":
+            out.extend(tokens[k:])
+            break
+        out.append(token)
+        k += 1
+    return out
+
+
 def parse_command(argv: Sequence[str] | None, parser: argparse.ArgumentParser | None = None) -> argparse.Namespace:
     """argv -> options, parsed and checked (``parser``: a prebuilt `build_parser()`). A usage error exits 2
     (SystemExit, argparse's way); a value out of range raises `CommandLineError`. Opens nothing."""
@@ -139,7 +171,7 @@ def parse_command(argv: Sequence[str] | None, parser: argparse.ArgumentParser | 
         from servoface.controller.cli import build_parser
 
         parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(join_dash_values(argv if argv is not None else sys.argv[1:], parser))
     if getattr(args, "_run", None) is not None:
         check_options(args, option_flags(parser, getattr(args, "command", None)))
     return args

@@ -94,8 +94,17 @@ def _token(args: argparse.Namespace) -> str | None:
     if args.token_file is not None:
         try:
             text: list[str] = args.token_file.read_text(encoding="utf-8").splitlines()
-        except (OSError, UnicodeDecodeError) as err:
-            raise InputError(f"--token-file {args.token_file}: cannot read: {err}") from err
+        except OSError as err:
+            why = err.strerror or type(err).__name__
+            raise InputError(
+                f"--token-file {args.token_file}: cannot read it ({why}): expected a readable text file with the "
+                "token on its first line"
+            ) from err
+        except UnicodeDecodeError as err:
+            raise InputError(
+                f"--token-file {args.token_file}: not UTF-8 text (byte {err.start}): expected the token on its "
+                "first line"
+            ) from err
         if not text or not text[0].strip():
             raise InputError(f"--token-file {args.token_file}: empty, expected the token on its first line")
         return text[0].strip()

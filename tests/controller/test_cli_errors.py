@@ -250,3 +250,21 @@ def test_cli_studio_on_a_taken_port_is_refused_before_the_head_opens(capsys: pyt
     assert status == 2
     assert f"--port-http {port}: cannot listen on 127.0.0.1:{port}" in err and "or 0 for any free one" in err, err
     assert "stop (" not in out + err  # the head was never opened
+
+
+@pytest.mark.parametrize(
+    "argv, flag, expected",
+    [
+        (["preview", "happiness", "--size", "-5x3"], "--size", "16..4096 px per side, got -5x3"),
+        (["scan", "--port", "P", "--latency-ms", "-3.5"], "--latency-ms -3.5", "expected milliseconds"),
+        (["play", "human_performance", "--emulate", "--rate", "-.5"], "--rate -0.5", "expected a control rate"),
+    ],
+)
+def test_cli_a_value_that_starts_with_a_dash_reaches_its_options_check(
+    argv: list[str], flag: str, expected: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """argparse took ``-5x3`` (not a plain negative number) for another option and said only "expected one
+    argument"; the value now reaches the option's own check, whose message names the flag and the range."""
+    status, _, err = _run([*argv, "-o", str(tmp_path / "x.png")] if argv[0] == "preview" else argv, capsys)
+    assert status == 2 and flag in err and expected in err, err
+    assert "expected one argument" not in err

@@ -394,3 +394,22 @@ def test_stream_blendshape_scores_a_hair_over_one_are_clamped_and_counted() -> N
     assert decoder.clamped == 2 and msg.aus.get("AU12L", 0.0) == 0.0
     with pytest.raises(InputError, match="out of range"):
         decoder.decode({"blendshapes": {"eyeLookInRight": 1.2}})
+
+
+@pytest.mark.parametrize("kind", ["missing", "folder", "binary", "empty"])
+def test_cli_stream_names_a_token_file_it_cannot_use(
+    kind: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A token file that is missing, a folder, not text or empty: one line naming the flag, the path and
+    what was expected (no errno text, no traceback), exit 2, before anything is opened."""
+    path = tmp_path / "token"
+    if kind == "folder":
+        path.mkdir()
+    elif kind == "binary":
+        path.write_bytes(b"\xff\xfe\x00")
+    elif kind == "empty":
+        path.write_text("\n")
+    rc = cli_main(["stream", "--emulate", "--udp", "127.0.0.1:0", "--token-file", str(path)])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1 and f"--token-file {path}" in err, err
+    assert "expected" in err and "Errno" not in err and "Traceback" not in err and "opening" not in err, err
