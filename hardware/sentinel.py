@@ -14,6 +14,8 @@ The witness first lets one map serve two read lengths:
   every servo of the chain is in that mode with a Homing Offset that keeps 0..4095 inside 16 bits (every
   face servo in practice). A byte per servo less than a read of Present Position (132, 4 bytes): 24 bytes
   of a 24-servo cycle's 532 at plain Sync Read (4.5 % of the wire), 24 of 372 with Fast Sync Read (6.5 %).
+  (Only a shaft turned by hand more than 8 turns with torque off, off the head, could count past 16 bits
+  and wrap; torque on re-pins the goal from a direct 4-byte read of Present Position, never from this one.)
 - **4 bytes at 224** (`SENTINEL`): witness + bits 0..23, signed, which hold every Present Position of the
   other position modes (Extended / Current-based Position: +-256 turns), as many bytes as a direct read.
 Which length the chain reads is decided from every servo's `SentinelMap.short`; other operating modes keep
