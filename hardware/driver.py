@@ -724,6 +724,12 @@ class Driver(CalmCycle):
             self.bus.close()
         return unreached
 
+    @property
+    def position_read_bytes(self) -> int:
+        """Bytes per servo of a plain cycle's position read: 3 or 4 through the sentinel, 4 read directly
+        (a cycle that folds a telemetry group in reads more; wire-time arithmetic: `hardware.wire`)."""
+        return self._sentinel_read.size if self._sentinel else POSITION[0].size
+
     def servo_problems(self) -> dict[str, tuple[int, ...]]:
         """Servos that ended the run out of service: ``latched`` (needs `clear_fault`), ``missing``."""
         return {

@@ -122,7 +122,7 @@ def _render_ms(head: Any, face: Any, frames: list[Any], n_render: int) -> float:
 def servo_costs(n_servos: int, cycles: int) -> dict[str, float]:
     """`Driver.cycle` on ``n_servos`` emulated XL330 served from another process over a pty at 1 Mbps: this
     process's CPU ms per cycle (the emulator's own work is not in it) and the median rate over the wire
-    limit."""
+    limit of its own packets (its position read's bytes per servo: `Driver.position_read_bytes`)."""
     from servoface.controller.benchmarks.cpu import EmulatorProcess
     from servoface.hardware.bus import open_bus
     from servoface.hardware.driver import Driver
@@ -148,10 +148,12 @@ def servo_costs(n_servos: int, cycles: int) -> dict[str, float]:
             driver.cycle(goals)
             times.append(time.perf_counter() - t0)
         cpu_ms = (time.process_time() - cpu0) / cycles * 1e3
+        read_len = driver.position_read_bytes
         bus.close()
     finally:
         emulator.close()
-    return {"cycle_ms": cpu_ms, "wire_ratio": 1.0 / _median(times) / cycle_budget(n_servos, 1_000_000).limit_hz}
+    limit_hz = cycle_budget(n_servos, 1_000_000, read_len=read_len).limit_hz
+    return {"cycle_ms": cpu_ms, "wire_ratio": 1.0 / _median(times) / limit_hz}
 
 
 def exponent(sizes: list[float], costs: list[float]) -> float:
@@ -200,7 +202,8 @@ def run(quick: bool = False) -> Iterator[Figure]:
             f"Driver.cycle vs wire limit, {n} emulated servos @1M over a pty",
             row["wire_ratio"],
             "x wire limit",
-            note=f"1 / median cycle over the sync write + sync read wire limit for {n} servos; {load}",
+            note=f"1 / median cycle over the sync write + sync read wire limit for {n} servos (of its own "
+            f"packets: `Driver.position_read_bytes` per servo read); {load}",
         )
     yield _growth("Driver.cycle CPU vs servos", [float(n) for n in counts], [r["cycle_ms"] for r in servo_rows], load)
 
