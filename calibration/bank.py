@@ -40,6 +40,10 @@ class CurveBank:
             self._base[j, : len(base)] = base
             self._coef[j, : len(coef)] = coef
         self._cols = np.arange(n)
+        # `forward_row`'s flat tables: piece k of column j at j * (width + 1) + k, one array per coefficient
+        self._row_piece = self._cols * (width + 1)
+        self._flat_base = self._base.ravel()
+        self._flat_coef = tuple(np.ascontiguousarray(self._coef[:, :, d]).ravel() for d in range(4))
         self.min_target = np.array([s.min_target for s in self.servos])
         self.max_target = np.array([s.max_target for s in self.servos])
         self._accept_lo = np.array([s.accept_min_target for s in self.servos])
@@ -94,12 +98,14 @@ class CurveBank:
         return ticks  # (np.clip of integers is this minimum of the maximum)
 
     def forward_row(self, targets: FloatArray) -> FloatArray:
-        """`forward` of one (S,) row, as (S,) float ticks (the same elementwise arithmetic)."""
+        """`forward` of one (S,) row, as (S,) float ticks (the same elementwise arithmetic). Each piece's
+        base and coefficients are gathered by one flat index with ``take`` (the same entries as `forward`'s
+        two-index gathers, at a fraction of their cost)."""
         t = targets
-        idx = np.add.reduce(t[:, None] >= self._knots, axis=-1)  # (the knot count, as `sum` gives it)
-        c = self._coef[self._cols, idx]
-        dx = t - self._base[self._cols, idx]
-        return np.asarray(c[:, 0] + dx * (c[:, 1] + dx * (c[:, 2] + dx * c[:, 3])), dtype=np.float64)
+        at = self._row_piece + np.add.reduce(t[:, None] >= self._knots, axis=-1)  # (the knot count, as `sum`)
+        c0, c1, c2, c3 = self._flat_coef
+        dx = t - self._flat_base.take(at)
+        return np.asarray(c0.take(at) + dx * (c1.take(at) + dx * (c2.take(at) + dx * c3.take(at))), dtype=np.float64)
 
     def to_targets(self, ticks: ArrayLike, *, clip: bool = False) -> FloatArray:
         """(k, S) ticks -> (k, S) targets; refuses non-finite and (unless ``clip``) out-of-limit ticks."""

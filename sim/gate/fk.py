@@ -57,6 +57,7 @@ class JointTree:
         self.neutral_deg = np.array([getattr(by_name[n], "neutral_deg", 0.0) for n in self.names], dtype=np.float64)
         self._one: tuple[FloatArray, FloatArray, list[int]] | None = None  # `world_one`'s constants
         self._parents = [int(p) for p in self.parent_index]
+        self._levels = _levels(self._parents)
 
     def world_one(self, angles_deg: FloatArray) -> FloatArray:
         """`world` for one pose: angles (J,) deg -> (J, 4, 4), bit for bit the same numbers (the same
@@ -64,8 +65,17 @@ class JointTree:
         without the batch axis' overhead (the gate's per-frame check poses one command)."""
         loc = self.local_one(angles_deg)
         out = np.empty_like(loc)
-        self.fill_one(out, loc, range(len(loc)))
+        self.fill_levels(out, loc)
         return out
+
+    def fill_levels(self, out: FloatArray, loc: FloatArray) -> None:
+        """`fill_one` of every joint, a tree level at a time: the joints of one depth are multiplied in one
+        stacked ``matmul`` (the same 4x4 product per joint as `fill_one`'s, so the same numbers) instead of
+        one call each, on views where the level allows (`_levels`): the human head's 12 joints are 5 products,
+        about half `fill_one`'s time. Fewer calls matter more than the arithmetic here (the per-frame check
+        runs with caches cold after each sleep)."""
+        for joints, parents in self._levels:
+            out[joints] = loc[joints] if parents is None else out[parents] @ loc[joints]
 
     def local_one(self, angles_deg: FloatArray) -> FloatArray:
         """(J, 4, 4) local transforms of one pose, as `world_one` computes them (`fill_one` chains them)."""
@@ -143,3 +153,32 @@ class JointTree:
             p = int(self.parent_index[i])
             out[..., i, :, :] = loc[..., n, :, :] if p < 0 else out[..., p, :, :] @ loc[..., n, :, :]
         return out
+
+
+_Index = Any  # an int, a slice or an index array: what a level's joints and parents are indexed by
+_Level = tuple[_Index, _Index | None]  # (joints, their parents); parents None: the roots
+
+
+def _levels(parents: Sequence[int]) -> list[_Level]:
+    """The joints grouped by depth in the tree (roots first), each level with its joints' parents: every
+    parent is in an earlier level, so a level's products only read transforms already written. Each index
+    is as cheap as it can be: an int for one joint or a shared parent (a broadcast product), a slice for a
+    run of consecutive joints (views), an index array only otherwise."""
+    depth: list[int] = []
+    for p in parents:  # parent-first order: a parent's depth is known before its children's
+        depth.append(0 if p < 0 else depth[p] + 1)
+    out: list[_Level] = []
+    for d in range(max(depth, default=-1) + 1):
+        joints = [i for i, k in enumerate(depth) if k == d]
+        out.append((_index(joints, False), None if d == 0 else _index([parents[i] for i in joints], True)))
+    return out
+
+
+def _index(items: list[int], shared: bool) -> _Index:
+    """``items`` as an int (one item, or with ``shared`` all the same: it broadcasts), a slice (consecutive)
+    or an index array."""
+    if len(items) == 1 or (shared and len(set(items)) == 1):
+        return items[0]
+    if items == list(range(items[0], items[0] + len(items))):
+        return slice(items[0], items[0] + len(items))
+    return np.array(items, dtype=np.int64)

@@ -81,6 +81,50 @@ def test_world_filled_in_parts_equals_world_one(gate: TwinGate) -> None:
         assert np.array_equal(out, tree.world_one(q[k])) and np.array_equal(out, batched[k])
 
 
+@dataclasses.dataclass(frozen=True)
+class _Joint:
+    name: str
+    parent: str | None
+    pivot_mm: tuple[float, float, float]
+    axis: tuple[float, float, float]
+    lower_deg: float = -90.0
+    upper_deg: float = 90.0
+
+
+def test_world_by_levels_equals_joint_by_joint() -> None:
+    """`JointTree.fill_levels` (a tree level per stacked product, on ints, slices or index arrays) equals
+    `fill_one` joint by joint, bit for bit, on random trees (several roots, levels whose joints or parents are
+    not consecutive, shared and distinct parents) and random angles."""
+    from servoface.sim.gate.fk import JointTree
+
+    rng = np.random.default_rng(17)
+    kinds = set()
+    for _ in range(60):
+        n = int(rng.integers(1, 14))
+        parents = [None if j == 0 or rng.random() < 0.15 else int(rng.integers(0, j)) for j in range(n)]
+        order = rng.permutation(n)  # listed in any order: the tree sorts them parent first
+        joints = [
+            _Joint(
+                f"j{j}",
+                None if parents[j] is None else f"j{parents[j]}",
+                tuple(rng.uniform(-50, 50, 3)),
+                tuple(rng.uniform(-1, 1, 3) + 0.01),
+            )
+            for j in order
+        ]
+        tree = JointTree(joints)
+        kinds |= {type(i).__name__ for level in tree._levels for i in level if i is not None}
+        for q in rng.uniform(-120, 120, size=(5, n)):
+            loc = tree.local_one(q)
+            plain = np.full_like(loc, np.nan)
+            tree.fill_one(plain, loc, range(n))
+            levels = np.full_like(loc, np.nan)
+            tree.fill_levels(levels, loc)
+            assert np.array_equal(levels, plain)
+            assert np.array_equal(tree.world_one(q), plain)
+    assert kinds == {"int", "slice", "ndarray"}  # every kind of index was exercised
+
+
 def test_goal_vector_fast_path_equals_the_checked_path(gate: TwinGate) -> None:
     """The fast path of `TwinGate._vector` (every servo, table order, plain ints) gives what the checked
     path gives on random goal maps, well-formed and malformed (bool / numpy / float keys and values, huge
