@@ -80,13 +80,29 @@ def _row(
     return Measurement(role, target, tick, lineno, tuple(neighbours))
 
 
+def _decode(name: str, raw: bytes) -> str:
+    """UTF-8 text, with or without the byte-order mark a spreadsheet's "CSV UTF-8" export puts first; any other
+    encoding is refused naming the line and the byte (a spreadsheet's legacy "CSV" export, e.g. Latin-1)."""
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        bom = len(raw) >= 3 and raw[:3] == b"\xef\xbb\xbf"
+        start = err.start + (3 if bom else 0)
+        line = raw[:start].count(b"\n") + 1
+        raise MeasurementCsvError(
+            name, line, f"not UTF-8 text (byte 0x{raw[start]:02x}); expected a CSV saved as UTF-8"
+        ) from err
+
+
 def read_measurements_csv(
     path: str | os.PathLike[str],
     roles: Collection[str] | None = None,
     neighbour_roles: Collection[str] | None = None,
+    skip_roles: Collection[str] = (),
 ) -> dict[str, list[Measurement]]:
     """Role -> measurements in file order. ``roles`` (if given) are the only roles accepted in the first
-    column, ``neighbour_roles`` (default: ``roles``) the only ones in neighbour cells.
+    column, ``neighbour_roles`` (default: ``roles``) the only ones in neighbour cells. Rows of ``skip_roles``
+    (servos of the head not calibrated this time, e.g. outside ``--roles``) are passed over unread.
 
     Checks per row: a known role, a finite target, an integer tick in 0..4095, well-formed neighbour cells;
     per role: the same neighbours on every row; for each setting of the neighbours, no repeated target and
@@ -95,15 +111,16 @@ def read_measurements_csv(
     p = Path(path)
     name = str(p)
     try:
-        text = p.read_text(encoding="utf-8")
+        raw = p.read_bytes()
     except OSError as err:
         raise MeasurementCsvError(name, 0, f"cannot read the measurement file ({err.strerror})") from err
+    text = _decode(name, raw)
     out: dict[str, list[Measurement]] = {}
     for lineno, row in enumerate(csv.reader(text.splitlines()), start=1):
         cells = [c.strip() for c in row]
         if not cells or all(not c for c in cells) or cells[0].startswith("#"):
             continue
-        if tuple(c.lower() for c in cells) == HEADER:
+        if tuple(c.lower() for c in cells) == HEADER or cells[0] in skip_roles:
             continue
         m = _row(name, lineno, cells, roles, roles if neighbour_roles is None else neighbour_roles)
         rows = out.setdefault(m.role, [])

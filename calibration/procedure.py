@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal, Protocol
@@ -379,15 +379,20 @@ def calibrate_from_csv(
     plot_dir: str | os.PathLike[str] | None = None,
     out: str | os.PathLike[str] | None = None,
     keep: HeadCalibration | None = None,
+    skip_roles: Collection[str] = (),
 ) -> ProcedureResult:
     """Non-interactive mode: fit every servo in ``specs`` from a ``role,target,tick`` CSV.
 
     A role in ``specs`` with no rows is an error unless ``keep`` has it (then it is carried over). Rows
     with ``neighbour=tick`` cells make that servo a coupled anchor (RBF map, see
-    :func:`servoface.calibration.fitting.fit_coupled_servo`); its neighbours must be plain servos.
+    :func:`servoface.calibration.fitting.fit_coupled_servo`); its neighbours must be plain servos. Rows of
+    ``skip_roles`` (the head's other servos, not calibrated this time) are passed over.
     """
     own = {s.role for s in specs}
-    rows = read_measurements_csv(csv_path, roles=own, neighbour_roles=own | set(keep.roles if keep else ()))
+    skip = set(skip_roles) - own
+    rows = read_measurements_csv(
+        csv_path, roles=own, neighbour_roles=own | set(keep.roles if keep else ()), skip_roles=skip
+    )
     opts = ProcedureOptions(curve_kind=curve_kind)
     reports: dict[str, FitReport] = {}
     missing = [s.role for s in specs if s.role not in rows and (keep is None or s.role not in keep)]

@@ -109,10 +109,11 @@ def load_script(path: str | Path, *, allowed: frozenset[str] | None = None) -> S
     """Read and build a script file, or a shipped script by name (``human_performance``, see
     :mod:`servoface.controller.shipped`). ``allowed`` = the head's AU names (default: the face's built-in set)."""
     from servoface.controller.shipped import resolve_script
+    from servoface.sim.textfile import read_utf8
 
     p = resolve_script(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text, why = read_utf8(p)
     except OSError as err:
         hint = ""
         if isinstance(path, str) and "/" not in path and not p.exists():  # a name: perhaps a shipped one misspelt
@@ -122,6 +123,8 @@ def load_script(path: str | Path, *, allowed: frozenset[str] | None = None) -> S
             close = difflib.get_close_matches(path.removesuffix(".toml"), names, n=1)
             hint = (f" (did you mean {close[0]!r}?)" if close else "") + f"; shipped scripts: {names}"
         raise ScriptError(f"{p}: cannot read script ({err.strerror or err}){hint}") from err
+    if text is None:
+        raise ScriptError(f"{p}: {why}")
     return parse_script(text, source=str(p), allowed=allowed)
 
 

@@ -7,6 +7,7 @@ Every error is a :class:`servoface.sim.errors.HeadProfileError` whose message st
 
 from __future__ import annotations
 
+import difflib
 import math
 import tomllib
 from pathlib import Path
@@ -17,6 +18,7 @@ from servoface.sim.errors import HeadProfileError
 from servoface.sim.head import Head
 from servoface.sim.heads.binding import BindRule, HalfSpace, bind_weights
 from servoface.sim.rig import (
+    SERVO_MODEL_ALIASES,
     SERVO_MODELS,
     Actuator,
     AnchorActuator,
@@ -32,6 +34,7 @@ from servoface.sim.rig import (
     SphincterMuscle,
     Vec3,
 )
+from servoface.sim.textfile import read_utf8
 
 SCHEMA_VERSION = 1
 ANCHOR_MAX_GAP_MM = 10.0  # an anchor's near_mm must be this close to the skin
@@ -68,10 +71,12 @@ class _Reader:
     def keys(self, d: dict[str, Any], key: str, allowed: set[str]) -> None:
         extra = sorted(set(d) - allowed)
         if extra:
+            near = difflib.get_close_matches(extra[0], sorted(allowed), n=1)
+            hint = f" (did you mean {near[0]!r}?)" if near else ""
             raise self.fail(
                 f"{key}.{extra[0]}" if key else extra[0],
-                f"one of the known keys {sorted(allowed)}",
-                "unknown key",
+                f"one of the known keys {sorted(allowed)}{hint}",
+                extra[0],
             )
 
     def req(self, d: dict[str, Any], name: str, key: str) -> Any:
@@ -138,6 +143,14 @@ class _Reader:
         return v
 
 
+def _profile_text(file: Path) -> str:
+    """The profile's text (UTF-8, a byte-order mark allowed); another encoding names the line and byte."""
+    text, why = read_utf8(file)
+    if text is None:
+        raise HeadProfileError(f"{file}: {why}")
+    return text
+
+
 def load_profile(path: Path) -> Head:
     """Load and validate a profile: ``path`` is a folder holding ``head.toml`` or the TOML file itself."""
     path = Path(path)
@@ -145,8 +158,8 @@ def load_profile(path: Path) -> Head:
     if not file.is_file():
         raise HeadProfileError(f"{file}: expected a head profile file (head.toml), none found")
     try:
-        data = tomllib.loads(file.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
+        data = tomllib.loads(_profile_text(file))
+    except tomllib.TOMLDecodeError as err:
         raise HeadProfileError(f"{file}: not valid TOML: {err}") from err
     except RecursionError as err:
         raise HeadProfileError(f"{file}: nested too deeply to be a head profile") from err
@@ -622,8 +635,11 @@ def _servo(r: _Reader, s: dict[str, Any], key: str) -> ServoRef:
     if isinstance(sid, bool) or not isinstance(sid, int) or not 0 <= sid <= 252:
         raise r.fail(f"{key}.id", "an integer Dynamixel id in 0..252", sid)
     model = r.string(s, "model", key)
+    model = SERVO_MODEL_ALIASES.get(model, model)
     if model not in SERVO_MODELS:
-        raise r.fail(f"{key}.model", f"one of the known servo models {list(SERVO_MODELS)}", model)
+        near = difflib.get_close_matches(model.upper(), SERVO_MODELS, n=1, cutoff=0.9)  # not W210 -> W350
+        hint = f" (did you mean {near[0]!r}?)" if near else ""
+        raise r.fail(f"{key}.model", f"one of the known servo models {list(SERVO_MODELS)}{hint}", model)
     return ServoRef(sid, model)
 
 

@@ -202,3 +202,6 @@ class CouplingRule:
 
 SERVO_MODELS: tuple[str, ...] = ("XL330-M288", "XL430-W250", "XM430-W350", "MX-28")
 """Servo models a head profile may name (the emulator and the calibration know these)."""
+
+SERVO_MODEL_ALIASES: dict[str, str] = {"MX-28(2.0)": "MX-28"}
+"""Other spellings a profile may use, as `servoface scan` and `servoface emulate` print them -> the name kept."""

@@ -276,8 +276,9 @@ def _run(args: argparse.Namespace) -> int:
         keep = guide if args.roles else None
     try:
         if args.csv is not None:
+            others = {a.role for a in head.actuators} - {s.role for s in specs}  # --roles, --mirror DST
             result = calibrate_from_csv(
-                args.csv, specs, head.name, curve_kind=args.curve, plot_dir=args.plot_dir, keep=keep
+                args.csv, specs, head.name, curve_kind=args.curve, plot_dir=args.plot_dir, keep=keep, skip_roles=others
             )
         else:
             options = ProcedureOptions(

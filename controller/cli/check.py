@@ -213,6 +213,8 @@ def _report(head: Any, cal: Any, args: argparse.Namespace) -> None:
         apex = _apex(library[s.name])
         expr_aus = sorted({_au_key(k) for k in apex} & cannot_numbers, key=_au_order)
         share = _share_it_has(apex, set(expr_aus))
+        if expr_aus and share > 0:  # "of the rest": scored without them (a joint left in the profile with no
+            s = report.score(s.name, _without(apex, set(expr_aus)))  # servo would still move the target)
         overall = s.shown * share  # the face's own model cannot even ask for the AUs it lacks: count them out
         rest = f" ({s.shown:.0%} of the rest)" if share > 0 else " (all of its AUs)"
         lost = f"; without {', '.join(expr_aus)}{rest}" if expr_aus else ""
@@ -242,10 +244,15 @@ def _apex(expression: Any) -> dict[str, float]:
     return dict(apex_aus(expression))
 
 
+def _without(apex: dict[str, float], lacking: set[str]) -> dict[str, float]:
+    """An expression's apex AUs without those of ``lacking`` (AU numbers, ``"AU12"``)."""
+    return {k: v for k, v in apex.items() if _au_key(k) not in lacking}
+
+
 def _share_it_has(apex: dict[str, float], lacking: set[str]) -> float:
     """The share of an expression's AU intensity (sum of |value| over its AUs) on AUs the head can show."""
     total = sum(abs(v) for v in apex.values())
-    kept = sum(abs(v) for k, v in apex.items() if _au_key(k) not in lacking)
+    kept = sum(abs(v) for v in _without(apex, lacking).values())
     return kept / total if total > 0 else 1.0
 
 

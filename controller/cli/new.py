@@ -9,8 +9,15 @@ from pathlib import Path
 HELP = "write a new head profile folder to edit: a copy of the human or dog head, or a mechanical 8-servo head"
 
 
+def _folder(text: str) -> Path:
+    """A folder name; an empty one (an unset shell variable, `servoface new $DIR`) would mean the current folder."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected the name of the profile folder to create, got ''")
+    return Path(text)
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("folder", type=Path, help="the profile folder to create (may exist, empty)")
+    parser.add_argument("folder", type=_folder, help="the profile folder to create (may exist, empty)")
     parser.add_argument(
         "--from",
         dest="kind",

@@ -81,6 +81,16 @@ def write_template_csv(head_dir: Path) -> Path:
     return path
 
 
+def _files_written(folder: Path, kind: str) -> list[Path]:
+    """Every file `write_new_head` writes for ``kind`` into ``folder`` (but head.toml, checked first)."""
+    out = [folder / "direct.toml", folder / TEMPLATE_CSV]
+    if kind == "mechanical":
+        from servoface.controller.new_head.mechanical import meshes
+
+        out += [folder / "meshes" / f"{name}.stl" for name in meshes()]
+    return out
+
+
 def write_new_head(folder: Path, kind: str, *, force: bool = False) -> NewHead:
     """Write a new profile of ``kind`` into ``folder`` (created; an existing head.toml needs ``force``)."""
     from servoface.sim.au.direct import derive_direct_table
@@ -89,11 +99,17 @@ def write_new_head(folder: Path, kind: str, *, force: bool = False) -> NewHead:
 
     if kind not in KINDS:
         raise ControllerError(f"--from: expected one of {list(KINDS)}, got {kind!r}")
+    if not str(folder).strip():
+        raise ControllerError("folder: expected the name of the profile folder to create, got ''")
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise ControllerError(f"{folder}: exists and is not a folder")
     if (folder / "head.toml").exists() and not force:
         raise ControllerError(f"{folder / 'head.toml'} exists already; pick another folder or pass --force")
+    mine = [p for p in _files_written(folder, kind) if p.exists()]
+    if mine and not force:  # e.g. the builder's own meshes/jaw.stl or measured calibration_template.csv
+        shown = ", ".join(str(p) for p in mine[:3]) + (f" and {len(mine) - 3} more" if len(mine) > 3 else "")
+        raise ControllerError(f"{folder}: would overwrite {shown}, already there; pick another folder or pass --force")
     folder.mkdir(parents=True, exist_ok=True)
     name = _name_for(folder)
     files: list[Path] = []

@@ -34,6 +34,13 @@ def head_calibration(head: Head, calibration: HeadCalibration | str | Path | Non
         raise ControllerError(
             f"head {head.name!r} names no calibration file; run `servoface calibrate --head ...` first"
         )
+    if calibration is None and not Path(path).exists():  # a profile not calibrated yet: name the next step
+        folder = head.profile_dir if head.profile_dir is not None else Path(path).parent
+        raise ControllerError(
+            f"head {head.name!r} has no calibration file {path} yet: run `servoface calibrate --head {folder} "
+            f"--port /dev/ttyUSB0` (on the head), or `--csv {folder / 'calibration_template.csv'}` "
+            f"(role,target,tick rows you measured), then `servoface check {folder}`"
+        )
     return load_calibration(path)
 
 

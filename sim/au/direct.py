@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 from servoface.sim.errors import HeadProfileError
+from servoface.sim.textfile import read_utf8
 
 FloatArray = NDArray[np.float64]
 _KEY_RE = re.compile(r"^AU([1-9]\d{0,2})$")
@@ -87,10 +88,14 @@ def load_direct_table(path: str | Path) -> DirectTable:
     """Load and validate a direct table; errors (HeadProfileError) name the file and key path."""
     path = Path(path)
     try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+        text, why = read_utf8(path)
     except FileNotFoundError as err:
         raise HeadProfileError(f"{path}: direct AU table not found") from err
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
+    if text is None:
+        raise HeadProfileError(f"{path}: {why}")
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
         raise HeadProfileError(f"{path}: not valid TOML: {err}") from err
     if raw.get("schema_version") != 1:
         raise HeadProfileError(f"{path}: schema_version: expected 1, got {raw.get('schema_version')!r}")
@@ -131,6 +136,12 @@ class DirectMapping:
         self.notes: dict[int, list[str]] = {}
         self.numbers = frozenset(n for n in table.rows if n in sided)
         self.unknown_aus = sorted(n for n in table.rows if n not in sided)
+        if self.unknown_aus:  # a typo (AU99 for AU9) must not pass silently and move nothing
+            known = ", ".join(f"AU{n}" for n in sorted(sided))
+            raise HeadProfileError(
+                f"{table.path}: AU{self.unknown_aus[0]}: expected an AU of the {table.face_type} AU table "
+                f"({known}), got AU{self.unknown_aus[0]}"
+            )
         for col, (number, side) in enumerate(channels):
             row = table.rows.get(number)
             if row is None:
@@ -146,9 +157,10 @@ class DirectMapping:
                         role, share = template.replace("{side}", side.lower()), 1.0
                     else:
                         role, share = template, (0.5 if side else 1.0)
-                    if role not in index:
-                        if role not in self.missing:
-                            self.notes.setdefault(number, []).append(f"actuator {role!r} is not in the head")
+                    if role not in index:  # noted for every AU that names it, not only the first
+                        notes = self.notes.setdefault(number, [])
+                        if (note := f"actuator {role!r} is not in the head") not in notes:
+                            notes.append(note)
                         self.missing.add(role)
                         continue
                     self.matrix[index[role], col + offset] += share * weight

@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from servoface.sim.errors import HeadProfileError
+from servoface.sim.textfile import read_utf8
 
 AU_DIR = Path(__file__).resolve().parent
 FACE_TYPES = ("human", "dog")
@@ -164,10 +165,13 @@ def load_au_table(face_type_or_path: str | Path) -> AUTable:
     """Load and validate an AU table; errors (HeadProfileError) name the file and key path."""
     path = au_table_path(face_type_or_path)
     try:
-        with path.open("rb") as fh:
-            raw = tomllib.load(fh)
+        text, why = read_utf8(path)
     except FileNotFoundError as err:
         raise HeadProfileError(f"{path}: AU table not found (built-in tables: {list(FACE_TYPES)})") from err
+    if text is None:
+        raise HeadProfileError(f"{path}: {why}")
+    try:
+        raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise HeadProfileError(f"{path}: not valid TOML: {err}") from err
     where = str(path)

@@ -36,6 +36,7 @@ from servoface.sim.errors import (
     HeadProfileError,
     UnknownActionUnitError,
 )
+from servoface.sim.textfile import read_utf8
 
 EXPRESSIONS_DIR = Path(__file__).resolve().parent
 FACE_TYPES = ("human", "dog")
@@ -109,10 +110,13 @@ def load_library(face_type_or_path: str | Path, au_table: AUTable | None = None)
     """
     path = library_path(face_type_or_path)
     try:
-        with path.open("rb") as fh:
-            raw = tomllib.load(fh)
+        text, why = read_utf8(path)
     except FileNotFoundError as err:
         raise ExpressionError(f"{path}: expression library not found (built-in: {list(FACE_TYPES)})") from err
+    if text is None:
+        raise ExpressionError(f"{path}: {why}")
+    try:
+        raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise ExpressionError(f"{path}: not valid TOML: {err}") from err
     if raw.get("schema_version") != 1:

@@ -29,6 +29,8 @@ NO_LOAD_SPEED_RPM: dict[str, float] = {
     "XC430-W150": 106.0,
     "XM430-W350": 46.0,
     "XM430-W210": 77.0,
+    "MX-28": 55.0,  # MX-28(2.0) at 12 V; head profiles name it "MX-28" (sim.rig.SERVO_MODELS)
+    "MX-28(2.0)": 55.0,
 }
 TICKS_PER_REV = 4096
 

@@ -8,6 +8,7 @@ muscle model's wish instead, ``show="both"`` the two side by side. One reused `H
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
@@ -47,8 +48,10 @@ def pick_expression(library: Mapping[str, Any], name: str) -> dict[str, float]:
     if name == NEUTRAL:
         return apex_aus(library[name]) if name in library else {}
     if name not in library:
-        known = ", ".join([NEUTRAL, *sorted(n for n in library if n != NEUTRAL)])
-        raise ExpressionError(f"unknown expression {name!r}; this head's library has: {known}")
+        names = [NEUTRAL, *sorted(n for n in library if n != NEUTRAL)]
+        close = difflib.get_close_matches(name, names, n=1) if isinstance(name, str) else []
+        maybe = f" (did you mean {close[0]!r}?)" if close else ""
+        raise ExpressionError(f"unknown expression {name!r}{maybe}; this head's library has: {', '.join(names)}")
     return apex_aus(library[name])
 
 
