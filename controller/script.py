@@ -113,7 +113,7 @@ def load_script(path: str | Path, *, allowed: frozenset[str] | None = None) -> S
 
     p = resolve_script(path)
     try:
-        text, why = read_utf8(p)
+        text = read_utf8(p, ScriptError)
     except OSError as err:
         hint = ""
         if isinstance(path, str) and "/" not in path and not p.exists():  # a name: perhaps a shipped one misspelt
@@ -123,8 +123,6 @@ def load_script(path: str | Path, *, allowed: frozenset[str] | None = None) -> S
             close = difflib.get_close_matches(path.removesuffix(".toml"), names, n=1)
             hint = (f" (did you mean {close[0]!r}?)" if close else "") + f"; shipped scripts: {names}"
         raise ScriptError(f"{p}: cannot read script ({err.strerror or err}){hint}") from err
-    if text is None:
-        raise ScriptError(f"{p}: {why}")
     return parse_script(text, source=str(p), allowed=allowed)
 
 

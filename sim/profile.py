@@ -143,14 +143,6 @@ class _Reader:
         return v
 
 
-def _profile_text(file: Path) -> str:
-    """The profile's text (UTF-8, a byte-order mark allowed); another encoding names the line and byte."""
-    text, why = read_utf8(file)
-    if text is None:
-        raise HeadProfileError(f"{file}: {why}")
-    return text
-
-
 def load_profile(path: Path) -> Head:
     """Load and validate a profile: ``path`` is a folder holding ``head.toml`` or the TOML file itself."""
     path = Path(path)
@@ -158,7 +150,7 @@ def load_profile(path: Path) -> Head:
     if not file.is_file():
         raise HeadProfileError(f"{file}: expected a head profile file (head.toml), none found")
     try:
-        data = tomllib.loads(_profile_text(file))
+        data = tomllib.loads(read_utf8(file, HeadProfileError))
     except tomllib.TOMLDecodeError as err:
         raise HeadProfileError(f"{file}: not valid TOML: {err}") from err
     except RecursionError as err:

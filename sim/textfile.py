@@ -1,4 +1,5 @@
-"""Reading the human-written text files of a head (profile, AU and direct tables, expression libraries).
+"""Reading the human-written text files of a head (profile, AU and direct tables, expression libraries,
+scripts).
 
 TOML is UTF-8. Editors that write a byte-order mark first (Notepad, some spreadsheet exports) are accepted;
 a file in another encoding (Latin-1, Windows-1252) is refused naming the line and the byte, instead of a
@@ -7,27 +8,22 @@ codec message with a byte offset.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 _BOM = b"\xef\xbb\xbf"
 
 
-def undecodable(raw: bytes) -> str | None:
-    """Why ``raw`` is not UTF-8 text (``"line N: ..."``), or None when it is (with or without a BOM)."""
+def read_utf8(path: Path, error: Callable[[str], Exception]) -> str:
+    """The text of a UTF-8 file (a leading byte-order mark dropped). Another encoding raises
+    ``error("PATH: line N: ...")`` (the caller's own error type); OSError (a missing or unreadable file)
+    propagates, for the caller to name in its own words."""
+    raw = Path(path).read_bytes()
     try:
-        raw.decode("utf-8-sig")
+        return raw.decode("utf-8-sig")
     except UnicodeDecodeError as err:
         start = err.start + (len(_BOM) if raw.startswith(_BOM) else 0)
         line = raw[:start].count(b"\n") + 1
-        return f"line {line}: expected UTF-8 text, got byte 0x{raw[start]:02x}; save the file as UTF-8"
-    return None
-
-
-def read_utf8(path: Path) -> tuple[str | None, str]:
-    """(text, "") for a UTF-8 file (a leading byte-order mark dropped), (None, why) for any other encoding.
-    OSError (a missing or unreadable file) propagates: the caller names it in its own error type."""
-    raw = Path(path).read_bytes()
-    why = undecodable(raw)
-    if why is not None:
-        return None, why
-    return raw.decode("utf-8-sig"), ""
+        raise error(
+            f"{path}: line {line}: expected UTF-8 text, got byte 0x{raw[start]:02x}; save the file as UTF-8"
+        ) from err

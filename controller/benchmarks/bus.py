@@ -34,7 +34,7 @@ from servoface.hardware.errors import BusCorruptError, BusTimeoutError
 from servoface.hardware.registers import Register
 from servoface.hardware.servo_config import ServoSpec
 from servoface.hardware.stock_loop import StockSdkLoop
-from servoface.hardware.wire import cycle_budget
+from servoface.hardware.wire import CycleBudget, cycle_budget
 
 N_SERVOS = 24
 BAUDS = (1_000_000, 4_000_000)
@@ -244,9 +244,7 @@ def _pty_figures(baud: int, fast: bool, rounds: int, window_s: float) -> Iterato
         try:
             bests: dict[str, float] = {}
             figures = list(_figures(steps, driver, clock, buses, baud, fast, rounds, window_s, ", over a pty", bests))
-            own = cycle_budget(
-                N_SERVOS, baud, read_len=driver.position_read_bytes, return_delay_us=RETURN_DELAY_US, fast=fast
-            )
+            own = _own_budget(driver, baud, fast)
         finally:
             for b in buses:
                 b.close()
@@ -269,13 +267,18 @@ def _pty_figures(baud: int, fast: bool, rounds: int, window_s: float) -> Iterato
     )
 
 
+def _own_budget(driver: Driver, baud: int, fast: bool) -> CycleBudget:
+    """The wire budget of the driver's own packets (its position read's bytes per servo)."""
+    return cycle_budget(N_SERVOS, baud, read_len=driver.position_read_bytes, return_delay_us=RETURN_DELAY_US, fast=fast)
+
+
 def _read_size_note(driver: Driver, baud: int, fast: bool) -> str:
     """What the driver's position read carries per servo next to the stock loop's 4 bytes of Present
     Position, and the wire limit of its own packets (the figure's ratio is to the stock loop's packets)."""
     size = driver.position_read_bytes
     if size == 4:
         return "; positions read 4 bytes per servo, as the stock loop's"
-    own = cycle_budget(N_SERVOS, baud, read_len=size, return_delay_us=RETURN_DELAY_US, fast=fast)
+    own = _own_budget(driver, baud, fast)
     return (
         f"; positions read {size} bytes per servo through the position sentinel (witness byte + 16-bit "
         f"position: `servoface.hardware.sentinel`), where the stock loop reads Present Position's 4: its own "

@@ -88,11 +88,9 @@ def load_direct_table(path: str | Path) -> DirectTable:
     """Load and validate a direct table; errors (HeadProfileError) name the file and key path."""
     path = Path(path)
     try:
-        text, why = read_utf8(path)
+        text = read_utf8(path, HeadProfileError)
     except FileNotFoundError as err:
         raise HeadProfileError(f"{path}: direct AU table not found") from err
-    if text is None:
-        raise HeadProfileError(f"{path}: {why}")
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:

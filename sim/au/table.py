@@ -165,11 +165,9 @@ def load_au_table(face_type_or_path: str | Path) -> AUTable:
     """Load and validate an AU table; errors (HeadProfileError) name the file and key path."""
     path = au_table_path(face_type_or_path)
     try:
-        text, why = read_utf8(path)
+        text = read_utf8(path, HeadProfileError)
     except FileNotFoundError as err:
         raise HeadProfileError(f"{path}: AU table not found (built-in tables: {list(FACE_TYPES)})") from err
-    if text is None:
-        raise HeadProfileError(f"{path}: {why}")
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:

@@ -110,11 +110,9 @@ def load_library(face_type_or_path: str | Path, au_table: AUTable | None = None)
     """
     path = library_path(face_type_or_path)
     try:
-        text, why = read_utf8(path)
+        text = read_utf8(path, ExpressionError)
     except FileNotFoundError as err:
         raise ExpressionError(f"{path}: expression library not found (built-in: {list(FACE_TYPES)})") from err
-    if text is None:
-        raise ExpressionError(f"{path}: {why}")
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:

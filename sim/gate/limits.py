@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 from servoface.sim.gate.errors import GateConfigError
 from servoface.sim.gate.verdict import Finding
+from servoface.sim.rig import SERVO_MODEL_ALIASES
 
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
@@ -30,8 +31,8 @@ NO_LOAD_SPEED_RPM: dict[str, float] = {
     "XM430-W350": 46.0,
     "XM430-W210": 77.0,
     "MX-28": 55.0,  # MX-28(2.0) at 12 V; head profiles name it "MX-28" (sim.rig.SERVO_MODELS)
-    "MX-28(2.0)": 55.0,
 }
+NO_LOAD_SPEED_RPM |= {alias: NO_LOAD_SPEED_RPM[name] for alias, name in SERVO_MODEL_ALIASES.items()}
 TICKS_PER_REV = 4096
 
 
