@@ -10,7 +10,10 @@ Per servo: torque off; the operator moves the servo by hand (or jogs it: the fir
 to the present position, then switches torque on) to its neutral, lower and upper targets and to any
 intermediate targets, and confirms each; the present tick is captured. Then the points are fitted,
 checked (monotone, coverage, residuals, tick range), plotted and, at the end, saved atomically.
-A capture that fails the checks is reported to the operator and the servo is measured again.
+A capture that fails the checks is reported to the operator and the servo is measured again. Once both
+ends are captured the servo's Min/Max Position Limit are narrowed to them (`PositionLimits`, when the access
+offers it); a re-measure first puts back the limits the servo had, and a run that ends without saving
+(aborted, failed, interrupted) puts back every servo's it narrowed.
 """
 
 from __future__ import annotations
@@ -145,9 +148,12 @@ class ProcedureOptions:
 
 
 class PositionLimits(Protocol):
-    """Optional on a `ServoAccess`: write the captured limits to the servo's Min/Max Position Limit."""
+    """Optional on a `ServoAccess`: write the captured limits to the servo's Min/Max Position Limit, and
+    read the limits in force (so that a re-measure or a run that saves nothing puts them back)."""
 
     def set_position_limits(self, servo_id: int, min_tick: int, max_tick: int) -> None: ...
+
+    def read_position_limits(self, servo_id: int) -> tuple[int, int]: ...
 
 
 def _kind_for(options: ProcedureOptions, role: str) -> str | None:
@@ -177,6 +183,9 @@ class _Session:
         self.goal: int | None = None  # last goal written while torque is on
         self.window: tuple[int, int] = (MIN_POSITION_TICK, MAX_POSITION_TICK)  # where goals may go
         self.window_why = ""
+        # Min/Max Position Limit each servo had before this run narrowed it (None: not readable), in the
+        # order narrowed: a re-measure puts them back first, and so does a run that ends without saving
+        self.narrowed: dict[int, tuple[str, tuple[int, int] | None]] = {}
 
     def open_window(self, spec: ServoSpec) -> None:
         """Before the limits are captured: the declared range (through an earlier calibration of this servo,
@@ -207,8 +216,48 @@ class _Session:
         setter = getattr(self.access, "set_position_limits", None)
         if setter is not None:
             self.torque_off(spec)  # EEPROM: written with torque off
+            if spec.servo_id not in self.narrowed:
+                reader = getattr(self.access, "read_position_limits", None)
+                before = None if reader is None else tuple(int(t) for t in reader(spec.servo_id))
+                self.narrowed[spec.servo_id] = (spec.role, None if before is None else (before[0], before[1]))
             setter(spec.servo_id, lo, hi)
             self.operator.tell(f"'{spec.role}': Min/Max Position Limit set to {lo}..{hi} before the other points")
+
+    def widen_back(self, spec: ServoSpec) -> None:
+        """Before a servo is measured again: its Min/Max Position Limit as they were before this run narrowed
+        them to the captures that failed (a re-measure may need ticks past those), or, where they could not
+        be read, the safe window of the new attempt. Torque off first (EEPROM)."""
+        entry = self.narrowed.pop(spec.servo_id, None)
+        if entry is None:
+            return
+        _, before = entry
+        lo, hi = before if before is not None else self.window
+        self.torque_off(spec)
+        self.access.set_position_limits(spec.servo_id, lo, hi)  # type: ignore[attr-defined]
+        if before is None:
+            self.narrowed[spec.servo_id] = entry  # still not the servo's own limits: restored at the end too
+        self.operator.tell(f"'{spec.role}': Min/Max Position Limit back to {lo}..{hi} for the new attempt")
+
+    def restore_limits(self) -> None:
+        """A run that saves nothing leaves each servo's Min/Max Position Limit as it found them (torque off;
+        one attempt per servo, failures told to the operator, never raised over the error that ended the
+        run)."""
+        for servo_id, (role, before) in list(self.narrowed.items()):
+            if before is None:
+                self.operator.tell(
+                    f"'{role}': Min/Max Position Limit left at this run's values (the servo's own could not be read)"
+                )
+                continue
+            try:
+                self.access.set_torque(servo_id, False)
+                self.access.set_position_limits(servo_id, *before)  # type: ignore[attr-defined]
+            except Exception as err:  # noqa: BLE001 (best effort while another error ends the run)
+                self.operator.tell(
+                    f"'{role}': could not put Min/Max Position Limit back to {before[0]}..{before[1]}: {err}"
+                )
+                continue
+            del self.narrowed[servo_id]
+            self.operator.tell(f"'{role}': Min/Max Position Limit back to {before[0]}..{before[1]} (nothing saved)")
 
     def refused(self, spec: ServoSpec, tick: int) -> str | None:
         """Why a goal of ``tick`` may not be written (None: it may)."""
@@ -314,6 +363,7 @@ class _Session:
     def measure(self, spec: ServoSpec) -> list[Measurement]:
         self.torque_off(spec)
         self.open_window(spec)
+        self.widen_back(spec)  # a re-measure: the limits the failed captures set are not the servo's
         points: list[Measurement] = []
         ends: list[int] = []
         plan = _plan(spec, self.options.intermediate)
@@ -353,21 +403,27 @@ def run_procedure(
     opts = options or ProcedureOptions()
     session = _Session(access, operator, opts)
     reports: dict[str, FitReport] = {}
-    for spec in specs:
-        for attempt in range(1, opts.attempts + 1):
-            points = session.measure(spec)
-            try:
-                reports[spec.role] = fit_servo(spec, [(m.target, m.tick) for m in points], _kind_for(opts, spec.role))
-                break
-            except CalibrationError as err:
-                operator.tell(f"{err} (attempt {attempt} of {opts.attempts})")
-                if attempt == opts.attempts:
-                    raise ProcedureError(
-                        f"servo '{spec.role}': no usable calibration after {attempt} attempts: {err}"
-                    ) from err
-        for w in reports[spec.role].warnings:
-            operator.tell(w)
-    return _finish(reports, specs, head, "procedure", "", plot_dir, out, keep)
+    try:
+        for spec in specs:
+            for attempt in range(1, opts.attempts + 1):
+                points = session.measure(spec)
+                try:
+                    reports[spec.role] = fit_servo(
+                        spec, [(m.target, m.tick) for m in points], _kind_for(opts, spec.role)
+                    )
+                    break
+                except CalibrationError as err:
+                    operator.tell(f"{err} (attempt {attempt} of {opts.attempts})")
+                    if attempt == opts.attempts:
+                        raise ProcedureError(
+                            f"servo '{spec.role}': no usable calibration after {attempt} attempts: {err}"
+                        ) from err
+            for w in reports[spec.role].warnings:
+                operator.tell(w)
+        return _finish(reports, specs, head, "procedure", "", plot_dir, out, keep)
+    except BaseException:  # aborted, failed, interrupted: nothing saved, so the servos' limits go back
+        session.restore_limits()
+        raise
 
 
 def calibrate_from_csv(

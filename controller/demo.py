@@ -233,7 +233,8 @@ def run_demo(
             else {}
         )
     # the service has stopped (eased, torque off, port closed): the twin and the renderer are ours alone now
-    say("rendering the twin video, the contact sheet and the most clipped frame")
+    clips = any(t.verdict != "accept" for t in perf.traces)
+    say("rendering the twin video, the contact sheet" + (" and the most clipped frame" if clips else ""))
     video = out_dir / f"twin.{video_format}"
     n_video = render_performance(face, perf, video, show=show)
     sheet = out_dir / "sheet.png"

@@ -51,6 +51,8 @@ class Head:
     profile_dir: Path | None = None
     landmarks_mm: dict[str, Vec3] = field(default_factory=dict)
     au_direct_path: Path | None = None  # the direct AU -> actuator-target table (sim/au/direct.py), if any
+    # role -> where the profile sets the actuator's target range, for messages: "head.toml: joint[1].limits_deg"
+    range_sources: dict[str, str] = field(default_factory=dict)
 
     # --- lookups ----------------------------------------------------------------------------------------
 

@@ -213,7 +213,8 @@ def _build(r: _Reader, data: dict[str, Any], folder: Path, bind_skin: bool = Tru
     if n_vert == 0:
         _needs_skin(r, data)
     anchors = _anchors(r, data, skin.vertices_mm)
-    actuators = _actuators(r, data, {j.name: j for j in joints}, anchors, n_vert)
+    range_sources: dict[str, str] = {}
+    actuators = _actuators(r, data, {j.name: j for j in joints}, anchors, n_vert, range_sources)
     if not actuators:
         raise r.fail("actuator", "at least one [[actuator]] table (one per servo: role, servo, kind)", None)
     couplings = _couplings(r, data, {a.role for a in actuators})
@@ -239,6 +240,7 @@ def _build(r: _Reader, data: dict[str, Any], folder: Path, bind_skin: bool = Tru
         else None,
         profile_dir=folder,
         landmarks_mm=landmarks,
+        range_sources=range_sources,
     )
 
 
@@ -547,9 +549,16 @@ def _anchors(r: _Reader, data: dict[str, Any], verts: np.ndarray) -> dict[str, i
 
 
 def _actuators(
-    r: _Reader, data: dict[str, Any], joints: dict[str, Joint], anchors: dict[str, int], n_vert: int
+    r: _Reader,
+    data: dict[str, Any],
+    joints: dict[str, Joint],
+    anchors: dict[str, int],
+    n_vert: int,
+    range_sources: dict[str, str],
 ) -> tuple[Actuator, ...]:
+    """The ``[[actuator]]`` tables; ``range_sources`` is filled with role -> the key that sets its range."""
     out: list[Actuator] = []
+    joint_keys = {j.get("name"): f"joint[{i}]" for i, j in enumerate(r.array(data, "joint"))}
     ids: dict[int, str] = {}
     driven: dict[str, str] = {}
     roles: set[str] = set()
@@ -587,6 +596,11 @@ def _actuators(
             neutral = r.number(a, "neutral_deg", key, float(np.clip(0.0, lo, hi)))
             if not lo <= neutral <= hi:
                 raise r.fail(f"{key}.neutral_deg", f"a value within [{lo}, {hi}]", neutral)
+            if "range_deg" in a:
+                range_sources[role] = f"{r.file}: {key}.range_deg"
+            else:  # the joint(s) whose limits bound the range
+                bound = [joint_keys[j] for j in js if joints[j].lower_deg == lo or joints[j].upper_deg == hi]
+                range_sources[role] = f"{r.file}: " + ", ".join(f"{k}.limits_deg" for k in bound)
             out.append(JointActuator(role, servo, tuple(js), lo, hi, neutral))
         elif kind == "anchor":
             r.keys(
@@ -609,6 +623,7 @@ def _actuators(
                     )
                 vertex = raw_vertex
             lo, hi = r.interval(a, "range_mm", key)
+            range_sources[role] = f"{r.file}: {key}.range_mm"
             neutral = r.number(a, "neutral_mm", key, float(np.clip(0.0, lo, hi)))
             if not lo <= neutral <= hi:
                 raise r.fail(f"{key}.neutral_mm", f"a value within [{lo}, {hi}]", neutral)

@@ -7,7 +7,9 @@ Calibrate a head's servos and write its calibration file (JSON, atomically):
   tick is captured. Curves are fitted, checked (monotone, coverage), plotted, saved;
 - ``--csv FILE``: the same fit and checks from measured ``role,target,tick`` rows, no bus needed;
 - ``--builtin``: regenerate the ideal calibration of the emulated servos from the head profile's ranges
-  (what ships as ``sim/heads/<head>/calibration.json``).
+  (what ships as ``sim/heads/<head>/calibration.json``);
+- ``--template``: write the measurement template (``calibration_template.csv``) again for the head as
+  head.toml is now; one already there is replaced only with ``--force`` (see ``calibrate_template``).
 """
 
 from __future__ import annotations
@@ -41,12 +43,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="regenerate the ideal calibration of the emulated servos from the head's ranges",
     )
+    source.add_argument(
+        "--template",
+        action="store_true",
+        help="write the measurement template (role,target,tick rows with an ideal servo's ticks) for the head "
+        "as head.toml is now, to fill in and pass to --csv (default --out: the profile's calibration_template.csv)",
+    )
     parser.add_argument("--baud", type=int, default=1_000_000, help="bus baud rate in bps (default 1000000)")
     parser.add_argument(
         "--out",
         type=Path,
         help="calibration file to write (default: the profile's calibration.json for a profile "
-        "folder, ./calibration-<head>.json for a built-in head)",
+        "folder, ./calibration-<head>.json for a built-in head); with --template, the CSV to write",
+    )
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help="with --template: replace a template file already there (it may hold your measured ticks)",
     )
     parser.add_argument("--plot-dir", type=Path, help="write one PNG per calibrated servo here")
     parser.add_argument("--roles", help="comma-separated roles to calibrate (others are kept from the existing file)")
@@ -142,6 +155,14 @@ class BusServoAccess:
         self.bus.write(servo_id, Register.MIN_POSITION_LIMIT, int(min_tick))
         self.bus.write(servo_id, Register.MAX_POSITION_LIMIT, int(max_tick))
 
+    def read_position_limits(self, servo_id: int) -> tuple[int, int]:
+        """Min/Max Position Limit in force (put back by a re-measure or a run that saves nothing)."""
+        from servoface.hardware.registers import Register
+
+        return int(self.bus.read(servo_id, Register.MIN_POSITION_LIMIT)), int(
+            self.bus.read(servo_id, Register.MAX_POSITION_LIMIT)
+        )
+
 
 class TerminalOperator:
     """`servoface.calibration.procedure.Operator` that asks through input() and answers with print()."""
@@ -163,8 +184,12 @@ class TerminalOperator:
             hint = "Enter to capture" if prompt.target is not None else "=VALUE to capture, d when done"
             try:
                 text = input(f"[{prompt.role} #{prompt.servo_id} @ {prompt.present_tick}] {prompt.text} ({hint}): ")
-            except EOFError:
+            except EOFError:  # end of input (Ctrl-D, a script's stdin ran out): end the prompt's line
+                print()
                 return Abort()
+            except KeyboardInterrupt:
+                print()
+                raise
             text = text.strip()
             if text == "":
                 if prompt.target is None:
@@ -236,6 +261,12 @@ def _run(args: argparse.Namespace) -> int:
     from servoface.hardware.errors import HardwareError
     from servoface.sim.heads import load_head
 
+    if args.force and not args.template:
+        print(
+            "servoface calibrate: --force: only with --template (a calibration file is replaced as it is)",
+            file=sys.stderr,
+        )
+        return EXIT_USAGE
     try:
         head = load_head(args.head)
     except Exception as err:  # noqa: BLE001 - any profile error is reported, not traced
@@ -252,12 +283,18 @@ def _run(args: argparse.Namespace) -> int:
             )
             return 2
         specs = [s for s in specs if s.role in wanted]
+    from servoface.controller.cli.calibrate_mirror import apply_mirror, parse_mirror
+
     try:
         mirror = parse_mirror(args.mirror, specs_from_head(head)) if args.mirror else []
     except ValueError as err:
         print(f"servoface calibrate: --mirror: {err}", file=sys.stderr)
         return 2
     specs = [s for s in specs if s.role not in {dst for _, dst in mirror}]
+    if args.template:
+        from servoface.controller.cli.calibrate_template import run_template
+
+        return run_template(args, head, specs)
     out = args.out or _default_out(head, args.head)
     if args.builtin:
         path = write_builtin(head.name, specs, out, source=builtin_source(head))
@@ -297,6 +334,13 @@ def _run(args: argparse.Namespace) -> int:
     except CalibrationError as err:  # a measurement file that is missing, malformed or cannot be fit: bad
         # input (2); measurements taken on the head that cannot be fit: the run failed (1)
         print(f"servoface calibrate: {err}", file=sys.stderr)
+        if args.csv is not None:
+            from servoface.controller.cli.calibrate_template import stale_csv_hint
+
+            needed = {s.role for s in specs} - set(keep.roles if keep is not None else ())
+            hint = stale_csv_hint(args.csv, head, args.head, needed)
+            if hint is not None:
+                print(f"  {hint}", file=sys.stderr)
         return EXIT_USAGE if isinstance(err, CalibrationFileError) or args.csv is not None else 1
     _report(result)
     print(f"next: servoface check {args.head}")
@@ -339,36 +383,6 @@ def _interactive(
             chain.close()
 
 
-def parse_mirror(text: str, specs: list[ServoSpec]) -> list[tuple[str, str]]:
-    """``"a_l:a_r,b_l:b_r"`` -> [("a_l", "a_r"), ...]; both roles must be servos of the head."""
-    known = {s.role for s in specs}
-    pairs = []
-    for part in filter(None, (p.strip() for p in text.split(","))):
-        src, sep, dst = (x.strip() for x in part.partition(":"))
-        if not sep or not src or not dst or src == dst:
-            raise ValueError(f"{part!r}: expected SRC:DST with two different roles")
-        for role in (src, dst):
-            if role not in known:
-                raise ValueError(f"unknown role {role!r}; the head has {sorted(known)}")
-        pairs.append((src, dst))
-    if len({d for _, d in pairs}) != len(pairs) or {d for _, d in pairs} & {s for s, _ in pairs}:
-        raise ValueError(f"{text!r}: each DST once, and never also a SRC")
-    return pairs
-
-
-def apply_mirror(cal: Any, pairs: list[tuple[str, str]], specs: list[ServoSpec]) -> Any:
-    """Add/replace each DST servo by the mirror image of its SRC; servos ordered as in the head."""
-    from servoface.calibration.head import HeadCalibration
-    from servoface.calibration.mirror import mirror_servo
-
-    by_role = {s.role: s for s in cal.servos}
-    spec_of = {s.role: s for s in specs}
-    for src, dst in pairs:
-        by_role[dst] = mirror_servo(cal[src], dst, spec_of[dst].servo_id, spec_of[dst].model)
-    order = [s.role for s in specs if s.role in by_role] + [r for r in by_role if r not in spec_of]
-    return HeadCalibration(cal.head, [by_role[r] for r in order], cal.metadata)
-
-
 def check_servos_answer(bus: ServoBus, specs: list[ServoSpec]) -> None:
     """Ping every servo first: fail before touching anything, naming the silent ids and wrong models."""
     from servoface.hardware.errors import BusError, HardwareConfigError
@@ -395,10 +409,11 @@ def check_servos_answer(bus: ServoBus, specs: list[ServoSpec]) -> None:
 def _report(result: Any) -> None:
     cal = result.calibration
     print(f"calibrated {len(result.reports)} servo(s) of '{cal.head}'")
+    width = max([18, *(len(role) for role in result.reports)])
     for role, report in result.reports.items():
         s = report.servo
         print(
-            f"  {role:18s} id {s.servo_id:3d}  {s.curve.kind:16s} ticks {s.min_tick:4d}..{s.max_tick:4d}  "
+            f"  {role:{width}s} id {s.servo_id:3d}  {s.curve.kind:16s} ticks {s.min_tick:4d}..{s.max_tick:4d}  "
             f"neutral {s.neutral_tick:4d}  {s.min_target:g}..{s.max_target:g} {s.unit}  "
             f"max residual {report.max_residual_tick:.2f} tick"
         )

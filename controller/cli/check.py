@@ -5,6 +5,10 @@ it: a missing calibration, a role it lacks, a servo model or id that differs fro
 (an implausible size: a mesh in metres), and what the head can express: per AU and per library
 expression, how much of the muscle-model target the servos' achievable face shows (landmark error in mm)
 and the AUs it cannot show at all, with the reason.
+
+Exit codes (the README's rule for every command): 0 nothing to fix; 1 problems found in a profile that
+loads (its calibration, a joint range no servo turn can measure, the report); 2 bad input: no profile at
+HEAD, or a head.toml that cannot be read, parsed or validated.
 """
 
 from __future__ import annotations
@@ -73,9 +77,10 @@ def _calibration_gaps(head: Any, cal: Any, head_arg: str) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     from servoface.calibration import CalibrationError, load_calibration
-    from servoface.controller.cli.exits import EXIT_USAGE, head_hint, head_message, no_profile_at
+    from servoface.controller.cli.exits import EXIT_USAGE, head_hint, head_message
     from servoface.controller.cli.terminal import printable
     from servoface.controller.errors import ControllerError
+    from servoface.controller.joint_spans import span_problems
     from servoface.sim.errors import SimError
     from servoface.sim.heads import load_head
     from servoface.sim.heads.sizes import size_warnings
@@ -94,8 +99,9 @@ def run(args: argparse.Namespace) -> int:
     except (SimError, OSError) as err:
         print(f"servoface check: {printable(head_message(args.head, err, flag=''))}", file=sys.stderr)
         print(f"  {head_hint(args.head)}", file=sys.stderr)
-        # nothing there to check: a usage error (2); a profile that is there but malformed: a problem found (1)
-        return EXIT_USAGE if no_profile_at(args.head) else 1
+        # bad input, as for every command (2): nothing there to check, or a profile that cannot be read or
+        # validated; 1 is kept for the problems found in a profile that loads
+        return EXIT_USAGE
     print(
         f"head {head.name!r} ({head.face_type}): {len(head.joints)} joints, {len(head.parts)} parts, "
         f"{head.skin.vertices_mm.shape[0]} skin vertices{'' if head.has_skin else ' (mechanical: no skin)'}, "
@@ -118,6 +124,8 @@ def run(args: argparse.Namespace) -> int:
             problems.append(
                 f"calibration file {cal_path} is broken: {broken}; fix it or recalibrate: {_cal_hint(args.head)}"
             )
+    # a joint range no servo turn can measure: calibrate would refuse it (a calibrated role has proved it can)
+    problems[:0] = span_problems(head, [r for r in head.roles if cal is None or r not in cal.roles])
     if cal is not None:
         print(f"calibration: {cal_path}")
         problems += _calibration_gaps(head, cal, args.head)
@@ -151,7 +159,9 @@ def _servo_table(head: Any, cal: Any) -> list[str]:
         specs = servo_specs(head, cal)
     except (SimError, CalibrationError) as err:
         return [str(err)]
-    header = f"{'id':>3} {'role':16} {'model':11} {'kind':6} {'target range':>20}"
+    rw = max([16, *(len(s.role) for s in specs)])  # columns as wide as the longest role and model
+    mw = max([11, *(len(s.model) for s in specs)])
+    header = f"{'id':>3} {'role':{rw}} {'model':{mw}} {'kind':6} {'target range':>20}"
     header += f" {'ticks min..max':>15} {'neutral':>7}"
     print(header)
     print("-" * len(header))
@@ -160,7 +170,7 @@ def _servo_table(head: Any, cal: Any) -> list[str]:
         actuator = head.actuator(spec.role)
         rng = f"{c.min_target:.1f}..{c.max_target:.1f} {c.unit}"
         print(
-            f"{spec.servo_id:>3} {spec.role:16} {spec.model:11} {actuator.kind:6} {rng:>20} "
+            f"{spec.servo_id:>3} {spec.role:{rw}} {spec.model:{mw}} {actuator.kind:6} {rng:>20} "
             f"{c.min_tick:>6}..{c.max_tick:<6}  {c.neutral_tick:>7}"
         )
     try:
@@ -200,15 +210,17 @@ def _report(head: Any, cal: Any, args: argparse.Namespace) -> None:
     print(
         f"\nwhat this head can express (the servos' achievable face vs the muscle-model target, {len(aus)} AU cases):"
     )
-    print(f"  {'AU':7} {'shown':>6} {'max err':>8} {'moves':>7}  notes")
+    aw = max([7, *(len(s.name) for s in aus)])  # the name columns as wide as the longest name
+    print(f"  {'AU':{aw}} {'shown':>6} {'max err':>8} {'moves':>7}  notes")
     for s in shown:
         note = "; ".join(s.reasons) if s.shown < 0.9 else ""
-        print(f"  {s.name:7} {s.shown:6.0%} {s.max_error_mm:6.1f}mm {s.achieved_motion_mm:5.1f}mm  {note}")
+        print(f"  {s.name:{aw}} {s.shown:6.0%} {s.max_error_mm:6.1f}mm {s.achieved_motion_mm:5.1f}mm  {note}")
     print(f"cannot show ({len(cannot)}): {', '.join(s.name for s in cannot) or 'none'}")
     for s in cannot:
-        print(f"  {s.name:7} {'; '.join(s.reasons) or 'moves nothing'}")
+        print(f"  {s.name:{aw}} {'; '.join(s.reasons) or 'moves nothing'}")
     print(f"library expressions ({len(exprs)}, shown: of the whole expression, weighted by AU intensity):")
     rows = []
+    ew = max([12, *(len(s.name) for s in exprs)])
     for s in exprs:
         apex = _apex(library[s.name])
         expr_aus = sorted({_au_key(k) for k in apex} & cannot_numbers, key=_au_order)
@@ -218,7 +230,7 @@ def _report(head: Any, cal: Any, args: argparse.Namespace) -> None:
         overall = s.shown * share  # the face's own model cannot even ask for the AUs it lacks: count them out
         rest = f" ({s.shown:.0%} of the rest)" if share > 0 else " (all of its AUs)"
         lost = f"; without {', '.join(expr_aus)}{rest}" if expr_aus else ""
-        print(f"  {s.name:12} {overall:6.0%} {s.max_error_mm:6.1f}mm{lost}")
+        print(f"  {s.name:{ew}} {overall:6.0%} {s.max_error_mm:6.1f}mm{lost}")
         rows.append(
             {
                 **s.as_dict(),

@@ -63,17 +63,19 @@ def is_unknown_head(head_arg: str) -> bool:
     return head_arg not in BUILTIN_HEADS and not Path(head_arg).exists()
 
 
-def no_profile_at(head_arg: str) -> bool:
-    """Nothing to load at ``head_arg``: an unknown name, or a folder without head.toml (rather than a
-    profile that is there but malformed)."""
-    path = Path(head_arg)
-    return is_unknown_head(head_arg) or (path.is_dir() and not (path / "head.toml").is_file())
-
-
 def head_message(head_arg: str, err: BaseException, flag: str = "--head") -> str:
-    """``--head ARG: what is wrong`` (``flag``: how the command takes the head; "" for a positional), without
-    the name twice (the profile loader's messages start with the path)."""
-    text = str(err).removeprefix(f"{head_arg}: ")
+    """``--head ARG: what is wrong`` (``flag``: how the command takes the head; "" for a positional), naming
+    the path once: the profile loader's messages start with the path as it normalised it (``my_head`` for
+    ``my_head/``), or with the file in the folder it could not read (``my_head/head.toml: ...``), which
+    says which head already."""
+    text = str(err)
+    spelt = {head_arg, str(Path(head_arg))} if head_arg.strip() else {head_arg}
+    for name in sorted(spelt, key=len, reverse=True):
+        if text.startswith(f"{name}: "):
+            return f"{flag} {head_arg}: {text.removeprefix(f'{name}: ')}".lstrip()
+    first = Path(text.split(": ", 1)[0]) if ": " in text else None
+    if head_arg.strip() and first is not None and first.suffix and first.is_relative_to(Path(head_arg)):
+        return text  # "my_head/head.toml: not valid TOML ...": the file names the head
     return f"{flag} {head_arg}: {text}".lstrip()
 
 

@@ -76,7 +76,7 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
     from servoface.controller.speech.script_play import play_script_speaking, prepare, speaks
     from servoface.controller.stop_signals import StopRequested, interruptible
     from servoface.hardware.errors import HardwareError
-    from servoface.sim.errors import SimError
+    from servoface.sim.errors import HeadProfileError, SimError
     from servoface.sim.heads import load_head
 
     recording = None
@@ -87,7 +87,14 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
     trace_file = TraceFile(args.trace)
     try:  # check what to play before opening the port: a typo must not switch torque on
         with interruptible():
-            head = load_head(args.head)
+            try:
+                head = load_head(args.head)
+            except HeadProfileError as err:  # as demo and preview: the head named once, and what to do
+                from servoface.controller.cli.exits import head_hint, head_message
+
+                print(f"servoface play: {printable(head_message(args.head, err))}", file=sys.stderr)
+                print(f"  {head_hint(args.head)}", file=sys.stderr)
+                return 2
             if args.input is not None:
                 from servoface.controller.inputs import load_recording
 

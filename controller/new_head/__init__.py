@@ -6,8 +6,9 @@
   with a direct table for its brows.
 
 Every kind also gets ``calibration_template.csv``: ``role,target,tick`` rows at the lower limit, neutral,
-upper limit and two points between, with the ticks of an ideal servo (2048 = neutral). Replace the ticks
-by what you measure on your head and run ``servoface calibrate --head DIR --csv DIR/calibration_template.csv``.
+upper limit and three points between, with the ticks of an ideal servo (2048 = neutral). Replace the ticks
+by what you measure on your head and run ``servoface calibrate --head DIR --csv DIR/calibration_template.csv``
+(``servoface calibrate --head DIR --template`` writes it again for a head.toml edited since: see ``template``).
 """
 
 from __future__ import annotations
@@ -17,9 +18,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from servoface.controller.errors import ControllerError
+from servoface.controller.new_head.template import TEMPLATE_CSV, write_template_csv
 
 KINDS = ("human", "dog", "mechanical")
-TEMPLATE_CSV = "calibration_template.csv"
 
 
 @dataclass(frozen=True)
@@ -52,33 +53,6 @@ def _copy_builtin(folder: Path, kind: str, name: str) -> str:
         f"# ticks in it first), or on the head: `servoface calibrate --head {folder} --port /dev/ttyUSB0`.\n"
     )
     return header + text
-
-
-def write_template_csv(head_dir: Path) -> Path:
-    """``calibration_template.csv`` for the profile in ``head_dir`` (ideal-servo ticks, to be replaced)."""
-    import numpy as np
-    from servoface.calibration.builtin import builtin_calibration
-    from servoface.controller.cli.calibrate import specs_from_head
-    from servoface.sim.heads import load_head
-
-    head = load_head(head_dir)
-    specs = specs_from_head(head)
-    cal = builtin_calibration(head.name, specs)
-    lines = [
-        "# role,target,tick: the Present Position (tick) you read when the actuator is at target (deg or mm).",
-        "# These ticks are an IDEAL servo's (2048 = neutral): measure yours and replace them (jog the servo,",
-        "# read the tick with the Dynamixel Wizard or `servoface calibrate --port ...`). Ticks must be strictly",
-        "# monotone in the target. Then: servoface calibrate --head DIR --csv DIR/calibration_template.csv",
-        "role,target,tick",
-    ]
-    for spec in specs:
-        servo = cal[spec.role]
-        targets = sorted({*np.linspace(spec.lower, spec.upper, 5).round(3).tolist(), round(spec.neutral, 3)})
-        for t in targets:
-            lines.append(f"{spec.role},{t:g},{servo.to_tick(float(t))}")
-    path = head_dir / TEMPLATE_CSV
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return path
 
 
 def _files_written(folder: Path, kind: str) -> list[Path]:
@@ -126,3 +100,6 @@ def write_new_head(folder: Path, kind: str, *, force: bool = False) -> NewHead:
         (folder / "direct.toml").write_text(derive_direct_table(model, note=note), encoding="utf-8")
     files += [folder / "head.toml", folder / "direct.toml", write_template_csv(folder)]
     return NewHead(folder, tuple(files), kind)
+
+
+__all__ = ["KINDS", "TEMPLATE_CSV", "NewHead", "write_new_head", "write_template_csv"]

@@ -127,6 +127,10 @@ class _RecordingAccess:
     def set_position_limits(self, servo_id: int, min_tick: int, max_tick: int) -> None:
         self.inner.set_position_limits(servo_id, min_tick, max_tick)
 
+    def read_position_limits(self, servo_id: int) -> tuple[int, int]:
+        lo, hi = self.inner.read_position_limits(servo_id)
+        return int(lo), int(hi)
+
 
 class CalibrationSession:
     """One calibration run from the browser (see the module docstring)."""

@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import difflib
 from pathlib import Path
 
 from servoface.sim.errors import HeadProfileError
@@ -48,14 +49,16 @@ def load_head(name_or_path: str | Path) -> Head:
     else:
         path = Path(name_or_path)
         if not path.exists():
+            near = difflib.get_close_matches(str(name_or_path), list(BUILTIN_HEADS), n=1, cutoff=0.6)
+            hint = f" (did you mean {near[0]!r}?)" if near and "/" not in str(name_or_path) else ""
             raise HeadProfileError(
-                f"{path}: expected a built-in head name {list(BUILTIN_HEADS)} or a profile folder with head.toml"
+                f"{path}: expected a built-in head name {list(BUILTIN_HEADS)} or a profile folder with head.toml" + hint
             )
     file = path / "head.toml" if path.is_dir() else path
     try:
         key = (str(file.resolve()), _stamp(file))
     except OSError as err:
-        raise HeadProfileError(f"{file}: expected a head profile file (head.toml): {err}") from err
+        raise HeadProfileError(f"{file}: expected a head profile file (head.toml): {err.strerror or err}") from err
     head = _CACHE.get(key)
     if head is None:
         head = load_profile(path)

@@ -100,3 +100,91 @@ def test_interactive_procedure_on_the_emulated_chain(emulated: tuple[object, obj
         cal["upper_lid_r"].min_tick,
         cal["upper_lid_r"].max_tick,
     )
+
+
+class RetryingHand:
+    """One servo: the first attempt captures the upper end 20 ticks past neutral and every point there
+    (the fit fails: flat), so the procedure narrows the servo's limits to 2048..2068 and measures again;
+    the second attempt jogs under torque to the true ticks, past that narrowed range."""
+
+    def __init__(self, chain: object, spec: ServoSpec, abort_after_narrow: bool = False) -> None:
+        self.chain = chain
+        self.spec = spec
+        self.abort_after_narrow = abort_after_narrow
+        self.attempt = 0
+        self.messages: list[str] = []
+
+    def tell(self, message: str) -> None:
+        self.messages.append(message)
+
+    def ask(self, prompt: Prompt) -> Reply:
+        from servoface.calibration.procedure import Abort
+
+        servo = self.chain.servo(self.spec.servo_id)  # type: ignore[attr-defined]
+        if prompt.step == "neutral" and prompt.present_tick == servo.position_tick and not self._neutral_asked:
+            self.attempt += 1
+            self._neutral_asked = True
+        if prompt.step != "neutral":
+            self._neutral_asked = False
+        assert prompt.target is not None
+        if self.attempt == 1:
+            if prompt.step == "point" and self.abort_after_narrow:
+                return Abort()
+            servo.move_by_hand(2048 if prompt.step == "neutral" else 2068)
+            return Capture()
+        want = round(physical_tick(self.spec, prompt.target))
+        if prompt.present_tick != want:
+            self.chain.advance(0.5)  # type: ignore[attr-defined]  # let the last jog finish
+            if servo.position_tick != want:
+                return Jog(max(-300, min(300, want - servo.position_tick)))
+        return Capture()
+
+    _neutral_asked = False
+
+
+def test_a_re_measure_puts_back_the_limits_the_failed_captures_set(
+    emulated: tuple[object, object], tmp_path: Path
+) -> None:
+    """The failed first attempt narrowed Min/Max Position Limit to 2048..2068; the re-measure puts the
+    servo's own limits back before it jogs past them (on the old code the first goal past 2068 got a Data
+    Limit Error and the session ended with nothing saved), and the saved run narrows them to the new ends."""
+    chain, bus = emulated
+    jaw = small_specs()[0]
+    servo = chain.servo(jaw.servo_id)  # type: ignore[attr-defined]
+    servo.write_register("Min Position Limit", 1000)
+    servo.write_register("Max Position Limit", 3500)
+    hand = RetryingHand(chain, jaw)
+    result = run_procedure(
+        BusServoAccess(bus), hand, [jaw], "small", options=ProcedureOptions(), out=tmp_path / "cal.json"
+    )
+    assert hand.attempt == 2
+    assert any("Min/Max Position Limit set to 2048..2068" in m for m in hand.messages)
+    assert any("Min/Max Position Limit back to 1000..3500 for the new attempt" in m for m in hand.messages)
+    goals = [v for _, sid, v in chain.goal_writes() if sid == jaw.servo_id]  # type: ignore[attr-defined]
+    assert max(goals) > 2068  # the jogs went past the first attempt's narrowed range
+    s = load_calibration(tmp_path / "cal.json")["jaw"]
+    assert abs(s.max_tick - physical_tick(jaw, jaw.upper)) <= 2
+    assert (servo.read_register("Min Position Limit"), servo.read_register("Max Position Limit")) == (
+        s.min_tick,
+        s.max_tick,
+    )
+    assert result.saved_to is not None
+
+
+def test_a_run_that_saves_nothing_puts_the_limits_back(emulated: tuple[object, object], tmp_path: Path) -> None:
+    """Aborted after the ends narrowed the limits: the servo's own Min/Max Position Limit come back, torque
+    off, and no file is written."""
+    from servoface.calibration.errors import ProcedureAborted
+
+    chain, bus = emulated
+    jaw = small_specs()[0]
+    servo = chain.servo(jaw.servo_id)  # type: ignore[attr-defined]
+    servo.write_register("Min Position Limit", 1000)
+    servo.write_register("Max Position Limit", 3500)
+    hand = RetryingHand(chain, jaw, abort_after_narrow=True)
+    with pytest.raises(ProcedureAborted):
+        run_procedure(BusServoAccess(bus), hand, [jaw], "small", out=tmp_path / "cal.json")
+    assert any("set to 2048..2068" in m for m in hand.messages)
+    assert (servo.read_register("Min Position Limit"), servo.read_register("Max Position Limit")) == (1000, 3500)
+    assert not servo.torque_on
+    assert not (tmp_path / "cal.json").exists()

@@ -214,13 +214,13 @@ def test_cli_preview_unknown_head_named_once(tmp_path: Path, capsys: pytest.Capt
     first = err.splitlines()[0]
     assert first == (
         "servoface preview: --head humen: expected a built-in head name ['human', 'dog'] or a profile folder "
-        "with head.toml"
+        "with head.toml (did you mean 'human'?)"
     ), first
 
 
 def test_cli_check_a_folder_without_head_toml(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     status, _, err = _run(["check", str(tmp_path)], capsys)
-    assert status == 2  # nothing there to check (a malformed head.toml is a problem found: 1)
+    assert status == 2  # nothing there to check (a malformed head.toml is bad input too: 2)
     assert f"servoface new {tmp_path} --from mechanical" in err and "head.toml at that key" not in err
 
 
@@ -268,3 +268,16 @@ def test_cli_a_value_that_starts_with_a_dash_reaches_its_options_check(
     status, _, err = _run([*argv, "-o", str(tmp_path / "x.png")] if argv[0] == "preview" else argv, capsys)
     assert status == 2 and flag in err and expected in err, err
     assert "expected one argument" not in err
+
+
+def test_cli_play_misspelt_head_names_the_nearest_and_the_next_step(capsys: pytest.CaptureFixture[str]) -> None:
+    """As demo and preview: `play --head hman` names 'human' and says where the head names are, before
+    anything is opened."""
+    status, _, err = _run(["play", "happiness", "--head", "hman", "--emulate"], capsys)
+    assert status == 2
+    lines = err.splitlines()
+    assert lines[0] == (
+        "servoface play: --head hman: expected a built-in head name ['human', 'dog'] or a profile folder with "
+        "head.toml (did you mean 'human'?)"
+    ), lines[0]
+    assert "servoface list heads" in lines[1] and "opening head" not in err

@@ -143,7 +143,7 @@ def test_a_misspelt_key_names_the_nearest_and_itself(tmp_path: Path, capsys: pyt
     text = (folder / "head.toml").read_text()
     (folder / "head.toml").write_text(text.replace("limits_deg", "limit_deg", 1))
     status, out = _run(["check", str(folder)], capsys)
-    assert status == 1
+    assert status == 2  # a profile that does not validate is bad input, as for every command
     assert "joint[0].limit_deg: expected one of the known keys" in out
     assert "(did you mean 'limits_deg'?), got 'limit_deg'" in out
 
@@ -283,7 +283,7 @@ def test_a_misspelt_model_names_the_nearest_only_when_close(
     folder = oh.write_mechanical(tmp_path / "m")
     _with_first_model(folder, typed)
     status, out = _run(["check", str(folder)], capsys)
-    assert status == 1
+    assert status == 2
     assert "actuator[0].servo.model: expected one of the known servo models" in out
     assert f"got '{typed}'" in out
     if hint is None:  # another servo (other gearing), not a typo of one

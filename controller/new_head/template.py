@@ -1,0 +1,59 @@
+"""The calibration template: ``role,target,tick`` rows for every servo of a head, with an ideal servo's ticks.
+
+Written by ``servoface new`` and, for a head.toml edited since (a servo added or taken out, a range
+changed), by ``servoface calibrate --head DIR --template``. The builder replaces the ticks by what they
+measure and runs ``servoface calibrate --head DIR --csv DIR/calibration_template.csv``. Rows: the lower
+limit, neutral, the upper limit and points between, per servo in the profile's order.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from servoface.calibration.spec import ServoSpec
+
+TEMPLATE_CSV = "calibration_template.csv"
+POINTS_PER_SERVO = 5  # lower, upper and three between (plus neutral when it is not one of them)
+
+HEADER = (
+    "# role,target,tick: the Present Position (tick) you read when the actuator is at target (deg or mm).",
+    "# These ticks are an IDEAL servo's (2048 = neutral): measure yours and replace them (jog the servo,",
+    "# read the tick with the Dynamixel Wizard or `servoface calibrate --port ...`). Ticks must be strictly",
+    "# monotone in the target. Then: servoface calibrate --head DIR --csv DIR/calibration_template.csv",
+    "role,target,tick",
+)
+
+
+def template_text(head_name: str, specs: Sequence[ServoSpec]) -> str:
+    """The template's text for ``specs`` (CalibrationError, naming the servo, when an ideal servo cannot
+    reach a range: more than one turn, or less than one tick)."""
+    import numpy as np
+    from servoface.calibration.builtin import builtin_calibration
+
+    cal = builtin_calibration(head_name, specs)
+    lines = list(HEADER)
+    for spec in specs:
+        servo = cal[spec.role]
+        ends = np.linspace(spec.lower, spec.upper, POINTS_PER_SERVO).round(3).tolist()
+        for t in sorted({*ends, round(spec.neutral, 3)}):
+            lines.append(f"{spec.role},{t:g},{servo.to_tick(float(t))}")
+    return "\n".join(lines) + "\n"
+
+
+def write_template(head_name: str, specs: Sequence[ServoSpec], out: Path) -> Path:
+    """Write the template to ``out`` atomically (a reader sees the old file or the new one, never half)."""
+    from servoface.calibration.fileformat import write_atomic
+
+    return write_atomic(Path(out), template_text(head_name, specs))
+
+
+def write_template_csv(head_dir: Path, out: Path | None = None) -> Path:
+    """``calibration_template.csv`` (or ``out``) for the profile in ``head_dir``, replacing any file there."""
+    from servoface.controller.cli.calibrate import specs_from_head
+    from servoface.sim.heads import load_head
+
+    head = load_head(head_dir)
+    return write_template(head.name, specs_from_head(head), Path(head_dir) / TEMPLATE_CSV if out is None else out)
