@@ -83,10 +83,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args._run(args))
+        code = int(args._run(args))
+        sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's last flush
+        return code
     except KeyboardInterrupt:
         print("servoface: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # whoever read the output left (`| head`): nothing to report, as other tools
+        _drop_stdout()
+        return 141  # 128 + SIGPIPE, what a shell shows for a tool the signal ended
     except OSError as err:  # a path, folder or device the command could not use: say which, no traceback
         from servoface.controller.cli.exits import exit_code
 
@@ -133,3 +138,15 @@ def describe_os_error(err: OSError) -> str:
 
 if __name__ == "__main__":
     sys.exit(main())
+
+
+def _drop_stdout() -> None:
+    """Point stdout at /dev/null, so the interpreter's last flush does not fail on the closed pipe again."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # no file descriptor behind stdout (a test's capture): nothing to flush
+        pass

@@ -343,7 +343,9 @@ def _run(args: argparse.Namespace) -> int:
                 print(f"  {hint}", file=sys.stderr)
         return EXIT_USAGE if isinstance(err, CalibrationFileError) or args.csv is not None else 1
     _report(result)
-    print(f"next: servoface check {args.head}")
+    default = Path(head.calibration_path) if head.calibration_path is not None else None
+    same = default is not None and Path(out).resolve() == default.resolve()
+    print(f"next: servoface check {args.head}" + ("" if same else f" --calibration {out}"))
     return 0
 
 

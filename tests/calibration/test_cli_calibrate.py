@@ -43,6 +43,7 @@ def test_csv_mode_through_the_cli(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert cal["lip_corner_l"].to_tick(4.0) == 2420 and cal["lip_corner_l"].curve.kind == "pchip"
     assert cal["jaw"].curve.kind == "linear"
     assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == ["jaw.png", "lip_corner_l.png"]
+    assert text.rstrip().splitlines()[-1] == f"next: servoface check human --calibration {out}"  # the file written
 
 
 def test_cli_reports_bad_csv_with_its_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -281,3 +281,19 @@ def test_cli_play_misspelt_head_names_the_nearest_and_the_next_step(capsys: pyte
         "head.toml (did you mean 'human'?)"
     ), lines[0]
     assert "servoface list heads" in lines[1] and "opening head" not in err
+
+
+def test_cli_output_into_a_closed_pipe_ends_quietly() -> None:
+    """`servoface list | head -0`: the reader is gone before anything is written; no "Broken pipe" error or
+    traceback, exit 141 (as a tool SIGPIPE ended)."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "servoface.controller.cli", "list"], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()  # the reader goes away before the listing is written
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == 141, err
+    assert "Broken pipe" not in err and "Traceback" not in err and "Exception ignored" not in err, err
