@@ -45,6 +45,7 @@ from servoface.controller.safe_stop import EASE_S, MAX_EASE_S, StopReport, safe_
 from servoface.controller.script import Script, load_script
 from servoface.controller.service import CommandHandle, HeadService, Status, head_calibration, open_head
 from servoface.controller.service.commands import check_point_mm
+from servoface.controller.service.observers import MAX_QUEUE
 from servoface.controller.trace_ring import TraceRing
 from servoface.controller.values import as_finite, check_seconds, printable_repr
 from servoface.hardware.bus import ServoBus
@@ -256,8 +257,9 @@ class Face:
         the servos to settle; the call's frames and stats. Ctrl-C stops what plays on ``track`` where it is."""
         svc = self.service
         rate = svc.rate_hz
-        expected = int((duration_s + SETTLE_MAX_S) * rate) + 200
-        sub = svc.subscribe("trace", maxlen=max(expected, 1000))
+        # a call longer than the queue's cap (~5.5 h at 50 Hz: a day-long script or take) keeps its newest frames
+        expected = (duration_s + SETTLE_MAX_S) * rate + 200
+        sub = svc.subscribe("trace", maxlen=int(min(max(expected, 1000), MAX_QUEUE)))
         stats0 = svc.loop_stats
         missed0, overruns0 = stats0.missed, stats0.overruns
         interrupt = _Interrupt()

@@ -31,6 +31,7 @@ errors carry tomllib's line and column. The format (all times in seconds, intens
 from __future__ import annotations
 
 import difflib
+import math
 import re
 import tomllib
 from collections.abc import Mapping
@@ -178,6 +179,12 @@ class _Builder:
         self.alive(data)
         end = max(self.timeline.end_s, self.gaze_end_s)
         end_s = r.number(head, "end_s", "script", None, lo=0.0, hi=MAX_SCRIPT_S, what="an end time in seconds")
+        if end_s is None and end > MAX_SCRIPT_S:  # every time is within a day, but not every start + its length
+            r.fail(
+                "script.end_s",
+                f"the play and gaze entries run to {end:g} s; expected a script of at most {MAX_SCRIPT_S:g} s "
+                "(start them earlier, shorten them, or set end_s to cut the script there)",
+            )
         title = r.string(head, "title", "script", Path(r.source).stem)
         audio = r.string(head, "audio", "script", "")
         if audio and (Path(audio).is_absolute() or ".." in Path(audio).parts):
@@ -222,7 +229,9 @@ class _Builder:
                 return self.library(name, spec, path)
             if "movements" in spec:
                 r.keys(spec, path, ("duration_s", "movements"))
-                duration = r.number(spec, "duration_s", path, lo=1e-6, what="a duration in seconds > 0")
+                duration = r.number(
+                    spec, "duration_s", path, lo=1e-6, hi=MAX_SCRIPT_S, what="a duration in seconds > 0"
+                )
                 moves = []
                 for i, m in enumerate(r.array(spec, "movements", path)):
                     mpath = f"{path}.movements[{i}]"
@@ -248,7 +257,7 @@ class _Builder:
                 pose = self.pose(r.get(spec, "pose", path, required=True), f"{path}.pose")
                 what = "a duration in seconds >= 0"
                 onset, apex, offset = (
-                    r.number(spec, k, path, lo=0, what=what) for k in ("onset_s", "apex_s", "offset_s")
+                    r.number(spec, k, path, lo=0, hi=MAX_SCRIPT_S, what=what) for k in ("onset_s", "apex_s", "offset_s")
                 )
                 if onset + apex + offset <= 0:
                     r.fail(path, "onset_s + apex_s + offset_s must be > 0")
@@ -272,7 +281,7 @@ class _Builder:
             kpath = f"{path}.keyframes[{i}]"
             k = r.table(k, kpath)
             r.keys(k, kpath, ("t_s", "pose", "easing"))
-            t = r.number(k, "t_s", kpath, lo=0, what="a clip time in seconds >= 0")
+            t = r.number(k, "t_s", kpath, lo=0, hi=MAX_SCRIPT_S, what="a clip time in seconds >= 0")
             if t < prev:
                 r.fail(f"{kpath}.t_s", f"keyframes must be in time order; {t:g} s comes after {prev:g} s")
             times.append(t)
@@ -330,7 +339,10 @@ class _Builder:
             return library_clip("dog", r.string(spec, "library", path), timing=timing)
         r.keys(spec, path, ("library", "onset_s", "apex_s", "offset_s", "easing"))
         what = "a duration in seconds >= 0"
-        times = {k: r.number(spec, k, path, None, lo=0, what=what) for k in ("onset_s", "apex_s", "offset_s")}
+        times = {
+            k: r.number(spec, k, path, None, lo=0, hi=MAX_SCRIPT_S, what=what)
+            for k in ("onset_s", "apex_s", "offset_s")
+        }
         given = {k: v for k, v in times.items() if v is not None}
         return library_clip(
             "human", r.string(spec, "library", path), easing=self.easing(spec, path, "min_jerk"), **given
@@ -369,7 +381,9 @@ class _Builder:
             if key == "iterations" and key in table:
                 changes[key] = self.r.integer(table, key, path, lo=1)
             elif key in table:
-                changes[key] = self.r.number(table, key, path, lo=0, what=f"{key} >= 0")
+                seconds = key.endswith("_s")
+                hi = MAX_SCRIPT_S if seconds else math.inf
+                changes[key] = self.r.number(table, key, path, lo=0, hi=hi, what=f"{key} >= 0")
         if "easing" in table:
             changes["easing"] = self.easing(table, path, "min_jerk")
         return EventTiming(**changes)
@@ -377,7 +391,7 @@ class _Builder:
     def play(self, entry: Mapping[str, Any], path: str) -> None:
         r = self.r
         r.keys(entry, path, ("at_s", "track", "expression", "sequence", "recipe", "library", "say", "voice", "from"))
-        at = r.number(entry, "at_s", path, lo=0, what="a start time in seconds >= 0")
+        at = r.number(entry, "at_s", path, lo=0, hi=MAX_SCRIPT_S, what="a start time in seconds >= 0")
         track = r.string(entry, "track", path, "speech" if "say" in entry else "face")
         if not _TRACK_RE.match(track) or track in ALIVE_LAYERS:
             r.fail(
@@ -473,7 +487,7 @@ class _Builder:
             path = f"gaze[{i}]"
             entry = self.r.table(entry, path)
             self.r.keys(entry, path, ("at_s", "look_at_mm", "ahead"))
-            at = self.r.number(entry, "at_s", path, lo=0, what="a time in seconds >= 0")
+            at = self.r.number(entry, "at_s", path, lo=0, hi=MAX_SCRIPT_S, what="a time in seconds >= 0")
             if ("look_at_mm" in entry) == bool(entry.get("ahead", False)):
                 self.r.fail(path, "expected exactly one of look_at_mm = [x, y, z] or ahead = true")
             target = None

@@ -52,9 +52,17 @@ def _strip(spec: str, prefix: str, suffixes: tuple[str, ...]) -> str:
     return name
 
 
+def _is_file(path: Path) -> bool:
+    """``path.is_file()``, False for a name the system cannot even look up (longer than it allows)."""
+    try:
+        return path.is_file()
+    except OSError:
+        return False
+
+
 def is_shipped_script(spec: str | Path) -> bool:
     """True when ``spec`` is not an existing file but names a shipped script."""
-    if isinstance(spec, Path) or Path(spec).is_file():
+    if isinstance(spec, Path) or _is_file(Path(spec)):
         return False
     return _strip(spec, SCRIPT_PREFIX, (".toml",)) in shipped_scripts()
 
@@ -62,7 +70,7 @@ def is_shipped_script(spec: str | Path) -> bool:
 def resolve_script(spec: str | Path) -> Path:
     """An existing file as given, else the shipped script ``spec`` names; ControllerError if neither."""
     path = Path(spec)
-    if path.is_file() or isinstance(spec, Path):
+    if isinstance(spec, Path) or _is_file(path):
         return path
     scripts = shipped_scripts()
     name = _strip(spec, SCRIPT_PREFIX, (".toml",))
@@ -76,7 +84,7 @@ def resolve_script(spec: str | Path) -> Path:
 def resolve_sample(spec: str | Path) -> Path:
     """An existing file as given, else the shipped sample ``spec`` names (``sample:NAME`` or NAME)."""
     path = Path(spec)
-    if path.is_file():
+    if _is_file(path):
         return path
     text = str(spec)
     samples = shipped_samples()

@@ -86,6 +86,9 @@ def add_stream_guard_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+MAX_TOKEN_LINE = 4096  # bytes of a token file's first line
+
+
 def _token(args: argparse.Namespace) -> str | None:
     import os
 
@@ -93,7 +96,14 @@ def _token(args: argparse.Namespace) -> str | None:
 
     if args.token_file is not None:
         try:
-            text: list[str] = args.token_file.read_text(encoding="utf-8").splitlines()
+            with args.token_file.open("rb") as fh:  # the first line only: never /dev/zero into memory
+                first = fh.readline(MAX_TOKEN_LINE + 1)
+            if len(first) > MAX_TOKEN_LINE:
+                raise InputError(
+                    f"--token-file {args.token_file}: its first line is longer than {MAX_TOKEN_LINE} bytes: "
+                    "expected the token on its first line"
+                )
+            text: list[str] = first.decode("utf-8-sig").splitlines()  # a BOM (Notepad) is not the token
         except OSError as err:
             why = err.strerror or type(err).__name__
             raise InputError(

@@ -26,6 +26,7 @@ from servoface.controller.inputs.timebase import check_fps, resolve_times
 from servoface.controller.inputs.tolerance import BadRow, Tolerance
 from servoface.sim.rig import FaceType
 
+MAX_RECORDING_S = 24 * 3600.0  # a take is at most a day long; a row further from the first is a bad row
 HEAD_AUS = frozenset({"AU51", "AU52", "AU53", "AU54", "AU55", "AU56", "AU57", "AU58"})
 EYE_AUS = frozenset({"AU61", "AU62", "AU63", "AU64", "AU65", "AU66"})
 
@@ -82,7 +83,8 @@ def assemble(
     total_rows: int | None = None,
 ) -> Recording:
     """The Recording of ``rows`` (``kind``: ``"blendshapes"`` or ``"aus"``); see the module doc."""
-    tolerance.check_share(total_rows if total_rows is not None else len(rows) + tolerance.bad)
+    total = total_rows if total_rows is not None else len(rows) + tolerance.bad
+    tolerance.check_share(total)
     if not rows:
         raise InputError(f"{report.source}: no usable data rows")
     times = resolve_times(
@@ -94,13 +96,28 @@ def assemble(
         report=report,
     )
     kept: list[tuple[float, RawRow]] = []
+    back = 0  # rows whose time goes back: skipped, but not counted against the file (a contradicting --fps)
     for t_s, row in zip(times, rows, strict=True):
-        if kept and t_s < kept[-1][0]:
-            where = f"{report.source}: line {row.line}, column {time_column!r}"
-            err = BadRow(f"{where}: {t_s:g} s is earlier than the row before ({kept[-1][0]:g} s)", "time going back")
+        where = f"{report.source}: line {row.line}" + (f", column {time_column!r}" if time_column else "")
+        since_s = t_s - kept[0][0] if kept else 0.0
+        if not (math.isfinite(t_s) and abs(since_s) <= MAX_RECORDING_S):
+            # a time that overflows once in seconds (frames at a tiny fps), or a jump no take makes (1e308)
+            what = f"{t_s:g} s" if not math.isfinite(t_s) else f"{t_s:g} s is {since_s:g} s after the first row"
+            err = BadRow(
+                f"{where}: {what}: expected a finite time within {MAX_RECORDING_S:g} s of the first row",
+                "times that are not finite or more than a day from the first row",
+            )
             tolerance.handle(err)
             continue
+        if kept and t_s < kept[-1][0]:
+            err = BadRow(f"{where}: {t_s:g} s is earlier than the row before ({kept[-1][0]:g} s)", "time going back")
+            tolerance.handle(err)
+            back += 1
+            continue
         kept.append((t_s, row))
+    tolerance.check_share(total, excluding=back)  # again: rows whose time is not finite count too
+    if not kept:
+        raise InputError(f"{report.source}: no usable data rows")
     rest = None
     if opts.rest_s > 0:
         rest = RestPose.from_rows([(t, r.values, r.head_deg, r.gaze_deg) for t, r in kept], opts.rest_s)

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 import re
+import stat
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -24,12 +26,22 @@ _DELIMITERS = {",": "comma", "\t": "tab", ";": "semicolon"}
 _DECIMAL_COMMA = re.compile(r"^\s*-?\d+,\d+\s*$")
 
 
-def read_text(path: Path) -> str:
-    """A text file as str (UTF-8, with or without BOM); InputError naming the file otherwise."""
+MAX_FILE_BYTES = 512 * 1024 * 1024  # a tracker recording larger than this is refused, not read into memory
+
+
+def read_text(path: Path, *, max_bytes: int = MAX_FILE_BYTES, what: str = "a tracker recording") -> str:
+    """A text file as str (UTF-8, with or without BOM); InputError naming the file otherwise. At most
+    ``max_bytes`` are read: a larger file, or a device that never ends (``/dev/zero``), is refused with a
+    message instead of taking every byte of memory."""
     try:
-        data = path.read_bytes()
+        with path.open("rb") as fh:
+            info = os.fstat(fh.fileno())
+            too_big = stat.S_ISREG(info.st_mode) and info.st_size > max_bytes  # known without reading it
+            data = b"" if too_big else fh.read(max_bytes + 1)
     except OSError as err:
         raise InputError(f"{path}: cannot read: {err}") from err
+    if too_big or len(data) > max_bytes:
+        raise InputError(f"{path}: more than {max_bytes / 2**20:g} MiB: expected {what} of at most that size")
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as err:

@@ -119,7 +119,7 @@ def _header(header: str, where: str) -> tuple[str, float, int]:
             raise ValueError(header)
         float(parts[0])
         return " ".join(parts[1:-2]), float(parts[-2]), int(float(parts[-1]))
-    except ValueError as err:
+    except (ValueError, OverflowError) as err:  # OverflowError: a frame count of 1e400 (inf) as an int
         raise InputError(f"{where}: expected '<version> <name> <fps> <n_frames>', got {header[:80]!r}") from err
 
 

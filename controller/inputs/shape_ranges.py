@@ -19,8 +19,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from servoface.controller.inputs.csv_table import read_text
 from servoface.controller.inputs.errors import InputError
 
+MAX_RANGES_BYTES = 1024 * 1024  # a ranges file is a few kB
 MIN_SPAN = 0.01  # a range narrower than this would turn tracker noise into full-scale motion
 
 
@@ -80,9 +82,11 @@ class ShapeRanges:
         """Read a ranges JSON; ``known`` (the blendshape names) makes unknown names an error."""
         file = Path(path)
         try:
-            data = json.loads(file.read_text())
-        except (OSError, ValueError) as err:
-            raise InputError(f"{file}: cannot read shape ranges: {err}") from err
+            data = json.loads(
+                read_text(file, max_bytes=MAX_RANGES_BYTES, what="a shape ranges file")
+            )  # never /dev/zero into memory
+        except (InputError, ValueError, RecursionError) as err:  # RecursionError: JSON nested 10^5 deep
+            raise InputError(f"{file}: cannot read shape ranges: {str(err).removeprefix(f'{file}: ')}") from err
         if not isinstance(data, dict) or data.get("schema_version") != 1 or not isinstance(data.get("ranges"), dict):
             raise InputError(f'{file}: expected {{"schema_version": 1, "ranges": {{shape: [rest, full]}}}}')
         ranges: dict[str, tuple[float, float]] = {}

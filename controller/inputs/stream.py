@@ -345,12 +345,16 @@ class StreamSource:
         return AUFrame(t_s, clean, self.face_type, allowed=self.decoder.validator.allowed)
 
 
+MAX_RECORD_GAP_S = 3600.0  # a later message t further ahead than this continues by arrival time
+
+
 class StreamRecorder:
     """Writes accepted messages as JSON lines (``{"t": ..., "aus": {...}}``): a recording of what the robot
     was asked to do, replayable with ``read_jsonl`` / ``servoface play --input``. ``t`` keeps the messages'
     own times (from the first message's), so a file piped in faster than real time records at its own
-    pace; a message without ``t``, or one whose ``t`` jumps back (a restarted sender), continues by arrival
-    time from the last line written."""
+    pace; a message without ``t``, or one whose ``t`` jumps back (a restarted sender) or more than an hour
+    ahead (a sender's clock reset, or a ``t`` of 1e308 that would make the recording endless or ``Infinity``),
+    continues by arrival time from the last line written: every line is JSON that ``play --input`` reads."""
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
@@ -370,7 +374,7 @@ class StreamRecorder:
             return by_arrival
         if self._origin is not None:
             t = self._origin[1] + (msg.t_s - self._origin[0])
-            if t >= self._last_t:
+            if self._last_t <= t <= self._last_t + MAX_RECORD_GAP_S:  # (not a jump of 1e308 s, nor to inf)
                 return t
         self._origin = (msg.t_s, by_arrival)
         return by_arrival

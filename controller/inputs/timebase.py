@@ -10,6 +10,7 @@ without a time column is timed by row at ``fps`` (the reader's default if None, 
 
 from __future__ import annotations
 
+import math
 import statistics
 from collections.abc import Sequence
 
@@ -73,15 +74,15 @@ def resolve_times(
             elif step is None:
                 chosen, how = "s", "one row"
             else:
-                chosen = next((u for u, k in _SCALE.items() if _plausible(1.0 / (step * k))), "rows")
+                chosen = next((u for u, k in _SCALE.items() if _plausible(_rate(step * k))), "rows")
                 if chosen == "rows":
                     note = (
-                        f"{column} steps by {step:g} between rows ({1.0 / step:g}/s): no unit makes that a "
+                        f"{column} steps by {step:g} between rows ({_rate(step):g}/s): no unit makes that a "
                         f"tracker's frame rate; rows timed at {rate:g} fps instead ({rate_from}; "
                         "--time-unit s|ms|us keeps the column)"
                     )
                 else:
-                    how = f"detected: median step {step:g} = {1.0 / (step * _SCALE[chosen]):.4g} fps"
+                    how = f"detected: median step {step:g} = {_rate(step * _SCALE[chosen]):.4g} fps"
         if chosen == "rows":
             times = [i / rate for i in range(len(raw))]
         elif chosen == "frames":
@@ -93,10 +94,16 @@ def resolve_times(
     if report is not None:
         report.time = note
         steps_s = [b - a for a, b in zip(times, times[1:], strict=False) if b > a]
-        report.fps = round(1.0 / statistics.median(steps_s), 3) if steps_s else None
+        report.fps = round(_rate(statistics.median(steps_s)), 3) if steps_s else None
         if report.fps is not None and "fps" not in report.time:
             report.time += f"; {report.fps:g} fps"
     return times
+
+
+def _rate(step: float) -> float:
+    """Rows per second of a step between rows; a step too small for its reciprocal (a subnormal timestamp
+    difference, or one that underflows to 0 when scaled to seconds) is an infinite rate, not a crash."""
+    return 1.0 / step if step > 0 else math.inf
 
 
 def _plausible(hz: float) -> bool:

@@ -37,6 +37,7 @@ class Tolerance:
     bad_rows: str = "skip"
     slack: float = SLACK
     bad: int = 0
+    first_bad: str = ""  # the first bad row's message (file, line, column or field): named when refusing
 
     def __post_init__(self) -> None:
         if self.bad_rows not in BAD_ROWS:
@@ -60,14 +61,19 @@ class Tolerance:
         if self.bad_rows == "error":
             raise InputError(str(err)) from err
         self.bad += 1
+        self.first_bad = self.first_bad or str(err)
         self.report.skip(err.reason)
 
-    def check_share(self, total_rows: int) -> None:
-        bad = self.bad
+    def check_share(self, total_rows: int, *, excluding: int = 0) -> None:
+        """Refuse the file when more than half its rows are bad (``excluding`` bad rows that do not count:
+        rows whose time goes back, which a frame rate that contradicts the file makes)."""
+        bad = self.bad - excluding
         if total_rows and bad * 2 > total_rows:
             reasons = "; ".join(f"{n} x {r}" for r, n in self.report.skipped.most_common(3))
+            first_bad = self.first_bad.removeprefix(f"{self.report.source}: ")
+            first = f"; the first: {first_bad[:300]}" if first_bad else ""
             raise InputError(
-                f"{self.report.source}: {bad} of {total_rows} rows are unusable ({reasons}); "
+                f"{self.report.source}: {bad} of {total_rows} rows are unusable ({reasons}){first}; "
                 "is this the right file for this reader?"
             )
 

@@ -35,6 +35,28 @@ SLOW_QUEUE = 4  # say commands waiting for synthesis (more are refused: "say ref
 CUE_WINDOW_S = (-0.5, 120.0)  # a cue may start at most this far in the past / future of the node's clock
 
 
+# the keys each command takes (besides the envelope's schema, seq, from, live); any other is refused, naming it
+COMMAND_KEYS: dict[str, tuple[str, ...]] = {
+    "express": ("name", "intensity", "transition_s", "hold_s", "track"),
+    "play": ("name", "track"),
+    "look_at": ("point_mm",),
+    "neutral": ("transition_s",),
+    "stop": ("track",),
+    "clear_estop": (),
+    "say": ("text",),
+    "cue": ("what", "at_s", "cue", "offset_s"),
+}
+
+
+def check_keys(verb: str, body: dict[str, Any]) -> None:
+    """MessageError naming the first key of ``body`` that command ``verb`` does not take."""
+    allowed = COMMAND_KEYS.get(verb, ())
+    for key in body:
+        if key not in allowed:
+            expected = ", ".join(allowed) or "no fields"
+            raise MessageError(f"{verb}.{str(key)[:40]}: unknown key; expected {expected}")
+
+
 def needs_synthesis(verb: str, body: dict[str, Any]) -> bool:
     """Whether a command synthesises speech (``say``, a ``play`` of a shipped script that speaks, or a ``cue``
     whose ``what`` is one of those): those run on the node's slow worker, never on Zenoh's callback thread."""
@@ -241,10 +263,13 @@ class HeadNode:
             self._command(verb, body)
 
     def run_command(self, verb: str, body: dict[str, Any], *, at_s: float | None = None) -> Any:
-        """Apply one command (already opened); raises the service's typed error for a bad value."""
+        """Apply one command (already opened); raises the service's typed error for a bad value, and
+        MessageError for a key the command does not have (a misspelt ``intensty`` must not play at full
+        intensity)."""
         svc = self.service
-        if verb == "estop":
+        if verb == "estop":  # never refused, whatever else it carries
             return svc.estop(str(body.get("reason", "remote e-stop"))[:200])
+        check_keys(verb, body)
         if verb == "clear_estop":
             return svc.clear_estop()
         if verb == "neutral":
@@ -275,6 +300,8 @@ class HeadNode:
             return svc.play(name, track=body.get("track", "face"), at_s=at_s)
         if verb == "look_at":
             point = body.get("point_mm")
+            if point is not None and not isinstance(point, list):
+                raise MessageError(f"look_at.point_mm: expected [x, y, z] in mm or null, got {point!r:.40}")
             return svc.look_at(None if point is None else tuple(point), at_s=at_s)
         if verb == "say":
             return self._say(body, at_s)
@@ -323,7 +350,7 @@ class HeadNode:
             raise MessageError(f"cue: at_s must be a time on this head's clock, got {at!r:.40}")
         now = self.service.now_s()
         if not CUE_WINDOW_S[0] <= at - now <= CUE_WINDOW_S[1]:
-            raise MessageError(f"cue: at_s {at:.3f} is {at - now:+.3f} s from now; expected within {CUE_WINDOW_S}")
+            raise MessageError(f"cue: at_s {at:.10g} is {at - now:+.4g} s from now; expected within {CUE_WINDOW_S}")
         args = {k: v for k, v in what.items() if k != "verb"}
         handle = self.run_command(str(what["verb"]), args, at_s=float(at))
         record = {

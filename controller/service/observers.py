@@ -30,6 +30,7 @@ from servoface.controller.service.errors import ServiceError
 Kind = Literal["frame", "trace", "telemetry", "fault", "playback"]
 KINDS: tuple[Kind, ...] = ("frame", "trace", "telemetry", "fault", "playback")
 _THINNED = frozenset({"frame", "trace", "telemetry"})
+MAX_QUEUE = 1_000_000  # the longest queue a subscription may ask for
 T = TypeVar("T")
 
 
@@ -165,8 +166,8 @@ class ObserverHub:
     def subscribe(self, kind: str, *, rate_hz: float | None = None, maxlen: int = 256) -> Subscription[Any]:
         if kind not in KINDS:
             raise ServiceError(f"subscribe: kind must be one of {list(KINDS)}, got {kind!r}")
-        if isinstance(maxlen, bool) or not isinstance(maxlen, int) or not 1 <= maxlen <= 1_000_000:
-            raise ServiceError(f"subscribe: maxlen must be an integer 1..1000000, got {maxlen!r}")
+        if isinstance(maxlen, bool) or not isinstance(maxlen, int) or not 1 <= maxlen <= MAX_QUEUE:
+            raise ServiceError(f"subscribe: maxlen must be an integer 1..{MAX_QUEUE}, got {maxlen!r}")
         if rate_hz is not None and (
             isinstance(rate_hz, bool) or not isinstance(rate_hz, int | float) or not 0 < rate_hz <= 10_000
         ):
