@@ -26,7 +26,7 @@ import math
 import signal
 import threading
 from collections import deque
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from types import TracebackType
@@ -122,21 +122,46 @@ class _Interrupt:
             signal.signal(signal.SIGINT, previous)
 
 
-def _stats_of(traces: list[FrameTrace], rate_hz: float, missed: int, overruns: int) -> LoopStats:
-    """Loop statistics of one call, from its frames (the service's loop runs on between calls)."""
-    stats = LoopStats(rate_hz)
-    period = 1.0 / rate_hz
-    for trace in traces:
-        stats.lateness_s.add(trace.late_s)
-        stats.recent_lateness_s.append(trace.late_s)
-        stats.callback_s.add(trace.timings_ms.get("total_ms", 0.0) / 1e3)
-        if trace.late_s > period / 4:
-            stats.late += 1
-    stats.frames = len(traces)
-    stats.missed, stats.overruns = max(0, missed), max(0, overruns)
-    if traces:
-        stats.elapsed_s = traces[-1].t_s - traces[0].t_s + period
-    return stats
+class _CallFrames:
+    """The frames of one call, taken as they arrive: timed from the call's start (as the timeline it plays
+    sees them: service time - start), the newest kept (`TraceRing`, and the face's own ring and trace file)
+    and the loop statistics counted over every one. A call of hours holds a ring, not hours of frames (a
+    frame trace is ~4 KB: ~0.75 GB an hour at 50 Hz when they were all kept until the call ended)."""
+
+    def __init__(self, rate_hz: float, face_ring: TraceRing) -> None:
+        self.ring = TraceRing()
+        self.face_ring = face_ring
+        self.stats = LoopStats(rate_hz)
+        self.period_s = 1.0 / rate_hz
+        self.first_t_s: float | None = None
+        self.last_t_s = 0.0
+
+    def take(self, traces: Iterable[FrameTrace], started_s: float) -> None:
+        """Add the frames of the call (those from ``started_s`` on, service time)."""
+        stats = self.stats
+        for trace in traces:
+            if trace.t_s < started_s - 1e-9:
+                continue
+            trace = dataclasses.replace(trace, t_s=trace.t_s - started_s)
+            stats.lateness_s.add(trace.late_s)
+            stats.recent_lateness_s.append(trace.late_s)
+            stats.callback_s.add(trace.timings_ms.get("total_ms", 0.0) / 1e3)
+            if trace.late_s > self.period_s / 4:
+                stats.late += 1
+            stats.frames += 1
+            if self.first_t_s is None:
+                self.first_t_s = trace.t_s
+            self.last_t_s = trace.t_s
+            self.ring.append(trace)
+            self.face_ring.append(trace)
+
+    def finish(self, missed: int, overruns: int) -> LoopStats:
+        """The call's loop statistics (``missed`` / ``overruns``: the loop's counts over the call)."""
+        stats = self.stats
+        stats.missed, stats.overruns = max(0, missed), max(0, overruns)
+        if self.first_t_s is not None:
+            stats.elapsed_s = self.last_t_s - self.first_t_s + self.period_s
+        return stats
 
 
 def _has_say_cues(script: Script) -> bool:
@@ -257,17 +282,19 @@ class Face:
         the servos to settle; the call's frames and stats. Ctrl-C stops what plays on ``track`` where it is."""
         svc = self.service
         rate = svc.rate_hz
-        # a call longer than the queue's cap (~5.5 h at 50 Hz: a day-long script or take) keeps its newest frames
+        # drained every 0.1 s below; sized for the whole call all the same (up to the cap) should the wait stall
         expected = (duration_s + SETTLE_MAX_S) * rate + 200
         sub = svc.subscribe("trace", maxlen=int(min(max(expected, 1000), MAX_QUEUE)))
         stats0 = svc.loop_stats
         missed0, overruns0 = stats0.missed, stats0.overruns
         interrupt = _Interrupt()
+        frames = _CallFrames(rate, self.traces)
         try:
             with interrupt.armed():
                 handle = submit(svc)  # a bad command raises here; nothing was queued
                 while not handle.wait(0.1).final and not interrupt.is_set():
-                    pass
+                    if handle.started_s is not None:  # the frames so far leave the queue (its memory)
+                        frames.take(sub.drain(), handle.started_s)
                 if interrupt.by_signals:  # the loop stops by itself (and goes down the stop path)
                     handle.wait(5.0)
                 elif interrupt.is_set() and not handle.done():
@@ -278,20 +305,18 @@ class Face:
                     svc.wait_settled(-1 if last is None else last.index - 1, timeout_s=SETTLE_MAX_S)
         finally:
             sub.close()
+        started = handle.started_s if handle.started_s is not None else float("inf")
+        frames.take(sub.drain(), started)  # the rest of the call's frames (in the trace file, as the wire saw)
         if handle.status is Status.FAILED:
             raise handle.error if handle.error is not None else ControllerError(handle.detail)
         if svc.error is not None:
             raise svc.error
-        started = handle.started_s if handle.started_s is not None else float("inf")
-        # the call's frames, timed from its start (as the timeline it played sees them; service time - start)
-        traces = [dataclasses.replace(t, t_s=t.t_s - started) for t in sub.drain() if t.t_s >= started - 1e-9]
         stats1 = svc.loop_stats
         missed = stats1.missed - missed0 if stats1 is stats0 else stats1.missed
         overruns = stats1.overruns - overruns0 if stats1 is stats0 else stats1.overruns
-        perf = Performance(TraceRing(traces), _stats_of(traces, rate, missed, overruns), rate, interrupt.is_set())
-        self.traces.extend(traces)
+        perf = Performance(frames.ring, frames.finish(missed, overruns), rate, interrupt.is_set())
         self.t_s += duration_s
-        if traces:  # the face track's pose (other front ends' tracks, e.g. a gaze, are theirs)
+        if frames.ring:  # the face track's pose (other front ends' tracks, e.g. a gaze, are theirs)
             mine = svc.status().tracks[TRACK].aus
             self.pose = {au: v for au, v in mine.items() if abs(v) > 1e-12}
         return perf
