@@ -124,11 +124,11 @@ class _Interrupt:
 
 class _CallFrames:
     """The frames of one call, taken as they arrive: timed from the call's start (as the timeline it plays
-    sees them: service time - start), the newest kept (`TraceRing`, and the face's own ring and trace file)
+    sees them: service time - start), the newest kept (`TraceRing`, and the face's own history `Face.traces`)
     and the loop statistics counted over every one. A call of hours holds a ring, not hours of frames (a
     frame trace is ~4 KB: ~0.75 GB an hour at 50 Hz when they were all kept until the call ended)."""
 
-    def __init__(self, rate_hz: float, face_ring: TraceRing) -> None:
+    def __init__(self, rate_hz: float, face_ring: deque[FrameTrace]) -> None:
         self.ring = TraceRing()
         self.face_ring = face_ring
         self.stats = LoopStats(rate_hz)
@@ -306,7 +306,7 @@ class Face:
         finally:
             sub.close()
         started = handle.started_s if handle.started_s is not None else float("inf")
-        frames.take(sub.drain(), started)  # the rest of the call's frames (in the trace file, as the wire saw)
+        frames.take(sub.drain(), started)  # the rest of the call's frames (a failed call's too: they went on the wire)
         if handle.status is Status.FAILED:
             raise handle.error if handle.error is not None else ControllerError(handle.detail)
         if svc.error is not None:
