@@ -36,6 +36,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from servoface.calibration.boundedfile import read_bounded
 from servoface.calibration.curves import (
     TICKS_PER_TURN,
     Curve,
@@ -319,10 +320,11 @@ def calibration_to_dict(cal: HeadCalibration) -> dict[str, Any]:
 
 
 def load_calibration(path: str | os.PathLike[str]) -> HeadCalibration:
-    """Read and validate a calibration file."""
+    """Read and validate a calibration file (a regular file of at most 16 MiB, see :mod:`.boundedfile`)."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        raw = read_bounded(p, lambda reason: CalibrationFileError(str(p), "", reason), what="a calibration file")
+        text = raw.decode("utf-8")
     except OSError as err:
         raise CalibrationFileError(str(p), "", f"cannot read the calibration file ({err.strerror})") from err
     except UnicodeDecodeError as err:

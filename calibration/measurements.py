@@ -15,6 +15,7 @@ from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 
+from servoface.calibration.boundedfile import read_bounded
 from servoface.calibration.errors import MeasurementCsvError
 from servoface.calibration.servo import MAX_POSITION_TICK, MIN_POSITION_TICK
 
@@ -111,7 +112,7 @@ def read_measurements_csv(
     p = Path(path)
     name = str(p)
     try:
-        raw = p.read_bytes()
+        raw = read_bounded(p, lambda reason: MeasurementCsvError(name, 0, reason), what="a measurement CSV")
     except OSError as err:
         raise MeasurementCsvError(name, 0, f"cannot read the measurement file ({err.strerror})") from err
     text = _decode(name, raw)

@@ -61,7 +61,7 @@ from servoface.controller.timeline import (
     recipe_events,
     sequence,
 )
-from servoface.controller.timeline.library import library_clip
+from servoface.controller.timeline.library import library_clip, load_expressions
 from servoface.sim.rig import FaceType
 
 SCRIPTS_DIR = Path(__file__).resolve().parent / "scripts"
@@ -114,7 +114,7 @@ def load_script(path: str | Path, *, allowed: frozenset[str] | None = None) -> S
 
     p = resolve_script(path)
     try:
-        text = read_utf8(p, ScriptError)
+        text = read_utf8(p, ScriptError, what="a script file")
     except OSError as err:
         hint = ""
         if isinstance(path, str) and "/" not in path and not p.exists():  # a name: perhaps a shipped one misspelt
@@ -452,8 +452,24 @@ class _Builder:
     def clip_ref(self, name: Any, path: str) -> Clip:
         if not isinstance(name, str) or name not in self.clips:
             known = ", ".join(sorted(self.clips)) or "none defined"
-            self.r.fail(path, f"unknown expression {shown(name)}; expected one of: {known}")
+            self.r.fail(
+                path, f"unknown expression {shown(name)}; expected one of: {known}{self.library_hint(name, path)}"
+            )
         return self.clips[name]
+
+    def library_hint(self, name: Any, path: str) -> str:
+        """For a name that is not the script's own but an expression of the face's library: how to play it."""
+        try:
+            in_library = isinstance(name, str) and name in load_expressions(self.face)
+        except TimelineError:
+            return ""
+        if not in_library:
+            return ""
+        if path.endswith(".expression"):
+            how = f"write library = {name!r} instead of expression = {name!r}"
+        else:
+            how = f"define it first: [expressions.{name}] library = {name!r}"
+        return f" ({name!r} is in the {self.face} expression library: {how})"
 
     def gaze(self, entries: list[Any], setup: Mapping[str, Any]) -> None:
         self.gaze_end_s = 0.0

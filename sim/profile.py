@@ -150,7 +150,7 @@ def load_profile(path: Path) -> Head:
     if not file.is_file():
         raise HeadProfileError(f"{file}: expected a head profile file (head.toml), none found")
     try:
-        data = tomllib.loads(read_utf8(file, HeadProfileError))
+        data = tomllib.loads(read_utf8(file, HeadProfileError, what="a head profile"))
     except tomllib.TOMLDecodeError as err:
         raise HeadProfileError(f"{file}: not valid TOML: {err}") from err
     except RecursionError as err:

@@ -83,9 +83,13 @@ class TranscriptFileError(Exception):
 def _read_transcript(path: Path) -> str:
     """The text of ``--transcript FILE``; a path that is not there but reads like words is pointed at --text."""
     from servoface.controller.cli import describe_os_error
+    from servoface.sim.textfile import read_bounded
 
-    try:
-        return path.read_text(encoding="utf-8")
+    def refuse(reason: str) -> TranscriptFileError:
+        return TranscriptFileError(f"--transcript {str(path)!r}: {reason}")
+
+    try:  # a stream is welcome (`--transcript <(...)`), up to the limit: /dev/zero is refused, not read for ever
+        return read_bounded(path, refuse, what="a transcript", allow_stream=True).decode("utf-8")
     except UnicodeDecodeError as err:
         why = f"{err.reason} at byte {err.start}"
         raise TranscriptFileError(f"--transcript {str(path)!r}: not UTF-8 text ({why})") from err

@@ -185,8 +185,11 @@ def _builtin() -> BlendshapeMap:
 
 
 def _load(path: Path, allowed: frozenset[str] | None) -> BlendshapeMap:
+    from servoface.sim.textfile import read_utf8
+
     try:
-        data = tomllib.loads(path.read_text())
+        text = read_utf8(path, InputError, what="a blendshape table")
+        data = tomllib.loads(text)
     except (OSError, tomllib.TOMLDecodeError) as err:
         raise InputError(f"{path}: cannot read the blendshape table: {err}") from err
     if data.get("schema_version") != 1:

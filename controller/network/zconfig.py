@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import ipaddress
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -137,12 +137,26 @@ def session_config(
     return conf
 
 
+def _refusal(where: str) -> Callable[[str], NetworkError]:
+    """The error for a file the bounded reader refuses: ``NetworkError("WHERE: reason")``."""
+    return lambda reason: NetworkError(f"{where}: {reason}")
+
+
 def check_users_file(path: Path) -> None:
-    """A users file (``--users-file``) Zenoh can read: UTF-8 text of ``user:password`` lines, at least one
-    (Zenoh's own refusal of a bad one is a Rust backtrace naming no line)."""
+    """A users file (``--users-file``) Zenoh can read: a regular file of at most 1 MiB, UTF-8 text of
+    ``user:password`` lines, at least one (Zenoh's own refusal of a bad one is a Rust backtrace naming no
+    line; a FIFO would be drained by this check before Zenoh reads it)."""
+    from servoface.sim.textfile import SMALL_LIMIT_BYTES, read_bounded
+
     expected = "expected lines 'user:password'"
     try:
-        text = path.read_text(encoding="utf-8")
+        raw = read_bounded(
+            path,
+            _refusal(f"users file {path}"),
+            what="a users file",
+            limit_bytes=SMALL_LIMIT_BYTES,
+        )
+        text = raw.decode("utf-8")
     except FileNotFoundError:
         raise NetworkError(f"users file {path}: not found ({expected})") from None
     except UnicodeDecodeError as err:
@@ -171,8 +185,11 @@ _PEM = {
 def check_tls_files(listen: Sequence[str], connect: Sequence[str], tls: TlsFiles) -> None:
     """TLS files that are given are used and usable: some endpoint is ``tls/`` or ``quic/`` (else the files
     would be silently ignored on a plain ``tcp/`` link, and whoever passed them would believe the link
-    encrypted), and each is a readable PEM file of its kind (a certificate, a private key). The files' own
-    validity (chain, expiry, key match) is Zenoh's to judge when it listens or connects."""
+    encrypted), and each is a readable PEM file of its kind (a certificate, a private key), a regular file of
+    at most 1 MiB. The files' own validity (chain, expiry, key match) is Zenoh's to judge when it listens or
+    connects."""
+    from servoface.sim.textfile import SMALL_LIMIT_BYTES, read_bounded
+
     given = {name: getattr(tls, name) for name in _PEM if getattr(tls, name) is not None}
     if not given:
         return
@@ -186,7 +203,9 @@ def check_tls_files(listen: Sequence[str], connect: Sequence[str], tls: TlsFiles
     for name, path in given.items():
         flag, kind = _PEM[name]
         try:
-            data = Path(path).read_bytes()
+            data = read_bounded(
+                path, _refusal(f"{flag} {path}"), what=f"a PEM {kind.lower()} file", limit_bytes=SMALL_LIMIT_BYTES
+            )
         except FileNotFoundError:
             raise NetworkError(f"{flag} {path}: not found (expected a PEM file)") from None
         except OSError as err:

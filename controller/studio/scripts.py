@@ -21,6 +21,7 @@ from typing import Any
 from servoface.controller.errors import ControllerError, ScriptError
 from servoface.controller.script import Script, parse_script
 from servoface.controller.studio.errors import InvalidValueError, NotFoundError
+from servoface.sim.textfile import read_bounded
 
 NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]{0,95}\.toml$")
 STEM_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]{0,95}$")  # a name to read: the .toml may be left off
@@ -169,8 +170,12 @@ class ScriptFolder:
 
     def load(self, name: str) -> dict[str, Any]:
         p = self.path_of(name)
+
+        def refuse(reason: str) -> InvalidValueError:
+            return InvalidValueError(f"name: cannot read {p.name}: {reason}", field="name")
+
         try:
-            text = p.read_text(encoding="utf-8")
+            text = read_bounded(p, refuse, what="a script file").decode("utf-8")
         except (OSError, UnicodeDecodeError) as err:
             raise InvalidValueError(f"name: cannot read {p.name}: {err}", field="name") from err
         document = toml_to_document(text, source=p.name)

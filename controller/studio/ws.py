@@ -11,6 +11,7 @@ import json
 import struct
 from typing import Any
 
+from servoface.controller.script_fields import shown
 from servoface.controller.studio import models as m
 from servoface.controller.studio.errors import BadJsonError, InvalidValueError, StudioError, TooLargeError
 from servoface.controller.studio.render import TwinImage
@@ -62,6 +63,25 @@ class _Client:
         self.wake.set()
 
 
+MAX_ID_CHARS = 128
+MAX_ID_INT = 2**53  # beyond it a JavaScript number no longer holds the integer exactly
+
+
+def _id_problem(msg_id: Any) -> str | None:
+    """Why a message's ``id`` cannot be echoed back (None: it can): a string of at most ``MAX_ID_CHARS``
+    characters or an integer within ±2^53 is kept as given; anything else is refused, not echoed."""
+    if msg_id is None:
+        return None
+    expected = f"expected a string of at most {MAX_ID_CHARS} characters or an integer within ±2^53"
+    if isinstance(msg_id, str):
+        return None if len(msg_id) <= MAX_ID_CHARS else f"id: {expected}, got a string of {len(msg_id)} characters"
+    if isinstance(msg_id, int) and not isinstance(msg_id, bool):
+        if -MAX_ID_INT <= msg_id <= MAX_ID_INT:
+            return None
+        return f"id: {expected}, got an integer of {len(str(abs(msg_id)))} digits"
+    return f"id: {expected}, got {type(msg_id).__name__} {shown(msg_id)}"
+
+
 def _error_message(err: StudioError, msg_id: Any) -> dict[str, Any]:
     return {"type": "error", "id": msg_id, **err.body()}
 
@@ -101,9 +121,10 @@ async def serve_socket(studio: Studio, websocket: Any, limiter: RateLimiter | No
                 if not isinstance(data, dict):
                     raise BadJsonError("message: expected a JSON object with a 'type'")
                 msg_id = data.pop("id", None)
-                if msg_id is not None and (isinstance(msg_id, bool) or not isinstance(msg_id, int)):
-                    bad, msg_id = msg_id, None
-                    raise InvalidValueError(f"id: expected an integer, got {bad!r}", field="id")
+                problem = _id_problem(msg_id)
+                if problem is not None:
+                    msg_id = None  # never echoed: the error reply carries "id": null
+                    raise InvalidValueError(problem, field="id")
                 result = await _dispatch(studio, client, data, run_in_threadpool)
                 if msg_id is not None:
                     client._put({"type": "reply", "id": msg_id, "result": result})

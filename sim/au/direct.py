@@ -88,7 +88,7 @@ def load_direct_table(path: str | Path) -> DirectTable:
     """Load and validate a direct table; errors (HeadProfileError) name the file and key path."""
     path = Path(path)
     try:
-        text = read_utf8(path, HeadProfileError)
+        text = read_utf8(path, HeadProfileError, what="a direct AU table")
     except FileNotFoundError as err:
         raise HeadProfileError(f"{path}: direct AU table not found") from err
     try:

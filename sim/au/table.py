@@ -165,7 +165,7 @@ def load_au_table(face_type_or_path: str | Path) -> AUTable:
     """Load and validate an AU table; errors (HeadProfileError) name the file and key path."""
     path = au_table_path(face_type_or_path)
     try:
-        text = read_utf8(path, HeadProfileError)
+        text = read_utf8(path, HeadProfileError, what="an AU table")
     except FileNotFoundError as err:
         raise HeadProfileError(f"{path}: AU table not found (built-in tables: {list(FACE_TYPES)})") from err
     try:

@@ -110,7 +110,7 @@ def load_library(face_type_or_path: str | Path, au_table: AUTable | None = None)
     """
     path = library_path(face_type_or_path)
     try:
-        text = read_utf8(path, ExpressionError)
+        text = read_utf8(path, ExpressionError, what="an expression library")
     except FileNotFoundError as err:
         raise ExpressionError(f"{path}: expression library not found (built-in: {list(FACE_TYPES)})") from err
     try:

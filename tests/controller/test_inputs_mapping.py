@@ -222,3 +222,14 @@ def test_shape_ranges_are_written_atomically(tmp_path: Path, monkeypatch: pytest
     assert path.read_text() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ranges.json"]
     assert ShapeRanges.load(path).ranges == {"eyeWideLeft": (0.0, 0.06)}
+
+
+def test_an_own_blendshape_table_that_is_a_folder_or_too_large_is_refused(tmp_path: Path) -> None:
+    """Before: ``load_blendshape_map(path)`` read any file whole, however large; a folder was an OSError."""
+    big = tmp_path / "shapes.toml"
+    with big.open("wb") as fh:
+        fh.truncate(16 * 2**20 + 1)
+    with pytest.raises(InputError, match=r"shapes\.toml: 16777217 bytes; a blendshape table is at most 16 MiB"):
+        load_blendshape_map(big)
+    with pytest.raises(InputError, match=r"a directory, not a regular file; expected a blendshape table"):
+        load_blendshape_map(tmp_path)

@@ -7,9 +7,13 @@ a crash after torque-on, a recording written with ``Infinity``, a 512 MiB+ devic
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
+import threading
+import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -201,3 +205,218 @@ def test_a_call_longer_than_the_subscription_cap_runs() -> None:
         move = lambda svc: svc.set_aus({"AU12": 0.3}, track="face", transition_s=0.2)  # noqa: E731
         perf = face._perform(move, 30_000.0)  # noqa: SLF001 - the seam every long play and take goes through
         assert perf.traces and perf.traces[-1].aus.get("AU12") == pytest.approx(0.3)  # it ran, frames kept
+
+
+# --- user-named files read whole: a device, a FIFO, a directory or a huge file is refused unread -------------
+
+LIMIT = 16 * 2**20  # TEXT_LIMIT_BYTES: scripts, profiles, tables, libraries, calibration JSON, CSV, transcripts
+
+
+def _sparse(path: Path, size: int) -> Path:
+    """A file of ``size`` bytes that takes no disk (its length declared, no blocks written)."""
+    with path.open("wb") as fh:
+        fh.truncate(size)
+    return path
+
+
+@contextmanager
+def _fifo(path: Path) -> Iterator[Path]:
+    """A FIFO nobody writes to. The old code blocked opening it for ever: after 5 s a writer comes and goes,
+    so a reader that waited sees an empty file (a failed assertion) instead of hanging the test run."""
+    os.mkfifo(path)
+    done = threading.Event()
+
+    def writer() -> None:
+        if done.wait(5.0):
+            return
+        while not done.is_set():
+            try:
+                os.close(os.open(path, os.O_WRONLY | os.O_NONBLOCK))
+            except OSError:  # ENXIO: no reader (yet)
+                time.sleep(0.05)
+
+    thread = threading.Thread(target=writer, daemon=True)
+    thread.start()
+    try:
+        yield path
+    finally:
+        done.set()
+        thread.join()
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo") or not Path("/dev/zero").exists(), reason="POSIX devices and FIFOs")
+def test_play_refuses_a_script_that_is_a_device_a_fifo_a_folder_or_too_large(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], tripwire: list[str]
+) -> None:
+    """Before: `play zero.toml` (a symlink to /dev/zero) read until memory ran out, a FIFO hung for ever, a
+    3 GiB file was read whole; a folder named x.toml was an OSError."""
+    zero = tmp_path / "zero.toml"
+    zero.symlink_to("/dev/zero")
+    folder = tmp_path / "folder.toml"
+    folder.mkdir()
+    huge = _sparse(tmp_path / "huge.toml", 3 * 2**30)
+    over = _sparse(tmp_path / "over.toml", LIMIT + 1)
+    with _fifo(tmp_path / "fifo.toml") as fifo:
+        expected = [
+            (zero, "a device, not a regular file; expected a script file"),
+            (folder, "a directory, not a regular file; expected a script file"),
+            (fifo, "a pipe (FIFO), not a regular file; expected a script file"),
+            (huge, "3 GiB; a script file is at most 16 MiB"),
+            (over, f"{LIMIT + 1} bytes; a script file is at most 16 MiB"),
+        ]
+        for path, message in expected:
+            err = _refused(["play", str(path), "--head", "human", "--emulate"], capsys, tripwire)
+            assert f"{path}: {message}" in err, err
+            assert err.count("\n") == 1, err
+
+
+def test_a_head_profile_or_its_expression_library_over_the_limit_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], tripwire: list[str]
+) -> None:
+    """Before: head.toml and the library it names were read whole, however large."""
+    from tests.integration import own_heads as oh
+
+    folder = tmp_path / "big_head"
+    folder.mkdir()
+    _sparse(folder / "head.toml", LIMIT + 1)
+    err = _refused(["play", "happiness", "--head", str(folder), "--emulate"], capsys, tripwire)
+    assert f"head.toml: {LIMIT + 1} bytes; a head profile is at most 16 MiB" in err, err
+
+    head = oh.write_mechanical(tmp_path / "mech")
+    text = (head / "head.toml").read_text()
+    (head / "head.toml").write_text(
+        text.replace('au_direct = "direct.toml"', 'au_direct = "direct.toml"\nexpressions = "lib.toml"')
+    )
+    _sparse(head / "lib.toml", 2 * 2**30)
+    err = _refused(["play", "happiness", "--head", str(head), "--emulate"], capsys, tripwire)
+    assert f"{head / 'lib.toml'}: 2 GiB; an expression library is at most 16 MiB" in err, err
+
+
+@pytest.mark.parametrize(("key", "what"), [("au_table", "an AU table"), ("au_direct", "a direct AU table")])
+def test_check_refuses_an_own_au_table_over_the_limit(
+    key: str, what: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: an own AU table or direct table was read whole, however large (`check` reads both)."""
+    from tests.integration import own_heads as oh
+
+    head = oh.write_mechanical(tmp_path / "mech")
+    text = (head / "head.toml").read_text()
+    if key == "au_table":
+        text = text.replace('au_direct = "direct.toml"', 'au_direct = "direct.toml"\nau_table = "big.toml"')
+    else:
+        text = text.replace('au_direct = "direct.toml"', 'au_direct = "big.toml"')
+    (head / "head.toml").write_text(text)
+    _sparse(head / "big.toml", LIMIT + 1)
+    status = main(["check", str(head)])
+    out, err = capsys.readouterr()
+    assert "Traceback" not in out + err and status in (1, 2), (status, out, err)
+    assert f"big.toml: {LIMIT + 1} bytes; {what} is at most 16 MiB" in out + err, out + err
+
+
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero (a POSIX system)")
+def test_a_calibration_or_measurement_file_that_never_ends_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: `--calibration /dev/zero` and `calibrate --csv /dev/zero` read until memory ran out."""
+    for argv, message in [
+        (["play", "happiness", "--head", "human", "--emulate", "--calibration", "/dev/zero"], "/dev/zero: a device"),
+        (
+            [
+                "play",
+                "happiness",
+                "--head",
+                "human",
+                "--emulate",
+                "--calibration",
+                str(_sparse(tmp_path / "c.json", LIMIT + 1)),
+            ],
+            f"c.json: {LIMIT + 1} bytes; a calibration file is at most 16 MiB",
+        ),
+        (
+            ["calibrate", "--head", "human", "--csv", "/dev/zero", "--out", str(tmp_path / "cal.json")],
+            "/dev/zero: a device",
+        ),
+        (
+            [
+                "calibrate",
+                "--head",
+                "human",
+                "--csv",
+                str(_sparse(tmp_path / "m.csv", 2**30)),
+                "--out",
+                str(tmp_path / "cal.json"),
+            ],
+            "m.csv: 1 GiB; a measurement CSV is at most 16 MiB",
+        ),
+    ]:
+        status = main(argv)
+        out, err = capsys.readouterr()
+        assert status == 2 and "Traceback" not in out + err, (status, out, err)
+        assert message in err, err
+    assert not (tmp_path / "cal.json").exists()
+
+
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero (a POSIX system)")
+def test_lipsync_refuses_a_transcript_that_never_ends_or_is_a_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: `lipsync --transcript /dev/zero` read until memory ran out. A stream is still taken
+    (`--transcript <(...)`), up to 16 MiB."""
+    base = ["lipsync", str(tmp_path / "speech.wav"), "--head", "human", "--out", str(tmp_path / "out")]
+    for path, message in [
+        ("/dev/zero", "--transcript '/dev/zero': more than 16 MiB and not at its end; a transcript is at most 16 MiB"),
+        (str(tmp_path), f"--transcript {str(tmp_path)!r}: a directory, not a regular file; expected a transcript"),
+    ]:
+        status = main([*base, "--transcript", path])
+        out, err = capsys.readouterr()
+        assert status == 2 and "Traceback" not in out + err, (status, out, err)
+        assert message in err, err
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo") or not Path("/dev/zero").exists(), reason="POSIX devices and FIFOs")
+def test_node_refuses_a_users_file_or_tls_file_that_is_a_device_a_fifo_or_too_large(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], tripwire: list[str]
+) -> None:
+    """Before: `node --users-file /dev/zero` read until memory ran out and a FIFO hung the node before it
+    listened; a TLS file of any size was read whole."""
+    users = tmp_path / "users.txt"
+    users.write_text("alice:pw\n")
+    big = _sparse(tmp_path / "big.pem", 2 * 2**20)
+    base = ["node", "--name", "t1", "--emulate", "--duration", "1"]
+    tls = ["--listen", "tls/127.0.0.1:7447", "--users-file", str(users), "--tls-cert", str(big), "--tls-key", str(big)]
+    with _fifo(tmp_path / "fifo.pem") as fifo:
+        for argv, message in [
+            (
+                [*base, "--users-file", "/dev/zero"],
+                "users file /dev/zero: a device, not a regular file; expected a users file",
+            ),
+            ([*base, "--users-file", str(big)], f"users file {big}: 2 MiB; a users file is at most 1 MiB"),
+            (
+                [*base, *tls, "--tls-ca", str(fifo)],
+                f"--tls-ca {fifo}: a pipe (FIFO), not a regular file; expected a PEM certificate file",
+            ),
+            ([*base, *tls, "--tls-ca", str(big)], f"--tls-ca {big}: 2 MiB; a PEM certificate file is at most 1 MiB"),
+        ]:
+            err = _refused(argv, capsys, tripwire)
+            assert message in err, err
+
+
+def test_a_script_naming_a_library_expression_says_how_to_play_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], tripwire: list[str]
+) -> None:
+    """Before: `expression = "happiness"` in a script with no expressions said only `expected one of: none
+    defined`, though happiness is a library expression, played with `library = "happiness"`."""
+    head = "[script]\nface = 'human'\n[[play]]\nat_s = 0\n"
+    for name, body, hint in [
+        ("expr.toml", "expression = 'happiness'\n", "write library = 'happiness' instead of expression = 'happiness'"),
+        ("seq.toml", "sequence = ['happiness']\n", "define it first: [expressions.happiness] library = 'happiness'"),
+    ]:
+        path = tmp_path / name
+        path.write_text(head + body)
+        err = _refused(["play", str(path), "--head", "human", "--emulate"], capsys, tripwire)
+        assert "unknown expression 'happiness'; expected one of: none defined" in err, err
+        assert f"('happiness' is in the human expression library: {hint})" in err, err
+    path = tmp_path / "typo.toml"
+    path.write_text(head + "expression = 'smirk'\n")
+    err = _refused(["play", str(path), "--head", "human", "--emulate"], capsys, tripwire)
+    assert err.rstrip().endswith("expected one of: none defined"), err

@@ -307,6 +307,50 @@ def test_script_errors_name_the_key_path_and_write_nothing(studio: StudioRig, tm
         assert studio.client.put(f"/api/scripts/{name}", json={"document": SMILE}).status_code in (404, 422)
 
 
+def test_a_script_file_over_the_limit_is_refused_unread(studio: StudioRig, tmp_path: Path) -> None:
+    """Before: a script of the scripts folder was read whole, however large, and sent back in the answer."""
+    with (tmp_path / "huge.toml").open("wb") as fh:
+        fh.truncate(16 * 2**20 + 1)  # declared, no blocks written
+    r = studio.client.get("/api/scripts/huge.toml")
+    assert r.status_code == 422, r.text
+    error = r.json()["error"]
+    assert error["field"] == "name", error
+    assert error["message"] == f"name: cannot read huge.toml: {16 * 2**20 + 1} bytes; a script file is at most 16 MiB"
+
+
+def _answer(ws: Any, message: dict[str, Any]) -> dict[str, Any]:
+    """The reply or error to ``message`` (messages are answered in order; pushes in between are skipped)."""
+    ws.send(json.dumps(message))
+    while True:
+        raw = ws.recv(timeout=20)
+        if isinstance(raw, str) and (data := json.loads(raw))["type"] in ("reply", "error"):
+            return dict(data)
+
+
+def test_websocket_id_is_a_short_string_or_a_safe_integer_never_echoed_otherwise(studio_shared: StudioRig) -> None:
+    """Before: a 400-digit integer id was echoed back as given (no JavaScript number holds it), a string id
+    (what browser clients often use) was refused."""
+    with studio_shared.connect() as ws:
+        ws.send(json.dumps({"type": "subscribe", "twin": False, "frames": False, "telemetry": False}))
+        for good in ("a1b2-c3", "x" * 128, 2**53, -(2**53), 0):
+            answer = _answer(ws, {"type": "ping", "id": good})
+            assert answer["type"] == "reply" and answer["id"] == good, answer
+        for bad, got in [
+            (10**400, "an integer of 401 digits"),
+            (2**53 + 1, "an integer of 16 digits"),
+            ("x" * 129, "a string of 129 characters"),
+            (1.5, "float 1.5"),
+            ([7], "list [7]"),
+        ]:
+            answer = _answer(ws, {"type": "ping", "id": bad})
+            assert answer["type"] == "error" and answer["id"] is None, answer
+            assert answer["error"]["field"] == "id" and answer["error"]["status"] == 422, answer
+            assert answer["error"]["message"] == (
+                f"id: expected a string of at most 128 characters or an integer within ±2^53, got {got}"
+            ), answer
+        assert _answer(ws, {"type": "ping", "id": 5})["type"] == "reply"  # the socket stays open
+
+
 def test_shipped_scripts_load_and_play_by_their_bare_name(studio: StudioRig, tmp_path: Path) -> None:
     from servoface.controller.shipped import shipped_scripts
 
