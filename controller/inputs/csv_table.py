@@ -12,12 +12,11 @@ from __future__ import annotations
 
 import csv
 import math
-import os
 import re
-import stat
 from collections.abc import Iterator
 from pathlib import Path
 
+from servoface.calibration.boundedfile import read_bounded
 from servoface.controller.inputs.errors import InputError
 from servoface.controller.inputs.report import InputReport
 from servoface.controller.inputs.tolerance import BadRow, Tolerance, parse_number
@@ -30,18 +29,16 @@ MAX_FILE_BYTES = 512 * 1024 * 1024  # a tracker recording larger than this is re
 
 
 def read_text(path: Path, *, max_bytes: int = MAX_FILE_BYTES, what: str = "a tracker recording") -> str:
-    """A text file as str (UTF-8, with or without BOM); InputError naming the file otherwise. At most
-    ``max_bytes`` are read: a larger file, or a device that never ends (``/dev/zero``), is refused with a
-    message instead of taking every byte of memory."""
+    """A text file as str (UTF-8, with or without BOM); InputError naming the file otherwise. Read through
+    `read_bounded` (streams allowed: ``--input /dev/stdin`` or a pipe works; a directory does not): at most
+    ``max_bytes``, so a larger file is refused unread and a device that never ends (``/dev/zero``) after
+    ``max_bytes``, instead of taking every byte of memory."""
     try:
-        with path.open("rb") as fh:
-            info = os.fstat(fh.fileno())
-            too_big = stat.S_ISREG(info.st_mode) and info.st_size > max_bytes  # known without reading it
-            data = b"" if too_big else fh.read(max_bytes + 1)
+        data = read_bounded(
+            path, lambda reason: InputError(f"{path}: {reason}"), what=what, limit_bytes=max_bytes, allow_stream=True
+        )
     except OSError as err:
         raise InputError(f"{path}: cannot read: {err}") from err
-    if too_big or len(data) > max_bytes:
-        raise InputError(f"{path}: more than {max_bytes / 2**20:g} MiB: expected {what} of at most that size")
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as err:
