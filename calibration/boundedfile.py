@@ -5,10 +5,14 @@ Limits, each far beyond any real file of its kind:
 
 - ``TEXT_LIMIT_BYTES`` = 16 MiB: human-written TOML (head profiles, AU and direct tables, expression
   libraries, scripts, blendshape tables), calibration JSON, measurement CSV, transcripts;
-- ``SMALL_LIMIT_BYTES`` = 1 MiB: a users file or a PEM certificate / key.
+- ``SMALL_LIMIT_BYTES`` = 1 MiB: a users file or a PEM certificate / key;
+- ``MESH_LIMIT_BYTES`` = 256 MiB: a mesh a head profile names (STL/OBJ/PLY/GLB/glTF/OFF) and the files it
+  names in turn (an OBJ's material library and textures, a glTF's buffers);
+- ``AUDIO_LIMIT_BYTES`` = 512 MiB: a WAV recording (ten minutes of 96 kHz stereo 32-bit PCM is 460 MB).
 
 It lives in ``calibration`` (a leaf package) so that ``sim`` and ``controller``, which may import it, share
-this one copy; ``sim.textfile.read_utf8`` builds on it.
+this one copy; ``sim.textfile.read_utf8``, the mesh loader (``sim.heads.meshes``) and
+``controller.speech.audio.read_wav`` build on it.
 """
 
 from __future__ import annotations
@@ -19,6 +23,8 @@ from collections.abc import Callable
 
 TEXT_LIMIT_BYTES = 16 * 2**20
 SMALL_LIMIT_BYTES = 2**20
+MESH_LIMIT_BYTES = 256 * 2**20
+AUDIO_LIMIT_BYTES = 512 * 2**20
 
 _CHUNK_BYTES = 1 << 20
 

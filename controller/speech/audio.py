@@ -1,7 +1,13 @@
-"""WAV in and out (stdlib ``wave``; mono 16-bit PCM), resampling, and loudness."""
+"""WAV in and out (stdlib ``wave``; mono 16-bit PCM), resampling, and loudness.
+
+A WAV file is read through :func:`servoface.calibration.boundedfile.read_bounded` and parsed from memory: a
+directory, a device or a FIFO is refused before it is opened, a file over ``AUDIO_LIMIT_BYTES`` (512 MiB)
+before a byte is read.
+"""
 
 from __future__ import annotations
 
+import io
 import os
 import tempfile
 import wave
@@ -9,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
+from servoface.calibration.boundedfile import AUDIO_LIMIT_BYTES, read_bounded
 from servoface.controller.speech.errors import SpeechError
 
 MAX_AUDIO_S = 600.0
@@ -35,10 +42,15 @@ def write_wav(path: str | Path, samples: NDArray[np.int16], rate_hz: int) -> Pat
 
 
 def read_wav(path: str | Path) -> tuple[NDArray[np.float64], int]:
-    """Mono float samples in -1..1 and the rate of a PCM WAV (8/16/24/32-bit; channels averaged)."""
+    """Mono float samples in -1..1 and the rate of a PCM WAV (8/16/24/32-bit; channels averaged).
+
+    SpeechError names the path: a file that is not a PCM WAV, not a regular file, or over 512 MiB."""
     p = Path(path)
     try:
-        with wave.open(str(p), "rb") as w:
+        blob = read_bounded(
+            p, lambda reason: SpeechError(f"{p}: {reason}"), what="a WAV file", limit_bytes=AUDIO_LIMIT_BYTES
+        )
+        with wave.open(io.BytesIO(blob), "rb") as w:
             channels, width, rate, n = w.getnchannels(), w.getsampwidth(), w.getframerate(), w.getnframes()
             if rate <= 0 or n / max(rate, 1) > MAX_AUDIO_S:
                 raise SpeechError(f"{p}: expected at most {MAX_AUDIO_S:g} s of audio at a positive rate")

@@ -3,14 +3,23 @@
 User meshes are read with ``trimesh.load(..., force="mesh", process=False)`` (vertices are kept as they
 are: merging would close slits such as a mouth) and scaled by the profile's ``scale`` (e.g. 1000 for a
 CAD export in metres).
+
+The file is read through :func:`servoface.calibration.boundedfile.read_bounded` and parsed from memory: a
+directory, a device or a FIFO is refused before it is opened, a file over ``MESH_LIMIT_BYTES`` (256 MiB,
+far beyond any real head part) before a byte is read. The files a mesh names beside it (an OBJ's material
+library and textures, a glTF's buffers) are read the same way by a trimesh resolver; a refused material or
+texture is skipped as trimesh skips a missing one, a refused glTF buffer fails the mesh.
 """
 
 from __future__ import annotations
 
+import io
+import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from servoface.calibration.boundedfile import MESH_LIMIT_BYTES, read_bounded
 from servoface.sim.errors import HeadMeshError
 from servoface.sim.heads import builtin
 from servoface.sim.heads.mesh_tools import F64, I64
@@ -27,10 +36,15 @@ def _read_file(spec: str, folder: Path, where: str) -> Any:
         raise HeadMeshError(
             f"{where}: expected a mesh file ending in {list(MESH_SUFFIXES)} or builtin:<name>, got {spec!r}"
         )
-    if not path.is_file():
-        raise HeadMeshError(f"{where}: expected an existing mesh file, {path} not found")
     try:
-        mesh = trimesh.load(str(path), force="mesh", process=False)
+        data = _read_bounded(path, f"{where}: ", "a mesh file")
+    except (FileNotFoundError, NotADirectoryError) as err:
+        raise HeadMeshError(f"{where}: expected an existing mesh file, {path} not found") from err
+    except OSError as err:
+        raise HeadMeshError(f"{where}: could not read mesh {path}: {err}") from err
+    try:
+        suffix = path.suffix.lower().removeprefix(".")
+        mesh = trimesh.load(io.BytesIO(data), file_type=suffix, resolver=_assets(path), force="mesh", process=False)
     except Exception as err:  # trimesh raises many kinds; report them all the same way
         raise HeadMeshError(f"{where}: could not read mesh {path}: {err}") from err
     v = np.asarray(getattr(mesh, "vertices", np.zeros((0, 3))), dtype=np.float64)
@@ -40,6 +54,32 @@ def _read_file(spec: str, folder: Path, where: str) -> Any:
     if not np.all(np.isfinite(v)):
         raise HeadMeshError(f"{where}: mesh {path} has non-finite vertex coordinates")
     return mesh
+
+
+def _read_bounded(path: Path, prefix: str, what: str) -> bytes:
+    """The bytes of ``path``; HeadMeshError ``"{prefix}{path}: {reason}"`` if it is not a regular file or is
+    over ``MESH_LIMIT_BYTES``."""
+    return read_bounded(
+        path, lambda reason: HeadMeshError(f"{prefix}{path}: {reason}"), what=what, limit_bytes=MESH_LIMIT_BYTES
+    )
+
+
+def _assets(path: Path) -> Any:
+    """A trimesh resolver for the files the mesh at ``path`` names beside it, read bounded (see above); as
+    trimesh's own it looks a name up as written, without a leading slash, then by its last part, and never
+    outside the mesh's folder."""
+    from trimesh.resolvers import FilePathResolver
+
+    class BoundedAssets(FilePathResolver):
+        def get(self, name: str) -> bytes:
+            root = Path(self.parent).resolve()
+            for candidate in (name.strip(), name.strip().lstrip("/"), os.path.basename(name)):
+                asset = (root / candidate).resolve()
+                if asset.is_relative_to(root) and asset.exists():
+                    return _read_bounded(asset, "", "a mesh's material, texture or buffer file")
+            raise FileNotFoundError(f"{name!r}: no such file in {root}")
+
+    return BoundedAssets(str(path))
 
 
 def load_part_mesh(spec: str, folder: Path, where: str, scale: float = 1.0) -> Any:
