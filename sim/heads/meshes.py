@@ -31,8 +31,9 @@ MESH_SUFFIXES = (".stl", ".obj", ".glb", ".gltf", ".ply", ".off")
 def _read_file(spec: str, folder: Path, where: str) -> Any:
     import trimesh
 
-    path = (folder / spec).resolve()
-    if path.suffix.lower() not in MESH_SUFFIXES:
+    named = folder / spec  # its suffix as written says the format (a symlink may point at any name)
+    path = named.resolve()
+    if named.suffix.lower() not in MESH_SUFFIXES:
         raise HeadMeshError(
             f"{where}: expected a mesh file ending in {list(MESH_SUFFIXES)} or builtin:<name>, got {spec!r}"
         )
@@ -43,7 +44,7 @@ def _read_file(spec: str, folder: Path, where: str) -> Any:
     except OSError as err:
         raise HeadMeshError(f"{where}: could not read mesh {path}: {err}") from err
     try:
-        suffix = path.suffix.lower().removeprefix(".")
+        suffix = named.suffix.lower().removeprefix(".")
         mesh = trimesh.load(io.BytesIO(data), file_type=suffix, resolver=_assets(path), force="mesh", process=False)
     except Exception as err:  # trimesh raises many kinds; report them all the same way
         raise HeadMeshError(f"{where}: could not read mesh {path}: {err}") from err

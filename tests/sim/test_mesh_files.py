@@ -83,14 +83,31 @@ def test_a_fifo_is_refused_without_waiting_for_a_writer(tmp_path: Path) -> None:
 
 
 def test_a_directory_is_refused(tmp_path: Path) -> None:
-    """(A device is refused the same way, by the shared reader; a symlink to /dev/zero never gets there: the
-    path is resolved first, and ``/dev/zero`` has no mesh suffix.)"""
+    """(A device is refused the same way, by the shared reader: see the symlink test below.)"""
     (tmp_path / "folder.stl").mkdir()
     with pytest.raises(HeadMeshError) as info:
         load_part_mesh("folder.stl", tmp_path, WHERE)
     assert (
         str(info.value) == f"{WHERE}: {tmp_path / 'folder.stl'}: a directory, not a regular file; expected a mesh file"
     )
+
+
+def test_a_mesh_name_linked_to_a_device_is_refused_as_a_device(tmp_path: Path) -> None:
+    """The format is the suffix of the name the profile wrote, not of what a symlink points at: a link
+    ``face.stl`` to ``/dev/zero`` is refused as a device by the bounded reader (not as a wrong suffix, and
+    never read)."""
+    (tmp_path / "face.stl").symlink_to("/dev/zero")
+    with pytest.raises(HeadMeshError) as info:
+        load_skin_mesh("face.stl", tmp_path, WHERE)
+    assert str(info.value) == f"{WHERE}: /dev/zero: a device, not a regular file; expected a mesh file"
+
+
+def test_a_mesh_name_linked_to_a_file_without_a_suffix_loads(tmp_path: Path) -> None:
+    name = _write("stl", tmp_path)
+    (tmp_path / name).rename(tmp_path / "blob")
+    (tmp_path / "face.stl").symlink_to(tmp_path / "blob")
+    mesh = load_part_mesh("face.stl", tmp_path, WHERE)
+    assert len(mesh.faces) > 0
 
 
 def test_a_file_over_the_limit_is_refused_unopened(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
