@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from servoface.calibration import HeadCalibration
     from servoface.controller.face import Face
     from servoface.controller.safe_stop import StopReport
     from servoface.sim.head import Head
@@ -84,9 +85,48 @@ def check_expression(head: Head, name: str) -> None:
         raise ControllerError(unknown_expression(name, known, head))
 
 
-def open_face(args: argparse.Namespace, head: Head) -> Face:
-    """The head on the port or the emulator the arguments name. A chain that does not answer raises
-    BusTimeoutError with a hint at the baud rate (the likeliest cause on a fresh set-up)."""
+MAX_ROLES_NAMED = 4  # a calibration of another head lacks most roles: name a few, count the rest
+
+
+def checked_calibration(args: argparse.Namespace, head: Head) -> HeadCalibration:
+    """The calibration ``--calibration`` names (else the one the profile names), read and checked against
+    the head's servos: every role there, with the profile's ids and a servo model the driver knows. Called
+    before anything is opened or announced, so a missing or malformed file, or one of another head, is
+    refused with its own message and nothing else said (CalibrationError, ControllerError or
+    HeadProfileError: exit 2); `open_face` then drives with the calibration returned."""
+    from servoface.calibration.errors import CalibrationFileError
+    from servoface.controller.head_servos import servo_specs
+    from servoface.controller.service import head_calibration
+
+    cal = head_calibration(head, args.calibration)  # a file that is missing or malformed names itself
+    file = str(args.calibration if args.calibration is not None else head.calibration_path)
+    check = f"servoface check {args.head}" + (f" --calibration {file}" if args.calibration is not None else "")
+    fix = f"expected this head's calibration (`{check}` lists every difference)"
+    missing = [a.role for a in head.actuators if a.role not in cal.roles]
+    if missing:
+        named = ", ".join(missing[:MAX_ROLES_NAMED])
+        if len(missing) > MAX_ROLES_NAMED:
+            named += f" and {len(missing) - MAX_ROLES_NAMED} more"
+        whose = f" (it is a calibration of head {cal.head!r})" if cal.head != head.name else ""
+        raise CalibrationFileError(file, "servos", f"no servo for role(s) {named} of head {head.name!r}{whose}: {fix}")
+    moved = [
+        f"{a.role} {a.servo.id} -> {cal[a.role].servo_id}" for a in head.actuators if cal[a.role].servo_id != a.servo.id
+    ]
+    if moved:
+        named = ", ".join(moved[:MAX_ROLES_NAMED]) + (" ..." if len(moved) > MAX_ROLES_NAMED else "")
+        raise CalibrationFileError(
+            file,
+            "servos",
+            f"servo ids differ from head {head.name!r}'s profile (role: profile -> file: {named}): {fix}",
+        )
+    servo_specs(head, cal)  # the servo models the profile names, as opening the head checks them
+    return cal
+
+
+def open_face(args: argparse.Namespace, head: Head, calibration: HeadCalibration | None = None) -> Face:
+    """The head on the port or the emulator the arguments name, driven with ``calibration`` (from
+    `checked_calibration`; None: read ``--calibration`` or the profile's here). A chain that does not answer
+    raises BusTimeoutError with a hint at the baud rate (the likeliest cause on a fresh set-up)."""
     from servoface.controller.face import Face
     from servoface.hardware.errors import BusTimeoutError
 
@@ -97,7 +137,7 @@ def open_face(args: argparse.Namespace, head: Head) -> Face:
             emulate=args.emulate,
             baud=args.baud,
             rate_hz=args.rate,
-            calibration=args.calibration,
+            calibration=calibration if calibration is not None else args.calibration,
             **read_options(args),
         )
     except BusTimeoutError as err:

@@ -11,6 +11,7 @@ from servoface.controller.cli.head_args import (
     TraceFile,
     add_head_arguments,
     check_expression,
+    checked_calibration,
     exit_status,
     open_errors,
     open_face,
@@ -95,6 +96,7 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
                 print(f"servoface play: {printable(head_message(args.head, err))}", file=sys.stderr)
                 print(f"  {head_hint(args.head)}", file=sys.stderr)
                 return 2
+            calibration = checked_calibration(args, head)  # a bad file refused before anything is said
             if args.input is not None:
                 from servoface.controller.inputs import load_recording
 
@@ -113,7 +115,7 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
             trace_file.open()
         where = "the emulator" if args.emulate else args.port
         print(f"# opening head {head.name!r} on {where}", file=sys.stderr, flush=True)
-        face = open_face(args, head)
+        face = open_face(args, head, calibration)
     except StopRequested as err:
         trace_file.discard()
         print(f"servoface play: {err} during start-up; every servo left with torque off", file=sys.stderr)

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 HELP = "render an expression of a head to PNG (apex), GIF/MP4 (neutral -> apex -> neutral), or --all as a sheet"
 STILL = (".png", ".jpg", ".jpeg")
@@ -85,6 +87,8 @@ def run(args: argparse.Namespace) -> int:
 
         return _fail(f"output {args.output}: {describe_os_error(err)}")
 
+    from servoface.calibration import CalibrationError
+    from servoface.controller.errors import ControllerError
     from servoface.sim.errors import ExpressionError, HeadProfileError, RenderError, SimError
     from servoface.sim.render.renderer import parse_size
 
@@ -123,12 +127,17 @@ def run(args: argparse.Namespace) -> int:
         aus = None if args.all else pick_expression(library, args.expression)
     except ExpressionError as err:
         return _fail(str(err))
+    try:  # the head's AU table, direct table and muscles take every expression shown: before any render
+        _check_on_head(head, library, [*library] if args.all else [args.expression])
+    except SimError as err:
+        from servoface.controller.cli.exits import exit_code
+
+        return _fail(f"{err}\n  next: `servoface check {args.head}` names what to fix", code=exit_code(err))
 
     bar = False if args.quiet else None
     view = args.view or default_view(head.face_type)
     twin = None
     if args.show != "target":
-        from servoface.calibration import CalibrationError
         from servoface.sim.achievable import AchievableFace
 
         try:
@@ -170,13 +179,38 @@ def run(args: argparse.Namespace) -> int:
                 )
                 if twin is not None:
                     _say_gap(twin, aus or {})
-    except RenderError as err:
+    except RenderError as err:  # rendering unavailable or failed: the run failed (1)
         return _fail(str(err), code=1)
-    except (HeadProfileError, ExpressionError) as err:
-        return _fail(f"{err}\n  next: `servoface check {args.head}` names what to fix", code=1)
-    except SimError as err:
-        return _fail(f"{err}\n  next: `servoface check {args.head}` names what to fix", code=1)
+    except (SimError, CalibrationError, ControllerError) as err:  # the profile, calibration or library: 2
+        from servoface.controller.cli.exits import exit_code
+
+        return _fail(f"{err}\n  next: `servoface check {args.head}` names what to fix", code=exit_code(err))
     return 0
+
+
+def _check_on_head(head: Any, library: Mapping[str, Any], names: list[str]) -> None:
+    """Solve each expression of ``names`` on the head's face model, so that what the head's own AU table,
+    direct table or muscles refuse (an AU it does not know, an intensity out of its range, a library of
+    another face type) is bad input named before anything is rendered or written: ExpressionError naming
+    the expression and the library file, or the profile's HeadProfileError."""
+    from servoface.sim.errors import ExpressionError, SimError
+    from servoface.sim.render.clips import pick_expression
+    from servoface.sim.render.twin import face_model
+
+    source = getattr(library, "source_path", None)
+    where = f" in {source}" if source is not None else ""
+    other = sorted({e.face_type for e in library.values() if getattr(e, "face_type", head.face_type) != head.face_type})
+    if other:
+        raise ExpressionError(
+            f"the expression library{where} is for a {'/'.join(other)} face; head {head.name!r} is a "
+            f"{head.face_type} face: expected a {head.face_type} library (its profile's 'expressions' key)"
+        )
+    model = face_model(head)  # built once, and reused by the renders
+    for name in names:
+        try:
+            model.solve(pick_expression(library, name))
+        except SimError as err:
+            raise ExpressionError(f"expression {name!r}{where}, on head {head.name!r}: {err}") from err
 
 
 def _say_gap(twin: object, aus: dict[str, float]) -> None:

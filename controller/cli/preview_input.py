@@ -23,6 +23,7 @@ def preview_input(args: argparse.Namespace, head: Any, size: tuple[int, int], cl
     from servoface.sim.render.images import save_image
     from servoface.sim.render.progress import progress
     from servoface.sim.render.renderer import HeadRenderer
+    from servoface.sim.render.twin import face_model
     from servoface.sim.render.video import WRITERS
 
     try:
@@ -34,9 +35,10 @@ def preview_input(args: argparse.Namespace, head: Any, size: tuple[int, int], cl
     width, height = size
     view = args.view or default_view(head.face_type)
     shown = getattr(args, "show", "achievable")
-    try:
+    try:  # the head's face model (AU and direct tables, muscles) and its calibration, before any render
+        face_model(head)
         twin = None if shown == "target" else AchievableFace(head, frame_period_s=1.0 / args.fps if clip else 0.02)
-    except (SimError, CalibrationError) as err:  # a calibration that does not fit the head: say so
+    except (SimError, CalibrationError) as err:  # a profile or calibration that does not fit the head: say so
         from servoface.controller.cli.exits import exit_code
 
         print(f"servoface preview: {err}\n  next: `servoface check {args.head}` names what to fix", file=sys.stderr)
@@ -66,7 +68,12 @@ def preview_input(args: argparse.Namespace, head: Any, size: tuple[int, int], cl
                     what = f"its most expressive frame, at {frame.t_s:.3f} s"
                 save_image(render_aus(renderer, head, frame.aus, show=shown, achievable=twin), args.output)
                 print(f"wrote {args.output}: {args.input} {what} on {head.name} ({width}x{height})")
-    except RenderError as err:
+    except RenderError as err:  # rendering unavailable or failed: the run failed (1)
         print(f"servoface preview: {err}", file=sys.stderr)
         return 1
+    except (SimError, CalibrationError, ControllerError) as err:  # the profile or the recording: bad input (2)
+        from servoface.controller.cli.exits import exit_code
+
+        print(f"servoface preview: {err}\n  next: `servoface check {args.head}` names what to fix", file=sys.stderr)
+        return exit_code(err)
     return 0

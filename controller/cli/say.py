@@ -6,7 +6,13 @@ import argparse
 import sys
 from pathlib import Path
 
-from servoface.controller.cli.head_args import add_head_arguments, check_expression, open_errors, open_face
+from servoface.controller.cli.head_args import (
+    add_head_arguments,
+    check_expression,
+    checked_calibration,
+    open_errors,
+    open_face,
+)
 from servoface.controller.cli.terminal import printable
 
 HELP = "speak a text with lip sync on a head (espeak-ng); with --out, also write speech.wav, speech.toml, a video"
@@ -32,6 +38,7 @@ def run(args: argparse.Namespace) -> int:
     # --rate and --lead-ms were range-checked by options.parse_command
     try:
         head = load_head(args.head)
+        calibration = checked_calibration(args, head)  # before espeak-ng runs and anything is written
         if args.expression:
             check_expression(head, args.expression)  # before espeak-ng runs and before the head is opened
         speech = speech_from_text(args.text, voice=args.voice, rate_wpm=args.rate_wpm, lead_s=args.lead_ms / 1e3)
@@ -41,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
             writable_folder(args.out)
             wav, script = write_outputs(speech, head.face_type, args.out, allowed=head_au_names(head))
             print(f"wrote {wav} and {script} (play it again: servoface play {script} --head {args.head} ...)")
-        face = open_face(args, head)
+        face = open_face(args, head, calibration)
     except (SpeechError, *open_errors()) as err:  # type: ignore[misc]  # mypy cannot read a starred tuple
         print(f"servoface say: {printable(err)}", file=sys.stderr)
         return 2

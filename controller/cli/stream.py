@@ -14,6 +14,7 @@ from pathlib import Path
 from servoface.controller.cli.head_args import (
     TraceFile,
     add_head_arguments,
+    checked_calibration,
     exit_status,
     open_errors,
     open_face,
@@ -164,6 +165,7 @@ def _stream(args: argparse.Namespace, signals: StopSignals) -> int:
     try:  # everything that can fail on bad arguments happens before the port opens (torque stays off)
         with interruptible():
             head = load_head(args.head)
+            calibration = checked_calibration(args, head)  # before a port is bound or --record written
             validator = FrameValidator.for_head(head)
             decoder = MessageDecoder(
                 head.face_type,
@@ -212,7 +214,7 @@ def _stream(args: argparse.Namespace, signals: StopSignals) -> int:
                 receiver = LineReceiver(source, sys.stdin, pace=not args.arrival)
                 where = "stdin"
             trace_file.open()
-        face = open_face(args, head)
+        face = open_face(args, head, calibration)
     except (StopRequested, *open_errors()) as err:  # type: ignore[misc]  # mypy cannot read a starred tuple
         if receiver is not None:
             receiver.close()

@@ -119,3 +119,119 @@ def test_all_writes_a_labelled_sheet(tmp_path: Path, capsys: pytest.CaptureFixtu
     sheet = np.asarray(PILImage.open(out))
     rows = -(-n // 4)
     assert sheet.shape[1] == 4 * 96 + 5 * 4 and sheet.shape[0] > rows * 72
+
+
+# --- a profile that loads but cannot show its expressions: bad input (2) before any render, not a failed run --
+
+HUMAN = Path(__file__).resolve().parents[2] / "sim" / "heads" / "human"
+
+
+def _human_copy(folder: Path, **keys: str) -> Path:
+    """The built-in human profile copied to ``folder`` with top-level keys of head.toml replaced."""
+    import shutil
+
+    shutil.copytree(HUMAN, folder)
+    toml = folder / "head.toml"
+    lines = toml.read_text().splitlines()
+    for key, value in keys.items():
+        at = next((i for i, line in enumerate(lines) if line.startswith(f"{key} =")), None)
+        if at is None:
+            lines.insert(lines.index('face_type = "human"') + 1, f"{key} = {value}")
+        else:
+            lines[at] = f"{key} = {value}"
+    toml.write_text("\n".join(lines) + "\n")
+    return folder
+
+
+@pytest.fixture(scope="module")
+def unshowable(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, str]]:
+    """Profiles that parse and load, whose expressions fail only on the head's own face model; each with
+    the words its refusal must carry."""
+    base = tmp_path_factory.mktemp("unshowable")
+    dog_library = _human_copy(base / "dog_library", name='"dog_library"', expressions='"expr.toml"')
+    (dog_library / "expr.toml").write_text((HUMAN.parents[1] / "expressions" / "dog.toml").read_text())
+    narrow = _human_copy(base / "narrow_au", name='"narrow_au"', au_table='"au.toml"')
+    table = (HUMAN.parents[1] / "au" / "human.toml").read_text()
+    (narrow / "au.toml").write_text(table.replace("[AU12]\n", "[AU12]\nrange = [0.0, 0.5]\n", 1))
+    direct = _human_copy(base / "bad_direct", name='"bad_direct"', au_direct='"direct.toml"')
+    (direct / "direct.toml").write_text('schema_version = 1\nface_type = "human"\n[AU12]\ntargets = = 1\n')
+    return {
+        "dog_library": (dog_library, f"the expression library in {dog_library / 'expr.toml'} is for a dog face"),
+        "narrow_au": (narrow, ", on head 'narrow_au': AU12: expected a finite intensity in [0.0, 0.5]"),
+        "bad_direct": (direct, "direct.toml: not valid TOML"),
+    }
+
+
+@pytest.mark.parametrize("kind", ["dog_library", "narrow_au", "bad_direct"])
+@pytest.mark.parametrize(
+    "what, show, output",
+    [
+        (["happiness"], "target", "x.png"),
+        (["happiness"], "achievable", "x.png"),
+        (["happiness"], "both", "x.gif"),
+        (["--all"], "target", "x.png"),
+    ],
+)
+def test_a_profile_whose_expressions_cannot_be_shown_is_bad_input(
+    kind: str,
+    what: list[str],
+    show: str,
+    output: str,
+    unshowable: dict[str, tuple[Path, str]],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """It used to be found while rendering and exit 1 (a failed run); it is the profile's fault: exit 2,
+    one message naming the file and what was expected, the next step, nothing written."""
+    folder, expected = unshowable[kind]
+    out = tmp_path / output
+    argv = ["preview", *what, "--head", str(folder), "-o", str(out), *SMALL, "--show", show]
+    status = main([*argv, "--duration", "0.5", "--fps", "4"] if output.endswith(".gif") else argv)
+    printed, err = capsys.readouterr()
+    assert status == 2, printed + err
+    assert "Traceback" not in printed + err and printed == ""
+    lines = err.strip().splitlines()
+    assert len(lines) == 2 and lines[0].startswith("servoface preview: ") and expected in lines[0], err
+    assert lines[1] == f"  next: `servoface check {folder}` names what to fix"
+    assert not out.exists()
+
+
+def test_an_intensity_out_of_the_heads_range_names_the_expression_and_the_au(
+    unshowable: dict[str, tuple[Path, str]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder, _ = unshowable["narrow_au"]
+    assert main(["preview", "happiness", "--head", str(folder), "-o", str(tmp_path / "x.png"), *SMALL]) == 2
+    first = capsys.readouterr().err.splitlines()[0]
+    assert "expression 'happiness' in " in first and "human.toml, on head 'narrow_au': AU12: " in first, first
+    assert "[0.0, 0.5], got 1.0" in first, first
+
+
+def test_preview_input_on_a_profile_with_a_broken_direct_table_is_bad_input(
+    unshowable: dict[str, tuple[Path, str]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder, expected = unshowable["bad_direct"]
+    out = tmp_path / "x.png"
+    argv = ["preview", "--input", "sample:openface_smile", "--head", str(folder), "-o", str(out), *SMALL]
+    assert main([*argv, "--show", "target"]) == 2
+    err = capsys.readouterr().err
+    assert expected in err and f"next: `servoface check {folder}`" in err and "Traceback" not in err, err
+    assert not out.exists()
+
+
+def test_a_render_that_fails_is_still_a_failed_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Exit 1 is kept for what the README gives it: a render that could not be made (EGL missing, a
+    context that failed), with the input fine."""
+    from servoface.sim.errors import RenderError
+    from servoface.sim.render import renderer
+
+    class NoRenderer:
+        def __init__(self, *args: object, **kwargs: object) -> None:
+            raise RenderError("headless rendering unavailable: no EGL display (test)")
+
+    monkeypatch.setattr(renderer, "HeadRenderer", NoRenderer)
+    out = tmp_path / "x.png"
+    assert main(["preview", "happiness", "--head", "human", "-o", str(out), *SMALL]) == 1
+    assert "servoface preview: headless rendering unavailable" in capsys.readouterr().err
+    assert not out.exists()
