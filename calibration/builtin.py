@@ -18,12 +18,15 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from servoface.calibration.curves import CENTRE_TICK, TICKS_PER_DEG, LinearCurve, PchipCurve
+from numpy.typing import NDArray
+from servoface.calibration.curves import CENTRE_TICK, TICKS_PER_DEG, Curve, LinearCurve, PchipCurve
+from servoface.calibration.errors import CalibrationError
 from servoface.calibration.fileformat import save_calibration
-from servoface.calibration.fitting import FitReport, check_servo
+from servoface.calibration.fitting import EndTicks, FitReport, check_servo, end_ticks
 from servoface.calibration.head import CalibrationMetadata, HeadCalibration
 from servoface.calibration.spec import ServoSpec
 
@@ -51,16 +54,43 @@ def crank_points(spec: ServoSpec, n: int = ANCHOR_POINTS) -> np.ndarray:
     return pts
 
 
-def builtin_servo(spec: ServoSpec) -> FitReport:
-    """The calibration of one emulated servo (see the module docstring)."""
+def builtin_curve(spec: ServoSpec) -> tuple[Curve, NDArray[np.float64]]:
+    """The emulated servo's curve for ``spec`` and the (k, 2) float (target, tick) points it is checked on."""
     if spec.kind == "joint":
         gain = spec.direction * TICKS_PER_DEG
         curve = LinearCurve(CENTRE_TICK - gain * spec.neutral, TICKS_PER_DEG, spec.direction)
         targets = np.unique([spec.lower, spec.neutral, spec.upper])
-        points = np.stack([targets, curve.forward(targets)], axis=1)
-        return check_servo(spec, curve, points, neutral_tick=CENTRE_TICK)
+        return curve, np.stack([targets, curve.forward(targets)], axis=1)
     points = crank_points(spec)
-    return check_servo(spec, PchipCurve(points), points, neutral_tick=CENTRE_TICK)
+    return PchipCurve(points), points
+
+
+def builtin_servo(spec: ServoSpec) -> FitReport:
+    """The calibration of one emulated servo (see the module docstring)."""
+    curve, points = builtin_curve(spec)
+    return check_servo(spec, curve, points, neutral_tick=CENTRE_TICK)
+
+
+@dataclass(frozen=True)
+class BuiltinRefusal:
+    """Why the emulated servo cannot take a spec: ``calibrate --builtin`` and ``--template`` refuse it."""
+
+    error: CalibrationError  # what they say
+    ends: EndTicks | None  # where its curve puts the range's ends (None: no curve could be made)
+
+
+def builtin_refusal(spec: ServoSpec) -> BuiltinRefusal | None:
+    """:func:`builtin_servo`'s refusal of ``spec``, or None when it takes it: the same steps, so a caller
+    that predicts the refusal (``servoface check`` before a calibration exists) cannot disagree with it."""
+    try:
+        curve, points = builtin_curve(spec)
+    except CalibrationError as err:
+        return BuiltinRefusal(err, None)
+    try:
+        check_servo(spec, curve, points, neutral_tick=CENTRE_TICK)
+    except CalibrationError as err:
+        return BuiltinRefusal(err, end_ticks(spec, curve))
+    return None
 
 
 def builtin_calibration(head: str, specs: Sequence[ServoSpec], source: str = "") -> HeadCalibration:

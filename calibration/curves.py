@@ -168,8 +168,15 @@ class _PointCurve(Curve):
         x, y = self._pts[:, 0], self._pts[:, 1]
         self._x, self._y = x, y
         self._increasing = bool(y[-1] > y[0])
-        self._slope_lo = (y[1] - y[0]) / (x[1] - x[0])
-        self._slope_hi = (y[-1] - y[-2]) / (x[-1] - x[-2])
+        with np.errstate(over="ignore"):
+            secants = np.diff(y) / np.diff(x)
+        if not np.all(np.isfinite(secants)):
+            i = int(np.argmax(~np.isfinite(secants)))
+            raise CurveError(
+                f"{self.kind} curve points: targets {x[i]:g} and {x[i + 1]:g} are too close together for a "
+                "finite slope; expected targets that differ by more than float rounding"
+            )
+        self._slope_lo, self._slope_hi = float(secants[0]), float(secants[-1])
         # ticks sorted ascending with their targets, for the inverse
         self._yx = (y, x) if self._increasing else (y[::-1], x[::-1])
 
@@ -262,10 +269,19 @@ class PchipCurve(_PointCurve):
         # PCHIP's slopes, with each end slope kept within [0.5, 3] x its end secant (scipy's one-sided
         # estimate may be 0 or nearly): still monotone (inside the Fritsch-Carlson box), never flat at an
         # end, so every target has a finite resolution and the inverse stays well conditioned.
-        slopes = np.asarray(PchipInterpolator(self._x, self._y).derivative()(self._x), dtype=np.float64)
-        for i, secant in ((0, self._slope_lo), (-1, self._slope_hi)):
-            ratio = slopes[i] / secant
-            slopes[i] = secant * min(max(ratio, 0.5), 3.0)
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+            try:
+                slopes = np.asarray(PchipInterpolator(self._x, self._y).derivative()(self._x), dtype=np.float64)
+            except ValueError:  # scipy refuses the slopes it computed: not finite
+                slopes = np.full(self._x.shape, np.inf)
+            for i, secant in ((0, self._slope_lo), (-1, self._slope_hi)):
+                ratio = slopes[i] / secant
+                slopes[i] = secant * min(max(ratio, 0.5), 3.0)
+        if not np.all(np.isfinite(slopes)):
+            raise CurveError(
+                f"pchip curve: points {self._x[0]:g}..{self._x[-1]:g} are too close together for a finite "
+                "slope; expected targets that differ by more than float rounding"
+            )
         self._spline = CubicHermiteSpline(self._x, self._y, slopes, extrapolate=True)
         self._dspline = self._spline.derivative()
         n = self._SAMPLES_PER_SEGMENT

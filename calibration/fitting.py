@@ -41,6 +41,33 @@ class FitReport:
     warnings: list[str] = field(default_factory=list)
 
 
+@dataclass(frozen=True)
+class EndTicks:
+    """The goal ticks a curve puts the two ends of a servo's range at, rounded as every goal is: the tick
+    limits of the calibration, refused unless both lie in ``MIN_POSITION_TICK..MAX_POSITION_TICK``."""
+
+    lower: int  # the tick of the spec's lower end
+    upper: int  # the tick of its upper end (below ``lower`` on a reversed servo)
+
+    @property
+    def limits(self) -> tuple[int, int]:
+        """(min_tick, max_tick)."""
+        return min(self.lower, self.upper), max(self.lower, self.upper)
+
+    @property
+    def outside(self) -> tuple[str, ...]:
+        """The ends (``"lower"``, ``"upper"``) whose tick lies outside ``MIN_POSITION_TICK..MAX_POSITION_TICK``."""
+        ends = (("lower", self.lower), ("upper", self.upper))
+        return tuple(name for name, tick in ends if not MIN_POSITION_TICK <= tick <= MAX_POSITION_TICK)
+
+
+def end_ticks(spec: ServoSpec, curve: Curve) -> EndTicks:
+    """Where ``curve`` puts the ends of ``spec``'s range: the one computation :func:`check_servo` refuses a
+    range by, shared with those that predict it (``servoface check`` before a calibration exists)."""
+    lower, upper = (int(t) for t in round_ticks(curve.forward(np.array([spec.lower, spec.upper]))))
+    return EndTicks(lower, upper)
+
+
 def default_curve_kind(spec: ServoSpec) -> str:
     """Joints are geared straight to the servo (linear); anchors go through cables/linkages (pchip)."""
     return "linear" if spec.kind == "joint" else "pchip"
@@ -121,9 +148,9 @@ def check_servo(spec: ServoSpec, curve: Curve, points: ArrayLike, *, neutral_tic
             f"servo '{spec.role}': the {kind} curve misses a measured point by {residual:.1f} tick "
             f"(> {RESIDUAL_WARNING_TICK:g}); the servo may not be {kind} - try 'pchip', or re-measure"
         )
-    ends = curve.forward(np.array([spec.lower, spec.upper]))
-    tick_lo, tick_hi = (int(t) for t in np.sort(round_ticks(ends)))
-    if tick_lo < MIN_POSITION_TICK or tick_hi > MAX_POSITION_TICK:
+    ends = end_ticks(spec, curve)
+    tick_lo, tick_hi = ends.limits
+    if ends.outside:
         raise CalibrationError(
             f"servo '{spec.role}': its range {spec.lower:g}..{spec.upper:g} {spec.unit} maps to ticks "
             f"{tick_lo}..{tick_hi}, outside {MIN_POSITION_TICK}..{MAX_POSITION_TICK}; re-mount the horn"

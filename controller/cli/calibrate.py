@@ -19,6 +19,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from servoface.controller.calibration_specs import specs_from_head
+
 if TYPE_CHECKING:
     from servoface.calibration.procedure import ProcedureOptions, ProcedureResult, Prompt, Reply
     from servoface.calibration.spec import ServoSpec
@@ -80,45 +82,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="derive servos as mirror images instead of measuring them: SRC:DST[,SRC:DST], e.g. "
         "brow_inner_l:brow_inner_r (DST = SRC reflected about its neutral tick)",
     )
-
-
-def specs_from_head(head: Any) -> list[ServoSpec]:
-    """Calibration's view of a head's actuators (servoface.sim.head.Head -> servoface.calibration.spec.ServoSpec)."""
-    from servoface.calibration.spec import ServoSpec, default_direction
-    from servoface.sim.rig import JointActuator
-
-    specs = []
-    for a in head.actuators:
-        direction = default_direction(a.role)
-        if isinstance(a, JointActuator):
-            specs.append(
-                ServoSpec(
-                    a.role,
-                    a.servo.id,
-                    a.servo.model,
-                    "deg",
-                    a.lower_deg,
-                    a.upper_deg,
-                    a.neutral_deg,
-                    "joint",
-                    direction,
-                )
-            )
-        else:
-            specs.append(
-                ServoSpec(
-                    a.role,
-                    a.servo.id,
-                    a.servo.model,
-                    "mm",
-                    a.lower_mm,
-                    a.upper_mm,
-                    a.neutral_mm,
-                    "anchor",
-                    direction,
-                )
-            )
-    return specs
 
 
 def builtin_source(head: Any) -> str:

@@ -39,7 +39,10 @@ def template_text(head_name: str, specs: Sequence[ServoSpec]) -> str:
         servo = cal[spec.role]
         ends = np.linspace(spec.lower, spec.upper, POINTS_PER_SERVO).round(3).tolist()
         for t in sorted({*ends, round(spec.neutral, 3)}):
-            lines.append(f"{spec.role},{t:g},{servo.to_tick(float(t))}")
+            # rounding may take an end's row just past the range (25.0006 -> 25.001): give it the end's own
+            # tick, so the template refuses no range the built-in calibration takes
+            inside = min(max(float(t), spec.lower), spec.upper)
+            lines.append(f"{spec.role},{t:g},{servo.to_tick(inside)}")
     return "\n".join(lines) + "\n"
 
 
@@ -52,7 +55,7 @@ def write_template(head_name: str, specs: Sequence[ServoSpec], out: Path) -> Pat
 
 def write_template_csv(head_dir: Path, out: Path | None = None) -> Path:
     """``calibration_template.csv`` (or ``out``) for the profile in ``head_dir``, replacing any file there."""
-    from servoface.controller.cli.calibrate import specs_from_head
+    from servoface.controller.calibration_specs import specs_from_head
     from servoface.sim.heads import load_head
 
     head = load_head(head_dir)

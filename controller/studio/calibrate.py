@@ -149,7 +149,7 @@ class CalibrationSession:
         """``on_saved(calibration, driver)``: on the lender thread (loop paused) once the file is written,
         to put the new calibration into service (:mod:`.live_calibration`); it re-configures the driver
         and brings torque back itself. Without it the running calibration's limits are restored."""
-        from servoface.controller.cli.calibrate import specs_from_head
+        from servoface.controller.calibration_specs import specs_from_head
 
         self.head = head
         self.lender = lender

@@ -146,7 +146,8 @@ def test_template_refuses_bad_input_and_writes_nothing(tmp_path: Path, capsys: p
     ("limits", "got", "why"),
     [
         ("[-200.0, 200.0]", "[-200, 200]", "spans 400 deg, more than one servo turn"),
-        ("[0.0, 0.05]", "[0, 0.05]", "spans 0.05 deg, less than one servo tick"),
+        # 0.04 deg: both ends round to tick 2048 (0.05 deg would reach 2049: calibrate takes it, with a warning)
+        ("[0.0, 0.04]", "[0, 0.04]", "spans 0.04 deg, less than one servo tick"),
     ],
 )
 def test_check_names_a_joint_range_calibrate_would_refuse(
