@@ -32,37 +32,42 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from servoface.controller.au_names import head_au_names
     from servoface.controller.cli.head_args import open_errors
-    from servoface.controller.cli.outputs import writable_folder
+    from servoface.controller.cli.terminal import printable
+    from servoface.controller.speech.audio import read_wav
     from servoface.controller.speech.errors import SpeechError, TranscriptMismatchError
     from servoface.controller.speech.lipsync import speech_from_recording
     from servoface.controller.speech.say import say_on_face, write_outputs
     from servoface.sim.heads import load_head
 
-    # --lead-ms was range-checked by options.parse_command
+    # Every input is read and checked before --out is made, so a refused run leaves no folder behind; --out
+    # itself is checked (not made) before the alignment, and made only once the lip sync is done.
+    # --lead-ms was range-checked by options.parse_command.
     try:
         head = load_head(args.head)
         transcript = args.text
         if args.transcript is not None:
             transcript = _read_transcript(args.transcript)
-        writable_folder(args.out)
+        recording = read_wav(args.audio)
+        _check_out_folder(args.out)
         speech = speech_from_recording(
-            args.audio, transcript, lead_s=args.lead_ms / 1e3, allow_mismatch=args.allow_mismatch
+            recording, transcript, lead_s=args.lead_ms / 1e3, allow_mismatch=args.allow_mismatch
         )
+        _make_out_folder(args.out)
         wav, script = write_outputs(speech, head.face_type, args.out, allowed=head_au_names(head))
-    except TranscriptFileError as err:
-        print(f"servoface lipsync: {err}", file=sys.stderr)
+    except (TranscriptFileError, OutFolderError) as err:
+        print(f"servoface lipsync: {printable(err)}", file=sys.stderr)
         return 2
     except TranscriptMismatchError as err:
-        print(f"servoface lipsync: {err} (--allow-mismatch lip-syncs anyway)", file=sys.stderr)
+        print(f"servoface lipsync: {printable(err)} (--allow-mismatch lip-syncs anyway)", file=sys.stderr)
         return 2
     except (SpeechError, *open_errors()) as err:  # type: ignore[misc]  # mypy cannot read a starred tuple
-        print(f"servoface lipsync: {err}", file=sys.stderr)
+        print(f"servoface lipsync: {printable(err)}", file=sys.stderr)
         return 2
     check = speech.transcript_check
     if check is not None and not check.ok:
-        print(f"servoface lipsync: warning: {check.message()}", file=sys.stderr)
+        print(f"servoface lipsync: warning: {printable(check.message())}", file=sys.stderr)
     print(f"{speech.method}: {len(speech.plan.segments) or 'envelope'} visemes over {speech.duration_s:.2f} s")
-    print(f"wrote {script} (servoface play {script} --head {args.head} --emulate) and {wav}")
+    print(printable(f"wrote {script} (servoface play {script} --head {args.head} --emulate) and {wav}"))
     if args.no_video:
         return 0
     from servoface.controller.face import Face
@@ -72,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
         perf = say_on_face(face, speech, audio_out=False).performance
         video = args.out / "speech.mp4"
         count = render_talking(face, perf, speech, video)
-    print(f"wrote {video}: {count} frames, the achievable face with the sound")
+    print(f"wrote {printable(video)}: {count} frames, the achievable face with the sound")
     return 0
 
 
@@ -98,3 +103,35 @@ def _read_transcript(path: Path) -> str:
         raise TranscriptFileError(f"--transcript {str(path)!r}: no such file; {hint}") from err
     except OSError as err:
         raise TranscriptFileError(f"--transcript {str(path)!r}: {describe_os_error(err)}") from err
+
+
+class OutFolderError(Exception):
+    """``--out DIR`` cannot be made or written (the message names the flag, the path and what to do)."""
+
+
+def _check_out_folder(folder: Path) -> None:
+    """Refuse ``--out`` if it could not be made or written, without making it: the nearest part of the path
+    that exists must be a folder this process may write in (and search)."""
+    import os
+
+    existing = folder
+    while not os.path.lexists(existing) and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        what = "not a folder" if existing == folder else f"{str(existing)!r} is not a folder"
+        raise OutFolderError(f"--out {str(folder)!r}: {what}; expected an output folder (made if missing)")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise OutFolderError(
+            f"--out {str(folder)!r}: cannot write in {str(existing)!r} (permission denied); choose another folder"
+        )
+
+
+def _make_out_folder(folder: Path) -> None:
+    """Make ``--out`` (`outputs.writable_folder`), a failure worded as OutFolderError."""
+    from servoface.controller.cli import describe_os_error, outputs
+
+    try:
+        outputs.writable_folder(folder)
+    except OSError as err:
+        why = describe_os_error(err).removeprefix(f"cannot use {str(folder)!r}: ")
+        raise OutFolderError(f"--out {str(folder)!r}: {why}") from err

@@ -70,25 +70,31 @@ class _Wake:
 
 def _studio(args: argparse.Namespace, signals: StopSignals) -> int:
     from servoface.controller.cli.head_args import open_errors
+    from servoface.controller.cli.terminal import printable
     from servoface.controller.service import HeadService, open_head
     from servoface.controller.stop_signals import StopRequested, interruptible
     from servoface.controller.studio import StudioError, StudioOptions, StudioServer
     from servoface.controller.studio.security import is_loopback
 
+    # every message shows what came from outside (a path, a file's contents, a host) through `printable`:
+    # an escape sequence in a file name must not repaint the operator's terminal
     if not is_loopback(args.host) and not args.allow_remote:
-        print(f"servoface studio: --host {args.host} is not loopback; add --allow-remote to serve it", file=sys.stderr)
+        print(
+            f"servoface studio: --host {printable(args.host)} is not loopback; add --allow-remote to serve it",
+            file=sys.stderr,
+        )
         return 2
     # --port-http and --rate were range-checked by options.parse_command
     for name in ("out_dir", "scripts_dir"):
         folder = getattr(args, name)
         if not folder.is_dir():
-            print(f"servoface studio: --{name.replace('_', '-')} {folder}: not a folder", file=sys.stderr)
+            print(f"servoface studio: --{name.replace('_', '-')} {printable(folder)}: not a folder", file=sys.stderr)
             return 2
     taken = _port_taken(args.host, args.port_http)
     if taken is not None:  # before the head is opened: a taken port must not switch torque on
         print(
-            f"servoface studio: --port-http {args.port_http}: cannot listen on {args.host}:{args.port_http} "
-            f"({taken}); is another studio running? choose another port, or 0 for any free one",
+            f"servoface studio: --port-http {args.port_http}: cannot listen on {printable(args.host)}:{args.port_http} "
+            f"({printable(taken)}); is another studio running? choose another port, or 0 for any free one",
             file=sys.stderr,
         )
         return 2
@@ -99,10 +105,10 @@ def _studio(args: argparse.Namespace, signals: StopSignals) -> int:
                 calibration=args.calibration, **read_options(args),
             )  # fmt: skip
     except StopRequested as err:
-        print(f"servoface studio: {err} during start-up; every servo left with torque off", file=sys.stderr)
+        print(f"servoface studio: {printable(err)} during start-up; every servo left with torque off", file=sys.stderr)
         return signals.exit_code() or 130
     except open_errors() as err:
-        print(f"servoface studio: {err}", file=sys.stderr)
+        print(f"servoface studio: {printable(err)}", file=sys.stderr)
         return 2
     service = HeadService(opened.head, opened.pipeline)
     options = StudioOptions(out_dir=args.out_dir, scripts_dir=args.scripts_dir, render=not args.no_render)
@@ -118,13 +124,13 @@ def _studio(args: argparse.Namespace, signals: StopSignals) -> int:
             )  # fmt: skip
             server.start()
             where = "emulated chain" if args.emulate else args.port
-            print(f"servoface studio: head '{opened.head.name}' on {where}", flush=True)
+            print(f"servoface studio: head '{printable(opened.head.name)}' on {printable(where)}", flush=True)
             print(f"open {server.url}", flush=True)
             print("Ctrl-C to stop (the head eases to neutral, torque off)", flush=True)
             while not wake.event.wait(0.2) and server.running:
                 pass
     except (StudioError, OSError) as err:
-        print(f"servoface studio: {err}", file=sys.stderr)
+        print(f"servoface studio: {printable(err)}", file=sys.stderr)
         code = 2
     finally:
         if server is not None:
@@ -133,7 +139,7 @@ def _studio(args: argparse.Namespace, signals: StopSignals) -> int:
         if opened.chain is not None:
             opened.chain.close()
     for line in report.lines():
-        print(line, flush=True)
+        print(printable(line), flush=True)
     if not report.torque_off:
         return 3
     return code or (signals.exit_code() or 0)
