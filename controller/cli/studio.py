@@ -69,12 +69,13 @@ class _Wake:
 
 
 def _studio(args: argparse.Namespace, signals: StopSignals) -> int:
-    from servoface.controller.cli.head_args import open_errors
+    from servoface.controller.cli.head_args import checked_calibration, open_errors
     from servoface.controller.cli.terminal import printable
     from servoface.controller.service import HeadService, open_head
     from servoface.controller.stop_signals import StopRequested, interruptible
     from servoface.controller.studio import StudioError, StudioOptions, StudioServer
     from servoface.controller.studio.security import is_loopback
+    from servoface.sim.heads import load_head
 
     # every message shows what came from outside (a path, a file's contents, a host) through `printable`:
     # an escape sequence in a file name must not repaint the operator's terminal
@@ -100,9 +101,11 @@ def _studio(args: argparse.Namespace, signals: StopSignals) -> int:
         return 2
     try:
         with interruptible():  # torque off, no bus traffic yet: a signal ends the start-up at once
+            head = load_head(args.head)
+            calibration = checked_calibration(args, head)  # a file of another head names itself, as in play
             opened = open_head(
-                args.head, port=args.port, emulate=args.emulate, baud=args.baud, rate_hz=args.rate,
-                calibration=args.calibration, **read_options(args),
+                head, port=args.port, emulate=args.emulate, baud=args.baud, rate_hz=args.rate,
+                calibration=calibration, **read_options(args),
             )  # fmt: skip
     except StopRequested as err:
         print(f"servoface studio: {printable(err)} during start-up; every servo left with torque off", file=sys.stderr)

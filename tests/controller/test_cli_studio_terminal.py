@@ -57,3 +57,14 @@ def test_a_head_folder_with_an_escape_is_shown_escaped(tmp_path: Path, capsys: p
     status, _, err = main(["studio", "--head", str(folder), "--emulate", "--no-render"]), "", capsys.readouterr()[1]
     assert status == 2 and "\x1b" not in err and "my\\x1b[31mhead" in err, repr(err)
     assert len(err.splitlines()) == 1, err
+
+
+def test_a_calibration_of_another_head_names_its_file(capsys: pytest.CaptureFixture[str]) -> None:
+    """As play, say and stream (`head_args.checked_calibration`): the file, whose head it is, and where to
+    look — before the head is opened."""
+    from servoface.sim.heads import load_head
+
+    dog_file = load_head("dog").calibration_path
+    assert dog_file is not None
+    status, out, err = _studio(capsys, "--calibration", str(dog_file))
+    _escaped_refusal(status, out, err, str(dog_file), "it is a calibration of head 'dog'", "servoface check human")
