@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from functools import lru_cache
 from typing import Any
@@ -10,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image as PILImage
 from PIL import ImageDraw, ImageFont
+from servoface.sim.render.atomic import atomic_output
 
 Image = NDArray[np.uint8]  # (H, W, 3)
 SHEET_BG = (28, 30, 34)
@@ -95,5 +97,11 @@ def contact_sheet(images: Sequence[Image], labels: Sequence[str], columns: int =
 
 
 def save_image(img: Image, path: Any) -> None:
-    """Write an image (PNG or JPEG by the file's extension)."""
-    PILImage.fromarray(_check_image(img, str(path))).save(path)
+    """Write an image (PNG or JPEG by the file's extension), all or nothing: a failed write (or Ctrl-C)
+    leaves no truncated file, and a file already at ``path`` as it was. A file object is written as is."""
+    pil = PILImage.fromarray(_check_image(img, str(path)))
+    if not isinstance(path, str | os.PathLike):
+        pil.save(path)
+        return
+    with atomic_output(path) as tmp:
+        pil.save(tmp)  # keeps the target's suffix: Pillow picks the format by it

@@ -2,17 +2,22 @@
 
 GIF goes through Pillow (adaptive palette per frame, loops forever); MP4 through imageio-ffmpeg, whose
 wheel ships its own ffmpeg binary, so no system ffmpeg is needed. Both take any iterable of equally sized
-(H, W, 3) uint8 frames and return the number of frames written.
+(H, W, 3) uint8 frames and return the number of frames written. Both write all or nothing
+(`servoface.sim.render.atomic`): a frame that fails, or Ctrl-C, leaves no truncated file at the target.
 """
 
 from __future__ import annotations
 
+import contextlib
+import re
+import subprocess
 from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 from PIL import Image as PILImage
+from servoface.sim.render.atomic import atomic_output
 
 Image = NDArray[np.uint8]
 
@@ -70,27 +75,28 @@ def write_gif(frames: Iterable[Image], path: str | Path, fps: float = 20.0) -> i
     (holds) may be stored once with their durations added; the total duration is frames / fps.
     """
     _check_fps(fps)
-    arrays: list[Image] = []
-    shape: tuple[int, ...] | None = None
-    for i, img in enumerate(frames):
-        arr = _frame(img, i, shape)
-        shape = arr.shape
-        arrays.append(arr)
-    if not arrays:
-        raise ValueError(f"{path}: no frames to write")
-    step = max(1, len(arrays) // 8)
-    sample = np.concatenate([a[::2, ::2] for a in arrays[::step]] + [arrays[-1][::2, ::2]])
-    palette = PILImage.fromarray(sample).quantize(colors=256, method=PILImage.Quantize.MEDIANCUT)
-    images = [PILImage.fromarray(a).quantize(palette=palette, dither=PILImage.Dither.NONE) for a in arrays]
-    images[0].save(
-        path,
-        save_all=True,
-        append_images=images[1:],
-        duration=round(1000.0 / fps),
-        loop=0,
-        optimize=False,
-        disposal=1,
-    )
+    with atomic_output(path) as tmp:  # before any frame: a bad target fails at once
+        arrays: list[Image] = []
+        shape: tuple[int, ...] | None = None
+        for i, img in enumerate(frames):
+            arr = _frame(img, i, shape)
+            shape = arr.shape
+            arrays.append(arr)
+        if not arrays:
+            raise ValueError(f"{path}: no frames to write")
+        step = max(1, len(arrays) // 8)
+        sample = np.concatenate([a[::2, ::2] for a in arrays[::step]] + [arrays[-1][::2, ::2]])
+        palette = PILImage.fromarray(sample).quantize(colors=256, method=PILImage.Quantize.MEDIANCUT)
+        images = [PILImage.fromarray(a).quantize(palette=palette, dither=PILImage.Dither.NONE) for a in arrays]
+        images[0].save(
+            tmp,  # keeps the target's suffix: Pillow picks the format by it, as it did from the target
+            save_all=True,
+            append_images=images[1:],
+            duration=round(1000.0 / fps),
+            loop=0,
+            optimize=False,
+            disposal=1,
+        )
     return len(images)
 
 
@@ -101,34 +107,56 @@ def write_mp4(frames: Iterable[Image], path: str | Path, fps: float = 20.0) -> i
     _check_fps(fps)
     count = 0
     shape: tuple[int, ...] | None = None
-    writer = None
-    try:
-        for i, img in enumerate(frames):
-            arr = _frame(img, i, shape)
-            shape = arr.shape
-            h, w = arr.shape[:2]
-            if h % 2 or w % 2:  # yuv420p needs even sides
-                arr = np.pad(arr, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
-            if writer is None:
-                writer = imageio.get_writer(
-                    str(path),
-                    format="FFMPEG",
-                    mode="I",
-                    fps=fps,
-                    codec="libx264",
-                    quality=7,
-                    pixelformat="yuv420p",
-                    macro_block_size=1,
-                    ffmpeg_log_level="error",
-                )
-            writer.append_data(arr)
-            count += 1
-    finally:
-        if writer is not None:
-            writer.close()
-    if count == 0:
-        raise ValueError(f"{path}: no frames to write")
+    with atomic_output(path) as tmp:
+        writer = None
+        try:
+            for i, img in enumerate(frames):
+                arr = _frame(img, i, shape)
+                shape = arr.shape
+                h, w = arr.shape[:2]
+                if h % 2 or w % 2:  # yuv420p needs even sides
+                    arr = np.pad(arr, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
+                if writer is None:
+                    writer = imageio.get_writer(
+                        str(tmp),  # keeps the target's suffix: ffmpeg picks the container by it
+                        format="FFMPEG",
+                        mode="I",
+                        fps=fps,
+                        codec="libx264",
+                        quality=7,
+                        pixelformat="yuv420p",
+                        macro_block_size=1,
+                        ffmpeg_log_level="error",
+                    )
+                writer.append_data(arr)
+                count += 1
+        except BaseException:
+            if writer is not None:  # stop ffmpeg; the error that got us here is the one to report
+                with contextlib.suppress(Exception):
+                    writer.close()
+            raise
+        if writer is None:
+            raise ValueError(f"{path}: no frames to write")
+        writer.close()
+        encoded = _encoded_frames(tmp)
+        if encoded != count:  # imageio-ffmpeg does not report how ffmpeg exited: read back what it wrote
+            found = "an unreadable file" if encoded is None else f"{encoded} frames"
+            raise OSError(f"{path}: ffmpeg did not finish the video ({count} frames given, {found} written)")
     return count
+
+
+def _encoded_frames(path: str | Path) -> int | None:
+    """Frames in the video stream of an MP4, counted by ffmpeg copying the stream (no decoding, so fast);
+    None if ffmpeg cannot read the file (e.g. no index: the encoder did not finish it)."""
+    import imageio_ffmpeg
+
+    cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-nostdin", "-i", str(path)]
+    cmd += ["-map", "0:v:0", "-c", "copy", "-f", "null", "-"]
+    run = subprocess.run(cmd, stdin=subprocess.DEVNULL, capture_output=True, check=False)
+    found = re.findall(rb"frame=\s*(\d+)", run.stderr)
+    if run.returncode != 0 or not found:
+        return None
+    return int(found[-1])
 
 
 WRITERS = {".gif": write_gif, ".mp4": write_mp4}
