@@ -162,11 +162,11 @@ def render_performance(
 
 
 def write_sheet(face: Face, path: Path, size: tuple[int, int] = (240, 200), show: str = "achievable") -> list[str]:
-    from PIL import Image as PILImage
     from servoface.sim.achievable import AchievableFace
     from servoface.sim.expressions import load_library
     from servoface.sim.render import HeadRenderer
     from servoface.sim.render.clips import library_sheet
+    from servoface.sim.render.images import save_image
 
     library = load_library(face.head.expressions_path or face.head.face_type)
     twin = None
@@ -174,7 +174,7 @@ def write_sheet(face: Face, path: Path, size: tuple[int, int] = (240, 200), show
         twin = AchievableFace(face.head, face.pipeline.calibration, model=face.pipeline.face)
     with HeadRenderer(*size) as renderer:
         sheet, names = library_sheet(renderer, face.head, library, show_progress=False, show=show, achievable=twin)
-    PILImage.fromarray(sheet).save(path)
+    save_image(sheet, path)  # all or nothing: no truncated sheet after a failure or Ctrl-C
     return names
 
 
@@ -183,9 +183,8 @@ def write_clipped_frame(face: Face, perf: Performance, path: Path) -> Path | Non
     clipped = [t for t in perf.traces if t.verdict != "accept"]
     if not clipped:
         return None
-    from PIL import Image as PILImage
     from servoface.sim.render import HeadRenderer
-    from servoface.sim.render.images import render_side_by_side
+    from servoface.sim.render.images import render_side_by_side, save_image
 
     def gap(t: FrameTrace) -> int:
         return max(abs(t.goals_requested[s] - t.goals_sent[s]) for s in t.goals_sent)
@@ -194,7 +193,7 @@ def write_clipped_frame(face: Face, perf: Performance, path: Path) -> Path | Non
     with HeadRenderer(480, 400) as renderer:
         left = renderer.render(face.head, face.pipeline.face.solve(worst.aus))
         right = renderer.render(face.head, gated_pose(face, worst))
-    PILImage.fromarray(render_side_by_side(left, right, ("target", f"gated: {worst.verdict}"))).save(path)
+    save_image(render_side_by_side(left, right, ("target", f"gated: {worst.verdict}")), path)
     return path
 
 

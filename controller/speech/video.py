@@ -48,9 +48,18 @@ def render_talking(
 
 def mux(video: Path, audio: Path, out: Path) -> Path:
     """Copy the video stream, add the audio as AAC; the result lasts as long as the longer of the two."""
-    import imageio_ffmpeg
+    from servoface.sim.render.atomic import atomic_output
 
     out.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_output(out) as partial:  # all or nothing: an interrupted mux leaves no truncated video
+        _mux_to(video, audio, partial, out)
+    return out
+
+
+def _mux_to(video: Path, audio: Path, partial: Path, out: Path) -> None:
+    """`mux` into ``partial`` (renamed onto ``out`` by the caller once ffmpeg succeeded)."""
+    import imageio_ffmpeg
+
     cmd = [
         imageio_ffmpeg.get_ffmpeg_exe(),
         "-y",
@@ -70,12 +79,11 @@ def mux(video: Path, audio: Path, out: Path) -> Path:
         "aac",
         "-b:a",
         "96k",
-        str(out),
+        str(partial),
     ]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     if proc.returncode != 0:
         raise SpeechError(f"{out}: ffmpeg could not mux the audio: {proc.stderr.strip()[:300]}")
-    return out
 
 
 def plot_timing(face: Face, perf: Performance, speech: Speech, path: Path, *, latency_s: float = 0.0) -> Path:
