@@ -23,11 +23,12 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-from servoface.calibration.curves import CENTRE_TICK, TICKS_PER_DEG, Curve, LinearCurve, PchipCurve
+from servoface.calibration.curves import CENTRE_TICK, TICKS_PER_DEG, TICKS_PER_TURN, Curve, LinearCurve, PchipCurve
 from servoface.calibration.errors import CalibrationError
 from servoface.calibration.fileformat import save_calibration
 from servoface.calibration.fitting import EndTicks, FitReport, check_servo, end_ticks
 from servoface.calibration.head import CalibrationMetadata, HeadCalibration
+from servoface.calibration.servo import MAX_POSITION_TICK, MIN_POSITION_TICK
 from servoface.calibration.spec import ServoSpec
 
 CRANK_MAX_ANGLE_DEG = 60.0
@@ -59,16 +60,75 @@ def builtin_curve(spec: ServoSpec) -> tuple[Curve, NDArray[np.float64]]:
     if spec.kind == "joint":
         gain = spec.direction * TICKS_PER_DEG
         curve = LinearCurve(CENTRE_TICK - gain * spec.neutral, TICKS_PER_DEG, spec.direction)
-        targets = np.unique([spec.lower, spec.neutral, spec.upper])
+        lower, neutral, upper = curve.forward(np.array([spec.lower, spec.neutral, spec.upper])).tolist()
+        # a neutral within float rounding of an end (an end at 1e-136 deg) would be a second point on its tick
+        between = [spec.neutral] if neutral not in (lower, upper) else []
+        targets = np.array([spec.lower, *between, spec.upper])
         return curve, np.stack([targets, curve.forward(targets)], axis=1)
     points = crank_points(spec)
     return PchipCurve(points), points
 
 
-def builtin_servo(spec: ServoSpec) -> FitReport:
-    """The calibration of one emulated servo (see the module docstring)."""
-    curve, points = builtin_curve(spec)
-    return check_servo(spec, curve, points, neutral_tick=CENTRE_TICK)
+MIN_SPAN_DEG = 1.0 / TICKS_PER_DEG  # one tick: 0.088 deg
+MAX_SPAN_DEG = (MAX_POSITION_TICK - MIN_POSITION_TICK) / TICKS_PER_DEG  # 4095 ticks: 359.9 deg
+
+
+def expected_span() -> str:
+    """What a joint actuator's range must span on an ideal servo, in words."""
+    return (
+        f"a span of {MIN_SPAN_DEG:.3f}..{MAX_SPAN_DEG:.1f} deg (1..{MAX_POSITION_TICK - MIN_POSITION_TICK} "
+        f"ticks of a servo turning with the joint, {TICKS_PER_TURN} ticks a turn)"
+    )
+
+
+def expected_reach() -> str:
+    """What a joint actuator's range must reach on an ideal servo, in words."""
+    return (
+        f"both ends within {MIN_POSITION_TICK}..{MAX_POSITION_TICK} of a servo turning with the joint, its "
+        f"neutral at tick {CENTRE_TICK} ({TICKS_PER_TURN} ticks a turn)"
+    )
+
+
+def _past(name: str, spec: ServoSpec, tick: int) -> str:
+    """One end of a joint range that lands outside the goals: where, and the room on its side."""
+    target = spec.upper if name == "upper" else spec.lower
+    room = MAX_POSITION_TICK - CENTRE_TICK if tick > MAX_POSITION_TICK else CENTRE_TICK - MIN_POSITION_TICK
+    limit = MAX_POSITION_TICK if tick > MAX_POSITION_TICK else MIN_POSITION_TICK
+    return (
+        f"the {name} end, {abs(target - spec.neutral):g} deg from neutral, lands on tick {tick}, past {limit}: "
+        f"that side has {room} ticks ({room / TICKS_PER_DEG:.1f} deg)"
+    )
+
+
+def reach_problem(spec: ServoSpec, ends: EndTicks) -> str | None:
+    """Why the ideal servo cannot take the joint range of ``spec`` whose ends land on ``ends``, in words that
+    start with what is expected (the caller puts the key that sets the range in front), or None when it can.
+
+    The one wording of these refusals: :func:`builtin_servo` raises it, ``servoface check`` and
+    ``calibrate --template`` print it after the profile key (``servoface.controller.joint_spans``).
+    Anchors (a crank reaching its range at 60 deg) always fit: None.
+    """
+    if spec.kind != "joint":
+        return None
+    got = f"for servo {spec.role!r}, got [{spec.lower:g}, {spec.upper:g}]"
+    span = spec.upper - spec.lower
+    if ends.outside and span > MAX_SPAN_DEG:
+        return f"expected {expected_span()} {got} (spans {span:g} deg, more than one servo turn; a typo?)"
+    if ends.lower == ends.upper:
+        return (
+            f"expected {expected_span()} {got} (spans {span:g} deg, less than one servo tick "
+            f"({span * TICKS_PER_DEG:.2f} tick): both ends land on tick {ends.lower}; a typo? widen the range "
+            f"to at least {MIN_SPAN_DEG:.3f} deg, or gear the joint so its servo turns further than it and "
+            "calibrate from measured ticks)"
+        )
+    if ends.outside:
+        past = "; ".join(_past(name, spec, getattr(ends, name)) for name in ends.outside)
+        return (
+            f"expected {expected_reach()} {got} with neutral {spec.neutral:g} deg ({past}; re-mount the horn so "
+            "neutral sits nearer the middle of the travel and calibrate from measured ticks, or move the "
+            "actuator's neutral_deg or narrow the range)"
+        )
+    return None
 
 
 @dataclass(frozen=True)
@@ -77,20 +137,38 @@ class BuiltinRefusal:
 
     error: CalibrationError  # what they say
     ends: EndTicks | None  # where its curve puts the range's ends (None: no curve could be made)
+    reason: str | None = None  # a joint range it cannot reach: :func:`reach_problem`'s words (None: another)
+
+
+def _builtin(spec: ServoSpec) -> FitReport | BuiltinRefusal:
+    """The emulated servo's calibration of ``spec``, or why it cannot take it."""
+    try:
+        curve, points = builtin_curve(spec)
+    except CalibrationError as err:
+        return BuiltinRefusal(err, None)
+    ends = end_ticks(spec, curve)
+    if (why := reach_problem(spec, ends)) is not None:
+        return BuiltinRefusal(CalibrationError(why), ends, why)
+    try:
+        return check_servo(spec, curve, points, neutral_tick=CENTRE_TICK)
+    except CalibrationError as err:
+        return BuiltinRefusal(err, ends)
+
+
+def builtin_servo(spec: ServoSpec) -> FitReport:
+    """The calibration of one emulated servo (see the module docstring); CalibrationError, in
+    :func:`builtin_refusal`'s words, when the ideal servo cannot take its range."""
+    got = _builtin(spec)
+    if isinstance(got, BuiltinRefusal):
+        raise got.error
+    return got
 
 
 def builtin_refusal(spec: ServoSpec) -> BuiltinRefusal | None:
     """:func:`builtin_servo`'s refusal of ``spec``, or None when it takes it: the same steps, so a caller
     that predicts the refusal (``servoface check`` before a calibration exists) cannot disagree with it."""
-    try:
-        curve, points = builtin_curve(spec)
-    except CalibrationError as err:
-        return BuiltinRefusal(err, None)
-    try:
-        check_servo(spec, curve, points, neutral_tick=CENTRE_TICK)
-    except CalibrationError as err:
-        return BuiltinRefusal(err, end_ticks(spec, curve))
-    return None
+    got = _builtin(spec)
+    return got if isinstance(got, BuiltinRefusal) else None
 
 
 def builtin_calibration(head: str, specs: Sequence[ServoSpec], source: str = "") -> HeadCalibration:

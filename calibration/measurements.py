@@ -20,6 +20,7 @@ from servoface.calibration.errors import MeasurementCsvError
 from servoface.calibration.servo import MAX_POSITION_TICK, MIN_POSITION_TICK
 
 HEADER = ("role", "target", "tick")
+MAX_ROWS_NAMED = 6  # rows a message lists in full
 
 
 @dataclass(frozen=True)
@@ -148,23 +149,52 @@ def read_measurements_csv(
     return out
 
 
+def _at(m: Measurement) -> str:
+    return f"line {m.line}, target {m.target:g}"
+
+
 def check_monotone_rows(file: str, role: str, rows: list[Measurement]) -> None:
-    """Raise MeasurementCsvError unless ticks are strictly monotone in the target (naming the lines)."""
+    """Raise MeasurementCsvError unless ticks are strictly monotone in the target.
+
+    The servo's direction is the one most of its steps (rows in target order) take, or on a tie the one from
+    its lowest to its highest target; the error names the first step against it (both lines, targets and
+    ticks), what was found there and what that direction expects.
+    """
     ordered = sorted(rows, key=lambda m: m.target)
     for a, b in zip(ordered, ordered[1:], strict=False):
         if a.target == b.target:
             raise MeasurementCsvError(
                 file, b.line, f"role '{role}': target {b.target:g} already measured on line {a.line}"
             )
-    if len(ordered) < 2:
+    steps = list(zip(ordered, ordered[1:], strict=False))
+    rising = sum(b.tick > a.tick for a, b in steps)
+    falling = sum(b.tick < a.tick for a, b in steps)
+    if rising == len(steps) or falling == len(steps):
         return
-    sign = 1 if ordered[1].tick > ordered[0].tick else -1
-    for a, b in zip(ordered, ordered[1:], strict=False):
-        if (b.tick - a.tick) * sign <= 0:
-            order = "increasing" if sign > 0 else "decreasing"
-            raise MeasurementCsvError(
-                file,
-                b.line,
-                f"role '{role}': ticks are not strictly {order} in the target: line {a.line} "
-                f"({a.target:g} -> {a.tick}) and line {b.line} ({b.target:g} -> {b.tick})",
-            )
+    first, last = ordered[0], ordered[-1]
+    sign = (rising > falling) - (rising < falling) or (last.tick > first.tick) - (last.tick < first.tick)
+    if sign == 0:  # as many steps up as down (or none either way), and both ends on one tick: no direction
+        shown = MAX_ROWS_NAMED
+        ticks = ", ".join(f"{m.tick} ({_at(m)})" for m in ordered[:shown])
+        ticks += f" and {len(ordered) - shown} more" if len(ordered) > shown else ""
+        raise MeasurementCsvError(
+            file,
+            last.line,
+            f"role '{role}': ticks {ticks} neither rise nor fall with the target ({rising} step(s) up, {falling} "
+            f"down, {len(steps) - rising - falling} flat); expected ticks strictly increasing or strictly "
+            "decreasing in the target: re-measure these rows",
+        )
+    a, b = next((a, b) for a, b in steps if (b.tick - a.tick) * sign <= 0)
+    found = (
+        f"ticks stay at {a.tick} from {_at(a)} to {_at(b)}"
+        if a.tick == b.tick
+        else f"ticks {'fall' if b.tick < a.tick else 'rise'} from {a.tick} ({_at(a)}) to {b.tick} ({_at(b)})"
+    )
+    way, order = ("rise", "increasing") if sign > 0 else ("fall", "decreasing")
+    raise MeasurementCsvError(
+        file,
+        b.line,
+        f"role '{role}': {found}, but this servo's ticks {way} with the target ({max(rising, falling)} of its "
+        f"{len(steps)} steps; {first.tick} at target {first.target:g} -> {last.tick} at target {last.target:g}): "
+        f"expected ticks strictly {order} in the target; re-measure line {a.line} or line {b.line}",
+    )

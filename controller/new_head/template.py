@@ -3,11 +3,14 @@
 Written by ``servoface new`` and, for a head.toml edited since (a servo added or taken out, a range
 changed), by ``servoface calibrate --head DIR --template``. The builder replaces the ticks by what they
 measure and runs ``servoface calibrate --head DIR --csv DIR/calibration_template.csv``. Rows: the lower
-limit, neutral, the upper limit and points between, per servo in the profile's order.
+limit, neutral, the upper limit and points between, per servo in the profile's order; one row per tick for
+a range of only a few ticks (ticks must be strictly monotone in the target), so that ``--csv`` takes the
+unedited template whenever ``--builtin`` takes the range.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -17,6 +20,7 @@ if TYPE_CHECKING:
 
 TEMPLATE_CSV = "calibration_template.csv"
 POINTS_PER_SERVO = 5  # lower, upper and three between (plus neutral when it is not one of them)
+TARGET_PLACES = 3  # decimals of a row's target
 
 HEADER = (
     "# role,target,tick: the Present Position (tick) you read when the actuator is at target (deg or mm).",
@@ -29,7 +33,7 @@ HEADER = (
 
 def template_text(head_name: str, specs: Sequence[ServoSpec]) -> str:
     """The template's text for ``specs`` (CalibrationError, naming the servo, when an ideal servo cannot
-    reach a range: more than one turn, or less than one tick)."""
+    reach a range: more than one turn, an end past 0..4095, or both ends on one tick)."""
     import numpy as np
     from servoface.calibration.builtin import builtin_calibration
 
@@ -37,12 +41,22 @@ def template_text(head_name: str, specs: Sequence[ServoSpec]) -> str:
     lines = list(HEADER)
     for spec in specs:
         servo = cal[spec.role]
-        ends = np.linspace(spec.lower, spec.upper, POINTS_PER_SERVO).round(3).tolist()
-        for t in sorted({*ends, round(spec.neutral, 3)}):
-            # rounding may take an end's row just past the range (25.0006 -> 25.001): give it the end's own
-            # tick, so the template refuses no range the built-in calibration takes
-            inside = min(max(float(t), spec.lower), spec.upper)
-            lines.append(f"{spec.role},{t:g},{servo.to_tick(inside)}")
+        # targets as typed (3 decimals), more for a range under 0.1 (mm): an end row stays within 1% of its end
+        places = TARGET_PLACES + max(0, math.ceil(math.log10(0.1 / (spec.upper - spec.lower))))
+        ends = np.linspace(spec.lower, spec.upper, POINTS_PER_SERVO).round(places).tolist()
+        neutral = float(np.round(spec.neutral, places))
+        targets = sorted({*ends, neutral})
+        # rounding moves an end's row a little past the range (25.0006 -> 25.001) or short of it: give it the
+        # end's own tick (the built-in calibration's limit), so the template refuses no range that one takes
+        ticks = {t: servo.to_tick(min(max(float(t), spec.lower), spec.upper)) for t in targets}
+        ticks[targets[0]], ticks[targets[-1]] = servo.to_tick(spec.lower), servo.to_tick(spec.upper)
+        # a range of a few ticks puts rows on one tick (0..0.05 deg: 2048, 2048, ...), which --csv refuses as
+        # not strictly monotone: keep one row per tick, the ends first (coverage), then neutral, then between
+        kept: dict[int, float] = {}
+        for t in (targets[0], targets[-1], neutral, *targets):
+            kept.setdefault(ticks[t], t)
+        for t in sorted(kept.values()):
+            lines.append(f"{spec.role},{t:.15g},{ticks[t]}")  # every digit kept (:g cuts 1000.044 to 1000.04)
     return "\n".join(lines) + "\n"
 
 

@@ -10,9 +10,11 @@ import pytest
 from servoface.calibration.builtin import (
     CRANK_MAX_ANGLE_DEG,
     builtin_calibration,
+    builtin_refusal,
     crank_points,
     crank_radius_mm,
 )
+from servoface.calibration.errors import CalibrationError
 from servoface.calibration.fileformat import calibration_to_dict, dumps
 from servoface.calibration.head import HeadCalibration
 from servoface.calibration.spec import ServoSpec
@@ -68,3 +70,59 @@ def test_shipped_files_match_the_head_profiles(name: str) -> None:
         f"sim/heads/{name}/calibration.json is stale: run "
         f"'servoface calibrate --head {name} --builtin --out sim/heads/{name}/calibration.json'"
     )
+
+
+def _joint(lower: float, upper: float, role: str = "jaw") -> ServoSpec:
+    return ServoSpec(role, 1, "XL430-W250", "deg", lower, upper, 0.0, "joint", -1 if role.endswith("_r") else 1)
+
+
+@pytest.mark.parametrize(("lower", "upper", "tick"), [(0.0, 0.04, 2048), (-0.04, 0.0, 2048), (-0.03, 0.01, 2048)])
+def test_a_range_under_one_tick_is_refused_with_the_fix_not_re_measure(lower: float, upper: float, tick: int) -> None:
+    """Nothing was measured: the ideal servo's ends land on one tick; say so, and what to do."""
+    spec = _joint(lower, upper)
+    with pytest.raises(CalibrationError) as info:
+        builtin_calibration("t", [spec])
+    message = str(info.value)
+    assert "re-measure" not in message and "measured ticks do not change" not in message, message
+    got = f"got [{lower:g}, {upper:g}] (spans {upper - lower:g} deg, less than one servo tick ("
+    assert f"for servo 'jaw', {got}" in message, message
+    assert (
+        f"both ends land on tick {tick}; a typo? widen the range to at least 0.088 deg, or gear the joint" in message
+    ), message
+    refusal = builtin_refusal(spec)
+    assert refusal is not None and refusal.reason == message and str(refusal.error) == message
+
+
+@pytest.mark.parametrize(
+    ("lower", "upper", "role", "end"),
+    [
+        (0.0, 200.0, "jaw", "the upper end, 200 deg from neutral, lands on tick 4324, past 4095: that side has 2047"),
+        (-200.0, 0.0, "jaw", "the lower end, 200 deg from neutral, lands on tick -228, past 0: that side has 2048"),
+        (-200.0, 0.0, "jaw_r", "the lower end, 200 deg from neutral, lands on tick 4324, past 4095"),
+    ],
+)
+def test_an_end_past_the_goals_is_refused_naming_the_end_and_the_fix(
+    lower: float, upper: float, role: str, end: str
+) -> None:
+    """Was only "maps to ticks 2048..4324, outside 0..4095; re-mount the horn"."""
+    spec = _joint(lower, upper, role)
+    with pytest.raises(CalibrationError) as info:
+        builtin_calibration("t", [spec])
+    message = str(info.value)
+    assert message.startswith("expected both ends within 0..4095 of a servo turning with the joint, its "), message
+    assert f"for servo '{role}', got [{lower:g}, {upper:g}] with neutral 0 deg ({end}" in message, message
+    assert message.endswith(
+        "re-mount the horn so neutral sits nearer the middle of the travel and calibrate from measured ticks, "
+        "or move the actuator's neutral_deg or narrow the range)"
+    ), message
+    refusal = builtin_refusal(spec)
+    assert refusal is not None and refusal.reason == message
+
+
+def test_a_neutral_within_float_rounding_of_an_end_is_not_a_second_point_on_its_tick() -> None:
+    """[-0.0439, 4e-136] deg on a reversed servo reaches ticks 2048..2049: taken, not refused for two points
+    on tick 2048 (neutral and the upper end)."""
+    spec = ServoSpec("jaw_r", 1, "XL430-W250", "deg", -0.0439453125, 4.05e-136, 0.0, "joint", -1)
+    assert builtin_refusal(spec) is None
+    s = builtin_calibration("t", [spec])["jaw_r"]
+    assert (s.min_tick, s.max_tick) == (2048, 2049)

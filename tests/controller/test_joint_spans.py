@@ -4,12 +4,16 @@ Both put a servo's neutral at tick 2048, 4096 ticks a turn, so a joint reaching 
 one side of neutral (``[0, 200]``, ``[-179.9, 180]``) was passed by check's span rule and refused one step
 later by calibrate ("outside 0..4095; re-mount the horn"). The property: check-flags <=> calibrate-refuses,
 over random ranges, neutrals and directions, and over the edges (ends exactly on tick 0 or 4095, or half a
-tick past: rounding decides).
+tick past: rounding decides). And what follows from it: `calibrate --csv` takes the unedited template of
+every range the other two take (a range of a few ticks once got rows on one tick: 2048, 2048, ...), and a
+joint range they refuse is named in one wording, calibrate's, which check puts after the profile key.
 """
 
 from __future__ import annotations
 
+import tempfile
 from collections.abc import Callable
+from pathlib import Path
 
 import pytest
 from hypothesis import example, given, settings
@@ -17,6 +21,7 @@ from hypothesis import strategies as st
 from servoface.calibration.builtin import builtin_calibration
 from servoface.calibration.curves import TICKS_PER_DEG
 from servoface.calibration.errors import CalibrationError
+from servoface.calibration.procedure import calibrate_from_csv
 from servoface.calibration.spec import ServoSpec
 from servoface.controller.joint_spans import range_problem
 from servoface.controller.new_head.template import template_text
@@ -40,24 +45,38 @@ EDGES_DEG = sorted(
 )
 
 
-def _refused(what: Callable[[], object]) -> bool:
+def _refusal(what: Callable[[], object]) -> str | None:
     try:
         what()
-    except CalibrationError:
-        return True
-    return False
+    except CalibrationError as err:
+        return str(err)
+    return None
+
+
+def _csv_refusal(spec: ServoSpec, text: str) -> str | None:
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "template.csv"
+        path.write_text(text)
+        return _refusal(lambda: calibrate_from_csv(path, [spec], "h"))
 
 
 def _agree(spec: ServoSpec) -> str | None:
-    """Assert that check flags ``spec`` iff both calibrate paths refuse it; return check's message."""
+    """Assert that check flags ``spec`` iff both calibrate paths refuse it, that --csv takes the unedited
+    template whenever they take the range, and that a joint range is refused in one wording (check's is
+    calibrate's after the key, never "re-measure": nothing was measured); return check's message."""
     why = range_problem(spec, WHERE)
-    builtin = _refused(lambda: builtin_calibration("h", [spec]))
-    template = _refused(lambda: template_text("h", [spec]))
+    builtin = _refusal(lambda: builtin_calibration("h", [spec]))
+    template = _refusal(lambda: template_text("h", [spec]))
     assert builtin == template, (spec, builtin, template)
-    assert (why is not None) == builtin, (spec, why, builtin)
-    if why is not None:
-        assert why.startswith(f"{WHERE}: "), why
-        assert f"servo {spec.role!r}" in why, why
+    assert (why is not None) == (builtin is not None), (spec, why, builtin)
+    if why is None:
+        assert _csv_refusal(spec, template_text("h", [spec])) is None, (spec, template_text("h", [spec]))
+        return None
+    assert why.startswith(f"{WHERE}: "), why
+    assert f"servo {spec.role!r}" in why, why
+    if spec.kind == "joint":
+        assert why == f"{WHERE}: {builtin}", (why, builtin)
+        assert "re-measure" not in why, why
     return why
 
 
@@ -139,11 +158,34 @@ def test_a_range_calibrate_takes_is_not_flagged(lower: float, upper: float, dire
     [
         (-200.0, 200.0, "spans 400 deg, more than one servo turn; a typo?"),
         (-180.0, 180.0, "spans 360 deg, more than one servo turn; a typo?"),
-        (0.0, 0.04, "spans 0.04 deg, less than one servo tick; a typo?"),
+        (0.0, 0.04, "spans 0.04 deg, less than one servo tick (0.46 tick): both ends land on tick 2048; a typo?"),
     ],
 )
 def test_a_span_calibrate_refuses_keeps_the_span_message(lower: float, upper: float, why: str) -> None:
     message = _agree(_joint(lower, upper))
     assert message is not None
     assert message.startswith(f"{WHERE}: expected a span of 0.088..359.9 deg"), message
-    assert f"got [{lower:g}, {upper:g}] ({why})" in message, message
+    assert f"got [{lower:g}, {upper:g}] ({why}" in message, message
+
+
+@pytest.mark.parametrize(
+    ("lower", "upper", "rows"),
+    [
+        (0.0, 0.05, [(0.0, 2048), (0.05, 2049)]),  # was 2048, 2048, 2048, 2048, 2049
+        (-0.05, 0.05, [(-0.05, 2047), (0.0, 2048), (0.05, 2049)]),
+        (0.0, 0.2, [(0.0, 2048), (0.05, 2049), (0.2, 2050)]),  # 0.1 and 0.15 share ticks with 0.05 and 0.2
+        (0.0, 0.0439453125, [(0.0, 2048), (0.0439, 2049)]),  # half a tick: the end row has the end's tick
+    ],
+)
+def test_the_template_of_a_range_of_a_few_ticks_has_one_row_per_tick(
+    tmp_path: Path, lower: float, upper: float, rows: list[tuple[float, int]]
+) -> None:
+    """`calibrate --csv` on the unedited template refused a range `--builtin` takes (ticks not strictly
+    monotone): the template now keeps one row per tick, its ends first."""
+    spec = _joint(lower, upper)
+    text = template_text("h", [spec])
+    assert [(float(t), int(k)) for _, t, k in (ln.split(",") for ln in text.splitlines()[5:])] == rows, text
+    path = tmp_path / "template.csv"
+    path.write_text(text)
+    result = calibrate_from_csv(path, [spec], "h")
+    assert (result.calibration["jaw"].min_tick, result.calibration["jaw"].max_tick) == (rows[0][1], rows[-1][1])
