@@ -8,9 +8,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from collections.abc import Mapping
+
     from servoface.calibration import HeadCalibration
     from servoface.controller.face import Face
     from servoface.controller.safe_stop import StopReport
+    from servoface.controller.script import Script
     from servoface.sim.head import Head
 
 
@@ -74,15 +77,106 @@ def open_errors() -> tuple[type[BaseException], ...]:
 
 def check_expression(head: Head, name: str) -> None:
     """Refuse an expression ``name`` the head's library does not have (ControllerError naming the ones it
-    has), before anything is opened: a typo must not switch torque on."""
+    has), or one the head cannot show (`check_on_head`), before anything is opened: a typo must not switch
+    torque on, nor an intensity the head's AU table refuses."""
     from servoface.controller.errors import ControllerError
     from servoface.sim.expressions import load_library
 
     known = load_library(head.expressions_path or head.face_type)
+    _check_library_face(head, known)  # (a library of another face type: said as such, not "unknown name")
     if name not in known:
         from servoface.controller.face import unknown_expression
 
         raise ControllerError(unknown_expression(name, known, head))
+    check_on_head(head, known, [name])
+
+
+NEUTRAL = "neutral"  # the rest pose: a library need not list it
+
+
+def check_on_head(head: Head, library: Mapping[str, Any], names: list[str], *, model: Any = None) -> None:
+    """Solve each expression of ``names`` (names of ``library``) at its apex on the head's face model
+    (``model``: one already built for the head, else built here), so that what the head's own AU table,
+    direct table or muscles refuse (an AU it does not know, an intensity out of its range, a library of
+    another face type) is bad input named before anything is opened or rendered: ExpressionError naming the
+    expression and the library file, or the profile's HeadProfileError."""
+    from servoface.sim.errors import ExpressionError, SimError
+    from servoface.sim.face_model import FaceModel
+
+    _check_library_face(head, library)
+    where = _library_where(library)
+    model = FaceModel(head) if model is None else model
+    for name in names:
+        if name == NEUTRAL and name not in library:
+            continue  # the rest pose, which every head shows
+        try:
+            model.solve(library[name].apex())
+        except SimError as err:
+            raise ExpressionError(f"expression {name!r}{where}, on head {head.name!r}: {err}") from err
+
+
+def _library_where(library: Mapping[str, Any]) -> str:
+    source = getattr(library, "source_path", None)
+    return f" in {source}" if source is not None else ""
+
+
+def _check_library_face(head: Head, library: Mapping[str, Any]) -> None:
+    """ExpressionError if ``library`` holds expressions of another face type than the head's."""
+    from servoface.sim.errors import ExpressionError
+
+    other = sorted({e.face_type for e in library.values() if getattr(e, "face_type", head.face_type) != head.face_type})
+    if other:
+        raise ExpressionError(
+            f"the expression library{_library_where(library)} is for a {'/'.join(other)} face; head {head.name!r} "
+            f"is a {head.face_type} face: expected a {head.face_type} library (its profile's 'expressions' key)"
+        )
+
+
+def check_script_on_head(head: Head, script: Script) -> None:
+    """Solve what ``script`` plays on the head's face model before anything is opened: every AU target of
+    every clip on its tracks (its own expressions, library ones, sequences, recipes, ``from`` poses and the
+    face track's initial pose), each AU at its lowest and highest value. What the head's AU table, direct
+    table or muscles refuse (an AU it does not know, an intensity out of its range) raises ScriptError
+    naming the script file, the expression and its track (or the profile's HeadProfileError). The script's
+    alive layers (blink, gaze, idle) are not expressions it names and are not solved here."""
+    from servoface.controller.errors import ScriptError
+    from servoface.controller.timeline.track import Track
+    from servoface.sim.errors import SimError
+    from servoface.sim.face_model import FaceModel
+
+    extremes: dict[tuple[str, bool], tuple[float, str]] = {}  # (AU, high?) -> (value, where it is asked for)
+
+    def note(au: str, value: float, what: str) -> None:
+        for high in (False, True):
+            known = extremes.get((au, high))
+            if known is None or (value > known[0] if high else value < known[0]):
+                extremes[au, high] = (value, what)
+
+    timeline = script.timeline
+    for track_name in timeline.layer_names:
+        track = timeline.layer(track_name)
+        if not isinstance(track, Track):
+            continue  # an alive layer
+        for au, value in track.initial_pose.items():
+            note(au, value, f"script.initial (track {track_name})")
+        for placed in track.items:
+            for clip in _leaf_clips(placed.clip):  # a sequence's own expressions, each by its name
+                for au, value in clip.targets():
+                    note(au, value, f"expression {clip.name!r} (track {track_name})")
+            for au, value in (placed.from_pose or {}).items():
+                note(au, value, f"the from pose of {placed.clip.name!r} (track {track_name})")
+    model = FaceModel(head)
+    for (au, _), (value, what) in extremes.items():
+        try:
+            model.solve({au: value})
+        except SimError as err:
+            raise ScriptError(f"{script.source}: {what}, on head {head.name!r}: {err}") from err
+
+
+def _leaf_clips(clip: Any) -> list[Any]:
+    """``clip``, or the clips a sequence plays one after another (recursively)."""
+    parts = getattr(clip, "clips", None)
+    return [leaf for part in parts for leaf in _leaf_clips(part)] if parts else [clip]
 
 
 MAX_ROLES_NAMED = 4  # a calibration of another head lacks most roles: name a few, count the rest
@@ -93,14 +187,16 @@ def checked_calibration(args: argparse.Namespace, head: Head) -> HeadCalibration
     the head's servos: every role there, with the profile's ids and a servo model the driver knows. Called
     before anything is opened or announced, so a missing or malformed file, or one of another head, is
     refused with its own message and nothing else said (CalibrationError, ControllerError or
-    HeadProfileError: exit 2); `open_face` then drives with the calibration returned."""
+    HeadProfileError: exit 2); `open_face` then drives with the calibration returned. A command without
+    --calibration (`node`) checks the profile's own."""
     from servoface.calibration.errors import CalibrationFileError
     from servoface.controller.head_servos import servo_specs
     from servoface.controller.service import head_calibration
 
-    cal = head_calibration(head, args.calibration)  # a file that is missing or malformed names itself
-    file = str(args.calibration if args.calibration is not None else head.calibration_path)
-    check = f"servoface check {args.head}" + (f" --calibration {file}" if args.calibration is not None else "")
+    given = getattr(args, "calibration", None)
+    cal = head_calibration(head, given)  # a file that is missing or malformed names itself
+    file = str(given if given is not None else head.calibration_path)
+    check = f"servoface check {args.head}" + (f" --calibration {file}" if given is not None else "")
     fix = f"expected this head's calibration (`{check}` lists every difference)"
     missing = [a.role for a in head.actuators if a.role not in cal.roles]
     if missing:

@@ -9,9 +9,14 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from servoface.controller.cli.head_args import add_read_arguments, read_options
 from servoface.controller.cli.network_args import add_network_arguments, open_from_args
+
+if TYPE_CHECKING:
+    from servoface.calibration import HeadCalibration
+    from servoface.sim.head import Head
 
 HELP = "serve a head on Zenoh (servoface/<site>/<name>/...): commands, AU streams, state, status, presence"
 
@@ -54,6 +59,14 @@ def run(args: argparse.Namespace) -> int:
     # --rate was range-checked by options.parse_command
     try:
         keys = head_keys(args.site, args.name)
+    except NetworkError as err:
+        print(f"servoface node: {err}", file=sys.stderr)
+        return 2
+    checked = _checked_head(args)  # before the session starts: a broken profile is refused with nothing up
+    if isinstance(checked, int):
+        return checked
+    head, calibration = checked
+    try:
         session = open_from_args(args, node=True, keys=keys)
     except NetworkError as err:
         print(f"servoface node: {err}", file=sys.stderr)
@@ -67,7 +80,8 @@ def run(args: argparse.Namespace) -> int:
         signal.signal(sig, on_signal)
     try:
         opened = open_head(
-            args.head,
+            head,
+            calibration=calibration,
             port=args.port,
             emulate=args.emulate,
             baud=args.baud,
@@ -124,6 +138,35 @@ def run(args: argparse.Namespace) -> int:
             opened.chain.close()
         session.close()
     return code
+
+
+def _checked_head(args: argparse.Namespace) -> tuple[Head, HeadCalibration] | int:
+    """The head and its calibration, loaded and checked as `open_head` would find them (the profile, its
+    calibration file against its servos, and every expression of its library solved on its face model: a
+    peer may ask for any of them), or the exit code 2 after one line saying what is wrong."""
+    from servoface.calibration import CalibrationError
+    from servoface.controller.cli.head_args import check_on_head, checked_calibration
+    from servoface.controller.cli.terminal import printable
+    from servoface.controller.errors import ControllerError
+    from servoface.sim.errors import HeadProfileError, SimError
+    from servoface.sim.expressions import load_library
+    from servoface.sim.heads import load_head
+
+    try:
+        head = load_head(args.head)
+    except (HeadProfileError, FileNotFoundError, KeyError, ValueError) as err:
+        from servoface.controller.cli.exits import head_message
+
+        print(f"servoface node: {printable(head_message(args.head, err))}", file=sys.stderr)
+        return 2
+    try:
+        calibration = checked_calibration(args, head)  # (node takes no --calibration: the profile's own)
+        library = load_library(head.expressions_path or head.face_type)
+        check_on_head(head, library, [*library])
+    except (SimError, CalibrationError, ControllerError, OSError) as err:
+        print(f"servoface node: {printable(err)}", file=sys.stderr)
+        return 2
+    return head, calibration
 
 
 class _WireLog:

@@ -11,6 +11,7 @@ from servoface.controller.cli.head_args import (
     TraceFile,
     add_head_arguments,
     check_expression,
+    check_script_on_head,
     checked_calibration,
     exit_status,
     open_errors,
@@ -108,10 +109,11 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
                     raise ControllerError(
                         f"script {args.what} is for a {what.face_type} face; head {head.name!r} is {head.face_type}"
                     )
+                check_script_on_head(head, what)  # every expression it plays, solved on this head's face model
                 if speaks(what):  # say cues synthesised, the sound file read: before the port is opened
                     prepared = prepare(what)
             else:
-                check_expression(head, args.what)
+                check_expression(head, args.what)  # in the head's library, and solved on its face model
             trace_file.open()
         where = "the emulator" if args.emulate else args.port
         print(f"# opening head {head.name!r} on {where}", file=sys.stderr, flush=True)

@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 HELP = "render an expression of a head to PNG (apex), GIF/MP4 (neutral -> apex -> neutral), or --all as a sheet"
 STILL = (".png", ".jpg", ".jpeg")
@@ -128,7 +126,11 @@ def run(args: argparse.Namespace) -> int:
     except ExpressionError as err:
         return _fail(str(err))
     try:  # the head's AU table, direct table and muscles take every expression shown: before any render
-        _check_on_head(head, library, [*library] if args.all else [args.expression])
+        from servoface.controller.cli.head_args import check_on_head
+        from servoface.sim.render.twin import face_model
+
+        names = [*library] if args.all else [args.expression]
+        check_on_head(head, library, names, model=face_model(head))  # (the model the renders reuse)
     except SimError as err:
         from servoface.controller.cli.exits import exit_code
 
@@ -186,31 +188,6 @@ def run(args: argparse.Namespace) -> int:
 
         return _fail(f"{err}\n  next: `servoface check {args.head}` names what to fix", code=exit_code(err))
     return 0
-
-
-def _check_on_head(head: Any, library: Mapping[str, Any], names: list[str]) -> None:
-    """Solve each expression of ``names`` on the head's face model, so that what the head's own AU table,
-    direct table or muscles refuse (an AU it does not know, an intensity out of its range, a library of
-    another face type) is bad input named before anything is rendered or written: ExpressionError naming
-    the expression and the library file, or the profile's HeadProfileError."""
-    from servoface.sim.errors import ExpressionError, SimError
-    from servoface.sim.render.clips import pick_expression
-    from servoface.sim.render.twin import face_model
-
-    source = getattr(library, "source_path", None)
-    where = f" in {source}" if source is not None else ""
-    other = sorted({e.face_type for e in library.values() if getattr(e, "face_type", head.face_type) != head.face_type})
-    if other:
-        raise ExpressionError(
-            f"the expression library{where} is for a {'/'.join(other)} face; head {head.name!r} is a "
-            f"{head.face_type} face: expected a {head.face_type} library (its profile's 'expressions' key)"
-        )
-    model = face_model(head)  # built once, and reused by the renders
-    for name in names:
-        try:
-            model.solve(pick_expression(library, name))
-        except SimError as err:
-            raise ExpressionError(f"expression {name!r}{where}, on head {head.name!r}: {err}") from err
 
 
 def _say_gap(twin: object, aus: dict[str, float]) -> None:

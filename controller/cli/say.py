@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
         head = load_head(args.head)
         calibration = checked_calibration(args, head)  # before espeak-ng runs and anything is written
         if args.expression:
-            check_expression(head, args.expression)  # before espeak-ng runs and before the head is opened
+            check_expression(head, args.expression)  # known and solved on the head: before espeak-ng runs
         speech = speech_from_text(args.text, voice=args.voice, rate_wpm=args.rate_wpm, lead_s=args.lead_ms / 1e3)
         if args.out is not None:
             from servoface.controller.cli.outputs import writable_folder
