@@ -352,6 +352,7 @@ class HeadService:
         hold it; done after ``hold_s`` (the pose stays until something else plays there)."""
         apex = expression_apex(self.head, name, intensity)
         source = pose_source(self.validator, apex, transition_s, hold_s, 0.0, name=str(name))
+        self._on_head(apex, f"expression {name!r} at intensity {intensity!r}")
         return self._place("express", self._track(track), self._start_time(at_s), lambda slot, t0: source)
 
     def set_aus(
@@ -368,6 +369,7 @@ class HeadService:
         ``aus`` does not name go to 0, or stay with ``merge=True`` (one slider moved). Done after the
         transition and ``hold_s``; the pose stays. On "studio" (an override track) the AUs set win outright."""
         source = pose_source(self.validator, aus, transition_s, hold_s, 0.0)
+        self._on_head(self.validator.pose(dict(aus), where="set_aus"), "set_aus")
         the_track, start = self._track(track), self._start_time(at_s)
         if not merge:
             return self._place("set_aus", the_track, start, lambda slot, t0: source)
@@ -639,9 +641,13 @@ class HeadService:
                     frame = self.validator(t, aus)
                 except ControllerError as err:  # cannot happen with validated sources; hold, say so
                     self.observers.offer("fault", ServiceEvent(t, "bad_mix", str(err)))
-                    self.pipeline.hold()
+                    self._refused(t, err)
                 else:
-                    trace = self.pipeline.step(frame, t, late_s=tick.late_s)
+                    try:
+                        trace = self.pipeline.step(frame, t, late_s=tick.late_s)
+                    except (ControllerError, SimError) as err:  # the head refuses this pose: nothing was sent
+                        self.observers.offer("fault", ServiceEvent(t, "frame_error", str(err)))
+                        self._refused(t, err)
                 done = self.tracks.advance(t)
             elif self.driver is not None:  # torque off / e-stop: no goals, telemetry goes on
                 self.pipeline.last_snapshot = self.driver.read_state()
@@ -662,6 +668,23 @@ class HeadService:
             )
             return False
         return None
+
+    def _on_head(self, aus: Mapping[str, float], what: str) -> None:
+        """A pose the head's own face model refuses (an intensity outside its AU table's range, its direct
+        table or muscles) is bad input: ServiceError at once, naming ``what`` and the AU, nothing scheduled.
+        (A mix of poses the head takes one by one can still be refused in a frame: `_refused`.)"""
+        try:
+            self.pipeline.targets_for(aus)
+        except (ControllerError, SimError) as err:
+            raise ServiceError(f"{what}, on head {self.head.name!r}: {err}") from err
+
+    def _refused(self, t_s: float, err: Exception) -> None:
+        """A frame whose mixed pose the head refused (nothing of it sent): the commands that asked for it
+        fail with the reason (`TrackTable.fail_refused`: a waiter is told, not left waiting), and the last
+        safe goals are sent again, so the servos hold where they are and the bus, and each servo's Bus
+        Watchdog, stay fed. (HardwareError from that write goes to the caller's bus-failure path.)"""
+        self.tracks.fail_refused(t_s, err, self._notify, self.pipeline.targets_for, (ControllerError, SimError))
+        self.pipeline.hold()
 
     def _complete(self, handles: list[CommandHandle], t_s: float) -> None:
         """Commands whose sources finished at ``t_s``, DONE after that frame is published (`_frame`): a

@@ -150,6 +150,34 @@ class TrackTable:
                 fresh = False
         return mix(contributions)
 
+    def fail_refused(
+        self,
+        t_s: float,
+        err: Exception,
+        notify: Notify,
+        solves: Callable[[Mapping[str, float]], object],
+        refused: tuple[type[Exception], ...],
+    ) -> list[str]:
+        """After a frame's mixed pose was refused on the head (``err``: its face model or the frame check
+        refused it, so nothing was sent): the tracks whose own output the head refuses (``solves`` raises one
+        of ``refused`` on it) fail with that error; if none does alone (the mix is what the head refuses),
+        every track that contributed fails with ``err``. Their tracks are left empty, so the next frame mixes
+        what is left instead of failing again with every waiter left waiting. Returns the tracks' names."""
+        contributing = [s for s in self.slots.values() if s.source is not None and s.last]
+        culprits: list[tuple[Slot, Exception]] = []
+        for slot in contributing:
+            try:
+                solves(slot.last)
+            except refused as own:
+                culprits.append((slot, own))
+        if not culprits:
+            culprits = [(slot, err) for slot in contributing]
+        for slot, why in culprits:
+            if slot.handle is not None and slot.handle._set(Status.FAILED, t_s, str(why), why):
+                notify(slot.handle)
+            slot.source, slot.handle, slot.last = None, None, {}
+        return [slot.name for slot, _ in culprits]
+
     def advance(self, t_s: float) -> list[CommandHandle]:
         """After the frame went out: running sources that finished leave their track (a holding one stays
         on it, an ended one leaves it empty); returns their commands, for the caller to complete once the

@@ -1,0 +1,88 @@
+"""A pose the head's own face model refuses (here AU12 limited to 0.5 by the profile's AU table) never
+leaves a command hanging with torque on. `express` and `set_aus` refuse it at once (ServiceError naming the
+AU and the range, nothing scheduled). A source only the frame finds it in (a script) fails its command in
+that frame (its waiter is told) and its track is left empty; the service sends the last safe goals again in
+that frame (the bus and every servo's Bus Watchdog kept fed) and plays on. It used to raise in every frame:
+the command never ended, nothing was sent, and a waiter waited for ever."""
+
+from __future__ import annotations
+
+import shutil
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from servoface.controller.service import HeadService, ServiceError, Status, open_head
+
+from tests.controller.service.conftest import Running
+
+ROOT = Path(__file__).resolve().parents[3]
+LIMIT = "expected a finite intensity in [0.0, 0.5]"
+
+
+@pytest.fixture(scope="module")
+def narrow(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The built-in human profile with its AU table limiting AU12 to 0.5."""
+    folder = tmp_path_factory.mktemp("narrow") / "narrow_au"
+    shutil.copytree(ROOT / "sim" / "heads" / "human", folder)
+    toml = folder / "head.toml"
+    lines = toml.read_text().splitlines()
+    lines[lines.index('name = "human"')] = 'name = "narrow_au"'
+    at = next(i for i, line in enumerate(lines) if line.startswith("au_table ="))
+    lines[at] = 'au_table = "au.toml"'
+    toml.write_text("\n".join(lines) + "\n")
+    table = (ROOT / "sim" / "au" / "human.toml").read_text()
+    (folder / "au.toml").write_text(table.replace("[AU12]\n", "[AU12]\nrange = [0.0, 0.5]\n", 1))
+    script = folder / "smile.toml"
+    script.write_text('[script]\nface = "human"\n\n[[play]]\nat_s = 0.0\nlibrary = "happiness"\n')
+    return folder
+
+
+@pytest.fixture
+def running(narrow: Path) -> Iterator[Running]:
+    opened = open_head(narrow, emulate=True, wire_time=False)
+    r = Running(opened, HeadService(opened.head, opened.pipeline))
+    yield r
+    r.close()
+
+
+def _goals(r: Running) -> dict[int, int]:
+    return {sid: r.chain.servo(sid).read_register("Goal Position") for sid in r.pipeline.last_goals_tick}
+
+
+def test_express_and_set_aus_refuse_what_the_head_refuses_at_once(running: Running) -> None:
+    svc = running.service
+    before = svc.status().tracks
+    with pytest.raises(ServiceError) as err:
+        svc.express("happiness")
+    assert "expression 'happiness'" in str(err.value) and "on head 'narrow_au'" in str(err.value)
+    assert "AU12" in str(err.value) and LIMIT in str(err.value), err.value
+    with pytest.raises(ServiceError, match=r"set_aus, on head 'narrow_au': AU12: expected"):
+        svc.set_aus({"AU12": 0.8})
+    assert svc.status().tracks == before
+    assert svc.express("happiness", intensity=0.4).wait(5.0) is Status.DONE  # what it takes still plays
+
+
+def test_a_script_the_head_refuses_fails_in_its_frame_and_the_head_holds(running: Running, narrow: Path) -> None:
+    svc = running.service
+    faults = svc.subscribe("fault")
+    assert svc.set_aus({"AU1": 0.3}, track="face", transition_s=0.1).wait(5.0) is Status.DONE
+    held = _goals(running)
+    handle = svc.play(str(narrow / "smile.toml"))
+    assert handle.wait(5.0) is Status.FAILED, handle.status  # told, not left waiting
+    assert "AU12" in handle.detail and LIMIT in handle.detail, handle.detail
+    events = [e for e in faults.drain() if e.kind == "frame_error"]
+    assert events and "AU12" in events[0].detail
+    time.sleep(0.3)  # three Bus Watchdog periods (0.1 s): it trips if the bus went quiet
+    assert svc.running
+    assert svc.wait_settled(timeout_s=5.0)
+    neutral = {s.servo_id: s.neutral_tick for s in running.pipeline.calibration.servos}
+    assert any(held[sid] != neutral[sid] for sid in held)  # (the smile's track was not at neutral)
+    for sid, tick in _goals(running).items():
+        servo = running.chain.servo(sid)
+        assert not servo._watchdog_tripped, sid
+        # the failed command's track is left empty: the face goes where the other tracks say (none: neutral),
+        # at the gate's rates, like any command that ends
+        assert abs(tick - neutral[sid]) <= 1, (sid, tick, neutral[sid])
+    assert svc.set_aus({"AU1": 0.0}, track="face", transition_s=0.1).wait(5.0) is Status.DONE  # plays on
