@@ -97,23 +97,28 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
                 print(f"servoface play: {printable(head_message(args.head, err))}", file=sys.stderr)
                 print(f"  {head_hint(args.head)}", file=sys.stderr)
                 return 2
-            calibration = checked_calibration(args, head)  # a bad file refused before anything is said
+            script = None
             if args.input is not None:
                 from servoface.controller.inputs import load_recording
 
                 recording = load_recording(args.input, head.face_type, options=read_options(args))
-                print("\n".join(recording.report.lines()))
             elif is_script:
-                what = load_script(args.what)
-                if what.face_type != head.face_type:  # Face.play would refuse it once the head is open
+                script = load_script(args.what)
+                if script.face_type != head.face_type:  # Face.play would refuse it once the head is open
                     raise ControllerError(
-                        f"script {args.what} is for a {what.face_type} face; head {head.name!r} is {head.face_type}"
+                        f"script {args.what} is for a {script.face_type} face; head {head.name!r} is {head.face_type}"
                     )
-                check_script_on_head(head, what)  # every expression it plays, solved on this head's face model
-                if speaks(what):  # say cues synthesised, the sound file read: before the port is opened
-                    prepared = prepare(what)
+                check_script_on_head(head, script)  # every expression it plays, solved on this head's face model
             else:
                 check_expression(head, args.what)  # in the head's library, and solved on its face model
+            # what to play is good: the calibration next, still before anything is said, synthesised or written
+            calibration = checked_calibration(args, head)
+            if recording is not None:
+                print("\n".join(recording.report.lines()))
+            if script is not None:
+                what = script
+                if speaks(script):  # say cues synthesised, the sound file read: before the port is opened
+                    prepared = prepare(script)
             trace_file.open()
         where = "the emulator" if args.emulate else args.port
         print(f"# opening head {head.name!r} on {where}", file=sys.stderr, flush=True)
