@@ -52,6 +52,7 @@ from servoface.hardware.bus import ServoBus
 from servoface.hardware.driver import Driver, FastSyncRead
 from servoface.hardware.errors import HardwareError
 from servoface.hardware.fault_policy import FaultPolicy
+from servoface.sim.errors import SimError
 from servoface.sim.head import Head
 from servoface.sim.heads import load_head
 
@@ -345,6 +346,12 @@ class Face:
         check_seconds(transition_s, "express: transition_s")  # named as the caller wrote them
         check_seconds(hold_s, "express: hold_s")
         apex = {au: v * level for au, v in library[name].apex().items()}
+        try:  # what the head's own AU table, direct table or muscles refuse: named as an expression
+            self.pipeline.targets_for(apex)
+        except (ControllerError, SimError) as err:
+            raise ControllerError(
+                f"express: expression {name!r} at intensity {level:g}, on head {self.head.name!r}: {err}"
+            ) from err
         return self.set_aus(apex, transition_s=transition_s, hold_s=hold_s)
 
     def _expressions(self) -> Any:

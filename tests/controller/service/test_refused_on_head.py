@@ -86,3 +86,21 @@ def test_a_script_the_head_refuses_fails_in_its_frame_and_the_head_holds(running
         # at the gate's rates, like any command that ends
         assert abs(tick - neutral[sid]) <= 1, (sid, tick, neutral[sid])
     assert svc.set_aus({"AU1": 0.0}, track="face", transition_s=0.1).wait(5.0) is Status.DONE  # plays on
+
+
+def test_face_express_names_the_expression_the_head_refuses(narrow: Path) -> None:
+    """The Python API says which expression, at what intensity, on which head, and why; nothing moves."""
+    from servoface.controller.errors import ControllerError
+    from servoface.controller.face import Face
+
+    face = Face.open(narrow, emulate=True)
+    try:
+        before = dict(face.pipeline.last_goals_tick)
+        with pytest.raises(ControllerError) as err:
+            face.express("happiness")
+        assert str(err.value).startswith("express: expression 'happiness' at intensity 1, on head 'narrow_au': AU12")
+        assert LIMIT in str(err.value)
+        assert face.pipeline.last_goals_tick == before
+        face.express("happiness", intensity=0.4, hold_s=0.1)  # what the head takes still plays
+    finally:
+        face.close(ease_s=0.0)
