@@ -392,7 +392,9 @@ class Face:
         recording (``servoface.controller.inputs.load_recording``) to its end. A script's ``say`` cues and its
         sound file (``[script] audio``) are spoken as `say` speaks (the speech track, the sound on the audio
         device, the mouth on its clock: `servoface.controller.speech.script_play`)."""
-        loaded = script if not isinstance(script, str | Path) else load_script(script)
+        loaded = (
+            script if not isinstance(script, str | Path) else load_script(script, library=self.head.expressions_path)
+        )
         end_s = getattr(loaded, "end_s", None)
         if end_s is None:
             end_s = getattr(loaded, "duration_s", None)

@@ -106,9 +106,13 @@ def example_scripts() -> list[Path]:
     return sorted(SCRIPTS_DIR.glob("*.toml"))
 
 
-def load_script(path: str | Path, *, allowed: frozenset[str] | None = None) -> Script:
+def load_script(
+    path: str | Path, *, allowed: frozenset[str] | None = None, library: str | Path | None = None
+) -> Script:
     """Read and build a script file, or a shipped script by name (``human_performance``, see
-    :mod:`servoface.controller.shipped`). ``allowed`` = the head's AU names (default: the face's built-in set)."""
+    :mod:`servoface.controller.shipped`). ``allowed`` = the head's AU names (default: the face's built-in set);
+    ``library`` = the head's own expression library file (its profile's ``expressions``), which the script's
+    ``library = "name"`` entries then name expressions of (default: the face type's built-in library)."""
     from servoface.controller.shipped import resolve_script
     from servoface.sim.textfile import read_utf8
 
@@ -124,10 +128,16 @@ def load_script(path: str | Path, *, allowed: frozenset[str] | None = None) -> S
             close = difflib.get_close_matches(path.removesuffix(".toml"), names, n=1)
             hint = (f" (did you mean {close[0]!r}?)" if close else "") + f"; shipped scripts: {names}"
         raise ScriptError(f"{p}: cannot read script ({err.strerror or err}){hint}") from err
-    return parse_script(text, source=str(p), allowed=allowed)
+    return parse_script(text, source=str(p), allowed=allowed, library=library)
 
 
-def parse_script(text: str, *, source: str = "<script>", allowed: frozenset[str] | None = None) -> Script:
+def parse_script(
+    text: str,
+    *,
+    source: str = "<script>",
+    allowed: frozenset[str] | None = None,
+    library: str | Path | None = None,
+) -> Script:
     """Build a script from TOML text; ``source`` names it in errors."""
     r = Reader(source, text)
     try:
@@ -142,13 +152,14 @@ def parse_script(text: str, *, source: str = "<script>", allowed: frozenset[str]
         )
         exc.file, exc.key_path, exc.line = source, "", line  # type: ignore[attr-defined]
         raise exc from err
-    return _Builder(r, allowed).build(data)
+    return _Builder(r, allowed, library).build(data)
 
 
 class _Builder:
-    def __init__(self, reader: Reader, allowed: frozenset[str] | None) -> None:
+    def __init__(self, reader: Reader, allowed: frozenset[str] | None, library: str | Path | None = None) -> None:
         self.r = reader
         self.allowed = allowed
+        self.library_file = library  # the head's own expression library (None: the face type's built-in one)
 
     def build(self, data: Mapping[str, Any]) -> Script:
         r = self.r
@@ -336,7 +347,7 @@ class _Builder:
             timing = None
             if "timing" in spec:
                 timing = self.timing(r.table(spec["timing"], f"{path}.timing"), f"{path}.timing")
-            return library_clip("dog", r.string(spec, "library", path), timing=timing)
+            return library_clip("dog", r.string(spec, "library", path), timing=timing, source=self.library_file)
         r.keys(spec, path, ("library", "onset_s", "apex_s", "offset_s", "easing"))
         what = "a duration in seconds >= 0"
         times = {
@@ -345,7 +356,11 @@ class _Builder:
         }
         given = {k: v for k, v in times.items() if v is not None}
         return library_clip(
-            "human", r.string(spec, "library", path), easing=self.easing(spec, path, "min_jerk"), **given
+            "human",
+            r.string(spec, "library", path),
+            easing=self.easing(spec, path, "min_jerk"),
+            source=self.library_file,
+            **given,
         )
 
     def events(self, name: str, spec: Mapping[str, Any], path: str) -> Clip:
@@ -460,7 +475,10 @@ class _Builder:
     def library_hint(self, name: Any, path: str) -> str:
         """For a name that is not the script's own but an expression of the face's library: how to play it."""
         try:
-            in_library = isinstance(name, str) and name in load_expressions(self.face)
+            in_library = isinstance(name, str) and (
+                name in load_expressions(self.face)
+                or (self.library_file is not None and name in load_expressions(self.library_file))
+            )
         except TimelineError:
             return ""
         if not in_library:

@@ -103,7 +103,7 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
 
                 recording = load_recording(args.input, head.face_type, options=read_options(args))
             elif is_script:
-                script = load_script(args.what)
+                script = load_script(args.what, library=head.expressions_path)  # its own expressions too
                 if script.face_type != head.face_type:  # Face.play would refuse it once the head is open
                     raise ControllerError(
                         f"script {args.what} is for a {script.face_type} face; head {head.name!r} is {head.face_type}"

@@ -333,7 +333,7 @@ class HeadNode:
         from servoface.controller.script import load_script
         from servoface.controller.speech.script_play import submit_script_speaking
 
-        script = load_script(name)
+        script = load_script(name, library=self.service.head.expressions_path)
         if script.face_type != self.service.head.face_type:
             raise MessageError(
                 f"play: {name} is for a {script.face_type} face; this head is {self.service.head.face_type}"

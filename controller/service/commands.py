@@ -99,7 +99,7 @@ def play_source(
 
     limit = None if duration_s is None else check_duration_s(duration_s, field="duration_s", allow_zero=False)
     if isinstance(what, str | Path):
-        what = load_script(what)
+        what = load_script(what, library=head.expressions_path)  # the head's own expressions too
     if isinstance(what, Script):
         _check_face("script", what, head.face_type, head)
         end = what.end_s if limit is None else min(what.end_s, limit)

@@ -7,6 +7,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from servoface.controller.errors import TimelineError
@@ -21,8 +22,9 @@ DEFAULT_OFFSET_S = 0.6
 DEFAULT_DOG_TIMING = EventTiming(release_s=0.8)
 
 
-def load_expressions(face_type: str) -> dict[str, Any]:
-    """The library of a face type as {name: sim.expressions.Expression}; TimelineError if unavailable."""
+def load_expressions(face_type: str | Path) -> dict[str, Any]:
+    """The library of a face type (or a head's own library file) as {name: sim.expressions.Expression};
+    TimelineError if unavailable."""
     try:
         from servoface.sim.expressions import load_library
     except ImportError as err:  # pragma: no cover - servoface.sim.expressions ships with servoface
@@ -42,13 +44,21 @@ def library_clip(
     offset_s: float = DEFAULT_OFFSET_S,
     easing: Easing = min_jerk,
     timing: EventTiming | None = None,
+    source: str | Path | None = None,
 ) -> ChannelClip:
-    """A playable clip for library expression ``name`` of ``face_type`` (see the module docstring)."""
+    """A playable clip for library expression ``name`` of ``face_type`` (see the module docstring): from the
+    library file ``source`` (a head's own, its profile's ``expressions``) where it has the name, else from the
+    face type's built-in library (a shipped script's names still play on a head with a library of its own)."""
     library = load_expressions(face_type)
+    if source is not None:
+        library = {**library, **load_expressions(source)}  # the head's own wins where both have the name
     if name not in library:
-        raise TimelineError(
-            f"expression {name!r} is not in the {face_type} library; known: {', '.join(sorted(library))}"
+        which = (
+            f"the {face_type} library"
+            if source is None
+            else f"the expression library {source} (or the {face_type} one)"
         )
+        raise TimelineError(f"expression {name!r} is not in {which}; known: {', '.join(sorted(library))}")
     expr = library[name]
     if face_type == "dog":
         tokens = [{"au": au, "value": value} for au, value in expr.events]
