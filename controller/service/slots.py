@@ -159,10 +159,13 @@ class TrackTable:
         refused: tuple[type[Exception], ...],
     ) -> list[str]:
         """After a frame's mixed pose was refused on the head (``err``: its face model or the frame check
-        refused it, so nothing was sent): the tracks whose own output the head refuses (``solves`` raises one
-        of ``refused`` on it) fail with that error; if none does alone (the mix is what the head refuses),
-        every track that contributed fails with ``err``. Their tracks are left empty, so the next frame mixes
-        what is left instead of failing again with every waiter left waiting. Returns the tracks' names."""
+        refused it, so nothing of it was sent): the tracks whose own output the head refuses (``solves``
+        raises one of ``refused`` on it) fail with that error; if none does alone (the mix is what the head
+        refuses), every track that contributed does, with ``err``. A failed track is left empty, so the next
+        frame mixes what is left instead of failing again with every waiter left waiting; its command's detail
+        names the track and the source. A live source (a stream followed, an alive layer: ``live``) is not
+        failed: it produces anew every frame, so only this frame is skipped (a stream message out of the head's
+        range drops that message, not the stream). Returns the names of the tracks failed."""
         contributing = [s for s in self.slots.values() if s.source is not None and s.last]
         culprits: list[tuple[Slot, Exception]] = []
         for slot in contributing:
@@ -172,11 +175,17 @@ class TrackTable:
                 culprits.append((slot, own))
         if not culprits:
             culprits = [(slot, err) for slot in contributing]
+        failed: list[str] = []
         for slot, why in culprits:
-            if slot.handle is not None and slot.handle._set(Status.FAILED, t_s, str(why), why):
+            source = slot.source
+            if getattr(source, "live", False):
+                continue
+            detail = f"track {slot.name!r} ({getattr(source, 'name', type(source).__name__)}): {why}"
+            if slot.handle is not None and slot.handle._set(Status.FAILED, t_s, detail, why):
                 notify(slot.handle)
             slot.source, slot.handle, slot.last = None, None, {}
-        return [slot.name for slot, _ in culprits]
+            failed.append(slot.name)
+        return failed
 
     def advance(self, t_s: float) -> list[CommandHandle]:
         """After the frame went out: running sources that finished leave their track (a holding one stays

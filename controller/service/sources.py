@@ -134,6 +134,7 @@ class FollowSource:
     until ``until()`` is true; then hold the last AUs or release."""
 
     uses_below = False
+    live = True  # produces anew every frame: a pose the head refuses is skipped, not the end of it
 
     def __init__(
         self,
@@ -173,6 +174,7 @@ class GazeSource:
     """Look-at targets with eye-head coordination (:class:`GazeLayer`), shifts at service times."""
 
     uses_below = False
+    live = True  # produces anew every frame: a pose the head refuses is skipped, not the end of it
     name = "gaze"
 
     def __init__(self, face_type: FaceType, config: GazeConfig | None = None) -> None:
@@ -201,6 +203,7 @@ class AliveSource:
         self.layer = layer
         self.name = name
         self.uses_below = bool(getattr(layer, "uses_below", True))
+        self.live = True  # produces anew every frame (see FollowSource.live)
         self._t0 = 0.0
 
     def begin(self, t0_s: float, from_pose: Mapping[str, float]) -> None:

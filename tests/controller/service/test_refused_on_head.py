@@ -13,6 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from servoface.controller.frame import AUFrame
 from servoface.controller.service import HeadService, ServiceError, Status, open_head
 
 from tests.controller.service.conftest import Running
@@ -71,6 +72,7 @@ def test_a_script_the_head_refuses_fails_in_its_frame_and_the_head_holds(running
     held = _goals(running)
     handle = svc.play(str(narrow / "smile.toml"))
     assert handle.wait(5.0) is Status.FAILED, handle.status  # told, not left waiting
+    assert handle.detail.startswith("track 'face' (")  # which command's track, and its source
     assert "AU12" in handle.detail and LIMIT in handle.detail, handle.detail
     events = [e for e in faults.drain() if e.kind == "frame_error"]
     assert events and "AU12" in events[0].detail
@@ -104,3 +106,46 @@ def test_face_express_names_the_expression_the_head_refuses(narrow: Path) -> Non
         face.express("happiness", intensity=0.4, hold_s=0.1)  # what the head takes still plays
     finally:
         face.close(ease_s=0.0)
+
+
+class _Stream:
+    """A live source whose frames the head refuses until ``good`` is set (AU12 0.8, then 0.3)."""
+
+    face_type = "human"
+
+    def __init__(self) -> None:
+        self.good = False
+
+    def sample(self, t_s: float) -> AUFrame:
+        return AUFrame(t_s, {"AU12": 0.3 if self.good else 0.8}, "human")
+
+
+def test_a_stream_the_head_refuses_is_skipped_frame_by_frame_and_the_bus_stays_fed(running: Running) -> None:
+    """A live source is not ended by a refused value (a stream message out of the head's range drops that
+    frame, as the README says of a bad message): its command keeps running, and every refused frame sends the
+    last safe goals again. Without that, nothing is written while the values stay refused, and each servo's
+    Bus Watchdog (0.1 s) stops it until the driver re-arms it after the pause."""
+    svc = running.service
+    faults = svc.subscribe("fault")
+    driver = running.pipeline.driver
+    assert driver is not None
+    goal_write_bytes = 14 + 5 * len(running.pipeline.last_goals_tick)  # one Sync Write of every goal (4 bytes each)
+    stream = _Stream()
+    handle = svc.follow(stream)
+    time.sleep(0.1)  # the stream has begun: its frames are refused from here on
+    before = driver.bus.stats.bytes_written
+    time.sleep(0.4)
+    refused = len([e for e in faults.drain() if e.kind == "frame_error"])
+    written = driver.bus.stats.bytes_written - before
+    assert handle.status is Status.RUNNING, handle.detail
+    assert refused >= 10  # refused frame after frame
+    # each refused frame sent the last safe goals again (without it: no goal write at all in that time)
+    assert written >= (refused - 5) * goal_write_bytes, (written, refused)
+    for sid in running.pipeline.last_goals_tick:
+        assert not running.chain.servo(sid)._watchdog_tripped, sid
+    stream.good = True
+    assert svc.wait_frame(timeout_s=2.0) is not None
+    time.sleep(0.2)
+    trace = svc.last_trace
+    assert trace is not None and trace.aus.get("AU12") == pytest.approx(0.3)  # plays on once the values fit
+    svc.stop("stream").wait(2.0)
