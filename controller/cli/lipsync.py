@@ -31,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from servoface.controller.au_names import head_au_names
-    from servoface.controller.cli.head_args import open_errors
+    from servoface.controller.cli.head_args import checked_calibration, open_errors
     from servoface.controller.cli.terminal import printable
     from servoface.controller.speech.audio import read_wav
     from servoface.controller.speech.errors import SpeechError, TranscriptMismatchError
@@ -48,6 +48,9 @@ def run(args: argparse.Namespace) -> int:
         if args.transcript is not None:
             transcript = _read_transcript(args.transcript)
         recording = read_wav(args.audio)
+        # the video plays the head on its emulated servos: its calibration must be usable (else exit 2 with
+        # nothing written, not after the lip sync's files)
+        calibration = None if args.no_video else checked_calibration(args, head)
         _check_out_folder(args.out)
         speech = speech_from_recording(
             recording, transcript, lead_s=args.lead_ms / 1e3, allow_mismatch=args.allow_mismatch
@@ -72,11 +75,16 @@ def run(args: argparse.Namespace) -> int:
         return 0
     from servoface.controller.face import Face
     from servoface.controller.speech.video import render_talking
+    from servoface.sim.errors import RenderError
 
-    with Face.open(head, emulate=True) as face:
-        perf = say_on_face(face, speech, audio_out=False).performance
-        video = args.out / "speech.mp4"
-        count = render_talking(face, perf, speech, video)
+    video = args.out / "speech.mp4"
+    try:
+        with Face.open(head, emulate=True, calibration=calibration) as face:
+            perf = say_on_face(face, speech, audio_out=False).performance
+            count = render_talking(face, perf, speech, video)
+    except RenderError as err:  # rendering unavailable or failed: the run failed (1), its other files stand
+        print(f"servoface lipsync: {printable(err)} (the script and sound above are written)", file=sys.stderr)
+        return 1
     print(f"wrote {printable(video)}: {count} frames, the achievable face with the sound")
     return 0
 

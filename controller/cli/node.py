@@ -142,8 +142,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _checked_head(args: argparse.Namespace) -> tuple[Head, HeadCalibration] | int:
     """The head and its calibration, loaded and checked as `open_head` would find them (the profile, its
-    calibration file against its servos, and every expression of its library solved on its face model: a
-    peer may ask for any of them), or the exit code 2 after one line saying what is wrong."""
+    calibration file against its servos, its face model and its library's face type), or the exit code 2 after
+    one line saying what is wrong. Every expression of its library is solved on its face model too (a peer may
+    ask for any of them): one the head refuses is a warning line, not a refusal."""
     from servoface.calibration import CalibrationError
     from servoface.controller.cli.head_args import check_on_head, checked_calibration
     from servoface.controller.cli.terminal import printable
@@ -159,13 +160,22 @@ def _checked_head(args: argparse.Namespace) -> tuple[Head, HeadCalibration] | in
 
         print(f"servoface node: {printable(head_message(args.head, err))}", file=sys.stderr)
         return 2
+    from servoface.sim.errors import ExpressionError
+    from servoface.sim.face_model import FaceModel
+
     try:
         calibration = checked_calibration(args, head)  # (node takes no --calibration: the profile's own)
         library = load_library(head.expressions_path or head.face_type)
-        check_on_head(head, library, [*library])
+        model = FaceModel(head)  # the profile's AU table, direct table and muscles: a broken one refuses here
+        check_on_head(head, library, [], model=model)  # a library of another face type is refused too
     except (SimError, CalibrationError, ControllerError, OSError) as err:
         print(f"servoface node: {printable(err)}", file=sys.stderr)
         return 2
+    for name in library:  # one expression the head cannot show does not stop the node: a peer asking for it
+        try:  # is refused at once (`HeadService.express`); said here, once, before the session starts
+            check_on_head(head, library, [name], model=model)
+        except ExpressionError as err:
+            print(f"servoface node: warning: {printable(err)}; a peer asking for it is refused", file=sys.stderr)
     return head, calibration
 
 

@@ -38,9 +38,9 @@ def run(args: argparse.Namespace) -> int:
     # --rate and --lead-ms were range-checked by options.parse_command
     try:
         head = load_head(args.head)
+        if args.expression:  # what to show first, as play: known and solved on the head
+            check_expression(head, args.expression)
         calibration = checked_calibration(args, head)  # before espeak-ng runs and anything is written
-        if args.expression:
-            check_expression(head, args.expression)  # known and solved on the head: before espeak-ng runs
         speech = speech_from_text(args.text, voice=args.voice, rate_wpm=args.rate_wpm, lead_s=args.lead_ms / 1e3)
         if args.out is not None:
             from servoface.controller.cli.outputs import writable_folder

@@ -9,6 +9,7 @@ wheel ships its own ffmpeg binary, so no system ffmpeg is needed. Both take any 
 from __future__ import annotations
 
 import contextlib
+import errno
 import re
 import subprocess
 from collections.abc import Iterable
@@ -141,7 +142,12 @@ def write_mp4(frames: Iterable[Image], path: str | Path, fps: float = 20.0) -> i
         encoded = _encoded_frames(tmp)
         if encoded != count:  # imageio-ffmpeg does not report how ffmpeg exited: read back what it wrote
             found = "an unreadable file" if encoded is None else f"{encoded} frames"
-            raise OSError(f"{path}: ffmpeg did not finish the video ({count} frames given, {found} written)")
+            raise OSError(
+                errno.EIO,
+                f"ffmpeg did not finish the video ({count} frames given, {found} written; a full disk or a file "
+                "size limit is the usual cause)",
+                str(path),
+            )
     return count
 
 

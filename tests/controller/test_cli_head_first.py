@@ -214,7 +214,22 @@ def _broken_profiles(base: Path, unshowable: dict[str, tuple[Path, str]]) -> dic
     }
 
 
-@pytest.mark.parametrize("kind", ["bad_toml", "uncalibrated", "narrow_au", "dog_library", "bad_direct"])
+def test_node_warns_of_an_expression_the_head_cannot_show_and_starts(
+    unshowable: dict[str, tuple[Path, str]], sessions: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A head whose AU table narrows AU12 still serves every other expression: the node starts, after one
+    warning line naming the expression it cannot show (a peer asking for it is refused by `express`)."""
+    folder, expected = unshowable["narrow_au"]
+    with pytest.raises(Opened):
+        main(["node", "--name", "ada", "--head", str(folder), "--emulate"])
+    assert sessions == ["session"]
+    out, err = capsys.readouterr()
+    assert out == "", out
+    assert err.startswith("servoface node: warning: ") and expected in err, err
+    assert all(line.startswith("servoface node: warning: ") for line in err.splitlines()), err
+
+
+@pytest.mark.parametrize("kind", ["bad_toml", "uncalibrated", "dog_library", "bad_direct"])
 def test_node_refuses_a_broken_profile_before_its_session_starts(
     kind: str,
     unshowable: dict[str, tuple[Path, str]],

@@ -192,3 +192,26 @@ def test_the_message_shows_escape_sequences_escaped(tmp_path: Path, capsys: pyte
     out, err = capsys.readouterr()
     line = _refused(status, out, err, "take\\x1b[31m.wav")
     assert "\x1b" not in line
+
+
+def test_a_head_without_a_calibration_is_refused_before_anything_is_written(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The video plays the head on its emulated servos: a head that has no calibration yet is refused (exit 2,
+    one line naming what to run) before the lip sync writes its script and sound; with --no-video it does not
+    matter and the files are written."""
+    import shutil
+
+    head = tmp_path / "uncal"
+    shutil.copytree(Path(__file__).resolve().parents[2] / "sim" / "heads" / "human", head)
+    (head / "calibration.json").unlink()
+    take, out = _take(tmp_path), tmp_path / "made" / "lipsync"
+    status = main(["lipsync", str(take), "--text", "hello", "--head", str(head), "--out", str(out)])
+    got, err = capsys.readouterr()
+    assert status == 2, got + err
+    assert "no calibration file" in err and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "made").exists()
+    status = main(["lipsync", str(take), "--text", "hello", "--head", str(head), "--out", str(out), "--no-video"])
+    got, err = capsys.readouterr()
+    assert status == 0, got + err
+    assert (out / "speech.wav").is_file() and not (out / "speech.mp4").exists()

@@ -246,7 +246,8 @@ def test_a_write_the_file_system_refuses_partway_leaves_the_old_file(tmp_path: P
     lines = dict(line.split(" ", 1) for line in run.stdout.splitlines())
     assert set(lines) == {"clip.mp4", "clip.gif", "still.png", "new.mp4", "new.png"}
     assert all(v.startswith("OSError") for v in lines.values()), lines
-    assert "clip.mp4: ffmpeg did not finish the video (20 frames given" in lines["clip.mp4"]
+    assert "ffmpeg did not finish the video (20 frames given" in lines["clip.mp4"] and "clip.mp4" in lines["clip.mp4"]
+    assert "a full disk or a file size limit" in lines["clip.mp4"]
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == dict.fromkeys(
         ("clip.mp4", "clip.gif", "still.png"), b"an older result"
     )
