@@ -136,7 +136,6 @@ class BuiltinRefusal:
     """Why the emulated servo cannot take a spec: ``calibrate --builtin`` and ``--template`` refuse it."""
 
     error: CalibrationError  # what they say
-    ends: EndTicks | None  # where its curve puts the range's ends (None: no curve could be made)
     reason: str | None = None  # a joint range it cannot reach: :func:`reach_problem`'s words (None: another)
 
 
@@ -145,14 +144,14 @@ def _builtin(spec: ServoSpec) -> FitReport | BuiltinRefusal:
     try:
         curve, points = builtin_curve(spec)
     except CalibrationError as err:
-        return BuiltinRefusal(err, None)
+        return BuiltinRefusal(err)
     ends = end_ticks(spec, curve)
     if (why := reach_problem(spec, ends)) is not None:
-        return BuiltinRefusal(CalibrationError(why), ends, why)
+        return BuiltinRefusal(CalibrationError(why), why)
     try:
         return check_servo(spec, curve, points, neutral_tick=CENTRE_TICK)
     except CalibrationError as err:
-        return BuiltinRefusal(err, ends)
+        return BuiltinRefusal(err)
 
 
 def builtin_servo(spec: ServoSpec) -> FitReport:

@@ -6,34 +6,19 @@ session was up)."""
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 from typing import Any
 
 import pytest
 from servoface.controller.cli import main
 
+from tests.human_copy import human_copy, narrow_au_copy
+
 ROOT = Path(__file__).resolve().parents[2]
-HUMAN = ROOT / "sim" / "heads" / "human"
 
 
 class Opened(Exception):  # noqa: N818 - what the tests raise where a refused input must not reach
     """Raised in place of opening the head or starting the session: the refusal came too late."""
-
-
-def _human_copy(folder: Path, **keys: str) -> Path:
-    """The built-in human profile copied to ``folder`` with top-level keys of head.toml replaced (or added)."""
-    shutil.copytree(HUMAN, folder)
-    toml = folder / "head.toml"
-    lines = toml.read_text().splitlines()
-    for key, value in keys.items():
-        at = next((i for i, line in enumerate(lines) if line.startswith(f"{key} =")), None)
-        if at is None:
-            lines.insert(lines.index('face_type = "human"') + 1, f"{key} = {value}")
-        else:
-            lines[at] = f"{key} = {value}"
-    toml.write_text("\n".join(lines) + "\n")
-    return folder
 
 
 @pytest.fixture(scope="module")
@@ -41,12 +26,10 @@ def unshowable(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path
     """Profiles that load, whose expressions fail only on the head's own face model; each with the words
     its refusal must carry."""
     base = tmp_path_factory.mktemp("unshowable")
-    narrow = _human_copy(base / "narrow_au", name='"narrow_au"', au_table='"au.toml"')
-    table = (ROOT / "sim" / "au" / "human.toml").read_text()
-    (narrow / "au.toml").write_text(table.replace("[AU12]\n", "[AU12]\nrange = [0.0, 0.5]\n", 1))
-    dog_library = _human_copy(base / "dog_library", name='"dog_library"', expressions='"expr.toml"')
+    narrow = narrow_au_copy(base / "narrow_au")
+    dog_library = human_copy(base / "dog_library", name='"dog_library"', expressions='"expr.toml"')
     (dog_library / "expr.toml").write_text((ROOT / "sim" / "expressions" / "dog.toml").read_text())
-    direct = _human_copy(base / "bad_direct", name='"bad_direct"', au_direct='"direct.toml"')
+    direct = human_copy(base / "bad_direct", name='"bad_direct"', au_direct='"direct.toml"')
     (direct / "direct.toml").write_text('schema_version = 1\nface_type = "human"\n[AU12]\ntargets = = 1\n')
     library = ROOT / "sim" / "expressions" / "human.toml"
     return {
@@ -203,9 +186,9 @@ def sessions(monkeypatch: pytest.MonkeyPatch) -> list[str]:
 
 
 def _broken_profiles(base: Path, unshowable: dict[str, tuple[Path, str]]) -> dict[str, tuple[Path, str]]:
-    toml = _human_copy(base / "bad_toml", name='"bad_toml"')
+    toml = human_copy(base / "bad_toml", name='"bad_toml"')
     (toml / "head.toml").write_text((toml / "head.toml").read_text() + "\nname = = 1\n")
-    uncalibrated = _human_copy(base / "uncalibrated", name='"uncalibrated"')
+    uncalibrated = human_copy(base / "uncalibrated", name='"uncalibrated"')
     (uncalibrated / "calibration.json").write_text('{"schema_version": 1, "servos": \n')
     return {
         **unshowable,

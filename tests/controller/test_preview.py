@@ -11,6 +11,8 @@ from PIL import Image as PILImage
 from servoface.controller.cli import main
 from servoface.sim.render import egl_missing_reason
 
+from tests.human_copy import HUMAN, human_copy, narrow_au_copy
+
 SMALL = ["--size", "96x72", "--quiet"]
 
 
@@ -123,37 +125,16 @@ def test_all_writes_a_labelled_sheet(tmp_path: Path, capsys: pytest.CaptureFixtu
 
 # --- a profile that loads but cannot show its expressions: bad input (2) before any render, not a failed run --
 
-HUMAN = Path(__file__).resolve().parents[2] / "sim" / "heads" / "human"
-
-
-def _human_copy(folder: Path, **keys: str) -> Path:
-    """The built-in human profile copied to ``folder`` with top-level keys of head.toml replaced."""
-    import shutil
-
-    shutil.copytree(HUMAN, folder)
-    toml = folder / "head.toml"
-    lines = toml.read_text().splitlines()
-    for key, value in keys.items():
-        at = next((i for i, line in enumerate(lines) if line.startswith(f"{key} =")), None)
-        if at is None:
-            lines.insert(lines.index('face_type = "human"') + 1, f"{key} = {value}")
-        else:
-            lines[at] = f"{key} = {value}"
-    toml.write_text("\n".join(lines) + "\n")
-    return folder
-
 
 @pytest.fixture(scope="module")
 def unshowable(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, str]]:
     """Profiles that parse and load, whose expressions fail only on the head's own face model; each with
     the words its refusal must carry."""
     base = tmp_path_factory.mktemp("unshowable")
-    dog_library = _human_copy(base / "dog_library", name='"dog_library"', expressions='"expr.toml"')
+    dog_library = human_copy(base / "dog_library", name='"dog_library"', expressions='"expr.toml"')
     (dog_library / "expr.toml").write_text((HUMAN.parents[1] / "expressions" / "dog.toml").read_text())
-    narrow = _human_copy(base / "narrow_au", name='"narrow_au"', au_table='"au.toml"')
-    table = (HUMAN.parents[1] / "au" / "human.toml").read_text()
-    (narrow / "au.toml").write_text(table.replace("[AU12]\n", "[AU12]\nrange = [0.0, 0.5]\n", 1))
-    direct = _human_copy(base / "bad_direct", name='"bad_direct"', au_direct='"direct.toml"')
+    narrow = narrow_au_copy(base / "narrow_au")
+    direct = human_copy(base / "bad_direct", name='"bad_direct"', au_direct='"direct.toml"')
     (direct / "direct.toml").write_text('schema_version = 1\nface_type = "human"\n[AU12]\ntargets = = 1\n')
     return {
         "dog_library": (dog_library, f"the expression library in {dog_library / 'expr.toml'} is for a dog face"),

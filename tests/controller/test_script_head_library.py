@@ -6,14 +6,14 @@ human library"."""
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import pytest
 from servoface.controller.cli import main
 from servoface.controller.script import ScriptError, load_script
 
-ROOT = Path(__file__).resolve().parents[2]
+from tests.human_copy import human_copy
+
 WINK = """schema_version = 1
 face_type = "human"
 
@@ -32,16 +32,7 @@ SCRIPT = '[script]\nface = "human"\n\n[[play]]\nat_s = 0.0\nlibrary = "{name}"\n
 def own(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The built-in human profile with an expression library of its own (no 'happiness' in it)."""
     folder = tmp_path_factory.mktemp("own") / "own_lib"
-    shutil.copytree(ROOT / "sim" / "heads" / "human", folder)
-    toml = folder / "head.toml"
-    lines = toml.read_text().splitlines()
-    lines[lines.index('name = "human"')] = 'name = "own_lib"'
-    at = next((i for i, line in enumerate(lines) if line.startswith("expressions =")), None)
-    if at is None:
-        lines.insert(lines.index('face_type = "human"') + 1, 'expressions = "lib.toml"')
-    else:
-        lines[at] = 'expressions = "lib.toml"'
-    toml.write_text("\n".join(lines) + "\n")
+    human_copy(folder, name='"own_lib"', expressions='"lib.toml"')
     (folder / "lib.toml").write_text(WINK)
     for name in ("half_smile", "happiness", "glee"):
         (folder / f"{name}.toml").write_text(SCRIPT.format(name=name))

@@ -7,7 +7,6 @@ the command never ended, nothing was sent, and a waiter waited for ever."""
 
 from __future__ import annotations
 
-import shutil
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -17,24 +16,15 @@ from servoface.controller.frame import AUFrame
 from servoface.controller.service import HeadService, ServiceError, Status, open_head
 
 from tests.controller.service.conftest import Running
+from tests.human_copy import NARROW_AU12, narrow_au_copy
 
-ROOT = Path(__file__).resolve().parents[3]
-LIMIT = "expected a finite intensity in [0.0, 0.5]"
+LIMIT = NARROW_AU12
 
 
 @pytest.fixture(scope="module")
 def narrow(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The built-in human profile with its AU table limiting AU12 to 0.5."""
-    folder = tmp_path_factory.mktemp("narrow") / "narrow_au"
-    shutil.copytree(ROOT / "sim" / "heads" / "human", folder)
-    toml = folder / "head.toml"
-    lines = toml.read_text().splitlines()
-    lines[lines.index('name = "human"')] = 'name = "narrow_au"'
-    at = next(i for i, line in enumerate(lines) if line.startswith("au_table ="))
-    lines[at] = 'au_table = "au.toml"'
-    toml.write_text("\n".join(lines) + "\n")
-    table = (ROOT / "sim" / "au" / "human.toml").read_text()
-    (folder / "au.toml").write_text(table.replace("[AU12]\n", "[AU12]\nrange = [0.0, 0.5]\n", 1))
+    folder = narrow_au_copy(tmp_path_factory.mktemp("narrow") / "narrow_au")
     script = folder / "smile.toml"
     script.write_text('[script]\nface = "human"\n\n[[play]]\nat_s = 0.0\nlibrary = "happiness"\n')
     return folder
