@@ -128,6 +128,30 @@ def au_ranges(face_type: FaceType) -> dict[str, tuple[float, float]]:
     return out
 
 
+def head_au_ranges(head: Any) -> dict[str, tuple[float, float]]:
+    """The intensity range of every AU name a head takes (sided names too), from its own AU table
+    (``head.au_table_path``) when it has one, else its face type's built-in table. Empty when no table
+    loads (the face type's range then holds for every name)."""
+    path = getattr(head, "au_table_path", None)
+    table = None
+    if path:
+        try:
+            from servoface.sim.au import load_au_table
+
+            table = load_au_table(path)
+        except Exception as err:  # noqa: BLE001 - report any table problem as a frame-side error
+            raise FrameError(f"head {getattr(head, 'name', '?')}: cannot read its AU table {path}: {err}") from err
+    elif getattr(head, "face_type", None) in ("human", "dog"):
+        table = _au_table(head.face_type)
+    out: dict[str, tuple[float, float]] = {}
+    for entry in () if table is None else table.entries.values():
+        rng = (float(entry.range[0]), float(entry.range[1]))
+        out[entry.key] = rng
+        if entry.sided:
+            out[f"{entry.key}L"] = out[f"{entry.key}R"] = rng
+    return out
+
+
 def _au_table(face_type: FaceType) -> Any:
     try:
         from servoface.sim.au import load_au_table

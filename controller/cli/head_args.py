@@ -133,50 +133,13 @@ def _check_library_face(head: Head, library: Mapping[str, Any]) -> None:
 
 
 def check_script_on_head(head: Head, script: Script) -> None:
-    """Solve what ``script`` plays on the head's face model before anything is opened: every AU target of
-    every clip on its tracks (its own expressions, library ones, sequences, recipes, ``from`` poses and the
-    face track's initial pose), each AU at its lowest and highest value. What the head's AU table, direct
-    table or muscles refuse (an AU it does not know, an intensity out of its range) raises ScriptError
-    naming the script file, the expression and its track (or the profile's HeadProfileError). The script's
-    alive layers (blink, gaze, idle) are not expressions it names and are not solved here."""
-    from servoface.controller.errors import ScriptError
-    from servoface.controller.timeline.track import Track
-    from servoface.sim.errors import SimError
+    """Solve what ``script`` plays on the head's face model before anything is opened
+    (`servoface.controller.timeline_on_head`): ScriptError naming the script file, the expression and its
+    track, or the profile's HeadProfileError."""
+    from servoface.controller.timeline_on_head import check_timeline_on_head
     from servoface.sim.face_model import FaceModel
 
-    extremes: dict[tuple[str, bool], tuple[float, str]] = {}  # (AU, high?) -> (value, where it is asked for)
-
-    def note(au: str, value: float, what: str) -> None:
-        for high in (False, True):
-            known = extremes.get((au, high))
-            if known is None or (value > known[0] if high else value < known[0]):
-                extremes[au, high] = (value, what)
-
-    timeline = script.timeline
-    for track_name in timeline.layer_names:
-        track = timeline.layer(track_name)
-        if not isinstance(track, Track):
-            continue  # an alive layer
-        for au, value in track.initial_pose.items():
-            note(au, value, f"script.initial (track {track_name})")
-        for placed in track.items:
-            for clip in _leaf_clips(placed.clip):  # a sequence's own expressions, each by its name
-                for au, value in clip.targets():
-                    note(au, value, f"expression {clip.name!r} (track {track_name})")
-            for au, value in (placed.from_pose or {}).items():
-                note(au, value, f"the from pose of {placed.clip.name!r} (track {track_name})")
-    model = FaceModel(head)
-    for (au, _), (value, what) in extremes.items():
-        try:
-            model.solve({au: value})
-        except SimError as err:
-            raise ScriptError(f"{script.source}: {what}, on head {head.name!r}: {err}") from err
-
-
-def _leaf_clips(clip: Any) -> list[Any]:
-    """``clip``, or the clips a sequence plays one after another (recursively)."""
-    parts = getattr(clip, "clips", None)
-    return [leaf for part in parts for leaf in _leaf_clips(part)] if parts else [clip]
+    check_timeline_on_head(script.timeline, FaceModel(head).solve, str(script.source), head.name)
 
 
 MAX_ROLES_NAMED = 4  # a calibration of another head lacks most roles: name a few, count the rest

@@ -99,9 +99,10 @@ def _play(args: argparse.Namespace, signals: StopSignals) -> int:
                 return 2
             script = None
             if args.input is not None:
-                from servoface.controller.inputs import load_recording
+                from servoface.controller.inputs import HeadRanges, fit_recording, load_recording
 
                 recording = load_recording(args.input, head.face_type, options=read_options(args))
+                recording = fit_recording(recording, HeadRanges.of(head))  # a measurement held in its ranges
             elif is_script:
                 script = load_script(args.what, library=head.expressions_path)  # its own expressions too
                 if script.face_type != head.face_type:  # Face.play would refuse it once the head is open

@@ -15,7 +15,7 @@ def preview_input(args: argparse.Namespace, head: Any, size: tuple[int, int], cl
     from servoface.calibration import CalibrationError
     from servoface.controller.cli.input_args import read_options
     from servoface.controller.errors import ControllerError
-    from servoface.controller.inputs import load_recording
+    from servoface.controller.inputs import HeadRanges, fit_recording, load_recording
     from servoface.sim.achievable import AchievableFace
     from servoface.sim.errors import RenderError, SimError
     from servoface.sim.render.camera import default_view
@@ -28,6 +28,7 @@ def preview_input(args: argparse.Namespace, head: Any, size: tuple[int, int], cl
 
     try:
         recording = load_recording(args.input, head.face_type, options=read_options(args))
+        recording = fit_recording(recording, HeadRanges.of(head))  # as `play --input` plays it
     except ControllerError as err:
         print(f"servoface preview: {err}", file=sys.stderr)
         return 2

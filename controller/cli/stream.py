@@ -142,7 +142,6 @@ def _stream(args: argparse.Namespace, signals: StopSignals) -> int:
     """Set up (interruptible until torque-on), follow on the head service, then the one stop path; exit
     status as `servoface play`'s."""
     from servoface.controller.errors import ControllerError
-    from servoface.controller.frame import FrameValidator
     from servoface.controller.inputs import (
         LineReceiver,
         MessageDecoder,
@@ -166,10 +165,8 @@ def _stream(args: argparse.Namespace, signals: StopSignals) -> int:
         with interruptible():
             head = load_head(args.head)
             calibration = checked_calibration(args, head)  # before a port is bound or --record written
-            validator = FrameValidator.for_head(head)
-            decoder = MessageDecoder(
-                head.face_type,
-                allowed=validator.allowed,
+            decoder = MessageDecoder.for_head(  # the head's AU names, and its own ranges (values saturated)
+                head,
                 mirror=args.mirror,
                 vergence=args.vergence,
                 shape_ranges=load_shape_ranges(args),
@@ -282,6 +279,8 @@ def _stream(args: argparse.Namespace, signals: StopSignals) -> int:
     print(f"verdicts {summary['verdicts']}")
     if decoder.clamped:
         print(f"{decoder.clamped} blendshape scores slightly outside 0..1 clamped (tolerance 0.1)")
+    if decoder.saturated and decoder.head_ranges is not None:
+        print(decoder.head_ranges.describe(decoder.saturated))
     if stats.rest:
         print(f"{stats.rest} ({stats.calibrating} messages taken as the rest pose, not shown)")
     if args.stdin:

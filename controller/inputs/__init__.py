@@ -12,6 +12,7 @@ from servoface.controller.inputs.blendshapes import BlendshapeMap, load_blendsha
 from servoface.controller.inputs.errors import InputError
 from servoface.controller.inputs.face_files import read_blendshape_csv, read_jsonl
 from servoface.controller.inputs.head_pose import head_pose_aus, matrix_to_ypr_deg
+from servoface.controller.inputs.head_ranges import HeadRanges, fit_recording
 from servoface.controller.inputs.loader import detect_format, load_recording
 from servoface.controller.inputs.messages import Message, MessageDecoder
 from servoface.controller.inputs.openface import read_openface_csv, read_pyfeat_csv
@@ -26,6 +27,7 @@ from servoface.controller.inputs.transports import LineReceiver, TcpReceiver, Ud
 __all__ = [
     "AUSmoother",
     "BlendshapeMap",
+    "HeadRanges",
     "InputError",
     "InputReport",
     "LineReceiver",
@@ -40,6 +42,7 @@ __all__ = [
     "TcpReceiver",
     "UdpReceiver",
     "detect_format",
+    "fit_recording",
     "head_pose_aus",
     "load_blendshape_map",
     "load_recording",

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -26,6 +27,7 @@ from servoface.controller.frame import FrameValidator, check_face_type
 from servoface.controller.inputs.blendshapes import BlendshapeMap, load_blendshape_map
 from servoface.controller.inputs.errors import InputError
 from servoface.controller.inputs.head_pose import head_pose_aus, parse_head
+from servoface.controller.inputs.head_ranges import HeadRanges
 from servoface.controller.inputs.mediapipe_result import is_result, normalise_result
 from servoface.controller.inputs.shape_ranges import ShapeRanges
 from servoface.controller.inputs.sides import mirror_aus
@@ -61,18 +63,30 @@ class MessageDecoder:
         face_id: int = 0,
         gaze: bool = True,
         head_pose: bool = True,
+        head_ranges: HeadRanges | None = None,
     ) -> None:
+        """``head_ranges``: the head's own AU ranges; a value beyond one (a full smile on a head that shows
+        half of one) is held at the range's end and counted in ``saturated``, not refused (`head_ranges`)."""
         self.face_type = check_face_type(face_type)
         self.face_id = int(face_id)
         self.gaze = bool(gaze)  # False: drop eye AUs 61-66 (the eyes stay the robot's own)
         self.head_pose = bool(head_pose)  # False: drop head AUs 51-58
         self.head_rest_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)  # subtracted (a rest pose)
         self.clamped = 0  # blendshape scores slightly outside 0..1 (within SCORE_SLACK) clamped so far
+        self.head_ranges = head_ranges
+        self.saturated: Counter[str] = Counter()  # AU -> values held at the head's own range so far
         self.validator = FrameValidator(self.face_type, allowed)
         self.mirror = bool(mirror)
         self.vergence = bool(vergence)
         self._bmap = blendshape_map
         self.shape_ranges = shape_ranges
+
+    @classmethod
+    def for_head(cls, head: Any, **options: Any) -> MessageDecoder:
+        """A decoder for a loaded head: its face type, its AU table's names and ranges (``options``: the
+        other keyword arguments)."""
+        validator = FrameValidator.for_head(head)
+        return cls(validator.face_type, allowed=validator.allowed, head_ranges=HeadRanges.of(head), **options)
 
     @property
     def blendshape_map(self) -> BlendshapeMap:
@@ -139,6 +153,9 @@ class MessageDecoder:
             aus = {k: v for k, v in aus.items() if k not in drop}
         if self.mirror:
             aus = mirror_aus(aus, self.face_type)
+        if self.head_ranges is not None:
+            aus, moved = self.head_ranges.saturate(aus)
+            self.saturated.update(moved)
         return Message(t_s, aus, confidence)
 
 

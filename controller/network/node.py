@@ -215,7 +215,7 @@ class HeadNode:
             from servoface.controller.inputs import StreamSource
             from servoface.controller.inputs.messages import MessageDecoder
 
-            source = StreamSource(MessageDecoder(self.service.head.face_type), dropout_ms=self.dropout_ms)
+            source = StreamSource(MessageDecoder.for_head(self.service.head), dropout_ms=self.dropout_ms)
             self._streams[track] = source
         try:
             self.service.follow(source, track=track)

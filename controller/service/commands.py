@@ -3,14 +3,18 @@ loop or the bus: a bad command raises here and changes nothing)."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, cast
 
+from servoface.controller.errors import ScriptError
 from servoface.controller.frame import FrameValidator
+from servoface.controller.inputs.head_ranges import HeadRanges, fit_recording
+from servoface.controller.inputs.recorded import Recording
 from servoface.controller.service.clock import check_duration_s
 from servoface.controller.service.errors import ServiceError
 from servoface.controller.service.sources import ClipSource, SamplesSource, Source, Then, transition_clip
+from servoface.controller.timeline_on_head import Solve, check_clip_on_head, check_timeline_on_head
 from servoface.controller.values import as_finite, printable_repr
 from servoface.sim.head import Head
 
@@ -80,6 +84,14 @@ def expression_apex(head: Head, name: object, intensity: object) -> dict[str, fl
     return {au: v * scale for au, v in library[name].apex().items()}
 
 
+def _on_head(check: Callable[..., None], *args: Any) -> None:
+    """Run a `timeline_on_head` check; what the head refuses is a ServiceError (refused at submit)."""
+    try:
+        check(*args)
+    except ScriptError as err:
+        raise ServiceError(f"play: {err}") from err
+
+
 def _check_face(kind: str, what: object, face_type: str, head: Head) -> None:
     theirs = getattr(what, "face_type", None)
     if theirs is not None and theirs != face_type:
@@ -88,11 +100,16 @@ def _check_face(kind: str, what: object, face_type: str, head: Head) -> None:
 
 
 def play_source(
-    head: Head, validator: FrameValidator, what: object, duration_s: object, then: Then | None
+    head: Head, validator: FrameValidator, what: object, duration_s: object, then: Then | None, solve: Solve
 ) -> tuple[Source, float | None]:
     """The source for ``play(what)``: a Script (or a script file / shipped script name), a Timeline, a
     Recording, or a timeline Clip. Returns the source and its length (None: a clip's own). ``then`` None:
-    a script, timeline or recording holds its last frame, a clip does what its ``holds`` says."""
+    a script, timeline or recording holds its last frame, a clip does what its ``holds`` says.
+
+    ``solve``: the head's AU -> targets solver. Every AU a script, timeline or clip plays is solved on it
+    first (`timeline_on_head`): what the head refuses (an intensity beyond its own AU table's range) is a
+    ServiceError naming the expression and track, nothing placed. A `Recording` (measured input) is held
+    inside the head's ranges instead (`inputs.head_ranges`)."""
     timed: Then = then or "hold"
     from servoface.controller.script import Script, load_script
     from servoface.controller.timeline import Timeline
@@ -102,20 +119,25 @@ def play_source(
         what = load_script(what, library=head.expressions_path)  # the head's own expressions too
     if isinstance(what, Script):
         _check_face("script", what, head.face_type, head)
+        _on_head(check_timeline_on_head, what.timeline, solve, str(what.source), head.name)
         end = what.end_s if limit is None else min(what.end_s, limit)
         return SamplesSource(what, end, what.title or Path(what.source).stem, timed), end
     if isinstance(what, Timeline):
         _check_face("timeline", what, head.face_type, head)
+        _on_head(check_timeline_on_head, what, solve, "timeline", head.name)
         end = what.end_s if limit is None else min(what.end_s, limit)
         return SamplesSource(what, end, "timeline", timed), end
     if hasattr(what, "duration_s") and hasattr(what, "end_pose") and hasattr(what, "targets"):
         for au, value in what.targets():
             validator.pose({au: value}, where=str(getattr(what, "name", "clip")))
+        _on_head(check_clip_on_head, what, solve, head.name)
         from servoface.controller.timeline.clip import Clip
 
         return ClipSource(cast(Clip, what), then=then), None
-    if hasattr(what, "sample") and hasattr(what, "duration_s"):  # a Recording
+    if hasattr(what, "sample") and hasattr(what, "duration_s"):  # a Recording, or a source of the caller's
         _check_face("recording", what, head.face_type, head)
+        if isinstance(what, Recording):
+            what = fit_recording(what, HeadRanges.of(head))  # a measurement: held inside the head's ranges
         length = float(what.duration_s)
         end = length if limit is None else min(length, limit)
         return SamplesSource(what, end, str(getattr(what, "source", "") or "recording"), timed), end

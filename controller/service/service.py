@@ -333,9 +333,12 @@ class HeadService:
         """Play a script (a Script, a .toml path or a shipped name), a Timeline, a Recording or a Clip on
         ``track`` from ``at_s`` (service time; None = the next frame), for at most ``duration_s``; at the
         end hold the last pose (``then="hold"``, the default but for a clip, which does what its ``holds``
-        says) or release the track (``"release"``). Done at its end."""
+        says) or release the track (``"release"``). Done at its end. What the head cannot show is refused
+        here (`commands.play_source`): ServiceError naming the expression, its track and the AU."""
         the_track = self._track(track)
-        source, _ = play_source(self.head, self.validator, what, duration_s, check_then(then))
+        source, _ = play_source(
+            self.head, self.validator, what, duration_s, check_then(then), self.pipeline.targets_for
+        )
         return self._place("play", the_track, self._start_time(at_s), lambda slot, t0: source)
 
     def express(

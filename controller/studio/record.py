@@ -145,10 +145,10 @@ class StreamRecording:
         self.receiver.close()
 
 
-def open_recording(
-    face_type: str, allowed: frozenset[str] | None, transport: str, port: int, tolerance: float
-) -> StreamRecording:
-    """The stream source and its loopback receiver (started); refuses a port in use with a clear 409."""
+def open_recording(head: Any, transport: str, port: int, tolerance: float) -> StreamRecording:
+    """The stream source and its loopback receiver (started); refuses a port in use with a clear 409. The
+    head's AU names and its own ranges are the decoder's (`MessageDecoder.for_head`): what is recorded is what
+    the head can play back."""
     from servoface.controller.inputs.errors import InputError
     from servoface.controller.inputs.messages import MessageDecoder
     from servoface.controller.inputs.stream import StreamSource
@@ -159,7 +159,7 @@ def open_recording(
         raise InvalidValueError(f"tolerance: expected 0 < tolerance <= 0.5, got {tolerance!r}", field="tolerance")
     holder: list[StreamRecording] = []
     source = StreamSource(
-        MessageDecoder(face_type, allowed=allowed),  # type: ignore[arg-type]
+        MessageDecoder.for_head(head),
         on_message=lambda msg, arrival: holder[0].on_message(msg, arrival) if holder else None,
     )
     try:

@@ -363,14 +363,12 @@ class Studio:
 
     # -- record a live stream ------------------------------------------------------------------------
     def record_start(self, body: m.RecordStart) -> dict[str, Any]:
-        from servoface.controller.frame import FrameValidator
         from servoface.controller.studio.record import open_recording
 
         with self._lock:
             if self.recording is not None:
                 raise ConflictError("a stream recording is running; stop it first")
-            allowed = FrameValidator.for_head(self.service.head).allowed
-            rec = open_recording(self.service.head.face_type, allowed, body.transport, body.port, body.tolerance)
+            rec = open_recording(self.service.head, body.transport, body.port, body.tolerance)
             self.recording = rec
         if body.follow:
             try:

@@ -1,7 +1,8 @@
 """A pose the head's own face model refuses (here AU12 limited to 0.5 by the profile's AU table) never
 leaves a command hanging with torque on. `express` and `set_aus` refuse it at once (ServiceError naming the
-AU and the range, nothing scheduled). A source only the frame finds it in (a script) fails its command in
-that frame (its waiter is told) and its track is left empty; the service sends the last safe goals again in
+AU and the range, nothing scheduled), and so does `play` of a script, timeline or clip (each of its
+expressions solved on the head first). A source only the frame finds it in (a caller's own source object)
+fails its command in that frame (its waiter is told) and its track is left empty; the service sends the last safe goals again in
 that frame (the bus and every servo's Bus Watchdog kept fed) and plays on. It used to raise in every frame:
 the command never ended, nothing was sent, and a waiter waited for ever."""
 
@@ -55,12 +56,44 @@ def test_express_and_set_aus_refuse_what_the_head_refuses_at_once(running: Runni
     assert svc.express("happiness", intensity=0.4).wait(5.0) is Status.DONE  # what it takes still plays
 
 
-def test_a_script_the_head_refuses_fails_in_its_frame_and_the_head_holds(running: Running, narrow: Path) -> None:
+def test_play_refuses_a_script_timeline_or_clip_the_head_cannot_show_at_once(running: Running, narrow: Path) -> None:
+    """As `express`: the script's every expression is solved on the head before the command is placed (it
+    used to be found in the first frame, with the command already running)."""
+    from servoface.controller.script import load_script
+    from servoface.controller.service.sources import transition_clip
+
+    svc = running.service
+    before = svc.status().tracks
+    path = narrow / "smile.toml"
+    with pytest.raises(ServiceError) as err:
+        svc.play(str(path))
+    assert str(err.value).startswith(f"play: {path}: expression 'happiness' (track face), on head 'narrow_au': AU12")
+    assert LIMIT in str(err.value), err.value
+    with pytest.raises(ServiceError, match=r"play: timeline: expression 'happiness' \(track face\).*AU12"):
+        svc.play(load_script(path, library=None).timeline)
+    with pytest.raises(ServiceError, match=r"play: clip 'beam': expression 'beam', on head 'narrow_au': AU12"):
+        svc.play(transition_clip({"AU12": 0.8}, 0.5, 0.0, name="beam"))
+    assert svc.status().tracks == before  # nothing placed
+    assert svc.play(transition_clip({"AU12": 0.5}, 0.3, 0.0, name="half")).wait(5.0) is Status.DONE
+
+
+class _Source:
+    """A caller's own source (`sample` and `duration_s`, not a `Recording`): only its frames say what it
+    plays, so only the frame can refuse it."""
+
+    face_type = "human"
+    duration_s = 1.0
+
+    def sample(self, t_s: float) -> AUFrame:
+        return AUFrame(t_s, {"AU12": 0.8}, "human")
+
+
+def test_a_source_the_head_refuses_fails_in_its_frame_and_the_head_holds(running: Running) -> None:
     svc = running.service
     faults = svc.subscribe("fault")
     assert svc.set_aus({"AU1": 0.3}, track="face", transition_s=0.1).wait(5.0) is Status.DONE
     held = _goals(running)
-    handle = svc.play(str(narrow / "smile.toml"))
+    handle = svc.play(_Source())
     assert handle.wait(5.0) is Status.FAILED, handle.status  # told, not left waiting
     assert handle.detail.startswith("track 'face' (")  # which command's track, and its source
     assert "AU12" in handle.detail and LIMIT in handle.detail, handle.detail
