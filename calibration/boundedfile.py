@@ -1,5 +1,5 @@
-"""Reading a user-named file with a size limit: a directory, a device (``/dev/zero``), a FIFO that never
-ends or a multi-GB file is refused with a message, never read into memory or waited on for ever.
+"""Reading a user-named file with a size limit: a directory, a device (``/dev/zero``), a FIFO where none is
+expected or a multi-GB file is refused with a message, never read into memory or waited on for ever.
 
 Limits, each far beyond any real file of its kind:
 
@@ -63,8 +63,9 @@ def read_bounded(
     caller puts it where its messages put it), e.g. ``"2.1 GiB; a script file is at most 16 MiB"`` or ``"a
     device, not a regular file; expected a script file"``:
 
-    - a path that is not a regular file, before it is opened (``allow_stream=True`` lets a device or a FIFO
-      through, read up to the limit; a directory never);
+    - a path that is not a regular file, before it is opened (``allow_stream=True`` lets a FIFO, a socket or
+      a terminal through, read up to the limit: ``--input /dev/stdin`` piped, redirected or typed; a directory
+      never, nor a device that is not a terminal: ``/dev/zero`` would only fill the limit with zeros);
     - a file whose size is over the limit, before a byte is read;
     - a file that grows underneath or a stream that runs past the limit: at most ``limit_bytes + 1`` bytes
       are read.
@@ -81,6 +82,8 @@ def read_bounded(
     with os.fdopen(fd, "rb", buffering=0) as fh:
         info = os.fstat(fd)
         _check(info, refuse, what, limit_bytes, allow_stream)
+        if (stat.S_ISCHR(info.st_mode) and not os.isatty(fd)) or stat.S_ISBLK(info.st_mode):
+            raise refuse(f"a device, not a regular file, a pipe or a terminal; expected {what}")
         if regular and not stat.S_ISREG(info.st_mode) and hasattr(os, "set_blocking"):
             os.set_blocking(fd, True)  # swapped for a stream the caller allows: read it blocking
         chunks: list[bytes] = []

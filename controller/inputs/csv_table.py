@@ -30,9 +30,9 @@ MAX_FILE_BYTES = 512 * 1024 * 1024  # a tracker recording larger than this is re
 
 def read_text(path: Path, *, max_bytes: int = MAX_FILE_BYTES, what: str = "a tracker recording") -> str:
     """A text file as str (UTF-8, with or without BOM); InputError naming the file otherwise. Read through
-    `read_bounded` (streams allowed: ``--input /dev/stdin`` or a pipe works; a directory does not): at most
-    ``max_bytes``, so a larger file is refused unread and a device that never ends (``/dev/zero``) after
-    ``max_bytes``, instead of taking every byte of memory."""
+    `read_bounded` (streams allowed: ``--input /dev/stdin``, a pipe or a terminal works; a directory or a
+    device such as ``/dev/zero`` does not): at most ``max_bytes``, so a larger file is refused unread and a
+    stream that runs on after ``max_bytes``, instead of taking every byte of memory."""
     try:
         data = read_bounded(
             path, lambda reason: InputError(f"{path}: {reason}"), what=what, limit_bytes=max_bytes, allow_stream=True

@@ -43,8 +43,8 @@ def test_a_file_that_grows_after_the_size_check_is_cut_at_the_limit(
 def test_streams_only_when_the_caller_allows_them(tmp_path: Path) -> None:
     with pytest.raises(Refused, match=r"^a device, not a regular file; expected a test file$"):
         read_bounded("/dev/zero", Refused, what="a test file", limit_bytes=1024)
-    with pytest.raises(Refused, match=r"^more than 1 KiB and not at its end"):
-        read_bounded("/dev/zero", Refused, what="a test file", limit_bytes=1024, allow_stream=True)
+    with pytest.raises(Refused, match=r"^a device, not a regular file, a pipe or a terminal; expected a test file$"):
+        read_bounded("/dev/zero", Refused, what="a test file", limit_bytes=1024, allow_stream=True)  # never a device
     with pytest.raises(Refused, match=r"^a directory, not a regular file"):
         read_bounded(tmp_path, Refused, what="a test file", allow_stream=True)  # never a stream
     fifo = tmp_path / "fifo"
@@ -69,3 +69,18 @@ def test_sizes_read_as_people_write_them() -> None:
         "16 MiB",
         "2.1 GiB",
     ]
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="POSIX terminals")
+def test_a_terminal_is_a_stream_and_reads_to_its_end_of_file() -> None:
+    """``--input /dev/stdin`` typed at a terminal: a character device that is a TTY, read until Ctrl-D."""
+    main, follower = os.openpty()
+    try:
+        os.write(main, b"hello\n\x04")  # a line, then Ctrl-D: end of file at the start of a line
+        path = os.ttyname(follower)
+        assert read_bounded(path, Refused, what="a test file", allow_stream=True) == b"hello\n"
+        with pytest.raises(Refused, match=r"^a device, not a regular file; expected a test file$"):
+            read_bounded(path, Refused, what="a test file")  # not where no stream is allowed
+    finally:
+        os.close(main)
+        os.close(follower)

@@ -103,7 +103,7 @@ def test_a_device_or_a_file_too_large_is_refused_without_reading_it(
     if not Path("/dev/zero").exists():
         pytest.skip("needs /dev/zero (a POSIX system)")
     err = _refused(["play", "--input", "/dev/zero", "--head", "human", "--emulate"], capsys, tripwire)
-    assert "/dev/zero: more than 512 MiB and not at its end; a tracker recording is at most 512 MiB" in err
+    assert "/dev/zero: a device, not a regular file, a pipe or a terminal; expected a tracker recording" in err
     sparse = tmp_path / "take.csv"
     with sparse.open("wb") as fh:  # 2 GB declared, no blocks written
         fh.truncate(2 * 1024**3)
@@ -124,7 +124,7 @@ def test_stream_refuses_a_token_file_or_shape_ranges_that_never_end(
     err = _refused([*base, "--token-file", "/dev/zero"], capsys, tripwire)
     assert "--token-file /dev/zero: its first line is longer than 4096 bytes" in err
     err = _refused([*base, "--shape-ranges", "/dev/zero"], capsys, tripwire)
-    assert "/dev/zero: cannot read shape ranges: more than 1 MiB and not at its end" in err
+    assert "/dev/zero: cannot read shape ranges: a device, not a regular file, a pipe or a terminal" in err
 
 
 SCRIPT = "[script]\nface = 'human'\n[poses]\nsmile = { AU12 = 0.5 }\n"
@@ -360,11 +360,14 @@ def test_a_calibration_or_measurement_file_that_never_ends_is_refused(
 def test_lipsync_refuses_a_transcript_that_never_ends_or_is_a_folder(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Before: `lipsync --transcript /dev/zero` read until memory ran out. A stream is still taken
-    (`--transcript <(...)`), up to 16 MiB."""
+    """Before: `lipsync --transcript /dev/zero` read until memory ran out (later: 16 MiB of zeros). A stream
+    is still taken (`--transcript <(...)`), up to 16 MiB; a device that is not a terminal is refused."""
     base = ["lipsync", str(tmp_path / "speech.wav"), "--head", "human", "--out", str(tmp_path / "out")]
     for path, message in [
-        ("/dev/zero", "--transcript '/dev/zero': more than 16 MiB and not at its end; a transcript is at most 16 MiB"),
+        (
+            "/dev/zero",
+            "--transcript '/dev/zero': a device, not a regular file, a pipe or a terminal; expected a transcript",
+        ),
         (str(tmp_path), f"--transcript {str(tmp_path)!r}: a directory, not a regular file; expected a transcript"),
     ]:
         status = main([*base, "--transcript", path])
