@@ -2,9 +2,9 @@
 leaves a command hanging with torque on. `express` and `set_aus` refuse it at once (ServiceError naming the
 AU and the range, nothing scheduled), and so does `play` of a script, timeline or clip (each of its
 expressions solved on the head first). A source only the frame finds it in (a caller's own source object)
-fails its command in that frame (its waiter is told) and its track is left empty; the service sends the last safe goals again in
-that frame (the bus and every servo's Bus Watchdog kept fed) and plays on. It used to raise in every frame:
-the command never ended, nothing was sent, and a waiter waited for ever."""
+fails its command in that frame (its waiter is told) and its track is left empty; the service sends the
+last safe goals again in that frame (the bus and every servo's Bus Watchdog kept fed) and plays on. It used
+to raise in every frame: the command never ended, nothing was sent, and a waiter waited for ever."""
 
 from __future__ import annotations
 
