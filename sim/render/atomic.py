@@ -90,7 +90,18 @@ def atomic_output(path: str | os.PathLike[str]) -> Iterator[Path]:
         if mode is not None:  # a replaced file keeps its permissions, as writing into it would have
             os.chmod(tmp, stat.S_IMODE(mode))
         os.replace(tmp, target)
-    except BaseException:
+    except BaseException as err:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+        if isinstance(err, OSError):
+            _name_target(err, tmp, path)
         raise
+
+
+def _name_target(err: OSError, tmp: Path, path: str | os.PathLike[str]) -> None:
+    """An OSError of the write (a full disk: ``[Errno 28] No space left on device``) names the file the user
+    asked for, not the hidden temporary, and not nothing (Pillow's and the encoders' name no file)."""
+    if err.errno is None or err.strerror is None:
+        return  # an OSError with a message of its own: str() would not show a file name as asked
+    if err.filename is None or os.fspath(err.filename) == os.fspath(tmp):
+        err.filename = os.fspath(path)

@@ -4,6 +4,7 @@ the folder afterwards (no GL needed)."""
 
 from __future__ import annotations
 
+import errno
 import os
 import stat
 import subprocess
@@ -179,6 +180,16 @@ def test_a_read_only_file_is_refused_not_replaced(tmp_path: Path) -> None:
     assert target.read_bytes() == b"protected" and [p.name for p in tmp_path.iterdir()] == [target.name]
 
 
+def test_an_os_error_while_writing_names_the_target(tmp_path: Path) -> None:
+    target = tmp_path / "x.png"
+    with pytest.raises(OSError) as info, atomic_output(target) as tmp:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(tmp))
+    assert str(info.value) == f"[Errno {errno.ENOSPC}] {os.strerror(errno.ENOSPC)}: {str(target)!r}"
+    with pytest.raises(OSError, match=r"^disk$"), atomic_output(target):
+        raise OSError("disk")  # a message of its own is kept as it is
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_atomic_output_cleans_up_on_any_exception(tmp_path: Path) -> None:
     target = tmp_path / "x.png"
     for error in (OSError("disk"), KeyboardInterrupt(), SystemExit(3)):
@@ -246,6 +257,8 @@ def test_a_write_the_file_system_refuses_partway_leaves_the_old_file(tmp_path: P
     lines = dict(line.split(" ", 1) for line in run.stdout.splitlines())
     assert set(lines) == {"clip.mp4", "clip.gif", "still.png", "new.mp4", "new.png"}
     assert all(v.startswith("OSError") for v in lines.values()), lines
+    for name in ("clip.gif", "still.png", "new.png"):  # the file asked for, not the temporary (nor nothing)
+        assert lines[name] == f"OSError [Errno 27] File too large: {str(tmp_path / name)!r}", lines[name]
     assert "ffmpeg did not finish the video (20 frames given" in lines["clip.mp4"] and "clip.mp4" in lines["clip.mp4"]
     assert "a full disk or a file size limit" in lines["clip.mp4"]
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == dict.fromkeys(
