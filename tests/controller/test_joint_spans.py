@@ -6,11 +6,13 @@ later by calibrate ("outside 0..4095; re-mount the horn"). The property: check-f
 over random ranges, neutrals and directions, and over the edges (ends exactly on tick 0 or 4095, or half a
 tick past: rounding decides). And what follows from it: `calibrate --csv` takes the unedited template of
 every range the other two take (a range of a few ticks once got rows on one tick: 2048, 2048, ...), and a
-joint range they refuse is named in one wording, calibrate's, which check puts after the profile key.
+joint range they refuse is named in one wording, calibrate's, which check puts after the profile key. The
+rule itself is also stated apart from their shared arithmetic (an ideal servo's ticks, written out here).
 """
 
 from __future__ import annotations
 
+import math
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -114,6 +116,40 @@ def test_check_flags_exactly_the_ranges_calibrate_refuses(
     unit = "deg" if kind == "joint" else "mm"
     role = "jaw_r" if direction < 0 else "jaw"
     _agree(ServoSpec(role, 1, "XL430-W250", unit, lower, upper, neutral, kind, direction))  # type: ignore[arg-type]
+
+
+def _ideal_end_tick(end_deg: float, neutral_deg: float, direction: int) -> float:
+    """Where an ideal servo puts a joint angle, written out here apart from calibrate's code: neutral at tick
+    2048, 4096 ticks a turn, ticks rising with the angle unless the servo is reversed."""
+    return 2048.0 + direction * (end_deg - neutral_deg) * 4096.0 / 360.0
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    below=st.one_of(st.floats(0.0, 400.0), st.floats(170.0, 190.0), st.floats(0.0, 0.2)),
+    above=st.one_of(st.floats(0.0, 400.0), st.floats(170.0, 190.0), st.floats(0.0, 0.2)),
+    neutral=st.floats(-200.0, 200.0).map(lambda n: round(n, 2)),
+    direction=st.sampled_from((1, -1)),
+)
+@example(below=179.9, above=180.0, neutral=0.0, direction=1)
+@example(below=0.0, above=0.04, neutral=0.0, direction=1)
+def test_check_flags_what_an_ideal_servo_cannot_take(
+    below: float, above: float, neutral: float, direction: int
+) -> None:
+    """The property above compares check with calibrate, which share the tick arithmetic; this states the rule
+    on its own: a joint range is flagged exactly when an end rounds to a tick outside 0..4095 or both ends
+    round to one tick. Ends within a millionth of a tick of a rounding edge are left to the edge tests above
+    (float order decides there)."""
+    lower, upper = neutral - below, neutral + above
+    if not lower < upper:
+        return
+    ends = [_ideal_end_tick(end, neutral, direction) for end in (lower, upper)]
+    if any(abs(t - math.floor(t) - 0.5) < 1e-6 for t in ends):
+        return
+    ticks = [math.floor(t + 0.5) for t in ends]
+    refused = any(not 0 <= t <= 4095 for t in ticks) or ticks[0] == ticks[1]
+    why = range_problem(_joint(lower, upper, neutral, direction), WHERE)
+    assert (why is not None) == refused, (lower, upper, neutral, direction, ticks, why)
 
 
 @pytest.mark.parametrize(
