@@ -260,13 +260,9 @@ def _run(args: argparse.Namespace) -> int:
         return run_template(args, head, specs)
     out = args.out or _default_out(head, args.head)
     if args.builtin:
-        from servoface.controller.joint_spans import span_problems
+        from servoface.controller.cli.calibrate_template import refused_spans
 
-        problems = span_problems(head, [s.role for s in specs])  # as --template and check: the key named
-        for p in problems:
-            print(f"servoface calibrate: --builtin: {p}", file=sys.stderr)
-        if problems:
-            print(f"  nothing written; fix head.toml and run `servoface check {args.head}`", file=sys.stderr)
+        if refused_spans(head, specs, "--builtin", args.head):  # as --template and check: the key named
             return EXIT_USAGE
         path = write_builtin(head.name, specs, out, source=builtin_source(head))
         print(f"wrote the built-in calibration of '{head.name}' ({len(specs)} servos) to {path}")

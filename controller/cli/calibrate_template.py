@@ -31,20 +31,28 @@ def default_template(head: Head, head_arg: str) -> Path:
     return Path(head.profile_dir) / TEMPLATE_CSV
 
 
+def refused_spans(head: Head, specs: Sequence[ServoSpec], flag: str, head_arg: str) -> bool:
+    """Print the joint ranges of ``specs`` that no servo turn can measure (`joint_spans`: check's wording, the
+    profile key named) and what to do; True if there were any (then nothing is written: exit 2)."""
+    from servoface.controller.joint_spans import span_problems
+
+    problems = span_problems(head, [s.role for s in specs])
+    for p in problems:
+        print(f"servoface calibrate: {flag}: {p}", file=sys.stderr)
+    if problems:
+        print(f"  nothing written; fix head.toml and run `servoface check {head_arg}`", file=sys.stderr)
+    return bool(problems)
+
+
 def run_template(args: argparse.Namespace, head: Head, specs: Sequence[ServoSpec]) -> int:
     """Write the template of ``specs`` (the head's servos, or those of ``--roles``); 2 and nothing written
     for a range no servo turn can measure or a file that is there already (without ``--force``)."""
     from servoface.calibration.errors import CalibrationError
     from servoface.controller.cli.outputs import writable_file
-    from servoface.controller.joint_spans import span_problems
     from servoface.controller.new_head.template import write_template
 
     out = Path(args.out) if args.out is not None else default_template(head, args.head)
-    problems = span_problems(head, [s.role for s in specs])
-    for p in problems:
-        print(f"servoface calibrate: --template: {p}", file=sys.stderr)
-    if problems:
-        print(f"  nothing written; fix head.toml and run `servoface check {args.head}`", file=sys.stderr)
+    if refused_spans(head, specs, "--template", args.head):
         return EXIT_USAGE
     writable_file(out)  # OSError (exit 2, naming the path) for a folder that is not there or a folder as --out
     if out.exists() and not args.force:
