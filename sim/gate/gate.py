@@ -298,7 +298,9 @@ class TwinGate:
         first = tree.ancestry(self._part_index(name) for p in suspects for name in (col.specs[p].a, col.specs[p].b))
         rest = [i for i in range(len(tree.names)) if i not in set(first)]
         memo: dict[bytes, bool] = {} if known is None else known
-        for k in (int(i) for i in coupling_ok[::-1]):
+        order = [int(i) for i in coupling_ok[::-1]]
+        worlds: dict[int, FloatArray] | None = None  # candidate -> its transforms, when batched (below)
+        for n, k in enumerate(order):
             key = goals[k].tobytes()
             answer = memo.get(key)
             if answer is not None:
@@ -307,18 +309,28 @@ class TwinGate:
                     return k
                 continue
             memo[key] = False
-            loc = tree.local_one(angles[k])
-            world = np.empty_like(loc)  # filled in two parts: `world_one`'s numbers (`JointTree.fill_one`)
-            tree.fill_one(world, loc, first)
+            if worlds is None:
+                unknown = [j for j in order[n:] if goals[j].tobytes() not in memo or j == k]
+                if len(unknown) >= _BATCH_FK:  # several left to check: all their transforms in one batch
+                    # (`JointTree.world`: the numbers of `world_one` and `fill_one`, a few calls for them all)
+                    worlds = dict(zip(unknown, tree.world(angles[unknown]), strict=True))
+            loc = None
+            if worlds is not None:
+                world = worlds[k]
+            else:
+                loc = tree.local_one(angles[k])
+                world = np.empty_like(loc)  # filled in two parts: `world_one`'s numbers (`JointTree.fill_one`)
+                tree.fill_one(world, loc, first)
             # contact first (broad phase, exact test on flagged pairs) unless the request failed on the skin
             # alone: where candidates fail it is mostly on what the request failed on, and a pass needs both
             if skin_first:
-                tree.fill_one(world, loc, rest)
+                if loc is not None:
+                    tree.fill_one(world, loc, rest)
                 if not self._skin_ok(goals[k], world, pulls[k], probe=True):
                     continue
             if any(col._collide(col.specs[p], world) for p in suspects):
                 continue
-            if not skin_first:
+            if not skin_first and loc is not None:
                 tree.fill_one(world, loc, rest)
             flags = col.broad.flag(world, angles[k])  # one pose: the flat broad phase (fastest for one)
             if any(col._collide(col.specs[p], world) for p in np.flatnonzero(flags) if p not in suspects):
@@ -723,6 +735,7 @@ class TwinGate:
         return joint_deg, offsets, {r: float(t) for r, t in zip(self.poser.roles, targets[0], strict=True)}
 
 
+_BATCH_FK = 3  # candidates left to check in a clip search from which their transforms are batched
 _BIG = 2**62  # plain ints inside this fit int64 (outside, the checked path raises as it always did)
 _INT = {int}
 

@@ -179,3 +179,35 @@ def test_skin_first_order_matches_the_plain_candidate_check(gate: TwinGate) -> N
             seen["found"] += want is not None
     # (random commands collide on the dog and strain the human's skin; both find passing candidates)
     assert seen["contact"] + seen["skin"] >= 30 and seen["found"] >= 30, seen
+
+
+def test_batched_transforms_give_the_candidates_own(gate: TwinGate, monkeypatch: pytest.MonkeyPatch) -> None:
+    """With three or more candidates left to check, `_last_ok` computes their joint transforms in one batch
+    (`JointTree.world`) instead of one candidate at a time (`local_one`, `fill_one`): the same numbers, so the
+    same index, on the bisection candidates between random commands, skin first or contact first."""
+    import servoface.sim.gate.gate as gate_module
+
+    t = gate.table
+    rng = np.random.default_rng(5)
+    cmds = rng.integers(t.min_tick, t.max_tick + 1, size=(30, t.n)).astype(np.int64)
+    fracs = np.arange(1, 9) / 8.0
+    batches = ran = 0
+    real_world = gate.tree.world
+
+    def counted(angles: Any) -> Any:
+        nonlocal batches
+        batches += 1
+        return real_world(angles)
+
+    monkeypatch.setattr(gate.tree, "world", counted)
+    for a, b in zip(cmds[:-1], cmds[1:], strict=True):
+        cands = (a + np.trunc(fracs[:, None] * (b - a)[None, :])).astype(np.int64)
+        for skin_first in (False, True):
+            monkeypatch.setattr(gate_module, "_BATCH_FK", 10**9)  # one candidate at a time
+            one_by_one = gate._last_ok(cands, (), {}, skin_first=skin_first)
+            monkeypatch.setattr(gate_module, "_BATCH_FK", 3)
+            before = batches
+            assert gate._last_ok(cands, (), {}, skin_first=skin_first) == one_by_one
+            ran += batches > before
+            assert one_by_one == _plain_last_ok(gate, cands, ())  # (its own poses are batched anyway)
+    assert ran >= 20  # the batch ran (candidates that fail leave several to check)
