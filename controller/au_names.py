@@ -132,16 +132,8 @@ def head_au_ranges(head: Any) -> dict[str, tuple[float, float]]:
     """The intensity range of every AU name a head takes (sided names too), from its own AU table
     (``head.au_table_path``) when it has one, else its face type's built-in table. Empty when no table
     loads (the face type's range then holds for every name)."""
-    path = getattr(head, "au_table_path", None)
-    table = None
-    if path:
-        try:
-            from servoface.sim.au import load_au_table
-
-            table = load_au_table(path)
-        except Exception as err:  # noqa: BLE001 - report any table problem as a frame-side error
-            raise FrameError(f"head {getattr(head, 'name', '?')}: cannot read its AU table {path}: {err}") from err
-    elif getattr(head, "face_type", None) in ("human", "dog"):
+    table = _own_au_table(head)
+    if table is None and getattr(head, "face_type", None) in ("human", "dog"):
         table = _au_table(head.face_type)
     out: dict[str, tuple[float, float]] = {}
     for entry in () if table is None else table.entries.values():
@@ -150,6 +142,20 @@ def head_au_ranges(head: Any) -> dict[str, tuple[float, float]]:
         if entry.sided:
             out[f"{entry.key}L"] = out[f"{entry.key}R"] = rng
     return out
+
+
+def _own_au_table(head: Any) -> Any:
+    """The head's own AU table (``head.au_table_path``), None when it has none; FrameError naming the head and
+    the file when it cannot be read."""
+    path = getattr(head, "au_table_path", None)
+    if not path:
+        return None
+    try:
+        from servoface.sim.au import load_au_table
+
+        return load_au_table(path)
+    except Exception as err:  # noqa: BLE001 - report any table problem as a frame-side error
+        raise FrameError(f"head {getattr(head, 'name', '?')}: cannot read its AU table {path}: {err}") from err
 
 
 def _au_table(face_type: FaceType) -> Any:
@@ -166,15 +172,8 @@ def _au_table(face_type: FaceType) -> Any:
 def head_au_names(head: Any) -> frozenset[str]:
     """The AU names a head accepts: its own AU table (``head.au_table_path``, a ``servoface.sim.head.Head``) when it
     has one, else its face type's default set."""
-    path = getattr(head, "au_table_path", None)
-    if path:
-        try:
-            from servoface.sim.au import load_au_table
-
-            return frozenset(load_au_table(path).names())
-        except Exception as err:  # noqa: BLE001 - report any table problem as a frame-side error
-            raise FrameError(f"head {getattr(head, 'name', '?')}: cannot read its AU table {path}: {err}") from err
-    return default_au_names(getattr(head, "face_type", None))
+    table = _own_au_table(head)
+    return frozenset(table.names()) if table is not None else default_au_names(getattr(head, "face_type", None))
 
 
 def builtin_au_names(face_type: FaceType) -> frozenset[str]:

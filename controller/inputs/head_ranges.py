@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from servoface.controller.au_names import head_au_ranges, intensity_range
@@ -60,7 +60,7 @@ class HeadRanges:
 
 def fit_recording(recording: Recording, ranges: HeadRanges) -> Recording:
     """``recording`` with its frames saturated to the head's ranges (itself when nothing is outside them); the
-    count goes into its report as a note."""
+    count goes into the new recording's report as a note (``recording`` is not changed)."""
     counts: Counter[str] = Counter()
     frames = []
     for frame in recording.frames:
@@ -69,8 +69,8 @@ def fit_recording(recording: Recording, ranges: HeadRanges) -> Recording:
         frames.append(AUFrame(frame.t_s, aus, frame.face_type) if moved else frame)
     if not counts:
         return recording
-    report = recording.report
-    report.notes.append(ranges.describe(counts))
+    # a report of its own: the caller's recording is left as it was (played twice, it is not noted twice)
+    report = replace(recording.report, notes=[*recording.report.notes, ranges.describe(counts)])
     return Recording(
         frames, recording.face_type, interpolate=recording.interpolate, source=recording.source, report=report
     )

@@ -64,6 +64,7 @@ def test_a_recording_is_fitted_and_its_report_says_so(narrow: Path) -> None:
     assert [f.t_s for f in fitted.frames] == [f.t_s for f in raw.frames]
     note = f"{above} values beyond the AU ranges of head 'narrow_au' held at their ends: AU12 {above} x (0..0.5)"
     assert note in fitted.report.notes
+    assert note not in raw.report.notes and fit_recording(raw, HeadRanges.of(head)).report.notes.count(note) == 1
     unchanged = load_recording(SAMPLES / "openface_smile.csv", "human")
     assert fit_recording(unchanged, HeadRanges.of(load_head("human"))) is unchanged
 

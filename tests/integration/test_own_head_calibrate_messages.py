@@ -19,6 +19,8 @@ from pathlib import Path
 import pytest
 from servoface.controller.cli import main
 
+from tests.cli_run import run_cli
+
 
 @pytest.fixture(scope="module")
 def pristine(tmp_path_factory: pytest.TempPathFactory) -> Path:
@@ -35,13 +37,6 @@ def _head(pristine: Path, tmp_path: Path, jaw_limits: str | None = None) -> Path
         assert text.count("limits_deg = [0.0, 25.0]") == 1  # the jaw, joint[1]
         (folder / "head.toml").write_text(text.replace("limits_deg = [0.0, 25.0]", f"limits_deg = {jaw_limits}"))
     return folder
-
-
-def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    capsys.readouterr()
-    status = main(argv)
-    out, err = capsys.readouterr()
-    return status, out, err
 
 
 @pytest.mark.parametrize(
@@ -73,7 +68,7 @@ def test_a_csv_step_the_wrong_way_says_what_was_found_and_expected(
     text = (folder / "calibration_template.csv").read_text()
     assert f"\n{row}\n" in text
     csv.write_text(text.replace(f"\n{row}\n", f"\n{edited}\n"))
-    status, _, err = _run(["calibrate", "--head", str(folder), "--csv", str(csv)], capsys)
+    status, _, err = run_cli(["calibrate", "--head", str(folder), "--csv", str(csv)], capsys)
     assert status == 2, err
     assert f"servoface calibrate: {csv}: line " in err and says in err, err
     assert not (folder / "calibration.json").exists()
@@ -84,14 +79,14 @@ def test_calibrate_takes_the_unedited_template_of_a_range_of_a_few_ticks(
     pristine: Path, tmp_path: Path, limits: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
     folder = _head(pristine, tmp_path, limits)
-    status, out, _ = _run(["check", str(folder), "--no-report"], capsys)
+    status, out, _ = run_cli(["check", str(folder), "--no-report"], capsys)
     assert "limits_deg" not in out, out  # check takes it: so must calibrate
-    status, _, err = _run(["calibrate", "--head", str(folder), "--template", "--force"], capsys)
+    status, _, err = run_cli(["calibrate", "--head", str(folder), "--template", "--force"], capsys)
     assert status == 0, err
     template = folder / "calibration_template.csv"
     ticks = [int(ln.split(",")[2]) for ln in template.read_text().splitlines() if ln.startswith("jaw,")]
     assert len(ticks) == len(set(ticks)) >= 2 and ticks == sorted(ticks), ticks
-    status, out, err = _run(["calibrate", "--head", str(folder), "--csv", str(template)], capsys)
+    status, out, err = run_cli(["calibrate", "--head", str(folder), "--csv", str(template)], capsys)
     assert status == 0, err
     assert "resolution will be poor" in out, out  # the warning calibrate gives a range of a few ticks
 
@@ -100,7 +95,7 @@ def test_a_range_on_one_tick_is_refused_with_the_fix_not_re_measure(
     pristine: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     folder = _head(pristine, tmp_path, "[0.0, 0.04]")
-    _, out, _ = _run(["check", str(folder), "--no-report"], capsys)
+    _, out, _ = run_cli(["check", str(folder), "--no-report"], capsys)
     key = f"{folder / 'head.toml'}: joint[1].limits_deg"
     line = next((ln for ln in out.splitlines() if "limits_deg" in ln), "")
     assert line.startswith(f"problem: {key}: expected a span of 0.088..359.9 deg"), out
@@ -108,7 +103,7 @@ def test_a_range_on_one_tick_is_refused_with_the_fix_not_re_measure(
     assert "(spans 0.04 deg, less than one servo tick (0.46 tick): both ends land on tick 2048; a typo? " in reason
     assert "widen the range to at least 0.088 deg, or gear the joint" in reason, reason
     for how in (["--builtin"], ["--template", "--force"]):
-        status, _, err = _run(["calibrate", "--head", str(folder), *how], capsys)
+        status, _, err = run_cli(["calibrate", "--head", str(folder), *how], capsys)
         assert status == 2 and reason in err, err
         assert "re-measure" not in err and "do not change with the target" not in err, err
     assert not (folder / "calibration.json").exists()
@@ -118,5 +113,5 @@ def test_builtin_names_the_profile_key_of_a_range_it_refuses(
     pristine: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     folder = _head(pristine, tmp_path, "[0.0, 200.0]")
-    status, _, err = _run(["calibrate", "--head", str(folder), "--builtin"], capsys)
+    status, _, err = run_cli(["calibrate", "--head", str(folder), "--builtin"], capsys)
     assert status == 2 and f"{folder / 'head.toml'}: joint[1].limits_deg: expected both ends within" in err, err

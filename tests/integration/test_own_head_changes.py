@@ -21,14 +21,8 @@ from pathlib import Path
 import pytest
 from servoface.controller.cli import main
 
+from tests.cli_run import run_cli
 from tests.integration import own_heads as oh
-
-
-def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    capsys.readouterr()
-    status = main(argv)
-    out, err = capsys.readouterr()
-    return status, out, err
 
 
 def _new(folder: Path) -> Path:
@@ -78,24 +72,24 @@ def test_template_is_written_again_for_an_edited_head_but_never_over_one_without
     _without_actuator(folder, "eye_tilt")  # the builder took the eye-tilt servo out and added a tail
     (folder / "head.toml").write_text((folder / "head.toml").read_text() + TAIL)
 
-    status, _, err = _run(["calibrate", "--head", str(folder), "--csv", str(template)], capsys)
+    status, _, err = run_cli(["calibrate", "--head", str(folder), "--csv", str(template)], capsys)
     assert status == 2 and not (folder / "calibration.json").exists()
     assert f"servoface calibrate --head {folder} --template --out NEW.csv" in err, err  # the way forward
     assert f"--template --force` replaces {template}" in err, err
 
     measured = template.read_text().replace("jaw,25,2332", "jaw,25,2340")  # the builder's own ticks
     template.write_text(measured)
-    status, out, err = _run(["calibrate", "--head", str(folder), "--template"], capsys)
+    status, out, err = run_cli(["calibrate", "--head", str(folder), "--template"], capsys)
     assert status == 2
     assert f"{template} exists already" in err and "--force" in err and "nothing written" in err, err
     assert template.read_text() == measured
 
-    status, out, err = _run(["calibrate", "--head", str(folder), "--template", "--force"], capsys)
+    status, out, err = run_cli(["calibrate", "--head", str(folder), "--template", "--force"], capsys)
     assert status == 0, err
     assert f"to {template}" in out
     assert _roles_in(template) == {"jaw", "brow_l", "brow_r", "lid_l", "lid_r", "eye_pan", "neck_pan", "tail"}
     assert not list(folder.glob(".*.tmp"))  # written whole, no temporary left behind
-    status, out, err = _run(["calibrate", "--head", str(folder), "--csv", str(template)], capsys)
+    status, out, err = run_cli(["calibrate", "--head", str(folder), "--csv", str(template)], capsys)
     assert status == 0, err
     assert (folder / "calibration.json").is_file()
 
@@ -108,15 +102,15 @@ def test_template_out_and_roles_write_only_those_rows_beside_the_old_one(
     assert main(["calibrate", "--head", str(folder), "--csv", str(folder / "calibration_template.csv")]) == 0
     (folder / "head.toml").write_text((folder / "head.toml").read_text() + TAIL)
     extra = folder / "tail.csv"
-    status, _, err = _run(
+    status, _, err = run_cli(
         ["calibrate", "--head", str(folder), "--template", "--roles", "tail", "--out", str(extra)], capsys
     )
     assert status == 0, err
     assert _roles_in(extra) == {"tail"}
     assert (folder / "calibration_template.csv").read_text() == before
-    status, _, err = _run(["calibrate", "--head", str(folder), "--roles", "tail", "--csv", str(extra)], capsys)
+    status, _, err = run_cli(["calibrate", "--head", str(folder), "--roles", "tail", "--csv", str(extra)], capsys)
     assert status == 0, err
-    status, out, err = _run(["check", str(folder), "--no-report"], capsys)
+    status, out, err = run_cli(["check", str(folder), "--no-report"], capsys)
     assert "calibration has no servo for role" not in out
 
 
@@ -124,15 +118,15 @@ def test_template_refuses_bad_input_and_writes_nothing(tmp_path: Path, capsys: p
     folder = _new(tmp_path / "mine")
     template = folder / "calibration_template.csv"
     before = template.read_text()
-    status, _, err = _run(["calibrate", "--head", str(folder), "--csv", str(template), "--force"], capsys)
+    status, _, err = run_cli(["calibrate", "--head", str(folder), "--csv", str(template), "--force"], capsys)
     assert status == 2 and "--force: only with --template" in err
     assert not (folder / "calibration.json").exists()
     missing = tmp_path / "no_such_folder" / "t.csv"
-    status, _, err = _run(["calibrate", "--head", str(folder), "--template", "--out", str(missing)], capsys)
+    status, _, err = run_cli(["calibrate", "--head", str(folder), "--template", "--out", str(missing)], capsys)
     assert status == 2 and str(missing) in err
     assert not missing.parent.exists()
     _with_jaw_limits(folder, "[-200.0, 200.0]")
-    status, _, err = _run(["calibrate", "--head", str(folder), "--template", "--force"], capsys)
+    status, _, err = run_cli(["calibrate", "--head", str(folder), "--template", "--force"], capsys)
     assert status == 2
     assert f"{folder / 'head.toml'}: joint[1].limits_deg: expected a span of 0.088..359.9 deg" in err, err
     assert "nothing written" in err and "Traceback" not in err
@@ -155,7 +149,7 @@ def test_check_names_a_joint_range_calibrate_would_refuse(
 ) -> None:
     folder = _new(tmp_path / "mine")
     _with_jaw_limits(folder, limits)
-    status, out, err = _run(["check", str(folder), "--no-report"], capsys)
+    status, out, err = run_cli(["check", str(folder), "--no-report"], capsys)
     assert status == 1, out + err
     line = next((ln for ln in out.splitlines() if "joint[1].limits_deg" in ln), "")
     assert line.startswith(f"problem: {folder / 'head.toml'}: joint[1].limits_deg: expected a span of 0.088..359.9 deg")
@@ -167,7 +161,7 @@ def test_check_names_range_deg_when_the_actuator_sets_it(tmp_path: Path, capsys:
     text = (folder / "head.toml").read_text()
     text = text.replace('joints = ["jaw"]', 'joints = ["jaw"]\nrange_deg = [0.0, 0.01]', 1)
     (folder / "head.toml").write_text(text)
-    status, out, _ = _run(["check", str(folder), "--no-report"], capsys)
+    status, out, _ = run_cli(["check", str(folder), "--no-report"], capsys)
     assert status == 1
     assert f"problem: {folder / 'head.toml'}: actuator[0].range_deg: expected a span of" in out, out
 
@@ -184,7 +178,7 @@ def test_a_geared_joint_calibrated_from_measurements_is_not_a_problem(
     geared = tmp_path / "geared.csv"
     geared.write_text("\n".join(rows) + "\n")
     assert main(["calibrate", "--head", str(folder), "--csv", str(geared)]) == 0
-    status, out, _ = _run(["check", str(folder), "--no-report"], capsys)
+    status, out, _ = run_cli(["check", str(folder), "--no-report"], capsys)
     assert "expected a span" not in out
 
 
@@ -198,13 +192,13 @@ def test_check_a_head_toml_it_cannot_parse_is_bad_input_named_once(
     folder = _new(tmp_path / "mine")
     _with_jaw_limits(folder, "[0.0, 25.0,")  # an unfinished edit
     arg = str(folder) + suffix
-    status, out, err = _run(["check", arg], capsys)
+    status, out, err = run_cli(["check", arg], capsys)
     assert status == 2  # the README's rule: bad input (a malformed profile) is 2, as for every command
     first = err.splitlines()[0]
     assert first.startswith(f"servoface check: {folder / 'head.toml'}: not valid TOML"), first
     assert first.count(str(folder)) == 1, first
     assert out == ""
-    status, _, err = _run(["preview", "happiness", "--head", arg, "-o", str(tmp_path / "x.png")], capsys)
+    status, _, err = run_cli(["preview", "happiness", "--head", arg, "-o", str(tmp_path / "x.png")], capsys)
     assert status == 2
     assert err.splitlines()[0].count(str(folder)) == 1, err
     assert not (tmp_path / "x.png").exists()
@@ -212,7 +206,7 @@ def test_check_a_head_toml_it_cannot_parse_is_bad_input_named_once(
 
 def test_a_folder_that_is_not_there_is_named_once(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     arg = str(tmp_path / "nosuch") + "/"
-    status, _, err = _run(["check", arg], capsys)
+    status, _, err = run_cli(["check", arg], capsys)
     assert status == 2
     first = err.splitlines()[0]
     assert first.count(str(tmp_path / "nosuch")) == 1, first
@@ -249,7 +243,7 @@ def test_the_library_table_stays_in_line_for_a_long_name(tmp_path: Path, capsys:
     (folder / "head.toml").write_text(
         text.replace('au_direct = "direct.toml"', 'expressions = "faces.toml"\nau_direct = "direct.toml"', 1)
     )
-    status, out, err = _run(["check", str(folder)], capsys)
+    status, out, err = run_cli(["check", str(folder)], capsys)
     assert status == 1, out + err  # not calibrated yet; the report still runs
     lines = out.splitlines()
     start = next(i for i, ln in enumerate(lines) if ln.startswith("library expressions (3,"))
@@ -264,7 +258,7 @@ def test_calibrate_ending_on_end_of_input_ends_the_prompt_line(
 ) -> None:
     folder = oh.write_mechanical(tmp_path / "m")
     monkeypatch.setattr("sys.stdin", io.StringIO(""))  # Ctrl-D, or a script whose input ran out
-    status, out, err = _run(["calibrate", "--head", str(folder), "--emulate", "--roles", "jaw"], capsys)
+    status, out, err = run_cli(["calibrate", "--head", str(folder), "--emulate", "--roles", "jaw"], capsys)
     assert status == 1 and "nothing saved" in err
     assert out.endswith("(Enter to capture): \n"), repr(out[-80:])
     assert not (folder / "calibration.json").exists()

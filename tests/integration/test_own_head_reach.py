@@ -12,6 +12,8 @@ from pathlib import Path
 import pytest
 from servoface.controller.cli import main
 
+from tests.cli_run import run_cli
+
 # role -> (its joint's index, the joint's limits, how many joints before it have the same limits)
 MECH_JOINTS = {"jaw": (1, "[0.0, 25.0]", 0), "lid_r": (5, "[-15.0, 70.0]", 1)}
 
@@ -36,18 +38,11 @@ def _head(pristine: Path, tmp_path: Path, role: str, limits: str) -> Path:
     return folder
 
 
-def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    capsys.readouterr()
-    status = main(argv)
-    out, err = capsys.readouterr()
-    return status, out, err
-
-
 def test_check_names_the_end_past_half_a_turn_as_calibrate_would_refuse_it(
     pristine: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     folder = _head(pristine, tmp_path, "jaw", "[0.0, 200.0]")
-    status, out, _ = _run(["check", str(folder), "--no-report"], capsys)
+    status, out, _ = run_cli(["check", str(folder), "--no-report"], capsys)
     assert status == 1, out
     key = f"{folder / 'head.toml'}: joint[1].limits_deg"
     line = next((ln for ln in out.splitlines() if "limits_deg" in ln), "")
@@ -59,10 +54,10 @@ def test_check_names_the_end_past_half_a_turn_as_calibrate_would_refuse_it(
 
     template = folder / "calibration_template.csv"
     before = template.read_text()
-    status, _, err = _run(["calibrate", "--head", str(folder), "--template", "--force"], capsys)
+    status, _, err = run_cli(["calibrate", "--head", str(folder), "--template", "--force"], capsys)
     assert status == 2 and f"servoface calibrate: --template: {key}: expected both ends within" in err, err
     assert "nothing written" in err and template.read_text() == before
-    status, _, err = _run(["calibrate", "--head", str(folder), "--builtin"], capsys)
+    status, _, err = run_cli(["calibrate", "--head", str(folder), "--builtin"], capsys)
     # the same words as check's, the end that does not fit and the fix (was "outside 0..4095; re-mount the horn")
     assert status == 2 and line.removeprefix(f"problem: {key}: ") in err, err
     assert not (folder / "calibration.json").exists()
@@ -87,10 +82,12 @@ def test_check_flags_a_range_exactly_when_calibrate_refuses_it(
     pristine: Path, tmp_path: Path, role: str, limits: str, refused: bool, capsys: pytest.CaptureFixture[str]
 ) -> None:
     folder = _head(pristine, tmp_path, role, limits)
-    _, out, _ = _run(["check", str(folder), "--no-report"], capsys)
+    _, out, _ = run_cli(["check", str(folder), "--no-report"], capsys)
     flagged = [ln for ln in out.splitlines() if f"joint[{MECH_JOINTS[role][0]}].limits_deg" in ln]
     assert len(flagged) <= 1 and all(ln.startswith("problem: ") for ln in flagged), out
-    template, _, _ = _run(["calibrate", "--head", str(folder), "--template", "--out", str(tmp_path / "t.csv")], capsys)
-    builtin, _, err = _run(["calibrate", "--head", str(folder), "--builtin"], capsys)
+    template, _, _ = run_cli(
+        ["calibrate", "--head", str(folder), "--template", "--out", str(tmp_path / "t.csv")], capsys
+    )
+    builtin, _, err = run_cli(["calibrate", "--head", str(folder), "--builtin"], capsys)
     assert template == builtin and builtin in (0, 2), err
     assert bool(flagged) == (builtin == 2) == refused, (out, err)
