@@ -41,36 +41,30 @@ def _cal_hint(head_arg: str, roles: list[str] | None = None) -> str:
 
 def _calibration_gaps(head: Any, cal: Any, head_arg: str) -> list[str]:
     """Roles, ids and servo models where the calibration and the profile disagree (each with its fix)."""
-    from servoface.controller.head_servos import driver_model_name
+    from servoface.controller.head_servos import calibration_mismatches
 
+    found = calibration_mismatches(head, cal)
     problems = []
-    missing = [a.role for a in head.actuators if a.role not in cal.roles]
+    missing = [m.role for m in found if m.kind == "missing"]
     if missing:
         names = ", ".join(repr(r) for r in missing)
         problems.append(f"calibration has no servo for role {names}: {_cal_hint(head_arg, missing)}")
-    extra = [r for r in cal.roles if r not in head.roles]
+    extra = [m.role for m in found if m.kind == "extra"]
     if extra:
         problems.append(
             f"calibration names role(s) {extra} the profile does not have: recalibrate "
             f"(`servoface calibrate --head {head_arg} ...`) or add the actuators to head.toml"
         )
-    for a in head.actuators:
-        if a.role not in cal.roles:
-            continue
-        c = cal[a.role]
-        if c.servo_id != a.servo.id:
+    for m in found:
+        if m.kind == "id":
             problems.append(
-                f"{a.role}: servo id {a.servo.id} in head.toml but {c.servo_id} in the calibration: fix the id "
-                f"(`servoface scan --port ...` lists the ids) or {_cal_hint(head_arg, [a.role])}"
+                f"{m.role}: servo id {m.profile} in head.toml but {m.calibration} in the calibration: fix the id "
+                f"(`servoface scan --port ...` lists the ids) or {_cal_hint(head_arg, [m.role])}"
             )
-        try:
-            same = driver_model_name(c.model) == driver_model_name(a.servo.model)
-        except KeyError:
-            same = c.model == a.servo.model
-        if not same:
+        elif m.kind == "model":
             problems.append(
-                f"{a.role}: servo model {a.servo.model} in head.toml but {c.model} in the calibration: "
-                f"fix the model in head.toml or {_cal_hint(head_arg, [a.role])}"
+                f"{m.role}: servo model {m.profile} in head.toml but {m.calibration} in the calibration: "
+                f"fix the model in head.toml or {_cal_hint(head_arg, [m.role])}"
             )
     return problems
 

@@ -147,13 +147,14 @@ MAX_ROLES_NAMED = 4  # a calibration of another head lacks most roles: name a fe
 
 def checked_calibration(args: argparse.Namespace, head: Head) -> HeadCalibration:
     """The calibration ``--calibration`` names (else the one the profile names), read and checked against
-    the head's servos: every role there, with the profile's ids and a servo model the driver knows. Called
-    before anything is opened or announced, so a missing or malformed file, or one of another head, is
-    refused with its own message and nothing else said (CalibrationError, ControllerError or
-    HeadProfileError: exit 2); `open_face` then drives with the calibration returned. A command without
-    --calibration (`node`) checks the profile's own."""
+    the head's servos (`head_servos.calibration_mismatches`): every role there, with the profile's servo ids
+    and models, and a model the driver knows. Called before anything is opened or announced, so a missing or
+    malformed file, one of another head, or one measured on other servo models, is refused with its own
+    message and nothing else said (CalibrationError, ControllerError or HeadProfileError: exit 2);
+    `open_face` then drives with the calibration returned. A command without --calibration (`node`) checks
+    the profile's own."""
     from servoface.calibration.errors import CalibrationFileError
-    from servoface.controller.head_servos import servo_specs
+    from servoface.controller.head_servos import calibration_mismatches, servo_specs
     from servoface.controller.service import head_calibration
 
     given = getattr(args, "calibration", None)
@@ -161,24 +162,24 @@ def checked_calibration(args: argparse.Namespace, head: Head) -> HeadCalibration
     file = str(given if given is not None else head.calibration_path)
     check = f"servoface check {args.head}" + (f" --calibration {file}" if given is not None else "")
     fix = f"expected this head's calibration (`{check}` lists every difference)"
-    missing = [a.role for a in head.actuators if a.role not in cal.roles]
+    found = calibration_mismatches(head, cal)
+    missing = [m.role for m in found if m.kind == "missing"]
     if missing:
         named = ", ".join(missing[:MAX_ROLES_NAMED])
         if len(missing) > MAX_ROLES_NAMED:
             named += f" and {len(missing) - MAX_ROLES_NAMED} more"
         whose = f" (it is a calibration of head {cal.head!r})" if cal.head != head.name else ""
         raise CalibrationFileError(file, "servos", f"no servo for role(s) {named} of head {head.name!r}{whose}: {fix}")
-    moved = [
-        f"{a.role} {a.servo.id} -> {cal[a.role].servo_id}" for a in head.actuators if cal[a.role].servo_id != a.servo.id
-    ]
-    if moved:
-        named = ", ".join(moved[:MAX_ROLES_NAMED]) + (" ..." if len(moved) > MAX_ROLES_NAMED else "")
-        raise CalibrationFileError(
-            file,
-            "servos",
-            f"servo ids differ from head {head.name!r}'s profile (role: profile -> file: {named}): {fix}",
-        )
-    servo_specs(head, cal)  # the servo models the profile names, as opening the head checks them
+    for kind, what in (("id", "servo ids"), ("model", "servo models")):
+        moved = [f"{m.role} {m.profile} -> {m.calibration}" for m in found if m.kind == kind]
+        if moved:
+            named = ", ".join(moved[:MAX_ROLES_NAMED]) + (" ..." if len(moved) > MAX_ROLES_NAMED else "")
+            raise CalibrationFileError(
+                file,
+                "servos",
+                f"{what} differ from head {head.name!r}'s profile (role: profile -> file: {named}): {fix}",
+            )
+    servo_specs(head, cal)  # a model the driver knows, as opening the head checks it
     return cal
 
 

@@ -37,6 +37,51 @@ def test_a_calibration_whose_servo_model_differs_is_a_problem(
     assert f"servoface calibrate --head {folder} --roles jaw" in out
 
 
+def _with_jaw_model(folder: Path, model: str) -> Path:
+    data = json.loads((folder / "calibration.json").read_text())
+    servos = data["servos"]
+    first = servos[next(iter(servos))] if isinstance(servos, dict) else servos[0]
+    first["model"] = model
+    (folder / "calibration.json").write_text(json.dumps(data))
+    return folder
+
+
+def test_play_refuses_a_calibration_measured_on_another_servo_model_before_opening(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = _with_jaw_model(_calibrated_dog(tmp_path / "dog"), "XL330-M288")  # the profile: XL430-W250
+    capsys.readouterr()
+    assert main(["play", "happiness", "--head", str(folder), "--emulate"]) == 2
+    out, err = capsys.readouterr()
+    assert "servo models differ from head" in err
+    assert "(role: profile -> file: jaw XL430-W250 -> XL330-M288)" in err
+    assert f"servoface check {folder}" in err  # where every difference is listed
+    assert "opening" not in out and "torque" not in out
+
+
+def test_opening_a_head_refuses_a_calibration_of_another_servo_model(tmp_path: Path) -> None:
+    from servoface.calibration import load_calibration
+    from servoface.controller.face import Face
+    from servoface.controller.head_servos import calibration_mismatches
+    from servoface.sim.errors import HeadProfileError
+    from servoface.sim.heads import load_head
+
+    folder = _with_jaw_model(_calibrated_dog(tmp_path / "dog"), "XL330-M288")
+    head = load_head(folder)
+    found = calibration_mismatches(head, load_calibration(folder / "calibration.json"))
+    assert [(m.kind, m.role, m.profile, m.calibration) for m in found] == [("model", "jaw", "XL430-W250", "XL330-M288")]
+    with pytest.raises(HeadProfileError, match=r"role 'jaw' is a XL430-W250 in the profile but a XL330-M288"):
+        Face.open(head, emulate=True)
+
+
+def test_a_model_written_by_its_catalogue_alias_is_the_same_model(tmp_path: Path) -> None:
+    from servoface.controller.head_servos import same_model
+
+    assert same_model("MX-28", "MX-28(2.0)") and same_model("mx-28", "MX-28-2.0")
+    assert not same_model("XL330-M288", "XL330-M077")
+    assert same_model("my-servo", "my-servo") and not same_model("my-servo", "other")  # unknown: as written
+
+
 def test_a_role_the_calibration_lacks_names_the_command_that_adds_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
