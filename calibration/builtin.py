@@ -74,10 +74,19 @@ MAX_SPAN_DEG = (MAX_POSITION_TICK - MIN_POSITION_TICK) / TICKS_PER_DEG  # 4095 t
 
 
 def expected_span() -> str:
-    """What a joint actuator's range must span on an ideal servo, in words."""
+    """What a joint actuator's range may span at most on an ideal servo, in words."""
     return (
-        f"a span of {MIN_SPAN_DEG:.3f}..{MAX_SPAN_DEG:.1f} deg (1..{MAX_POSITION_TICK - MIN_POSITION_TICK} "
-        f"ticks of a servo turning with the joint, {TICKS_PER_TURN} ticks a turn)"
+        f"a span of at most {MAX_SPAN_DEG:.1f} deg ({MAX_POSITION_TICK - MIN_POSITION_TICK} ticks of a servo "
+        f"turning with the joint, {TICKS_PER_TURN} ticks a turn)"
+    )
+
+
+def expected_ticks_apart() -> str:
+    """What a joint actuator's range must reach at least on an ideal servo, in words: its ends on two
+    ticks (goals round to the nearest tick, so a span under one tick may or may not)."""
+    return (
+        f"its ends on two different ticks of a servo turning with the joint ({TICKS_PER_TURN} ticks a turn; "
+        f"any span of {MIN_SPAN_DEG:.3f} deg or more is)"
     )
 
 
@@ -116,7 +125,7 @@ def reach_problem(spec: ServoSpec, ends: EndTicks) -> str | None:
         return f"expected {expected_span()} {got} (spans {span:g} deg, more than one servo turn; a typo?)"
     if ends.lower == ends.upper:
         return (
-            f"expected {expected_span()} {got} (spans {span:g} deg, less than one servo tick "
+            f"expected {expected_ticks_apart()} {got} (spans {span:g} deg, less than one servo tick "
             f"({span * TICKS_PER_DEG:.2f} tick): both ends land on tick {ends.lower}; a typo? widen the range "
             f"to at least {MIN_SPAN_DEG:.3f} deg, or gear the joint so its servo turns further than it and "
             "calibrate from measured ticks)"

@@ -6,8 +6,8 @@ refuse a range whose ends land outside goals 0..4095 or on one tick. ``check`` n
 with the key that sets it, by asking the same code (:func:`servoface.calibration.builtin.builtin_refusal`),
 so it flags exactly the ranges calibrate refuses:
 
-- a span of more than one turn or under one tick: nearly always a typo (``[-200, 200]``, ``[0, 0.04]``); for
-  one tick, the fix (widen the range, or gear the joint and calibrate from measured ticks);
+- a span of more than one turn, or ends that land on one tick: nearly always a typo (``[-200, 200]``,
+  ``[0, 0.04]``); for one tick, the fix (widen the range, or gear the joint and calibrate from measured ticks);
 - an end more than half a turn from neutral (``[0, 200]`` with neutral 0): the end that does not fit is
   named, with the fix (re-mount the horn, or move neutral or narrow the range).
 
