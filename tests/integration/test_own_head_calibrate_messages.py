@@ -99,10 +99,8 @@ def test_a_range_on_one_tick_is_refused_with_the_fix_not_re_measure(
     key = f"{folder / 'head.toml'}: joint[1].limits_deg"
     line = next((ln for ln in out.splitlines() if "limits_deg" in ln), "")
     assert line.startswith(
-        (
-            f"problem: {key}: expected its ends on two different ticks of a servo turning with the joint "
-            "(4096 ticks a turn; any span of 0.088 deg or more is)"
-        )
+        f"problem: {key}: expected its ends on two different ticks of a servo turning with the joint "
+        "(4096 ticks a turn; any span of 0.088 deg or more is)"
     ), out
     reason = line.removeprefix(f"problem: {key}: ")
     assert "(spans 0.04 deg, less than one servo tick (0.46 tick): both ends land on tick 2048; a typo? " in reason
