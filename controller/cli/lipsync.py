@@ -118,20 +118,15 @@ class OutFolderError(Exception):
 
 
 def _check_out_folder(folder: Path) -> None:
-    """Refuse ``--out`` if it could not be made or written, without making it: the nearest part of the path
-    that exists must be a folder this process may write in (and search)."""
-    import os
+    """Refuse ``--out`` if it could not be made or written, without making it (`outputs.folder_could_be_made`)."""
+    from servoface.controller.cli import outputs
 
-    existing = folder
-    while not os.path.lexists(existing) and existing != existing.parent:
-        existing = existing.parent
-    if not existing.is_dir():
-        what = "not a folder" if existing == folder else f"{str(existing)!r} is not a folder"
-        raise OutFolderError(f"--out {str(folder)!r}: {what}; expected an output folder (made if missing)")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise OutFolderError(
-            f"--out {str(folder)!r}: cannot write in {str(existing)!r} (permission denied); choose another folder"
-        )
+    try:
+        outputs.folder_could_be_made(folder)
+    except NotADirectoryError as err:
+        raise OutFolderError(f"--out {str(folder)!r}: {err.strerror}") from err
+    except PermissionError as err:
+        raise OutFolderError(f"--out {str(folder)!r}: {err.strerror}; choose another folder") from err
 
 
 def _make_out_folder(folder: Path) -> None:

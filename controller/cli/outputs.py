@@ -29,3 +29,18 @@ def writable_file(path: Path) -> Path:
         raise FileNotFoundError(2, f"folder {str(folder)!r} does not exist", str(path))
     writable_folder(folder)
     return path
+
+
+def folder_could_be_made(folder: Path) -> None:
+    """Check, making nothing, that ``folder`` could be made (if missing) and written: the nearest part of
+    its path that exists must be a folder this process may write in and search. NotADirectoryError or
+    PermissionError naming that part; the later write still reports its own failure (``os.access``
+    cannot see everything, e.g. as root)."""
+    existing = folder
+    while not os.path.lexists(existing) and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        why = "not a folder" if existing == folder else f"{str(existing)!r} is not a folder"
+        raise NotADirectoryError(20, f"{why}; expected an output folder (made if missing)", str(existing))
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise PermissionError(13, f"cannot write in {str(existing)!r} (permission denied)", str(existing))
