@@ -1,10 +1,15 @@
 """Output files written all or nothing, so a render that fails partway leaves no truncated file behind.
 
-A writer fills a hidden temporary next to the target (``.clip.mp4.partial-1a2b3c4d.mp4``): the same folder,
-so the final rename stays on one file system and is atomic, and the same suffix, which is what Pillow and
-ffmpeg choose the format and container by. Only when the writer finished is it renamed onto the target; on
-any failure (a render error, the frame source raising, Ctrl-C) the temporary is removed and a file already
-at the target is left as it was.
+A writer fills a hidden temporary next to the target (``.clip.mp4.partial-4711-1a2b3c4d.mp4``: the writing
+process's id and a random tag): the same folder, so the final rename stays on one file system and is
+atomic, and the same suffix, which is what Pillow and ffmpeg choose the format and container by. Only when
+the writer finished is it renamed onto the target; on any failure (a render error, the frame source raising,
+Ctrl-C) the temporary is removed and a file already at the target is left as it was.
+
+A process killed outright (SIGKILL, a power cut) cannot remove its temporary. The next write to the same
+target removes such leftovers: temporaries of that target whose process no longer runs on this machine and
+that nothing has written to for `STALE_S` (a live writer on another machine sharing the folder keeps its
+file fresh).
 """
 
 from __future__ import annotations
@@ -12,12 +17,15 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import re
 import secrets
 import stat
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
 PARTIAL = ".partial-"
+STALE_S = 60.0  # a leftover temporary untouched this long, of a process that is gone, is removed
 _NAME_BYTES = 96  # of the target's name kept in the temporary's (a name near the 255-byte limit still fits)
 
 
@@ -26,10 +34,54 @@ def _refuse(code: int, path: str | os.PathLike[str]) -> OSError:
     return OSError(code, os.strerror(code), os.fspath(path))
 
 
+def _partial_stem(target: Path) -> str:
+    """What every temporary of ``target`` starts with: a dot and (the start of) its name, then `PARTIAL`."""
+    return f".{os.fsdecode(os.fsencode(target.name)[:_NAME_BYTES])}{PARTIAL}"
+
+
 def _partial_name(target: Path, suffix: str) -> str:
-    """A fresh hidden temporary name for ``target``: its name, a random tag and ``suffix``."""
-    name = os.fsdecode(os.fsencode(target.name)[:_NAME_BYTES])
-    return f".{name}{PARTIAL}{secrets.token_hex(4)}{suffix}"
+    """A fresh hidden temporary name for ``target``: its name, this process's id, a random tag, ``suffix``."""
+    return f"{_partial_stem(target)}{os.getpid()}-{secrets.token_hex(4)}{suffix}"
+
+
+_TAG = re.compile(r"(\d+)-[0-9a-f]{8}(\.[^/]*)?")  # what follows the stem: pid, tag, suffix
+
+
+def _gone(pid: int) -> bool:
+    """Whether no process ``pid`` runs on this machine (one of another user still counts as running)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except OSError:  # EPERM: it runs, as someone else
+        return False
+    return False
+
+
+def remove_leftovers(target: Path, now_s: float | None = None) -> list[Path]:
+    """Remove the temporaries an earlier writer of ``target`` left when it was killed (see the module
+    docstring); returns those removed. Only files named like ours, of a process that is gone, untouched
+    for `STALE_S`; anything that cannot be read or removed is left alone."""
+    stem = _partial_stem(target)
+    now = time.time() if now_s is None else now_s
+    removed: list[Path] = []
+    try:
+        names = [n for n in os.listdir(target.parent) if n.startswith(stem)]
+    except OSError:
+        return removed
+    for name in names:
+        found = _TAG.fullmatch(name[len(stem) :])
+        if found is None or int(found.group(1)) == os.getpid() or not _gone(int(found.group(1))):
+            continue
+        leftover = target.parent / name
+        try:
+            st = os.lstat(leftover)
+            if stat.S_ISREG(st.st_mode) and now - st.st_mtime >= STALE_S:
+                os.unlink(leftover)
+                removed.append(leftover)
+        except OSError:
+            continue
+    return removed
 
 
 def _reserve(target: Path, shown: str | os.PathLike[str]) -> Path:
@@ -83,6 +135,7 @@ def atomic_output(path: str | os.PathLike[str]) -> Iterator[Path]:
         if not stat.S_ISREG(mode):
             yield target
             return
+    remove_leftovers(target)
     tmp = _reserve(target, path)
     try:
         yield tmp

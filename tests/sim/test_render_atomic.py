@@ -264,3 +264,62 @@ def test_a_write_the_file_system_refuses_partway_leaves_the_old_file(tmp_path: P
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == dict.fromkeys(
         ("clip.mp4", "clip.gif", "still.png"), b"an older result"
     )
+
+
+def _killed_writer(target: Path) -> Path:
+    """Run a process that starts writing ``target`` and is SIGKILLed partway; returns the temporary it left."""
+    before = set(target.parent.iterdir())
+    code = textwrap.dedent(
+        f"""
+        import os, signal, sys
+        from servoface.sim.render.atomic import atomic_output
+        with atomic_output({str(target)!r}) as tmp:
+            tmp.write_bytes(b"half a clip")
+            os.kill(os.getpid(), signal.SIGKILL)
+        """
+    )
+    done = subprocess.run([sys.executable, "-c", code], check=False)
+    assert done.returncode == -9
+    left = [p for p in set(target.parent.iterdir()) - before if p.name.startswith(f".{target.name}{PARTIAL}")]
+    assert len(left) == 1, left
+    return left[0]
+
+
+def _age(path: Path, seconds: float) -> None:
+    then = path.stat().st_mtime - seconds
+    os.utime(path, (then, then))
+
+
+def test_the_next_write_removes_what_a_killed_writer_left(tmp_path: Path) -> None:
+    from servoface.sim.render.atomic import STALE_S
+
+    target = tmp_path / "still.png"
+    left = _killed_writer(target)
+    assert not target.exists()
+    save_image(np.zeros((4, 5, 3), dtype=np.uint8), target)  # a minute has not passed: it may be a live writer
+    assert left.exists()
+    _age(left, STALE_S + 1)
+    save_image(np.zeros((4, 5, 3), dtype=np.uint8), target)
+    assert not left.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["still.png"]
+
+
+def test_leftovers_of_a_running_process_or_of_another_target_stay(tmp_path: Path) -> None:
+    from servoface.sim.render.atomic import STALE_S, remove_leftovers
+
+    target = tmp_path / "clip.mp4"
+    running = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        mine = tmp_path / f".clip.mp4{PARTIAL}{running.pid}-0123abcd.mp4"  # a writer still at work
+        other = tmp_path / f".clip.gif{PARTIAL}999999999-0123abcd.gif"  # another target's
+        odd = tmp_path / f".clip.mp4{PARTIAL}notes.txt"  # not a name atomic_output makes
+        for p in (mine, other, odd):
+            p.write_bytes(b"x")
+            _age(p, STALE_S + 1)
+        dead = _killed_writer(target)
+        _age(dead, STALE_S + 1)
+        assert remove_leftovers(target) == [dead]
+        assert mine.exists() and other.exists() and odd.exists()
+    finally:
+        running.kill()
+        running.wait()
