@@ -46,13 +46,13 @@ from servoface.controller.script import Script, load_script
 from servoface.controller.service import CommandHandle, HeadService, Status, head_calibration, open_head
 from servoface.controller.service.commands import check_point_mm
 from servoface.controller.service.observers import MAX_QUEUE
+from servoface.controller.timeline_on_head import pose_refusal
 from servoface.controller.trace_ring import TraceRing
 from servoface.controller.values import as_finite, check_seconds, printable_repr
 from servoface.hardware.bus import ServoBus
 from servoface.hardware.driver import Driver, FastSyncRead
 from servoface.hardware.errors import HardwareError
 from servoface.hardware.fault_policy import FaultPolicy
-from servoface.sim.errors import SimError
 from servoface.sim.head import Head
 from servoface.sim.heads import load_head
 
@@ -346,12 +346,12 @@ class Face:
         check_seconds(transition_s, "express: transition_s")  # named as the caller wrote them
         check_seconds(hold_s, "express: hold_s")
         apex = {au: v * level for au, v in library[name].apex().items()}
-        try:  # what the head's own AU table, direct table or muscles refuse: named as an expression
-            self.pipeline.targets_for(apex)
-        except (ControllerError, SimError) as err:
-            raise ControllerError(
-                f"express: expression {name!r} at intensity {level:g}, on head {self.head.name!r}: {err}"
-            ) from err
+        # what the head's own AU table, direct table or muscles refuse: named as an expression
+        why = pose_refusal(
+            self.pipeline.targets_for, apex, f"express: expression {name!r} at intensity {level:g}", self.head.name
+        )
+        if why is not None:
+            raise ControllerError(why)
         return self.set_aus(apex, transition_s=transition_s, hold_s=hold_s)
 
     def _expressions(self) -> Any:

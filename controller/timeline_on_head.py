@@ -19,6 +19,18 @@ from servoface.sim.errors import SimError
 Solve = Callable[[Mapping[str, float]], object]  # raises SimError / ControllerError for a pose the head refuses
 
 
+def pose_refusal(solve: Solve, aus: Mapping[str, float], what: str, head_name: str) -> str | None:
+    """None when ``solve`` (the head's AU -> targets solver) takes the pose ``aus``; else why not, in the one
+    wording every check of a pose on a head uses: ``"{what}, on head 'name': {reason}"``. The caller raises
+    its own error type with it (an expression before a command opens the head, `Face.express`, a service
+    command, each AU extreme of a script)."""
+    try:
+        solve(aus)
+    except (SimError, ControllerError) as err:
+        return f"{what}, on head {head_name!r}: {err}"
+    return None
+
+
 def check_timeline_on_head(timeline: Any, solve: Solve, source: str, head_name: str) -> None:
     """ScriptError for the first AU extreme of ``timeline`` that ``solve`` refuses (see the module doc)."""
     from servoface.controller.timeline.track import Track
@@ -64,7 +76,6 @@ def _note(extremes: dict[tuple[str, bool], tuple[float, str]], pairs: Iterable[t
 
 def _solve_all(extremes: Mapping[tuple[str, bool], tuple[float, str]], solve: Solve, source: str, head: str) -> None:
     for (au, _), (value, what) in extremes.items():
-        try:
-            solve({au: value})
-        except (SimError, ControllerError) as err:
-            raise ScriptError(f"{source}: {what}, on head {head!r}: {err}") from err
+        why = pose_refusal(solve, {au: value}, what, head)
+        if why is not None:
+            raise ScriptError(f"{source}: {why}")

@@ -100,7 +100,8 @@ def check_on_head(head: Head, library: Mapping[str, Any], names: list[str], *, m
     direct table or muscles refuse (an AU it does not know, an intensity out of its range, a library of
     another face type) is bad input named before anything is opened or rendered: ExpressionError naming the
     expression and the library file, or the profile's HeadProfileError."""
-    from servoface.sim.errors import ExpressionError, SimError
+    from servoface.controller.timeline_on_head import pose_refusal
+    from servoface.sim.errors import ExpressionError
     from servoface.sim.face_model import FaceModel
 
     _check_library_face(head, library)
@@ -109,10 +110,9 @@ def check_on_head(head: Head, library: Mapping[str, Any], names: list[str], *, m
     for name in names:
         if name == NEUTRAL and name not in library:
             continue  # the rest pose, which every head shows
-        try:
-            model.solve(library[name].apex())
-        except SimError as err:
-            raise ExpressionError(f"expression {name!r}{where}, on head {head.name!r}: {err}") from err
+        why = pose_refusal(model.solve, library[name].apex(), f"expression {name!r}{where}", head.name)
+        if why is not None:
+            raise ExpressionError(why)
 
 
 def _library_where(library: Mapping[str, Any]) -> str:

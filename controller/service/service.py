@@ -51,6 +51,7 @@ from servoface.controller.service.sources import (
 )
 from servoface.controller.service.tracks import DEFAULT_TRACKS, Mixer, TrackSpec
 from servoface.controller.timeline.blend import BlendRule
+from servoface.controller.timeline_on_head import pose_refusal
 from servoface.hardware.driver import Driver
 from servoface.hardware.errors import BusDisconnectedError, HardwareError
 from servoface.hardware.snapshot import ChainSnapshot
@@ -676,10 +677,9 @@ class HeadService:
         """A pose the head's own face model refuses (an intensity outside its AU table's range, its direct
         table or muscles) is bad input: ServiceError at once, naming ``what`` and the AU, nothing scheduled.
         (A mix of poses the head takes one by one can still be refused in a frame: `_refused`.)"""
-        try:
-            self.pipeline.targets_for(aus)
-        except (ControllerError, SimError) as err:
-            raise ServiceError(f"{what}, on head {self.head.name!r}: {err}") from err
+        why = pose_refusal(self.pipeline.targets_for, aus, what, self.head.name)
+        if why is not None:
+            raise ServiceError(why)
 
     def _refused(self, t_s: float, err: Exception) -> None:
         """A frame whose mixed pose the head refused (nothing of it sent): the commands that asked for it
