@@ -84,8 +84,8 @@ def servo_specs(
             )
         if m.kind == "model":
             raise HeadProfileError(
-                f"head {head.name!r}: role {m.role!r} is a {m.profile} in the profile but a {m.calibration} in "
-                f"the calibration: fix actuators.{m.role}.servo.model or recalibrate the role"
+                f"head {head.name!r}: role {m.role!r} is servo model {m.profile} in the profile but {m.calibration} "
+                f"in the calibration: fix actuators.{m.role}.servo.model or recalibrate the role"
             )
     specs: list[ServoSpec] = []
     limits = calibration.position_limits_tick(margin_tick)

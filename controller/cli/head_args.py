@@ -177,7 +177,7 @@ def checked_calibration(args: argparse.Namespace, head: Head) -> HeadCalibration
             raise CalibrationFileError(
                 file,
                 "servos",
-                f"{what} differ from head {head.name!r}'s profile (role: profile -> file: {named}): {fix}",
+                f"{what} differ from the profile of head {head.name!r} (role: profile -> file: {named}): {fix}",
             )
     servo_specs(head, cal)  # a model the driver knows, as opening the head checks it
     return cal

@@ -136,7 +136,7 @@ def test_checked_calibration_names_servo_ids_that_differ(tmp_path: Path) -> None
         checked_calibration(_args("human", path), load_head("human"))
     first, second = data["servos"][0]["role"], data["servos"][1]["role"]
     assert f"{first} {ids[0]} -> {ids[1]}, {second} {ids[1]} -> {ids[0]}" in str(info.value)
-    assert str(info.value).startswith(f"{path}: servos: servo ids differ from head 'human'")
+    assert str(info.value).startswith(f"{path}: servos: servo ids differ from the profile of head 'human'")
 
 
 def test_checked_calibration_of_an_uncalibrated_profile_says_how_to_calibrate(tmp_path: Path) -> None:

@@ -53,7 +53,7 @@ def test_play_refuses_a_calibration_measured_on_another_servo_model_before_openi
     capsys.readouterr()
     assert main(["play", "happiness", "--head", str(folder), "--emulate"]) == 2
     out, err = capsys.readouterr()
-    assert "servo models differ from head" in err
+    assert "servo models differ from the profile of head '" in err
     assert "(role: profile -> file: jaw XL430-W250 -> XL330-M288)" in err
     assert f"servoface check {folder}" in err  # where every difference is listed
     assert "opening" not in out and "torque" not in out
@@ -70,7 +70,7 @@ def test_opening_a_head_refuses_a_calibration_of_another_servo_model(tmp_path: P
     head = load_head(folder)
     found = calibration_mismatches(head, load_calibration(folder / "calibration.json"))
     assert [(m.kind, m.role, m.profile, m.calibration) for m in found] == [("model", "jaw", "XL430-W250", "XL330-M288")]
-    with pytest.raises(HeadProfileError, match=r"role 'jaw' is a XL430-W250 in the profile but a XL330-M288"):
+    with pytest.raises(HeadProfileError, match=r"role 'jaw' is servo model XL430-W250 in the profile but XL330-M288"):
         Face.open(head, emulate=True)
 
 
