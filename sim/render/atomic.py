@@ -44,16 +44,20 @@ def _partial_name(target: Path, suffix: str) -> str:
     return f"{_partial_stem(target)}{os.getpid()}-{secrets.token_hex(4)}{suffix}"
 
 
-_TAG = re.compile(r"(\d+)-[0-9a-f]{8}(\.[^/]*)?")  # what follows the stem: pid, tag, suffix
+_TAG = re.compile(r"([1-9][0-9]{0,9})-[0-9a-f]{8}(\.[^/]*)?")  # what follows the stem: pid, tag, suffix
+_MAX_PID = 2**31 - 1  # a larger number is no process id: not a temporary of ours
 
 
 def _gone(pid: int) -> bool:
-    """Whether no process ``pid`` runs on this machine (one of another user still counts as running)."""
+    """Whether no process ``pid`` runs on this machine (one of another user still counts as running; a
+    number no process can have is not ours to judge: False)."""
+    if pid > _MAX_PID:
+        return False
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return True
-    except OSError:  # EPERM: it runs, as someone else
+    except (OSError, OverflowError):  # EPERM: it runs, as someone else
         return False
     return False
 

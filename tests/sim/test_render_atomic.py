@@ -313,13 +313,15 @@ def test_leftovers_of_a_running_process_or_of_another_target_stay(tmp_path: Path
         mine = tmp_path / f".clip.mp4{PARTIAL}{running.pid}-0123abcd.mp4"  # a writer still at work
         other = tmp_path / f".clip.gif{PARTIAL}999999999-0123abcd.gif"  # another target's
         odd = tmp_path / f".clip.mp4{PARTIAL}notes.txt"  # not a name atomic_output makes
-        for p in (mine, other, odd):
+        huge = tmp_path / f".clip.mp4{PARTIAL}{10**20}-0123abcd.mp4"  # no process has that id (os.kill overflows)
+        wide = tmp_path / f".clip.mp4{PARTIAL}{2**31}-0123abcd.mp4"
+        for p in (mine, other, odd, huge, wide):
             p.write_bytes(b"x")
             _age(p, STALE_S + 1)
         dead = _killed_writer(target)
         _age(dead, STALE_S + 1)
         assert remove_leftovers(target) == [dead]
-        assert mine.exists() and other.exists() and odd.exists()
+        assert mine.exists() and other.exists() and odd.exists() and huge.exists() and wide.exists()
     finally:
         running.kill()
         running.wait()
