@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import sys
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,7 @@ import numpy as np
 from servoface.sim.errors import HeadProfileError
 from servoface.sim.head import Head
 from servoface.sim.heads.binding import BindRule, HalfSpace, bind_weights
+from servoface.sim.heads.sizes import COORD_LIMIT_MM
 from servoface.sim.rig import (
     SERVO_MODEL_ALIASES,
     SERVO_MODELS,
@@ -35,6 +37,8 @@ from servoface.sim.rig import (
     Vec3,
 )
 from servoface.sim.textfile import read_utf8
+
+_FLOAT_MAX = sys.float_info.max
 
 SCHEMA_VERSION = 1
 ANCHOR_MAX_GAP_MM = 10.0  # an anchor's near_mm must be this close to the skin
@@ -96,11 +100,17 @@ class _Reader:
         if name not in d and default is not None:
             return default
         v = self.req(d, name, key)
-        return self.num(v, f"{key}.{name}" if key else name)
+        return self.num(v, f"{key}.{name}" if key else name, mm=name.endswith("_mm"))
 
-    def num(self, v: Any, key: str) -> float:
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(float(v)):
-            raise self.fail(key, "a finite number", v)
+    def num(self, v: Any, key: str, mm: bool = False) -> float:
+        """A finite number; with ``mm`` (a position or length: every ``*_mm`` field, the landmarks) also
+        within ``COORD_LIMIT_MM`` of zero."""
+        if isinstance(v, bool) or not isinstance(v, int | float) or not (v == v and abs(v) <= _FLOAT_MAX):
+            raise self.fail(key, "a finite number", v)  # an int beyond a float's range too: not converted
+        if mm and not abs(v) <= COORD_LIMIT_MM:
+            raise self.fail(
+                key, f"a length within +-{COORD_LIMIT_MM:g} mm (positions and lengths in head.toml are in mm)", v
+            )
         return float(v)
 
     def vec(self, d: dict[str, Any], name: str, key: str, n: int = 3, unit: bool = False) -> tuple[float, ...]:
@@ -108,10 +118,11 @@ class _Reader:
         k = f"{key}.{name}" if key else name
         if not isinstance(v, list) or len(v) != n:
             raise self.fail(k, f"a list of {n} finite numbers", v)
-        out = tuple(self.num(x, f"{k}[{i}]") for i, x in enumerate(v))
+        mm = name.endswith("_mm") or key == "landmarks"
+        out = tuple(self.num(x, f"{k}[{i}]", mm=mm) for i, x in enumerate(v))
         if unit:
-            norm = math.sqrt(sum(x * x for x in out))
-            if norm < 1e-9:
+            norm = math.hypot(*out)  # no overflow for a huge component (its square would be inf)
+            if not norm >= 1e-9 or not math.isfinite(norm):
                 raise self.fail(k, "a non-zero direction vector", v)
             out = tuple(x / norm for x in out)
         return out
@@ -442,7 +453,7 @@ def _muscles(r: _Reader, data: dict[str, Any]) -> tuple[Muscle, ...]:
             axes = m.get("semi_axes_mm")
             if not isinstance(axes, list) or len(axes) not in (2, 3):
                 raise r.fail(f"{key}.semi_axes_mm", "[lx, ly] or [lx, ly, lz] in mm", axes)
-            ax = tuple(r.num(v, f"{key}.semi_axes_mm[{k}]") for k, v in enumerate(axes))
+            ax = tuple(r.num(v, f"{key}.semi_axes_mm[{k}]", mm=True) for k, v in enumerate(axes))
             if min(ax) <= 0:
                 raise r.fail(f"{key}.semi_axes_mm", "positive semi-axes", axes)
             nrm = r.vec3(m, "normal", key, unit=True) if "normal" in m else (0.0, 0.0, 1.0)

@@ -23,6 +23,7 @@ from servoface.calibration.boundedfile import MESH_LIMIT_BYTES, read_bounded
 from servoface.sim.errors import HeadMeshError
 from servoface.sim.heads import builtin
 from servoface.sim.heads.mesh_tools import F64, I64
+from servoface.sim.heads.sizes import COORD_LIMIT_MM
 
 BUILTIN_PREFIX = "builtin:"
 MESH_SUFFIXES = (".stl", ".obj", ".glb", ".gltf", ".ply", ".off")
@@ -97,6 +98,7 @@ def load_part_mesh(spec: str, folder: Path, where: str, scale: float = 1.0) -> A
         mesh = trimesh.Trimesh(np.asarray(src.vertices, dtype=np.float64), np.asarray(src.faces), process=False)
     if scale != 1.0:
         mesh.vertices = np.asarray(mesh.vertices) * scale
+    _check_extent(np.asarray(mesh.vertices), spec, where, scale)
     return mesh
 
 
@@ -115,4 +117,18 @@ def load_skin_mesh(spec: str, folder: Path, where: str, scale: float = 1.0) -> t
         vis = getattr(src, "visual", None)
         if vis is not None and getattr(vis, "kind", None) == "vertex":
             c = np.asarray(vis.vertex_colors, dtype=np.float64)[:, :4] / 255.0
-    return v * scale, f, c
+    v = v * scale
+    _check_extent(v, spec, where, scale)
+    return v, f, c
+
+
+def _check_extent(vertices: F64, spec: str, where: str, scale: float) -> None:
+    """HeadMeshError for a mesh with a vertex beyond ``COORD_LIMIT_MM`` of the head's origin once scaled:
+    a wrong ``scale`` or unit (a head is well under 1.5 m), and numbers whose squares would overflow."""
+    with np.errstate(all="ignore"):
+        far = float(np.max(np.abs(vertices))) if len(vertices) else 0.0
+    if not far <= COORD_LIMIT_MM:
+        raise HeadMeshError(
+            f"{where}: expected vertices within +-{COORD_LIMIT_MM:g} mm of the head's origin, mesh {spec} "
+            f"reaches {far:.6g} mm at scale {scale:g} (a mesh in another unit? set scale to convert it to mm)"
+        )

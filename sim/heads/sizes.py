@@ -12,6 +12,9 @@ import numpy as np
 
 HEAD_SPAN_MM = (40.0, 1500.0)  # a face a servo can move: a few cm to a large animatronic
 PART_MIN_MM = 1.0
+# a hard bound on every position and length in a head profile and its meshes (after ``scale``): far beyond
+# any head, so only a wrong unit or a typo reaches it, and below it squares and products stay finite
+COORD_LIMIT_MM = 10_000.0
 
 
 def _span(vertices: Any) -> float:

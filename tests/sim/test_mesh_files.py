@@ -68,8 +68,8 @@ def test_every_format_loads_as_trimesh_loads_it_from_its_path(kind: str, tmp_pat
         np.testing.assert_array_equal(c, np.asarray(before.visual.vertex_colors, dtype=np.float64)[:, :4] / 255.0)
     else:
         np.testing.assert_array_equal(c, np.tile([0.86, 0.70, 0.60, 1.0], (len(v), 1)))
-    part = load_part_mesh(name, tmp_path, WHERE, scale=1000.0)
-    np.testing.assert_array_equal(part.vertices, np.asarray(before.vertices) * 1000.0)
+    part = load_part_mesh(name, tmp_path, WHERE, scale=25.4)  # a mesh in inches (1 m across: within 10 m)
+    np.testing.assert_array_equal(part.vertices, np.asarray(before.vertices) * 25.4)
     np.testing.assert_array_equal(part.faces, before.faces)
 
 

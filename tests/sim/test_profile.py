@@ -197,6 +197,34 @@ BAD_CASES = [
         'name = "neck_pan"\nparent = "neck_roll"  #',
         r"joint\[\d+\]\.parent: expected a joint tree \(no cycles\)",
     ),
+    # positions and lengths far beyond any head (a typo or a wrong unit): refused by name, before a muscle
+    # model or a twin squares them to infinity (a pivot at 1e200 mm crashed `check` with an IndexError)
+    (
+        "pivot_mm = [0.0, 20.0, 0.0]",
+        "pivot_mm = [0.0, 1e200, 0.0]",
+        r"joint\[1\]\.pivot_mm\[1\]: expected a length within \+-10000 mm",
+    ),
+    (
+        "eye_centre_l = [32.0, 126.0, 66.0]",
+        "eye_centre_l = [32.0, 126.0, 66000.0]",
+        r"landmarks\.eye_centre_l\[2\]: expected a length within \+-10000 mm",
+    ),
+    (
+        "semi_axes_mm = [40.0, 17.0, 20.0]",
+        "semi_axes_mm = [4e4, 17.0, 20.0]",
+        r"muscle\[\d+\]\.semi_axes_mm\[0\]: expected a length within \+-10000 mm",
+    ),
+    (
+        "rs_mm = 46.0",
+        "rs_mm = -1e300",
+        r"muscle\[0\]\.rs_mm: expected a length within \+-10000 mm",
+    ),
+    # an integer beyond a float's range is not a finite number (float() of it raised OverflowError)
+    (
+        "limits_deg = [-60.0, 60.0]",
+        "limits_deg = [-1" + "0" * 400 + ", 60.0]",
+        r"joint\[0\]\.limits_deg\[0\]: expected a finite number",
+    ),
 ]
 
 
@@ -271,3 +299,25 @@ def test_loaded_heads_are_read_only() -> None:
         head.skin.vertices_mm[0, 0] = 1.0
     with pytest.raises(AttributeError):
         head.name = "other"  # type: ignore[misc]
+
+
+def test_a_huge_direction_is_still_a_direction(tmp_path: Path) -> None:
+    """A direction is normalised without squaring its components: [-1e200, 0, 0] is the axis [-1, 0, 0] (its
+    square overflowed to inf and the axis became [0, 0, 0], which crashed `check` with ZeroDivisionError)."""
+    folder = _copy(tmp_path)
+    _edit(
+        folder,
+        "pivot_mm = [0.0, 20.0, 0.0]\naxis = [-1.0, 0.0, 0.0]",
+        "pivot_mm = [0.0, 20.0, 0.0]\naxis = [-1e200, 0.0, 0.0]",
+    )
+    head = load_profile(folder)
+    tilt = next(j for j in head.joints if j.name == "neck_tilt")
+    assert tilt.axis == (-1.0, 0.0, 0.0)
+
+
+def test_a_mesh_beyond_ten_metres_is_refused_with_its_scale(tmp_path: Path) -> None:
+    """A part mesh in mm given scale = 1000 (as if it were in metres) reaches ~100 m: refused by name."""
+    folder = _copy(tmp_path)
+    _edit(folder, 'mesh = "builtin:human_jaw"', 'mesh = "builtin:human_jaw"\nscale = 1000.0')
+    with pytest.raises(HeadMeshError, match=r"part\[2\]\.mesh: expected vertices within \+-10000 mm .* at scale 1000"):
+        load_profile(folder)
