@@ -184,6 +184,9 @@ def _servo_table(head: Any, cal: Any) -> list[str]:
                     f"neutral {cal[role].neutral_target:.2f} {cal[role].unit}: set neutral_deg/neutral_mm in "
                     f"head.toml or recalibrate the role"
                 )
+        if not problems:
+            for w in _apex_warnings(head, cal, face, gate):
+                print(f"warning: {w}")
     except (SimError, CalibrationError) as err:
         problems.append(str(err))
     return problems
@@ -242,6 +245,39 @@ def _report(head: Any, cal: Any, args: argparse.Namespace) -> None:
         }
         args.json.write_text(json.dumps(data, indent=2) + "\n")
         print(f"wrote {args.json}")
+
+
+def _apex_warnings(head: Any, cal: Any, face: Any, gate: Any) -> list[str]:
+    """One line per library expression whose apex the twin gate refuses as a pose (a coupling rule, skin
+    strain, a collision: `TwinGate.audit`, every state check without shortcuts): played on this head, the gate
+    holds the face short of it. Targets outside a servo's calibrated range are clamped first, as the pipeline
+    does."""
+    from servoface.sim.errors import SimError
+    from servoface.sim.expressions import load_library
+
+    library = load_library(head.expressions_path or head.face_type)
+    out = []
+    for name, expression in library.items():
+        if name == "neutral":
+            continue
+        try:
+            targets = face.solve(_apex(expression)).actuator_targets
+        except SimError:
+            continue  # a pose the head refuses is its own problem, reported by the expressiveness report
+        clamped = {
+            role: min(max(value, cal[role].min_target), cal[role].max_target)
+            for role, value in targets.items()
+            if role in cal.roles
+        }
+        findings = [f for f in gate.audit(cal.targets_to_goals(clamped)) if f.check != "limit"]
+        if findings:
+            more = f" (and {len(findings) - 1} more)" if len(findings) > 1 else ""
+            out.append(
+                f"library expression {name!r} at its apex breaks {findings[0]}{more}: the twin gate holds the "
+                f"face short of it on this head (loosen the rule in head.toml, or lower its AUs in the expression, "
+                f"the AU table or the direct table)"
+            )
+    return out
 
 
 def _apex(expression: Any) -> dict[str, float]:
