@@ -97,7 +97,8 @@ def load_part_mesh(spec: str, folder: Path, where: str, scale: float = 1.0) -> A
         src = _read_file(spec, folder, where)
         mesh = trimesh.Trimesh(np.asarray(src.vertices, dtype=np.float64), np.asarray(src.faces), process=False)
     if scale != 1.0:
-        mesh.vertices = np.asarray(mesh.vertices) * scale
+        with np.errstate(over="ignore"):  # a scale that overflows is refused just below, by name
+            mesh.vertices = np.asarray(mesh.vertices) * scale
     _check_extent(np.asarray(mesh.vertices), spec, where, scale)
     return mesh
 
@@ -117,7 +118,8 @@ def load_skin_mesh(spec: str, folder: Path, where: str, scale: float = 1.0) -> t
         vis = getattr(src, "visual", None)
         if vis is not None and getattr(vis, "kind", None) == "vertex":
             c = np.asarray(vis.vertex_colors, dtype=np.float64)[:, :4] / 255.0
-    v = v * scale
+    with np.errstate(over="ignore"):  # a scale that overflows is refused just below, by name
+        v = v * scale
     _check_extent(v, spec, where, scale)
     return v, f, c
 
@@ -125,8 +127,7 @@ def load_skin_mesh(spec: str, folder: Path, where: str, scale: float = 1.0) -> t
 def _check_extent(vertices: F64, spec: str, where: str, scale: float) -> None:
     """HeadMeshError for a mesh with a vertex beyond ``COORD_LIMIT_MM`` of the head's origin once scaled:
     a wrong ``scale`` or unit (a head is well under 1.5 m), and numbers whose squares would overflow."""
-    with np.errstate(all="ignore"):
-        far = float(np.max(np.abs(vertices))) if len(vertices) else 0.0
+    far = float(np.max(np.abs(vertices))) if len(vertices) else 0.0
     if not far <= COORD_LIMIT_MM:
         raise HeadMeshError(
             f"{where}: expected vertices within +-{COORD_LIMIT_MM:g} mm of the head's origin, mesh {spec} "

@@ -321,3 +321,15 @@ def test_a_mesh_beyond_ten_metres_is_refused_with_its_scale(tmp_path: Path) -> N
     _edit(folder, 'mesh = "builtin:human_jaw"', 'mesh = "builtin:human_jaw"\nscale = 1000.0')
     with pytest.raises(HeadMeshError, match=r"part\[2\]\.mesh: expected vertices within \+-10000 mm .* at scale 1000"):
         load_profile(folder)
+
+
+def test_a_scale_that_overflows_is_refused_without_a_numpy_warning(tmp_path: Path) -> None:
+    """scale = 1e308 makes the jaw's vertices inf: the same refusal by name, and no RuntimeWarning printed."""
+    import warnings
+
+    folder = _copy(tmp_path)
+    _edit(folder, 'mesh = "builtin:human_jaw"', 'mesh = "builtin:human_jaw"\nscale = 1e308')
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(HeadMeshError, match=r"part\[2\]\.mesh: expected vertices within .* reaches inf mm"):
+            load_profile(folder)
